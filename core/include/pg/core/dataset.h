@@ -1,0 +1,98 @@
+#pragma once
+// The dataset format: what the renderer writes and the tracker reads.
+//
+//   DIR/dataset.json      sensor model, image size, frame count, outputs, scene, seed, object
+//   DIR/poses.csv         one row per frame (world frame, metres, unit quaternions x y z w)
+//   DIR/color/000000.png  8-bit RGB           DIR/normal/000000.exr  float xyz in S
+//   DIR/depth/000000.exr  indentation [m]     DIR/mask/000000.png    contact 0/255
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "pg/core/image.h"
+#include "pg/core/sensor.h"
+
+namespace pg {
+
+// Names of the per-frame image outputs, in file order.
+const std::vector<std::string>& dataset_output_names();
+
+struct FramePose {
+  int frame = 0;
+  double time_s = 0.0;
+  SE3 T_world_object;
+  SE3 T_world_sensor;
+  bool contact = false;
+};
+
+struct DatasetInfo {
+  SensorModel sensor;
+  int frames = 0;
+  double fps = 60.0;
+  std::vector<std::string> outputs;  // subset of dataset_output_names()
+  std::string scene;                 // scene file it was rendered from ("" if none)
+  std::uint64_t seed = 0;
+  std::string object_name;  // the tracked object
+  std::string object_mesh;  // its mesh file (absolute path), for model-based baselines
+  double object_scale = 1.0;
+
+  bool has_output(const std::string& name) const;
+  int width() const { return sensor.camera.width; }
+  int height() const { return sensor.camera.height; }
+};
+
+struct FrameImages {
+  ImageU8 color;   // width x height x 3
+  ImageF normal;   // width x height x 3, unit normals in S
+  ImageF depth;    // width x height x 1, gel indentation [m]
+  ImageU8 mask;    // width x height x 1, 0 or 255
+};
+
+// Path of one frame's image for an output, e.g. DIR/color/000042.png.
+std::string dataset_frame_path(const std::string& dir, const std::string& output, int frame);
+
+// Writes a dataset. Frames may be written from several threads, in any order.
+class DatasetWriter {
+ public:
+  // Creates DIR and the output folders and writes dataset.json. Throws InputError naming the path.
+  DatasetWriter(std::string dir, DatasetInfo info);
+  // Writes the requested outputs (each must be present and of the sensor's image size).
+  void write_frame(const FramePose& pose, const FrameImages& images);
+  // Writes poses.csv; every frame 0..frames-1 must have been written.
+  void finish();
+
+ private:
+  std::string dir_;
+  DatasetInfo info_;
+  std::vector<FramePose> poses_;
+  std::vector<char> written_;
+  std::mutex mutex_;
+};
+
+class Dataset {
+ public:
+  // Reads and checks dataset.json and poses.csv, and that every frame's files exist. Throws
+  // InputError naming the file (and row/field) for anything missing, malformed or non-finite.
+  static Dataset open(const std::string& dir);
+
+  const std::string& dir() const { return dir_; }
+  const DatasetInfo& info() const { return info_; }
+  const std::vector<FramePose>& poses() const { return poses_; }
+  int frames() const { return info_.frames; }
+
+  // Each checks the image size and channel count against dataset.json.
+  ImageU8 color(int frame) const;
+  ImageF normal(int frame) const;
+  ImageF depth(int frame) const;
+  ImageU8 mask(int frame) const;
+
+ private:
+  std::string dir_;
+  DatasetInfo info_;
+  std::vector<FramePose> poses_;
+};
+
+void write_poses_csv(const std::string& path, const std::vector<FramePose>& poses);
+std::vector<FramePose> read_poses_csv(const std::string& path);
+
+}  // namespace pg

@@ -1,0 +1,48 @@
+#pragma once
+// Images as the sensor streams them: width x height, 1-3 interleaved channels, row-major.
+// File I/O goes through OpenImageIO (PNG, EXR, JPEG, ...), chosen by the file extension.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pg {
+
+template <typename T>
+struct Image {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::vector<T> data;  // index (y * width + x) * channels + c
+
+  Image() = default;
+  Image(int w, int h, int c, T fill = T()) : width(w), height(h), channels(c), data(std::size_t(w) * h * c, fill) {}
+
+  bool empty() const { return data.empty(); }
+  std::size_t index(int x, int y, int c = 0) const {
+    return (std::size_t(y) * width + x) * channels + c;
+  }
+  T& at(int x, int y, int c = 0) { return data[index(x, y, c)]; }
+  const T& at(int x, int y, int c = 0) const { return data[index(x, y, c)]; }
+  bool same_shape(int w, int h, int c) const { return width == w && height == h && channels == c; }
+};
+
+using ImageF = Image<float>;
+using ImageU8 = Image<std::uint8_t>;
+
+// Reads any format OpenImageIO knows. 8-bit files read as float are scaled to [0, 1].
+// Throws InputError naming the path when the file is missing or unreadable.
+ImageF read_image_float(const std::string& path);
+ImageU8 read_image_u8(const std::string& path);
+
+// Writes by extension. Float images go to EXR as 32-bit float; to PNG/JPEG they are clamped to
+// [0, 1] and quantised to 8 bits. Throws InputError naming the path on failure.
+void write_image(const std::string& path, const ImageF& image);
+void write_image(const std::string& path, const ImageU8& image);
+
+// Reads only the header: width, height and channel count. Throws like read_image_*.
+struct ImageShape {
+  int width = 0, height = 0, channels = 0;
+};
+ImageShape read_image_shape(const std::string& path);
+
+}  // namespace pg

@@ -1,0 +1,82 @@
+#pragma once
+// Reading JSON config and scene files with errors that name the file and the field.
+//
+//   JsonFields f(json, "scene.json: objects[0]");
+//   double s = f.optional<double>("scale", 1.0);
+//   f.finish();  // any key not read above is an "unknown key" error
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+// Parses a JSON file. Throws InputError "PATH:LINE:COLUMN: message" on malformed JSON and
+// "PATH: cannot read" for a missing file.
+nlohmann::json parse_json_file(const std::string& path);
+// Same for text already in memory; `name` stands for the file in messages.
+nlohmann::json parse_json_text(const std::string& text, const std::string& name);
+
+std::string json_type_name(const nlohmann::json& j);
+
+class JsonFields {
+ public:
+  // `where` prefixes every message, e.g. "scenes/a.json: objects[1]". Throws if j is no object.
+  JsonFields(const nlohmann::json& j, std::string where);
+
+  bool has(const std::string& key) const;
+  // The raw value of a key (which counts as read); throws if it is missing.
+  const nlohmann::json& at(const std::string& key);
+  // "where.key" (or "where: key" at the top), for messages about a sub-field.
+  std::string field(const std::string& key) const;
+
+  template <typename T>
+  T required(const std::string& key) {
+    return convert<T>(at(key), key);
+  }
+  template <typename T>
+  T optional(const std::string& key, const T& fallback) {
+    return has(key) ? required<T>(key) : fallback;
+  }
+  // A number in [lo, hi]; the error names the key and the range.
+  double number_in(const std::string& key, double lo, double hi, double fallback);
+  double required_number_in(const std::string& key, double lo, double hi);
+
+  // Throws InputError naming the first key that was never read.
+  void finish() const;
+
+ private:
+  template <typename T>
+  T convert(const nlohmann::json& v, const std::string& key) const;
+  [[noreturn]] void type_error(const std::string& key, const char* expected,
+                               const nlohmann::json& v) const;
+
+  const nlohmann::json& j_;
+  std::string where_;
+  std::set<std::string> read_;
+};
+
+template <>
+double JsonFields::convert<double>(const nlohmann::json& v, const std::string& key) const;
+template <>
+int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) const;
+template <>
+bool JsonFields::convert<bool>(const nlohmann::json& v, const std::string& key) const;
+template <>
+std::string JsonFields::convert<std::string>(const nlohmann::json& v,
+                                             const std::string& key) const;
+template <>
+Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
+                                                     const std::string& key) const;
+template <>
+std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
+    const nlohmann::json& v, const std::string& key) const;
+template <>
+std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
+                                                 const std::string& key) const;
+
+}  // namespace pg

@@ -1,0 +1,205 @@
+#pragma once
+// Rigid-body transforms and the small amount of Lie-group math the project needs.
+//
+// Tangent vectors are ordered xi = [rho; phi]: translation part first, rotation part second, as in
+// Sophus. T_a_b maps points from frame b to frame a. Everything is templated on the scalar so that
+// Ceres' autodiff Jets pass through.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
+
+namespace pg {
+
+template <typename T>
+using Vec3 = Eigen::Matrix<T, 3, 1>;
+template <typename T>
+using Vec6 = Eigen::Matrix<T, 6, 1>;
+template <typename T>
+using Mat3 = Eigen::Matrix<T, 3, 3>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// Below this squared angle [rad^2] the closed forms switch to their Taylor series.
+constexpr double kSmallAngleSq = 1e-10;
+
+template <typename T>
+Mat3<T> hat(const Vec3<T>& w) {
+  Mat3<T> K;
+  K << T(0), -w.z(), w.y(), w.z(), T(0), -w.x(), -w.y(), w.x(), T(0);
+  return K;
+}
+
+// SO(3) exponential as a unit quaternion.
+template <typename T>
+Eigen::Quaternion<T> so3_exp(const Vec3<T>& phi) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T theta_sq = phi.squaredNorm();
+  T w, k;  // q = [w, k * phi]
+  if (theta_sq < T(kSmallAngleSq)) {
+    w = T(1) - theta_sq / T(8);
+    k = T(0.5) - theta_sq / T(48);
+  } else {
+    const T theta = sqrt(theta_sq);
+    w = cos(theta / T(2));
+    k = sin(theta / T(2)) / theta;
+  }
+  return Eigen::Quaternion<T>(w, k * phi.x(), k * phi.y(), k * phi.z());
+}
+
+// SO(3) logarithm of a unit quaternion: the rotation vector with angle in [0, pi].
+template <typename T>
+Vec3<T> so3_log(const Eigen::Quaternion<T>& q_in) {
+  using std::atan2;
+  using std::sqrt;
+  // q and -q are the same rotation; pick w >= 0 so the angle is at most pi.
+  const Eigen::Quaternion<T> q = q_in.w() < T(0) ? Eigen::Quaternion<T>(-q_in.coeffs()) : q_in;
+  const Vec3<T> v = q.vec();
+  const T n_sq = v.squaredNorm();
+  if (n_sq < T(kSmallAngleSq)) {
+    // atan2(n, w) / n = (1 / w) (1 - n^2 / (3 w^2)) + O(n^4)
+    return T(2) / q.w() * (T(1) - n_sq / (T(3) * q.w() * q.w())) * v;
+  }
+  const T n = sqrt(n_sq);
+  return T(2) * atan2(n, q.w()) / n * v;
+}
+
+// Left Jacobian of SO(3): exp(phi + d) ~= exp(Jl(phi) d) exp(phi). Also the V matrix of SE(3).
+template <typename T>
+Mat3<T> so3_left_jacobian(const Vec3<T>& phi) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T theta_sq = phi.squaredNorm();
+  const Mat3<T> K = hat(phi);
+  if (theta_sq < T(kSmallAngleSq)) {
+    return Mat3<T>::Identity() + T(0.5) * K + K * K / T(6);
+  }
+  const T theta = sqrt(theta_sq);
+  return Mat3<T>::Identity() + (T(1) - cos(theta)) / theta_sq * K +
+         (theta - sin(theta)) / (theta_sq * theta) * K * K;
+}
+
+template <typename T>
+Mat3<T> so3_left_jacobian_inverse(const Vec3<T>& phi) {
+  using std::cos;
+  using std::sin;
+  using std::sqrt;
+  const T theta_sq = phi.squaredNorm();
+  const Mat3<T> K = hat(phi);
+  if (theta_sq < T(kSmallAngleSq)) {
+    return Mat3<T>::Identity() - T(0.5) * K + K * K / T(12);
+  }
+  const T theta = sqrt(theta_sq);
+  const T c = T(1) / theta_sq - (T(1) + cos(theta)) / (T(2) * theta * sin(theta));
+  return Mat3<T>::Identity() - T(0.5) * K + c * K * K;
+}
+
+// Right Jacobians: exp(phi + d) ~= exp(phi) exp(Jr(phi) d); Jr(phi) = Jl(-phi).
+template <typename T>
+Mat3<T> so3_right_jacobian(const Vec3<T>& phi) {
+  return so3_left_jacobian<T>(-phi);
+}
+template <typename T>
+Mat3<T> so3_right_jacobian_inverse(const Vec3<T>& phi) {
+  return so3_left_jacobian_inverse<T>(-phi);
+}
+
+template <typename T>
+class SE3T {
+ public:
+  using Quat = Eigen::Quaternion<T>;
+
+  SE3T() : q_(Quat::Identity()), t_(Vec3<T>::Zero()) {}
+  // The quaternion is normalised here, so callers may pass any non-zero quaternion.
+  SE3T(const Quat& q, const Vec3<T>& t) : q_(q.normalized()), t_(t) {}
+  SE3T(const Mat3<T>& R, const Vec3<T>& t) : q_(Quat(R).normalized()), t_(t) {}
+
+  static SE3T Identity() { return SE3T(); }
+  static SE3T Translation(const Vec3<T>& t) { return SE3T(Quat::Identity(), t); }
+
+  // exp([rho; phi]) = (exp(phi), Jl(phi) rho).
+  static SE3T exp(const Vec6<T>& xi) {
+    const Vec3<T> rho = xi.template head<3>();
+    const Vec3<T> phi = xi.template tail<3>();
+    return SE3T(so3_exp<T>(phi), so3_left_jacobian<T>(phi) * rho);
+  }
+
+  Vec6<T> log() const {
+    const Vec3<T> phi = so3_log<T>(q_);
+    Vec6<T> xi;
+    xi << so3_left_jacobian_inverse<T>(phi) * t_, phi;
+    return xi;
+  }
+
+  SE3T inverse() const {
+    const Quat q_inv = q_.conjugate();
+    return SE3T(q_inv, -(q_inv * t_));
+  }
+
+  SE3T operator*(const SE3T& other) const { return SE3T(q_ * other.q_, q_ * other.t_ + t_); }
+  Vec3<T> operator*(const Vec3<T>& p) const { return q_ * p + t_; }
+
+  const Quat& rotation() const { return q_; }
+  const Vec3<T>& translation() const { return t_; }
+  Mat3<T> rotation_matrix() const { return q_.toRotationMatrix(); }
+
+  Eigen::Matrix<T, 4, 4> matrix() const {
+    Eigen::Matrix<T, 4, 4> M = Eigen::Matrix<T, 4, 4>::Identity();
+    M.template topLeftCorner<3, 3>() = rotation_matrix();
+    M.template topRightCorner<3, 1>() = t_;
+    return M;
+  }
+
+  // Adjoint: T exp(xi) T^-1 = exp(Ad_T xi), for xi = [rho; phi].
+  Eigen::Matrix<T, 6, 6> adjoint() const {
+    const Mat3<T> R = rotation_matrix();
+    Eigen::Matrix<T, 6, 6> A = Eigen::Matrix<T, 6, 6>::Zero();
+    A.template topLeftCorner<3, 3>() = R;
+    A.template topRightCorner<3, 3>() = hat<T>(t_) * R;
+    A.template bottomRightCorner<3, 3>() = R;
+    return A;
+  }
+
+  template <typename U>
+  SE3T<U> cast() const {
+    return SE3T<U>(q_.template cast<U>(), t_.template cast<U>());
+  }
+
+ private:
+  Quat q_;
+  Vec3<T> t_;
+};
+
+using SE3 = SE3T<double>;
+
+// The paper's ominus: the tangent vector from A to B, log(A^-1 B).
+template <typename T>
+Vec6<T> ominus(const SE3T<T>& A, const SE3T<T>& B) {
+  return (A.inverse() * B).log();
+}
+
+// Geodesic angle of a rotation [rad], in [0, pi].
+inline double rotation_angle(const Eigen::Quaterniond& q) {
+  return 2.0 * std::atan2(q.vec().norm(), std::abs(q.w()));
+}
+// Geodesic rotation distance between two poses [rad].
+inline double rotation_distance(const SE3& A, const SE3& B) {
+  return rotation_angle(A.rotation().conjugate() * B.rotation());
+}
+inline double translation_distance(const SE3& A, const SE3& B) {
+  return (A.translation() - B.translation()).norm();
+}
+
+// Roll-pitch-yaw [rad] as R = Rz(yaw) Ry(pitch) Rx(roll) (rotations about the fixed x, y, z axes).
+Eigen::Quaterniond quaternion_from_rpy(const Eigen::Vector3d& rpy);
+Eigen::Vector3d rpy_from_quaternion(const Eigen::Quaterniond& q);
+SE3 pose_from_position_rpy(const Eigen::Vector3d& position, const Eigen::Vector3d& rpy);
+
+// Linear in translation, slerp in rotation; s in [0, 1].
+SE3 interpolate(const SE3& A, const SE3& B, double s);
+
+bool is_finite(const SE3& T);
+
+}  // namespace pg

@@ -1,0 +1,92 @@
+#pragma once
+// The vision-based tactile sensor: camera, gel, lights, noise. Values are SI (metres, radians).
+// Sensor frame S: origin at the centre of the undeformed gel surface, +z out of the sensor toward
+// the touched object, +x image right, +y image down. The camera sits on the -z axis.
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+#include <vector>
+
+#include "pg/core/se3.h"
+
+namespace pg {
+
+// Pinhole camera; pixel (i, j) has its centre at u = i, v = j (OpenCV convention).
+struct CameraModel {
+  int width = 120;   // [px]
+  int height = 160;  // [px]
+  double fx = 0, fy = 0, cx = 0, cy = 0;  // [px]
+  double near_m = 0.001;      // near clipping plane [m]
+  double distance_m = 0.022;  // camera centre behind the gel centre, on the -z axis [m]
+
+  static CameraModel from_vertical_fov(int width, int height, double fov_y_rad,
+                                       double distance_m, double near_m);
+  // The same camera at another image size (intrinsics scaled with the image).
+  CameraModel resized(int new_width, int new_height) const;
+
+  SE3 T_sensor_camera() const { return SE3::Translation({0.0, 0.0, -distance_m}); }
+  // Ray direction in the camera frame through pixel coordinates (u, v), with z = 1.
+  Eigen::Vector3d ray(double u, double v) const { return {(u - cx) / fx, (v - cy) / fy, 1.0}; }
+  Eigen::Vector2d project(const Eigen::Vector3d& p_camera) const {
+    return {fx * p_camera.x() / p_camera.z() + cx, fy * p_camera.y() / p_camera.z() + cy};
+  }
+};
+
+// How the gel's surface moves around a contact. With `enabled` false the gel is rigid (TACTO's
+// z-buffer model: the gel takes the object's shape exactly where it is penetrated, nothing else).
+struct ElasticModel {
+  bool enabled = true;
+  // Fall-off length of the surface displacement around a contact [m]; about the thickness of the
+  // elastomer layer, since a layer bonded to a rigid backing only spreads load over that distance.
+  double length_m = 0.0006;
+  // Fraction of the contact's local displacement that the surface just outside the contact edge
+  // keeps (0 = rigid, 1 = the gel surface hangs at the contact depth before falling off).
+  double coupling = 0.5;
+};
+
+struct GelModel {
+  double width_m = 0.020;   // along x [m]
+  double height_m = 0.030;  // along y [m]
+  // Convex profile: a sphere cap of radius profile_radius_m, rescaled so that the corners sit
+  // sag_m behind the centre (TACTO's DIGIT gel: R = 0.1 m rescaled to 5 mm).
+  double sag_m = 0.005;
+  double profile_radius_m = 0.1;
+  // Deepest indentation the gel takes [m]; deeper penetration is clamped (and counted).
+  double max_indentation_m = 0.002;
+  ElasticModel elastic;
+
+  // z of the undeformed gel surface in S at (x, y) [m]; 0 at the centre, -sag_m at the corners.
+  double surface_z(double x, double y) const;
+};
+
+struct PointLight {
+  Eigen::Vector3d position_m = Eigen::Vector3d::Zero();  // in S [m]
+  Eigen::Vector3d color = Eigen::Vector3d::Ones();       // linear RGB in [0, 1]
+  double intensity = 1.0;
+};
+
+struct NoiseModel {
+  double sigma = 7.0;  // Gaussian pixel noise on the 0-255 scale, after blending
+};
+
+struct SensorModel {
+  std::string name = "digit";
+  CameraModel camera;
+  GelModel gel;
+  std::vector<PointLight> lights;
+  NoiseModel noise;
+};
+
+// Built-in presets: "digit" (120x160, the paper's simulation), "digit_240x320" (the real DIGIT
+// stream), "gelsight_mini" (240x320, about 0.065 mm/px). Throws InputError for other names.
+SensorModel sensor_preset(const std::string& name);
+std::vector<std::string> sensor_preset_names();
+
+// JSON form: {"preset": NAME, "width": W, "height": H, "camera": {...}, "gel": {...},
+// "lights": [...], "noise": {...}}; every key optional, each overrides the preset (default
+// "digit"). `where` names the file/field in error messages. Unknown keys and out-of-range values
+// throw InputError naming the key.
+SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where);
+nlohmann::json sensor_to_json(const SensorModel& sensor);
+SensorModel load_sensor_file(const std::string& path);
+
+}  // namespace pg

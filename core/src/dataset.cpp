@@ -1,0 +1,291 @@
+#include "pg/core/dataset.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "pg/core/error.h"
+#include "pg/core/json_fields.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+const char* kPosesHeader =
+    "frame,time,obj_x,obj_y,obj_z,obj_qx,obj_qy,obj_qz,obj_qw,"
+    "sensor_x,sensor_y,sensor_z,sensor_qx,sensor_qy,sensor_qz,sensor_qw,contact";
+constexpr int kPosesColumns = 17;
+constexpr int kFormatVersion = 1;
+
+std::string extension_of(const std::string& output) {
+  return (output == "normal" || output == "depth") ? ".exr" : ".png";
+}
+
+int channels_of(const std::string& output) {
+  return (output == "color" || output == "normal") ? 3 : 1;
+}
+
+void check_shape(const std::string& path, const ImageShape& got, int w, int h, int c) {
+  if (got.width != w || got.height != h || got.channels != c) {
+    throw InputError(path + ": image is " + std::to_string(got.width) + "x" +
+                     std::to_string(got.height) + "x" + std::to_string(got.channels) +
+                     ", dataset.json says " + std::to_string(w) + "x" + std::to_string(h) + "x" +
+                     std::to_string(c));
+  }
+}
+
+template <typename T>
+void check_image(const std::string& path, const Image<T>& image, int w, int h, int c) {
+  check_shape(path, {image.width, image.height, image.channels}, w, h, c);
+}
+
+nlohmann::json info_to_json(const DatasetInfo& info) {
+  return {{"format", "patchgraph-dataset"},
+          {"version", kFormatVersion},
+          {"sensor", sensor_to_json(info.sensor)},
+          {"width", info.width()},
+          {"height", info.height()},
+          {"frames", info.frames},
+          {"fps", info.fps},
+          {"outputs", info.outputs},
+          {"scene", info.scene},
+          {"seed", info.seed},
+          {"object", {{"name", info.object_name}, {"mesh", info.object_mesh},
+                      {"scale", info.object_scale}}}};
+}
+
+DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
+  JsonFields f(j, path);
+  if (f.required<std::string>("format") != "patchgraph-dataset") {
+    throw InputError(f.field("format") + ": expected \"patchgraph-dataset\"");
+  }
+  const int version = f.required<int>("version");
+  if (version != kFormatVersion) {
+    throw InputError(f.field("version") + ": unsupported version " + std::to_string(version));
+  }
+  DatasetInfo info;
+  info.sensor = sensor_from_json(f.at("sensor"), f.field("sensor"));
+  const int w = f.required<int>("width"), h = f.required<int>("height");
+  if (w != info.width() || h != info.height()) {
+    throw InputError(f.field("width") + ": image size " + std::to_string(w) + "x" +
+                     std::to_string(h) + " disagrees with the sensor's camera");
+  }
+  info.frames = f.required<int>("frames");
+  if (info.frames < 0) throw InputError(f.field("frames") + ": must be >= 0");
+  info.fps = f.required_number_in("fps", 1e-6, 1e6);
+  info.outputs = f.required<std::vector<std::string>>("outputs");
+  for (const auto& o : info.outputs) {
+    const auto& names = dataset_output_names();
+    if (std::find(names.begin(), names.end(), o) == names.end()) {
+      throw InputError(f.field("outputs") + ": unknown output '" + o + "'");
+    }
+  }
+  info.scene = f.optional<std::string>("scene", "");
+  info.seed = f.optional<std::uint64_t>("seed", 0);
+  if (f.has("object")) {
+    JsonFields o(f.at("object"), f.field("object"));
+    info.object_name = o.optional<std::string>("name", "");
+    info.object_mesh = o.optional<std::string>("mesh", "");
+    info.object_scale = o.number_in("scale", 1e-9, 1e9, 1.0);
+    o.finish();
+  }
+  f.finish();
+  return info;
+}
+
+void write_text_atomically(const std::string& path, const std::string& text) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out << text;
+    if (!out) throw InputError(path + ": cannot write");
+  }
+  fs::rename(tmp, path);
+}
+
+}  // namespace
+
+const std::vector<std::string>& dataset_output_names() {
+  static const std::vector<std::string> names = {"color", "normal", "depth", "mask"};
+  return names;
+}
+
+bool DatasetInfo::has_output(const std::string& name) const {
+  return std::find(outputs.begin(), outputs.end(), name) != outputs.end();
+}
+
+std::string dataset_frame_path(const std::string& dir, const std::string& output, int frame) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "%06d", frame);
+  return (fs::path(dir) / output / (name + extension_of(output))).string();
+}
+
+void write_poses_csv(const std::string& path, const std::vector<FramePose>& poses) {
+  std::ostringstream out;
+  out.precision(std::numeric_limits<double>::max_digits10);
+  out << kPosesHeader << "\n";
+  for (const auto& p : poses) {
+    const auto& to = p.T_world_object.translation();
+    const auto& qo = p.T_world_object.rotation();
+    const auto& ts = p.T_world_sensor.translation();
+    const auto& qs = p.T_world_sensor.rotation();
+    out << p.frame << "," << p.time_s << "," << to.x() << "," << to.y() << "," << to.z() << ","
+        << qo.x() << "," << qo.y() << "," << qo.z() << "," << qo.w() << "," << ts.x() << ","
+        << ts.y() << "," << ts.z() << "," << qs.x() << "," << qs.y() << "," << qs.z() << ","
+        << qs.w() << "," << (p.contact ? 1 : 0) << "\n";
+  }
+  write_text_atomically(path, out.str());
+}
+
+std::vector<FramePose> read_poses_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
+  std::string line;
+  if (!std::getline(in, line) || line != kPosesHeader) {
+    throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) + "'");
+  }
+  std::vector<FramePose> poses;
+  int line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (line.empty()) continue;
+    const std::string where = path + ": line " + std::to_string(line_no);
+    std::vector<double> v;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) {
+      char* end = nullptr;
+      const double d = std::strtod(cell.c_str(), &end);
+      if (cell.empty() || end != cell.c_str() + cell.size()) {
+        throw InputError(where + ": '" + cell + "' is not a number");
+      }
+      v.push_back(d);
+    }
+    if (int(v.size()) != kPosesColumns) {
+      throw InputError(where + ": expected " + std::to_string(kPosesColumns) + " columns, got " +
+                       std::to_string(v.size()));
+    }
+    for (int c = 0; c < kPosesColumns; ++c) {
+      if (!std::isfinite(v[c])) throw InputError(where + ": non-finite value in column " + std::to_string(c + 1));
+    }
+    const Eigen::Quaterniond qo(v[8], v[5], v[6], v[7]), qs(v[15], v[12], v[13], v[14]);
+    for (const auto* q : {&qo, &qs}) {
+      if (std::abs(q->norm() - 1.0) > 1e-6) {
+        throw InputError(where + ": quaternion is not unit length (norm " +
+                         std::to_string(q->norm()) + ")");
+      }
+    }
+    FramePose p;
+    p.frame = int(v[0]);
+    if (p.frame != int(poses.size()) || v[0] != double(p.frame)) {
+      throw InputError(where + ": expected frame " + std::to_string(poses.size()));
+    }
+    p.time_s = v[1];
+    p.T_world_object = SE3(qo, Eigen::Vector3d(v[2], v[3], v[4]));
+    p.T_world_sensor = SE3(qs, Eigen::Vector3d(v[9], v[10], v[11]));
+    if (v[16] != 0.0 && v[16] != 1.0) throw InputError(where + ": contact must be 0 or 1");
+    p.contact = v[16] == 1.0;
+    poses.push_back(p);
+  }
+  return poses;
+}
+
+DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info)
+    : dir_(std::move(dir)), info_(std::move(info)), poses_(info_.frames), written_(info_.frames, 0) {
+  std::error_code ec;
+  fs::create_directories(dir_, ec);
+  if (ec) throw InputError(dir_ + ": cannot create the dataset folder: " + ec.message());
+  for (const auto& o : info_.outputs) {
+    fs::create_directories(fs::path(dir_) / o, ec);
+    if (ec) throw InputError(dir_ + "/" + o + ": cannot create: " + ec.message());
+  }
+  write_text_atomically((fs::path(dir_) / "dataset.json").string(),
+                        info_to_json(info_).dump(2) + "\n");
+}
+
+void DatasetWriter::write_frame(const FramePose& pose, const FrameImages& images) {
+  if (pose.frame < 0 || pose.frame >= info_.frames) {
+    throw std::out_of_range("DatasetWriter: frame " + std::to_string(pose.frame) + " out of range");
+  }
+  const int w = info_.width(), h = info_.height();
+  for (const auto& o : info_.outputs) {
+    const std::string path = dataset_frame_path(dir_, o, pose.frame);
+    if (o == "color") check_image(path, images.color, w, h, 3), write_image(path, images.color);
+    if (o == "normal") check_image(path, images.normal, w, h, 3), write_image(path, images.normal);
+    if (o == "depth") check_image(path, images.depth, w, h, 1), write_image(path, images.depth);
+    if (o == "mask") check_image(path, images.mask, w, h, 1), write_image(path, images.mask);
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  poses_[pose.frame] = pose;
+  written_[pose.frame] = 1;
+}
+
+void DatasetWriter::finish() {
+  const auto missing = std::find(written_.begin(), written_.end(), 0);
+  if (missing != written_.end()) {
+    throw std::logic_error("DatasetWriter::finish: frame " +
+                           std::to_string(missing - written_.begin()) + " was never written");
+  }
+  write_poses_csv((fs::path(dir_) / "poses.csv").string(), poses_);
+}
+
+Dataset Dataset::open(const std::string& dir) {
+  if (!fs::is_directory(dir)) throw InputError(dir + ": dataset folder not found");
+  Dataset d;
+  d.dir_ = dir;
+  const std::string info_path = (fs::path(dir) / "dataset.json").string();
+  d.info_ = info_from_json(parse_json_file(info_path), info_path);
+  const std::string poses_path = (fs::path(dir) / "poses.csv").string();
+  d.poses_ = read_poses_csv(poses_path);
+  if (int(d.poses_.size()) != d.info_.frames) {
+    throw InputError(poses_path + ": has " + std::to_string(d.poses_.size()) +
+                     " frames, dataset.json says " + std::to_string(d.info_.frames));
+  }
+  for (const auto& o : d.info_.outputs) {
+    for (int i = 0; i < d.info_.frames; ++i) {
+      const std::string path = dataset_frame_path(dir, o, i);
+      if (!fs::is_regular_file(path)) throw InputError(path + ": missing frame file");
+    }
+  }
+  return d;
+}
+
+namespace {
+
+template <typename T, typename Reader>
+Image<T> read_checked(const Dataset& d, const std::string& output, int frame, Reader read) {
+  if (!d.info().has_output(output)) {
+    throw InputError(d.dir() + ": dataset has no '" + output + "' output");
+  }
+  if (frame < 0 || frame >= d.frames()) {
+    throw InputError(d.dir() + ": frame " + std::to_string(frame) + " out of range");
+  }
+  const std::string path = dataset_frame_path(d.dir(), output, frame);
+  Image<T> image = read(path);
+  check_image(path, image, d.info().width(), d.info().height(), channels_of(output));
+  return image;
+}
+
+}  // namespace
+
+ImageU8 Dataset::color(int frame) const {
+  return read_checked<std::uint8_t>(*this, "color", frame, read_image_u8);
+}
+ImageF Dataset::normal(int frame) const {
+  return read_checked<float>(*this, "normal", frame, read_image_float);
+}
+ImageF Dataset::depth(int frame) const {
+  return read_checked<float>(*this, "depth", frame, read_image_float);
+}
+ImageU8 Dataset::mask(int frame) const {
+  return read_checked<std::uint8_t>(*this, "mask", frame, read_image_u8);
+}
+
+}  // namespace pg

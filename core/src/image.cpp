@@ -1,0 +1,86 @@
+#include "pg/core/image.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <cctype>
+#include <filesystem>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace {
+
+std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) {
+    throw InputError(path + ": image file not found");
+  }
+  auto in = OIIO::ImageInput::open(path);
+  if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
+  return in;
+}
+
+template <typename T>
+Image<T> read_image(const std::string& path, OIIO::TypeDesc type) {
+  auto in = open_input(path);
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.nchannels < 1 || spec.width < 1 || spec.height < 1) {
+    throw InputError(path + ": image has no pixels");
+  }
+  Image<T> image(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, type, image.data.data())) {
+    throw InputError(path + ": cannot decode image: " + in->geterror());
+  }
+  in->close();
+  return image;
+}
+
+bool holds_float(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext == ".exr" || ext == ".tif" || ext == ".tiff" || ext == ".hdr" || ext == ".pfm";
+}
+
+template <typename T>
+void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_type) {
+  if (image.empty() || image.channels < 1 || image.channels > 4) {
+    throw InputError(path + ": refusing to write an empty image or one with " +
+                     std::to_string(image.channels) + " channels");
+  }
+  auto out = OIIO::ImageOutput::create(path);
+  if (!out) throw InputError(path + ": no image writer for this extension: " + OIIO::geterror());
+  // Float data goes to float files where the format supports it, 8 bits otherwise.
+  OIIO::TypeDesc file_type = mem_type;
+  if (mem_type == OIIO::TypeDesc::FLOAT && !holds_float(path)) file_type = OIIO::TypeDesc::UINT8;
+  OIIO::ImageSpec spec(image.width, image.height, image.channels, file_type);
+  if (!out->open(path, spec) || !out->write_image(mem_type, image.data.data())) {
+    throw InputError(path + ": cannot write image: " + out->geterror());
+  }
+  out->close();
+}
+
+}  // namespace
+
+ImageF read_image_float(const std::string& path) {
+  return read_image<float>(path, OIIO::TypeDesc::FLOAT);
+}
+
+ImageU8 read_image_u8(const std::string& path) {
+  return read_image<std::uint8_t>(path, OIIO::TypeDesc::UINT8);
+}
+
+void write_image(const std::string& path, const ImageF& image) {
+  write(path, image, OIIO::TypeDesc::FLOAT);
+}
+
+void write_image(const std::string& path, const ImageU8& image) {
+  write(path, image, OIIO::TypeDesc::UINT8);
+}
+
+ImageShape read_image_shape(const std::string& path) {
+  auto in = open_input(path);
+  const auto& spec = in->spec();
+  return {spec.width, spec.height, spec.nchannels};
+}
+
+}  // namespace pg

@@ -1,0 +1,170 @@
+#include "pg/core/json_fields.h"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+namespace pg {
+
+namespace {
+
+// nlohmann reports the byte offset just past the error; turn it into a 1-based line and column.
+void line_and_column(const std::string& text, std::size_t byte, int& line, int& column) {
+  line = 1;
+  column = 1;
+  const std::size_t end = std::min(byte == 0 ? 0 : byte - 1, text.size());
+  for (std::size_t i = 0; i < end; ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      column = 1;
+    } else {
+      ++column;
+    }
+  }
+}
+
+}  // namespace
+
+nlohmann::json parse_json_text(const std::string& text, const std::string& name) {
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    int line = 0, column = 0;
+    line_and_column(text, e.byte, line, column);
+    std::string what = e.what();
+    // Drop nlohmann's own "[json.exception.parse_error.101] parse error at line 1, column 2: ".
+    const auto colon = what.find(": ", what.find("parse error"));
+    if (colon != std::string::npos) what = what.substr(colon + 2);
+    throw InputError(name + ":" + std::to_string(line) + ":" + std::to_string(column) +
+                     ": malformed JSON: " + what);
+  }
+}
+
+nlohmann::json parse_json_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
+  std::stringstream buffer;
+  buffer << in.rdbuf();
+  return parse_json_text(buffer.str(), path);
+}
+
+std::string json_type_name(const nlohmann::json& j) {
+  if (j.is_number()) return "a number";
+  if (j.is_string()) return "a string";
+  if (j.is_boolean()) return "a boolean";
+  if (j.is_array()) return "an array";
+  if (j.is_object()) return "an object";
+  if (j.is_null()) return "null";
+  return j.type_name();
+}
+
+JsonFields::JsonFields(const nlohmann::json& j, std::string where)
+    : j_(j), where_(std::move(where)) {
+  if (!j_.is_object()) {
+    throw InputError(where_ + ": expected an object, got " + json_type_name(j_));
+  }
+}
+
+bool JsonFields::has(const std::string& key) const { return j_.contains(key); }
+
+std::string JsonFields::field(const std::string& key) const {
+  // "file.json: a.b" style: the first level after the file name follows ": ".
+  const bool at_top = where_.find(": ") == std::string::npos;
+  return where_ + (at_top ? ": " : ".") + key;
+}
+
+const nlohmann::json& JsonFields::at(const std::string& key) {
+  if (!has(key)) throw InputError(field(key) + ": missing required field");
+  read_.insert(key);
+  return j_.at(key);
+}
+
+void JsonFields::type_error(const std::string& key, const char* expected,
+                            const nlohmann::json& v) const {
+  throw InputError(field(key) + ": expected " + expected + ", got " + json_type_name(v));
+}
+
+template <>
+double JsonFields::convert<double>(const nlohmann::json& v, const std::string& key) const {
+  if (!v.is_number()) type_error(key, "a number", v);
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) throw InputError(field(key) + ": expected a finite number");
+  return d;
+}
+
+template <>
+int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) const {
+  if (!v.is_number_integer()) type_error(key, "an integer", v);
+  const auto i = v.get<long long>();
+  if (i < -2147483647LL || i > 2147483647LL) {
+    throw InputError(field(key) + ": integer out of range");
+  }
+  return static_cast<int>(i);
+}
+
+template <>
+std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
+                                                 const std::string& key) const {
+  if (!v.is_number_unsigned()) type_error(key, "a non-negative integer", v);
+  return v.get<std::uint64_t>();
+}
+
+template <>
+bool JsonFields::convert<bool>(const nlohmann::json& v, const std::string& key) const {
+  if (!v.is_boolean()) type_error(key, "true or false", v);
+  return v.get<bool>();
+}
+
+template <>
+std::string JsonFields::convert<std::string>(const nlohmann::json& v,
+                                             const std::string& key) const {
+  if (!v.is_string()) type_error(key, "a string", v);
+  return v.get<std::string>();
+}
+
+template <>
+Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
+                                                     const std::string& key) const {
+  if (!v.is_array() || v.size() != 3) type_error(key, "an array of 3 numbers", v);
+  Eigen::Vector3d out;
+  for (int i = 0; i < 3; ++i) {
+    if (!v[i].is_number()) type_error(key, "an array of 3 numbers", v);
+    out[i] = v[i].get<double>();
+  }
+  if (!out.allFinite()) throw InputError(field(key) + ": expected finite numbers");
+  return out;
+}
+
+template <>
+std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
+    const nlohmann::json& v, const std::string& key) const {
+  if (!v.is_array()) type_error(key, "an array of strings", v);
+  std::vector<std::string> out;
+  for (const auto& s : v) {
+    if (!s.is_string()) type_error(key, "an array of strings", v);
+    out.push_back(s.get<std::string>());
+  }
+  return out;
+}
+
+double JsonFields::required_number_in(const std::string& key, double lo, double hi) {
+  const double d = required<double>(key);
+  if (d < lo || d > hi) {
+    std::ostringstream msg;
+    msg << field(key) << ": value " << d << " is out of range [" << lo << ", " << hi << "]";
+    throw InputError(msg.str());
+  }
+  return d;
+}
+
+double JsonFields::number_in(const std::string& key, double lo, double hi, double fallback) {
+  return has(key) ? required_number_in(key, lo, hi) : fallback;
+}
+
+void JsonFields::finish() const {
+  for (const auto& item : j_.items()) {
+    if (!read_.count(item.key())) throw InputError(field(item.key()) + ": unknown key");
+  }
+}
+
+}  // namespace pg

@@ -1,0 +1,231 @@
+#include "pg/core/sensor.h"
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "pg/core/json_fields.h"
+
+namespace pg {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Three coloured point lights on a circle in a plane behind the gel (TACTO's DIGIT layout).
+std::vector<PointLight> ring_lights(double radius_m, double z_m) {
+  const double angles_deg[3] = {30.0, 150.0, 270.0};
+  const Eigen::Vector3d colors[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  std::vector<PointLight> lights;
+  for (int i = 0; i < 3; ++i) {
+    const double a = angles_deg[i] * kPi / 180.0;
+    lights.push_back({{radius_m * std::cos(a), radius_m * std::sin(a), z_m}, colors[i], 1.0});
+  }
+  return lights;
+}
+
+SensorModel digit(int width, int height) {
+  SensorModel s;
+  s.name = "digit";
+  s.camera = CameraModel::from_vertical_fov(width, height, 60.0 * kPi / 180.0, 0.022, 0.001);
+  s.lights = ring_lights(0.020, -0.017);
+  return s;
+}
+
+SensorModel gelsight_mini() {
+  SensorModel s;
+  s.name = "gelsight_mini";
+  // 320 px across about 20.8 mm at 15 mm: tan(fov_y / 2) = 10.4 / 15.
+  s.camera = CameraModel::from_vertical_fov(240, 320, 2.0 * std::atan(10.4 / 15.0), 0.015, 0.001);
+  s.gel.width_m = 0.018;
+  s.gel.height_m = 0.024;
+  s.gel.sag_m = 0.0005;  // a nearly flat gel
+  s.gel.profile_radius_m = 0.1;
+  s.gel.max_indentation_m = 0.0015;
+  s.gel.elastic.length_m = 0.0005;
+  s.lights = ring_lights(0.015, -0.010);
+  return s;
+}
+
+void read_camera(const nlohmann::json& j, const std::string& where, CameraModel& cam) {
+  JsonFields f(j, where);
+  cam.distance_m = f.number_in("distance_m", 1e-4, 1.0, cam.distance_m);
+  cam.near_m = f.number_in("near_m", 1e-6, cam.distance_m, cam.near_m);
+  if (f.has("fov_y_rad")) {
+    const double fov = f.required_number_in("fov_y_rad", 1e-3, kPi - 1e-3);
+    cam = CameraModel::from_vertical_fov(cam.width, cam.height, fov, cam.distance_m, cam.near_m);
+  }
+  const bool any_intrinsic = f.has("fx") || f.has("fy") || f.has("cx") || f.has("cy");
+  if (any_intrinsic) {
+    if (f.has("fov_y_rad")) {
+      throw InputError(where + ": give either fov_y_rad or fx/fy/cx/cy, not both");
+    }
+    cam.fx = f.required_number_in("fx", 1e-3, 1e7);
+    cam.fy = f.required_number_in("fy", 1e-3, 1e7);
+    cam.cx = f.required_number_in("cx", -1e5, 1e5);
+    cam.cy = f.required_number_in("cy", -1e5, 1e5);
+  }
+  f.finish();
+}
+
+void read_gel(const nlohmann::json& j, const std::string& where, GelModel& gel) {
+  JsonFields f(j, where);
+  gel.width_m = f.number_in("width_m", 1e-4, 1.0, gel.width_m);
+  gel.height_m = f.number_in("height_m", 1e-4, 1.0, gel.height_m);
+  gel.sag_m = f.number_in("sag_m", 0.0, 0.1, gel.sag_m);
+  gel.profile_radius_m = f.number_in("profile_radius_m", 1e-4, 1e3, gel.profile_radius_m);
+  gel.max_indentation_m = f.number_in("max_indentation_m", 1e-6, 0.05, gel.max_indentation_m);
+  if (f.has("elastic")) {
+    JsonFields e(f.at("elastic"), f.field("elastic"));
+    gel.elastic.enabled = e.optional<bool>("enabled", gel.elastic.enabled);
+    gel.elastic.length_m = e.number_in("length_m", 1e-6, 0.05, gel.elastic.length_m);
+    gel.elastic.coupling = e.number_in("coupling", 0.0, 1.0, gel.elastic.coupling);
+    e.finish();
+  }
+  f.finish();
+  const double corner_r = 0.5 * std::hypot(gel.width_m, gel.height_m);
+  if (gel.sag_m > 0 && gel.profile_radius_m <= corner_r) {
+    throw InputError(where + ".profile_radius_m: must exceed half the gel diagonal (" +
+                     std::to_string(corner_r) + " m)");
+  }
+}
+
+PointLight read_light(const nlohmann::json& j, const std::string& where) {
+  JsonFields f(j, where);
+  PointLight light;
+  light.position_m = f.required<Eigen::Vector3d>("position_m");
+  light.color = f.optional<Eigen::Vector3d>("color", light.color);
+  if ((light.color.array() < 0.0).any() || (light.color.array() > 1.0).any()) {
+    throw InputError(f.field("color") + ": components must be in [0, 1]");
+  }
+  light.intensity = f.number_in("intensity", 0.0, 1e3, light.intensity);
+  f.finish();
+  return light;
+}
+
+nlohmann::json vec_json(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+CameraModel CameraModel::from_vertical_fov(int width, int height, double fov_y_rad,
+                                           double distance_m, double near_m) {
+  CameraModel c;
+  c.width = width;
+  c.height = height;
+  c.fy = 0.5 * height / std::tan(0.5 * fov_y_rad);
+  c.fx = c.fy;
+  c.cx = 0.5 * (width - 1);
+  c.cy = 0.5 * (height - 1);
+  c.distance_m = distance_m;
+  c.near_m = near_m;
+  return c;
+}
+
+CameraModel CameraModel::resized(int new_width, int new_height) const {
+  CameraModel c = *this;
+  const double sx = double(new_width) / width, sy = double(new_height) / height;
+  c.width = new_width;
+  c.height = new_height;
+  c.fx = fx * sx;
+  c.fy = fy * sy;
+  // Pixel centres at integer coordinates: the image edge is at -0.5.
+  c.cx = (cx + 0.5) * sx - 0.5;
+  c.cy = (cy + 0.5) * sy - 0.5;
+  return c;
+}
+
+double GelModel::surface_z(double x, double y) const {
+  if (sag_m <= 0.0) return 0.0;
+  const auto cap = [&](double r_sq) {
+    return profile_radius_m - std::sqrt(std::max(0.0, profile_radius_m * profile_radius_m - r_sq));
+  };
+  const double corner_sq = 0.25 * (width_m * width_m + height_m * height_m);
+  return -sag_m * cap(x * x + y * y) / cap(corner_sq);
+}
+
+std::vector<std::string> sensor_preset_names() { return {"digit", "digit_240x320", "gelsight_mini"}; }
+
+SensorModel sensor_preset(const std::string& name) {
+  if (name == "digit") return digit(120, 160);
+  if (name == "digit_240x320") return digit(240, 320);
+  if (name == "gelsight_mini") return gelsight_mini();
+  std::string known;
+  for (const auto& n : sensor_preset_names()) known += (known.empty() ? "" : ", ") + n;
+  throw InputError("unknown sensor preset '" + name + "' (known: " + known + ")");
+}
+
+SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) {
+  JsonFields f(j, where);
+  SensorModel s;
+  try {
+    s = sensor_preset(f.optional<std::string>("preset", "digit"));
+  } catch (const InputError& e) {
+    throw InputError(f.field("preset") + ": " + e.what());
+  }
+  s.name = f.optional<std::string>("name", s.name);
+  if (f.has("width") || f.has("height")) {
+    const int w = f.has("width") ? f.required<int>("width") : s.camera.width;
+    const int h = f.has("height") ? f.required<int>("height") : s.camera.height;
+    if (w < 8 || w > 8192) throw InputError(f.field("width") + ": must be in [8, 8192] px");
+    if (h < 8 || h > 8192) throw InputError(f.field("height") + ": must be in [8, 8192] px");
+    s.camera = s.camera.resized(w, h);
+  }
+  if (f.has("camera")) read_camera(f.at("camera"), f.field("camera"), s.camera);
+  if (f.has("gel")) read_gel(f.at("gel"), f.field("gel"), s.gel);
+  if (f.has("lights")) {
+    const auto& arr = f.at("lights");
+    if (!arr.is_array() || arr.empty()) {
+      throw InputError(f.field("lights") + ": expected a non-empty array of lights");
+    }
+    s.lights.clear();
+    for (std::size_t i = 0; i < arr.size(); ++i) {
+      s.lights.push_back(read_light(arr[i], f.field("lights") + "[" + std::to_string(i) + "]"));
+    }
+  }
+  if (f.has("noise")) {
+    JsonFields n(f.at("noise"), f.field("noise"));
+    s.noise.sigma = n.number_in("sigma", 0.0, 255.0, s.noise.sigma);
+    n.finish();
+  }
+  f.finish();
+  if (s.gel.sag_m >= s.camera.distance_m - s.camera.near_m) {
+    throw InputError(where + ": gel.sag_m puts the gel behind the camera's near plane");
+  }
+  return s;
+}
+
+nlohmann::json sensor_to_json(const SensorModel& s) {
+  nlohmann::json lights = nlohmann::json::array();
+  for (const auto& l : s.lights) {
+    lights.push_back(
+        {{"position_m", vec_json(l.position_m)}, {"color", vec_json(l.color)},
+         {"intensity", l.intensity}});
+  }
+  const auto& c = s.camera;
+  const auto& g = s.gel;
+  return {
+      {"name", s.name},
+      {"width", c.width},
+      {"height", c.height},
+      {"camera",
+       {{"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}, {"near_m", c.near_m},
+        {"distance_m", c.distance_m}}},
+      {"gel",
+       {{"width_m", g.width_m},
+        {"height_m", g.height_m},
+        {"sag_m", g.sag_m},
+        {"profile_radius_m", g.profile_radius_m},
+        {"max_indentation_m", g.max_indentation_m},
+        {"elastic",
+         {{"enabled", g.elastic.enabled},
+          {"length_m", g.elastic.length_m},
+          {"coupling", g.elastic.coupling}}}}},
+      {"lights", lights},
+      {"noise", {{"sigma", s.noise.sigma}}},
+  };
+}
+
+SensorModel load_sensor_file(const std::string& path) {
+  return sensor_from_json(parse_json_file(path), path);
+}
+
+}  // namespace pg

@@ -1,0 +1,35 @@
+#pragma once
+// Triangle meshes of the touched objects: loading (glTF/GLB, OBJ, STL, PLY, OFF) with validation,
+// and GLB writing for the generated objects in meshes/.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+namespace pg {
+
+struct TriangleMesh {
+  std::vector<Eigen::Vector3f> vertices;   // object frame O [m]
+  std::vector<Eigen::Vector3i> triangles;  // vertex indices, counter-clockwise seen from outside
+};
+
+struct MeshLoadReport {
+  int degenerate_triangles_dropped = 0;  // zero-area or repeated-index triangles
+};
+
+// Loads a mesh and multiplies its vertices by `scale`. Throws pg::InputError naming the file for:
+// a missing/unreadable file, an unknown extension, an empty mesh, NaN/inf vertices, out-of-range
+// indices. Degenerate triangles are dropped and counted in `report` (and a warning is printed to
+// stderr when any are dropped).
+TriangleMesh load_mesh(const std::string& path, double scale = 1.0,
+                       MeshLoadReport* report = nullptr);
+
+// Writes a binary glTF (GLB) with one mesh of one primitive (positions + indices).
+void save_glb(const std::string& path, const TriangleMesh& mesh);
+
+// Axis-aligned bounds of the vertices [m].
+struct Bounds3 {
+  Eigen::Vector3f min, max;
+};
+Bounds3 mesh_bounds(const TriangleMesh& mesh);
+
+}  // namespace pg

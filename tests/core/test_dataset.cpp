@@ -1,0 +1,214 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() /
+           ("pg_test_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  std::string str(const std::string& sub = "") const { return (path / sub).string(); }
+};
+
+template <typename F>
+void expect_input_error(F&& f, const std::string& part) {
+  try {
+    f();
+    ADD_FAILURE() << "expected an InputError mentioning '" << part << "'";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+  }
+}
+
+FrameImages make_frame(int w, int h, int k) {
+  FrameImages f;
+  f.color = ImageU8(w, h, 3);
+  f.normal = ImageF(w, h, 3);
+  f.depth = ImageF(w, h, 1);
+  f.mask = ImageU8(w, h, 1);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) f.color.at(x, y, c) = std::uint8_t((x * 7 + y * 3 + c + k) % 256);
+      const Eigen::Vector3f n = Eigen::Vector3f(0.01f * x - 0.3f, 0.02f * y - 0.1f, 1.0f).normalized();
+      for (int c = 0; c < 3; ++c) f.normal.at(x, y, c) = n[c];
+      f.depth.at(x, y) = 1e-4f * float(x + k) + 1e-7f * y;
+      f.mask.at(x, y) = ((x + y + k) % 3 == 0) ? 255 : 0;
+    }
+  }
+  return f;
+}
+
+DatasetInfo small_info(int frames) {
+  DatasetInfo info;
+  info.sensor = sensor_preset("digit");
+  info.sensor.camera = info.sensor.camera.resized(24, 32);
+  info.frames = frames;
+  info.fps = 30;
+  info.outputs = {"color", "normal", "depth", "mask"};
+  info.scene = "scenes/x.json";
+  info.seed = 42;
+  info.object_name = "cube";
+  info.object_mesh = "/tmp/cube.glb";
+  return info;
+}
+
+std::vector<FramePose> write_small(const std::string& dir, int frames) {
+  DatasetWriter writer(dir, small_info(frames));
+  std::vector<FramePose> poses;
+  for (int i = frames - 1; i >= 0; --i) {  // any order
+    FramePose p;
+    p.frame = i;
+    p.time_s = i / 30.0;
+    p.T_world_object = pose_from_position_rpy({0.001 * i, -0.002, 0.003}, {0.1 * i, 0.2, -0.3});
+    p.T_world_sensor = pose_from_position_rpy({0, 0.01, 0}, {0, 0, 0.5});
+    p.contact = i % 2 == 0;
+    writer.write_frame(p, make_frame(24, 32, i));
+    poses.insert(poses.begin(), p);
+  }
+  writer.finish();
+  return poses;
+}
+
+TEST(Dataset, RoundTrip) {
+  TempDir tmp;
+  const auto poses = write_small(tmp.str("d"), 3);
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_EQ(d.frames(), 3);
+  EXPECT_EQ(d.info().width(), 24);
+  EXPECT_EQ(d.info().height(), 32);
+  EXPECT_EQ(d.info().seed, 42u);
+  EXPECT_EQ(d.info().object_name, "cube");
+  EXPECT_NEAR(d.info().sensor.camera.fx, small_info(1).sensor.camera.fx, 1e-12);
+  ASSERT_EQ(d.poses().size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    const auto& a = poses[i];
+    const auto& b = d.poses()[i];
+    EXPECT_EQ(b.frame, i);
+    EXPECT_DOUBLE_EQ(b.time_s, a.time_s);
+    EXPECT_NEAR(ominus(a.T_world_object, b.T_world_object).norm(), 0, 1e-12);
+    EXPECT_NEAR(ominus(a.T_world_sensor, b.T_world_sensor).norm(), 0, 1e-12);
+    EXPECT_EQ(b.contact, a.contact);
+    const FrameImages want = make_frame(24, 32, i);
+    EXPECT_EQ(d.color(i).data, want.color.data);
+    EXPECT_EQ(d.normal(i).data, want.normal.data);  // EXR float is lossless
+    EXPECT_EQ(d.depth(i).data, want.depth.data);
+    EXPECT_EQ(d.mask(i).data, want.mask.data);
+  }
+}
+
+TEST(Dataset, OnlyRequestedOutputsAreWritten) {
+  TempDir tmp;
+  DatasetInfo info = small_info(1);
+  info.outputs = {"depth"};
+  DatasetWriter w(tmp.str("d"), info);
+  w.write_frame(FramePose{}, make_frame(24, 32, 0));
+  w.finish();
+  EXPECT_TRUE(fs::exists(tmp.str("d/depth/000000.exr")));
+  EXPECT_FALSE(fs::exists(tmp.str("d/color")));
+  const Dataset d = Dataset::open(tmp.str("d"));
+  expect_input_error([&] { d.color(0); }, "no 'color' output");
+}
+
+TEST(Dataset, WriterRejectsWrongSize) {
+  TempDir tmp;
+  DatasetWriter w(tmp.str("d"), small_info(1));
+  FrameImages f = make_frame(24, 32, 0);
+  f.depth = ImageF(10, 10, 1);
+  expect_input_error([&] { w.write_frame(FramePose{}, f); }, "depth/000000.exr");
+}
+
+TEST(Dataset, ReaderRejectsMissingFiles) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 3);
+  fs::remove(tmp.str("d/normal/000001.exr"));
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "normal/000001.exr");
+  expect_input_error([&] { Dataset::open(tmp.str("nothing")); }, "nothing");
+  fs::remove(tmp.str("d/poses.csv"));
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "poses.csv");
+}
+
+TEST(Dataset, ReaderRejectsWrongImageSize) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 2);
+  write_image(tmp.str("d/color/000001.png"), ImageU8(12, 16, 3));
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_NO_THROW(d.color(0));
+  expect_input_error([&] { d.color(1); }, "12x16x3");
+}
+
+TEST(Dataset, ReaderRejectsNanPosesAndBadRows) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 2);
+  const std::string csv = tmp.str("d/poses.csv");
+  std::ifstream in(csv);
+  std::string header, row0, row1;
+  std::getline(in, header);
+  std::getline(in, row0);
+  std::getline(in, row1);
+  in.close();
+  auto rewrite = [&](const std::string& second_row) {
+    std::ofstream(csv) << header << "\n" << row0 << "\n" << second_row << "\n";
+  };
+  rewrite(row1.replace(row1.find(','), 1, ",nan,"));
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 3");
+  rewrite("1,0,0,0,0,0,0,0,2,0,0,0,0,0,0,1,1");  // quaternion of norm 2
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "unit length");
+  rewrite("1,0,0,0,0,0,0,0,1");
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "17 columns");
+  std::ofstream(csv) << header << "\n" << row0 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "has 1 frames");
+}
+
+TEST(Dataset, ReaderRejectsBadInfo) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 1);
+  std::ofstream(tmp.str("d/dataset.json")) << "{\"format\": \"patchgraph-dataset\", ";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "dataset.json:1:");
+}
+
+TEST(Image, FormatsRoundTrip) {
+  TempDir tmp;
+  ImageF f(5, 4, 3);
+  for (std::size_t i = 0; i < f.data.size(); ++i) f.data[i] = float(i) / f.data.size();
+  write_image(tmp.str("a.exr"), f);
+  EXPECT_EQ(read_image_float(tmp.str("a.exr")).data, f.data);
+  write_image(tmp.str("a.png"), f);  // quantised to 8 bits
+  const ImageF p = read_image_float(tmp.str("a.png"));
+  ASSERT_TRUE(p.same_shape(5, 4, 3));
+  for (std::size_t i = 0; i < f.data.size(); ++i) EXPECT_NEAR(p.data[i], f.data[i], 0.5 / 255 + 1e-6);
+  ImageU8 u(6, 3, 1);
+  for (std::size_t i = 0; i < u.data.size(); ++i) u.data[i] = std::uint8_t(40 * i);
+  write_image(tmp.str("g.png"), u);
+  EXPECT_EQ(read_image_u8(tmp.str("g.png")).data, u.data);
+  ImageU8 rgb(16, 16, 3, 128);
+  write_image(tmp.str("c.jpg"), rgb);
+  const ImageShape s = read_image_shape(tmp.str("c.jpg"));
+  EXPECT_EQ(s.width, 16);
+  EXPECT_EQ(s.channels, 3);
+  EXPECT_NEAR(read_image_u8(tmp.str("c.jpg")).data[0], 128, 2);
+}
+
+TEST(Image, ErrorsNameThePath) {
+  TempDir tmp;
+  expect_input_error([&] { read_image_u8(tmp.str("none.png")); }, "none.png");
+  std::ofstream(tmp.str("junk.png")) << "not a png";
+  expect_input_error([&] { read_image_u8(tmp.str("junk.png")); }, "junk.png");
+  expect_input_error([&] { write_image(tmp.str("x.unknownext"), ImageU8(2, 2, 1)); }, "x.unknownext");
+}
+
+}  // namespace
+}  // namespace pg

@@ -1,0 +1,136 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "pg/core/error.h"
+#include "pg/core/json_fields.h"
+#include "pg/core/sensor.h"
+
+namespace pg {
+namespace {
+
+// Expects an InputError whose message contains every one of `parts`.
+template <typename F>
+void expect_input_error(F&& f, std::initializer_list<std::string> parts) {
+  try {
+    f();
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    for (const auto& p : parts) {
+      EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
+          << "message '" << e.what() << "' lacks '" << p << "'";
+    }
+  }
+}
+
+TEST(SensorPreset, DigitMatchesDesignDefaults) {
+  const SensorModel s = sensor_preset("digit");
+  EXPECT_EQ(s.camera.width, 120);
+  EXPECT_EQ(s.camera.height, 160);
+  // Vertical FOV of 60 degrees: the half-height subtends 30 degrees.
+  EXPECT_NEAR(std::atan(0.5 * 160 / s.camera.fy), M_PI / 6, 1e-12);
+  EXPECT_DOUBLE_EQ(s.camera.distance_m, 0.022);
+  EXPECT_DOUBLE_EQ(s.camera.near_m, 0.001);
+  EXPECT_DOUBLE_EQ(s.gel.width_m, 0.020);
+  EXPECT_DOUBLE_EQ(s.gel.height_m, 0.030);
+  EXPECT_NEAR(s.gel.surface_z(0, 0), 0.0, 1e-15);
+  EXPECT_NEAR(s.gel.surface_z(0.010, 0.015), -0.005, 1e-12);  // corner sag
+  EXPECT_LT(s.gel.surface_z(0.005, 0.0), 0.0);
+  ASSERT_EQ(s.lights.size(), 3u);
+  for (const auto& l : s.lights) {
+    EXPECT_NEAR(l.position_m.head<2>().norm(), 0.020, 1e-12);
+    EXPECT_NEAR(l.position_m.z(), -0.017, 1e-12);
+    EXPECT_DOUBLE_EQ(l.intensity, 1.0);
+  }
+  EXPECT_EQ(s.lights[0].color, Eigen::Vector3d(1, 0, 0));
+  EXPECT_DOUBLE_EQ(s.noise.sigma, 7.0);
+}
+
+TEST(SensorPreset, Digit240x320IsTheSameCameraAtTwiceTheResolution) {
+  const SensorModel lo = sensor_preset("digit"), hi = sensor_preset("digit_240x320");
+  EXPECT_EQ(hi.camera.width, 240);
+  EXPECT_EQ(hi.camera.height, 320);
+  EXPECT_NEAR(hi.camera.fy, 2 * lo.camera.fy, 1e-9);
+  // The same point projects to the same place in normalised image coordinates.
+  const Eigen::Vector3d p(0.003, -0.004, 0.021);
+  const Eigen::Vector2d a = lo.camera.project(p), b = hi.camera.project(p);
+  EXPECT_NEAR((a.x() + 0.5) * 2, b.x() + 0.5, 1e-9);
+  EXPECT_NEAR((a.y() + 0.5) * 2, b.y() + 0.5, 1e-9);
+  EXPECT_NEAR((lo.camera.resized(240, 320).fx), hi.camera.fx, 1e-9);
+}
+
+TEST(SensorPreset, GelsightMiniScale) {
+  const SensorModel s = sensor_preset("gelsight_mini");
+  EXPECT_EQ(s.camera.width, 240);
+  EXPECT_EQ(s.camera.height, 320);
+  const double mm_per_px = 1000.0 * s.camera.distance_m / s.camera.fx;
+  EXPECT_NEAR(mm_per_px, 0.065, 0.002);
+}
+
+TEST(SensorPreset, UnknownNameListsKnownOnes) {
+  expect_input_error([] { sensor_preset("gelsight9000"); }, {"gelsight9000", "digit"});
+}
+
+TEST(SensorConfig, JsonRoundTripIsExact) {
+  SensorModel s = sensor_preset("gelsight_mini");
+  s.gel.elastic.coupling = 0.25;
+  s.lights[1].intensity = 0.5;
+  const SensorModel back = sensor_from_json(sensor_to_json(s), "test");
+  EXPECT_EQ(sensor_to_json(back).dump(), sensor_to_json(s).dump());
+}
+
+TEST(SensorConfig, OverridesOnAPreset) {
+  const auto j = nlohmann::json::parse(R"({"preset": "digit", "width": 240, "height": 320,
+      "gel": {"max_indentation_m": 0.001, "elastic": {"enabled": false}},
+      "noise": {"sigma": 0}})");
+  const SensorModel s = sensor_from_json(j, "cfg.json");
+  EXPECT_EQ(s.camera.width, 240);
+  EXPECT_NEAR(s.camera.fy, sensor_preset("digit_240x320").camera.fy, 1e-9);
+  EXPECT_DOUBLE_EQ(s.gel.max_indentation_m, 0.001);
+  EXPECT_FALSE(s.gel.elastic.enabled);
+  EXPECT_DOUBLE_EQ(s.noise.sigma, 0.0);
+}
+
+TEST(SensorConfig, ExplicitIntrinsics) {
+  const auto j = nlohmann::json::parse(
+      R"({"camera": {"fx": 100, "fy": 110, "cx": 59.5, "cy": 79.5}})");
+  const SensorModel s = sensor_from_json(j, "cfg.json");
+  EXPECT_DOUBLE_EQ(s.camera.fx, 100);
+  EXPECT_DOUBLE_EQ(s.camera.fy, 110);
+}
+
+TEST(SensorConfig, ErrorsNameTheKey) {
+  auto parse = [](const char* text) {
+    return [text] { sensor_from_json(nlohmann::json::parse(text), "cfg.json"); };
+  };
+  expect_input_error(parse(R"({"colour": 1})"), {"cfg.json", "colour", "unknown key"});
+  expect_input_error(parse(R"({"gel": {"sag": 1}})"), {"gel.sag", "unknown key"});
+  expect_input_error(parse(R"({"gel": {"width_m": -1}})"), {"gel.width_m", "out of range"});
+  expect_input_error(parse(R"({"gel": {"width_m": "wide"}})"), {"gel.width_m", "a number"});
+  expect_input_error(parse(R"({"camera": {"fov_y_rad": 4}})"), {"camera.fov_y_rad", "range"});
+  expect_input_error(parse(R"({"camera": {"fx": 100}})"), {"camera.fy", "missing"});
+  expect_input_error(parse(R"({"width": 2})"), {"width"});
+  expect_input_error(parse(R"({"noise": {"sigma": 1000}})"), {"noise.sigma"});
+  expect_input_error(parse(R"({"lights": []})"), {"lights"});
+  expect_input_error(parse(R"({"lights": [{"color": [1,0,0]}]})"),
+                     {"lights[0].position_m", "missing"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0,0], "color": [1,0,0]}]})"),
+                     {"lights[0].position_m", "3 numbers"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0,0,0], "color": [2,0,0]}]})"),
+                     {"lights[0].color"});
+  expect_input_error(parse(R"({"preset": "nope"})"), {"preset", "nope"});
+  expect_input_error(parse(R"({"gel": {"elastic": {"coupling": 2}}})"),
+                     {"gel.elastic.coupling"});
+  expect_input_error(parse(R"([1, 2])"), {"cfg.json", "an object"});
+}
+
+TEST(JsonFile, MalformedJsonReportsLineAndColumn) {
+  expect_input_error([] { parse_json_text("{\n  \"a\": 1,\n  \"b\": ]\n}", "x.json"); },
+                     {"x.json:3:", "malformed JSON"});
+  expect_input_error([] { parse_json_file("/nonexistent/dir/s.json"); },
+                     {"/nonexistent/dir/s.json", "cannot read"});
+}
+
+}  // namespace
+}  // namespace pg
