@@ -11,9 +11,11 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// Three coloured point lights on a circle in a plane behind the gel (TACTO's DIGIT layout).
+// Three coloured point lights on a circle in a plane behind the gel (TACTO's DIGIT layout), at
+// angles from +x toward +y (image down). The colours follow a real DIGIT's background: red at
+// the top, green to the lower right, blue to the lower left.
 std::vector<PointLight> ring_lights(double radius_m, double z_m) {
-  const double angles_deg[3] = {30.0, 150.0, 270.0};
+  const double angles_deg[3] = {270.0, 30.0, 150.0};
   const Eigen::Vector3d colors[3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
   std::vector<PointLight> lights;
   for (int i = 0; i < 3; ++i) {
@@ -41,7 +43,6 @@ SensorModel gelsight_mini() {
   s.gel.sag_m = 0.0005;  // a nearly flat gel
   s.gel.profile_radius_m = 0.1;
   s.gel.max_indentation_m = 0.0015;
-  s.gel.elastic.length_m = 0.0005;
   s.lights = ring_lights(0.015, -0.010);
   return s;
 }
@@ -77,8 +78,7 @@ void read_gel(const nlohmann::json& j, const std::string& where, GelModel& gel) 
   if (f.has("elastic")) {
     JsonFields e(f.at("elastic"), f.field("elastic"));
     gel.elastic.enabled = e.optional<bool>("enabled", gel.elastic.enabled);
-    gel.elastic.length_m = e.number_in("length_m", 1e-6, 0.05, gel.elastic.length_m);
-    gel.elastic.coupling = e.number_in("coupling", 0.0, 1.0, gel.elastic.coupling);
+    gel.elastic.bend_radius_m = e.number_in("bend_radius_m", 1e-6, 1.0, gel.elastic.bend_radius_m);
     e.finish();
   }
   f.finish();
@@ -181,6 +181,21 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
       s.lights.push_back(read_light(arr[i], f.field("lights") + "[" + std::to_string(i) + "]"));
     }
   }
+  if (f.has("shading")) {
+    JsonFields sh(f.at("shading"), f.field("shading"));
+    auto& m = s.shading;
+    m.ambient = sh.number_in("ambient", 0.0, 10.0, m.ambient);
+    m.diffuse = sh.number_in("diffuse", 0.0, 10.0, m.diffuse);
+    m.specular = sh.number_in("specular", 0.0, 10.0, m.specular);
+    m.shininess = sh.optional<int>("shininess", m.shininess);
+    if (m.shininess < 1 || m.shininess > 256) {
+      throw InputError(sh.field("shininess") + ": must be an integer in [1, 256]");
+    }
+    m.exposure = sh.number_in("exposure", 1e-3, 1e3, m.exposure);
+    m.background_gain = sh.number_in("background_gain", 0.0, 10.0, m.background_gain);
+    m.background_blur_m = sh.number_in("background_blur_m", 0.0, 0.01, m.background_blur_m);
+    sh.finish();
+  }
   if (f.has("noise")) {
     JsonFields n(f.at("noise"), f.field("noise"));
     s.noise.sigma = n.number_in("sigma", 0.0, 255.0, s.noise.sigma);
@@ -217,9 +232,16 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
         {"max_indentation_m", g.max_indentation_m},
         {"elastic",
          {{"enabled", g.elastic.enabled},
-          {"length_m", g.elastic.length_m},
-          {"coupling", g.elastic.coupling}}}}},
+          {"bend_radius_m", g.elastic.bend_radius_m}}}}},
       {"lights", lights},
+      {"shading",
+       {{"ambient", s.shading.ambient},
+        {"diffuse", s.shading.diffuse},
+        {"specular", s.shading.specular},
+        {"shininess", s.shading.shininess},
+        {"exposure", s.shading.exposure},
+        {"background_gain", s.shading.background_gain},
+        {"background_blur_m", s.shading.background_blur_m}}},
       {"noise", {{"sigma", s.noise.sigma}}},
   };
 }

@@ -74,7 +74,7 @@ TEST(SensorPreset, UnknownNameListsKnownOnes) {
 
 TEST(SensorConfig, JsonRoundTripIsExact) {
   SensorModel s = sensor_preset("gelsight_mini");
-  s.gel.elastic.coupling = 0.25;
+  s.gel.elastic.bend_radius_m = 0.0025;
   s.lights[1].intensity = 0.5;
   const SensorModel back = sensor_from_json(sensor_to_json(s), "test");
   EXPECT_EQ(sensor_to_json(back).dump(), sensor_to_json(s).dump());
@@ -120,8 +120,8 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   expect_input_error(parse(R"({"lights": [{"position_m": [0,0,0], "color": [2,0,0]}]})"),
                      {"lights[0].color"});
   expect_input_error(parse(R"({"preset": "nope"})"), {"preset", "nope"});
-  expect_input_error(parse(R"({"gel": {"elastic": {"coupling": 2}}})"),
-                     {"gel.elastic.coupling"});
+  expect_input_error(parse(R"({"gel": {"elastic": {"bend_radius_m": 2}}})"),
+                     {"gel.elastic.bend_radius_m"});
   expect_input_error(parse(R"([1, 2])"), {"cfg.json", "an object"});
 }
 

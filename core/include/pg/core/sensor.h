@@ -33,14 +33,12 @@ struct CameraModel {
 
 // How the gel's surface moves around a contact. With `enabled` false the gel is rigid (TACTO's
 // z-buffer model: the gel takes the object's shape exactly where it is penetrated, nothing else).
+// With it on, the coated gel surface cannot bend more sharply than bend_radius_m: it takes the
+// object's shape inside the contact, and rounds the edge where the contact ends, leaving the
+// object tangentially and curving back to the undeformed gel (sink-in around the contact).
 struct ElasticModel {
   bool enabled = true;
-  // Fall-off length of the surface displacement around a contact [m]; about the thickness of the
-  // elastomer layer, since a layer bonded to a rigid backing only spreads load over that distance.
-  double length_m = 0.0006;
-  // Fraction of the contact's local displacement that the surface just outside the contact edge
-  // keeps (0 = rigid, 1 = the gel surface hangs at the contact depth before falling off).
-  double coupling = 0.5;
+  double bend_radius_m = 0.001;  // smallest radius of curvature of the free gel surface [m]
 };
 
 struct GelModel {
@@ -64,6 +62,21 @@ struct PointLight {
   double intensity = 1.0;
 };
 
+// How the gel's reflective coating turns light into pixel values. The lights sit behind the gel
+// and light the coating from the camera's side: Blinn-Phong diffuse + specular, each light's
+// contribution scaled by (d0 / d)^2 with d0 its distance to the gel centre.
+struct ShadingModel {
+  double ambient = 0.15;   // light every point gets regardless of its normal
+  double diffuse = 0.75;
+  double specular = 0.25;
+  int shininess = 16;      // Blinn-Phong exponent
+  double exposure = 0.9;   // scales the summed light to the 0-1 pixel range
+  // TACTO-style blending with a real background image: out = bg + blur(sim - sim_bg) * gain,
+  // with a Gaussian blur of this standard deviation on the gel [m].
+  double background_gain = 0.5;
+  double background_blur_m = 0.0002;
+};
+
 struct NoiseModel {
   double sigma = 7.0;  // Gaussian pixel noise on the 0-255 scale, after blending
 };
@@ -73,6 +86,7 @@ struct SensorModel {
   CameraModel camera;
   GelModel gel;
   std::vector<PointLight> lights;
+  ShadingModel shading;
   NoiseModel noise;
 };
 

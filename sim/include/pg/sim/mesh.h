@@ -26,7 +26,7 @@ TriangleMesh load_mesh(const std::string& path, double scale = 1.0,
 // Writes a binary glTF (GLB) with one mesh of one primitive (positions + indices).
 void save_glb(const std::string& path, const TriangleMesh& mesh);
 
-// Axis-aligned bounds of the vertices [m].
+// Axis-aligned bounds of the vertices [m]; an empty mesh gives min = +inf, max = -inf.
 struct Bounds3 {
   Eigen::Vector3f min, max;
 };

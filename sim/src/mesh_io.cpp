@@ -1,0 +1,178 @@
+// load_mesh(): picks the reader by extension, then validates every format's output the same way
+// (see mesh_formats.h for the readers).
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <sstream>
+
+#include "mesh_formats.h"
+#include "pg/core/error.h"
+#include "pg/sim/mesh.h"
+
+namespace pg {
+namespace {
+
+using mesh_formats::RawMesh;
+
+// A triangle is degenerate when two of its indices are equal or when
+//   |e1 x e2| <= kDegenerateRelativeArea * (longest edge)^2,
+// i.e. its height is below 1e-10 of its longest edge (equivalently |e1 x e2|^2 <= 1e-20 * l^4):
+// collinear up to rounding. The test is scale-free and runs in double on the float vertices the
+// renderer will see. Thin but honest slivers are kept; they are harmless to a ray caster.
+constexpr double kDegenerateRelativeArea = 1e-10;
+
+constexpr const char* kSupported = ".glb, .gltf, .obj, .stl, .ply, .off";
+
+std::string lowercase_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+std::string read_file(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw InputError(path + ": file not found");
+  if (std::filesystem::is_directory(status)) {
+    throw InputError(path + ": is a directory, not a mesh file");
+  }
+  std::ifstream file(path, std::ios::binary);
+  if (!file) throw InputError(path + ": cannot open for reading: " + std::strerror(errno));
+  std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+  if (file.bad()) throw InputError(path + ": read error");
+  return bytes;
+}
+
+RawMesh read_raw(const std::string& path) {
+  const std::string bytes = read_file(path);  // first, so a missing file is reported as such
+  const std::string ext = lowercase_extension(path);
+  try {
+    if (ext == ".glb" || ext == ".gltf") {
+      // Trust the content over the name: a GLB starts with the magic "glTF".
+      return mesh_formats::read_gltf(path, bytes.compare(0, 4, "glTF") == 0);
+    }
+    if (ext == ".obj") return mesh_formats::parse_obj(bytes);
+    if (ext == ".off") return mesh_formats::parse_off(bytes);
+    if (ext == ".stl") return mesh_formats::parse_stl(bytes);
+    if (ext == ".ply") return mesh_formats::parse_ply(bytes);
+  } catch (const mesh_formats::FormatError& e) {
+    throw InputError(path + ": " + e.what());
+  }
+  throw InputError(path + ": unknown mesh file extension '" + ext + "' (supported: " + kSupported +
+                   ")");
+}
+
+std::string counted_from(const RawMesh& raw) {
+  return raw.index_base == 1 ? "counted from 1, as in the file" : "counted from 0";
+}
+
+std::string line_of(const RawMesh& raw, size_t triangle) {
+  if (triangle >= raw.triangle_lines.size()) return "";
+  return " (line " + std::to_string(raw.triangle_lines[triangle]) + ")";
+}
+
+std::string format_point(const Eigen::Vector3d& p) {
+  std::ostringstream s;
+  s << "(" << p.x() << ", " << p.y() << ", " << p.z() << ")";
+  return s.str();
+}
+
+bool is_degenerate(const TriangleMesh& mesh, const Eigen::Vector3i& triangle) {
+  if (triangle[0] == triangle[1] || triangle[1] == triangle[2] || triangle[0] == triangle[2]) {
+    return true;
+  }
+  const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(triangle[0])].cast<double>();
+  const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(triangle[1])].cast<double>();
+  const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(triangle[2])].cast<double>();
+  const double longest_squared =
+      std::max({(b - a).squaredNorm(), (c - a).squaredNorm(), (c - b).squaredNorm()});
+  return (b - a).cross(c - a).norm() <= kDegenerateRelativeArea * longest_squared;
+}
+
+// Checks the reader's output, applies `scale` and drops degenerate triangles.
+TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
+                      MeshLoadReport& report) {
+  if (raw.vertices.empty()) throw InputError(path + ": empty mesh: no vertices");
+  if (raw.triangles.empty()) throw InputError(path + ": empty mesh: no triangles");
+  if (raw.vertices.size() > static_cast<size_t>(INT_MAX)) {
+    throw InputError(path + ": too many vertices (" + std::to_string(raw.vertices.size()) + ")");
+  }
+  const auto num_vertices = static_cast<std::int64_t>(raw.vertices.size());
+
+  TriangleMesh mesh;
+  mesh.vertices.reserve(raw.vertices.size());
+  for (size_t v = 0; v < raw.vertices.size(); ++v) {
+    const Eigen::Vector3f p = (scale * raw.vertices[v]).cast<float>();
+    if (!p.allFinite()) {
+      const std::string reason =
+          raw.vertices[v].allFinite() ? "exceeds the float range after scaling" : "is not finite";
+      throw InputError(path + ": vertex " + std::to_string(v + raw.index_base) + " (" +
+                       counted_from(raw) + ") " + reason + ": " + format_point(raw.vertices[v]));
+    }
+    mesh.vertices.push_back(p);
+  }
+
+  mesh.triangles.reserve(raw.triangles.size());
+  int dropped = 0;
+  for (size_t t = 0; t < raw.triangles.size(); ++t) {
+    Eigen::Vector3i triangle;
+    for (int c = 0; c < 3; ++c) {
+      const std::int64_t index = raw.triangles[t][static_cast<size_t>(c)];
+      if (index < 0 || index >= num_vertices) {
+        throw InputError(path + ": triangle " + std::to_string(t) + line_of(raw, t) +
+                         " has vertex index " + std::to_string(index + raw.index_base) + " (" +
+                         counted_from(raw) + "), but the mesh has " + std::to_string(num_vertices) +
+                         " vertices");
+      }
+      triangle[c] = static_cast<int>(index);
+    }
+    if (is_degenerate(mesh, triangle)) {
+      ++dropped;
+    } else {
+      mesh.triangles.push_back(triangle);
+    }
+  }
+  if (mesh.triangles.empty()) {
+    throw InputError(path + ": empty mesh: all " + std::to_string(dropped) +
+                     " triangles are degenerate");
+  }
+  report.degenerate_triangles_dropped = dropped;
+  if (dropped > 0) {
+    std::cerr << "warning: " << path << ": dropped " << dropped << " degenerate triangles\n";
+  }
+  return mesh;
+}
+
+}  // namespace
+
+TriangleMesh load_mesh(const std::string& path, double scale, MeshLoadReport* report) {
+  if (!std::isfinite(scale) || scale <= 0.0) {
+    std::ostringstream s;
+    s << path << ": mesh scale must be finite and > 0, got " << scale;
+    throw InputError(s.str());
+  }
+  MeshLoadReport local_report;
+  TriangleMesh mesh = validate(path, read_raw(path), scale, local_report);
+  if (report != nullptr) *report = local_report;
+  return mesh;
+}
+
+Bounds3 mesh_bounds(const TriangleMesh& mesh) {
+  Bounds3 bounds{Eigen::Vector3f::Constant(INFINITY), Eigen::Vector3f::Constant(-INFINITY)};
+  for (const Eigen::Vector3f& v : mesh.vertices) {
+    bounds.min = bounds.min.cwiseMin(v);
+    bounds.max = bounds.max.cwiseMax(v);
+  }
+  return bounds;
+}
+
+}  // namespace pg

@@ -1,0 +1,538 @@
+// Mesh loading (every format, every rejected input), GLB writing, and the generated meshes in
+// meshes/ (closed, outward, documented sizes).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <numeric>
+#include <string>
+#include <vector>
+
+#include "pg/core/error.h"
+#include "pg/sim/mesh.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+
+::testing::AssertionResult Contains(const std::string& text, const std::string& part) {
+  if (text.find(part) != std::string::npos) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << "'" << text << "' does not contain '" << part << "'";
+}
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(file), std::istreambuf_iterator<char>()};
+}
+
+// Little/big-endian byte writers for the binary formats.
+void put_u32(std::string& out, std::uint32_t v, bool big_endian = false) {
+  for (int k = 0; k < 4; ++k) out.push_back(char(v >> (8 * (big_endian ? 3 - k : k))));
+}
+void put_f32(std::string& out, float f, bool big_endian = false) {
+  std::uint32_t bits;
+  std::memcpy(&bits, &f, 4);
+  put_u32(out, bits, big_endian);
+}
+
+std::string base64(const std::string& bytes) {
+  static const char* kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (size_t i = 0; i < bytes.size(); i += 3) {
+    const size_t n = std::min<size_t>(3, bytes.size() - i);  // bytes in this group
+    std::uint32_t group = 0;
+    for (size_t k = 0; k < 3; ++k) {
+      group = (group << 8) | (k < n ? static_cast<unsigned char>(bytes[i + k]) : 0u);
+    }
+    for (size_t k = 0; k < 4; ++k)
+      out.push_back(k <= n ? kAlphabet[(group >> (18 - 6 * k)) & 63] : '=');
+  }
+  return out;
+}
+
+class MeshIoTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("pg_test_mesh_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string write(const std::string& name, const std::string& content) {
+    const std::string path = (dir_ / name).string();
+    std::ofstream(path, std::ios::binary) << content;
+    return path;
+  }
+
+  // The InputError message load_mesh() throws for `path` (a test failure if it does not throw).
+  static std::string load_error(const std::string& path, double scale = 1.0) {
+    try {
+      load_mesh(path, scale);
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    ADD_FAILURE() << "load_mesh(" << path << ") did not throw InputError";
+    return "";
+  }
+
+  fs::path dir_;
+};
+
+void expect_vertex(const TriangleMesh& mesh, int i, const Eigen::Vector3f& expected) {
+  ASSERT_LT(static_cast<size_t>(i), mesh.vertices.size());
+  EXPECT_LT((mesh.vertices[static_cast<size_t>(i)] - expected).norm(), 1e-6f)
+      << "vertex " << i << " is " << mesh.vertices[static_cast<size_t>(i)].transpose()
+      << ", expected " << expected.transpose();
+}
+
+// ----------------------------------------------------------------------------------- formats
+
+TEST_F(MeshIoTest, ObjReadsPolygonsIndexFormsAndNegativeIndices) {
+  const std::string path = write("quad.obj",
+                                 "# a quad and a triangle\n"
+                                 "o thing\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\r\n"
+                                 "vt 0 0\nvn 0 0 1\ns off\nusemtl x\n"
+                                 "f 1/1/1 2/1/1 3/1/1 4/1/1\n"
+                                 "f -5//1 -1//1 -4//1\n");
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 5u);
+  ASSERT_EQ(mesh.triangles.size(), 3u);
+  EXPECT_EQ(mesh.triangles[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3));
+  EXPECT_EQ(mesh.triangles[2], Eigen::Vector3i(0, 4, 1));
+  expect_vertex(mesh, 2, {1, 1, 0});
+  expect_vertex(mesh, 4, {0, 0, 1});
+}
+
+TEST_F(MeshIoTest, AsciiStlWeldsSharedCorners) {
+  const std::string path = write("two.STL",
+                                 "solid two\n"
+                                 " facet normal 0 0 1\n  outer loop\n"
+                                 "   vertex 0 0 0\n   vertex 1 0 0\n   vertex 1 1 0\n"
+                                 "  endloop\n endfacet\n"
+                                 " facet normal 0 0 1\n  outer loop\n"
+                                 "   vertex 0 0 0\n   vertex 1 1 0\n   vertex -0 1.5e0 0\n"
+                                 "  endloop\n endfacet\nendsolid two\n");
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 4u);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3));
+  expect_vertex(mesh, 3, {0, 1.5f, 0});
+}
+
+std::string binary_stl(const std::vector<std::array<Eigen::Vector3f, 3>>& facets) {
+  std::string out = "solid but actually binary";  // the size decides, not the header text
+  out.resize(80, ' ');
+  put_u32(out, static_cast<std::uint32_t>(facets.size()));
+  for (const auto& facet : facets) {
+    for (int k = 0; k < 3; ++k) put_f32(out, 0.0f);  // normal
+    for (const auto& corner : facet) {
+      for (int a = 0; a < 3; ++a) put_f32(out, corner[a]);
+    }
+    out += std::string(2, '\0');
+  }
+  return out;
+}
+
+TEST_F(MeshIoTest, BinaryStl) {
+  const std::string path =
+      write("two.stl",
+            binary_stl({{{{0, 0, 0}, {2, 0, 0}, {2, 2, 0}}}, {{{0, 0, 0}, {2, 2, 0}, {0, 2, 0}}}}));
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 4u);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.triangles[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3));
+  expect_vertex(mesh, 3, {0, 2, 0});
+}
+
+const char* kPlyHeader =
+    "ply\nformat %s 1.0\ncomment made by hand\nelement vertex 4\nproperty float x\n"
+    "property float y\nproperty double z\nproperty uchar red\nelement face 1\n"
+    "property list uchar int vertex_indices\nproperty int flags\nelement edge 1\n"
+    "property list ushort uint vertex_pair\nend_header\n";
+
+std::string ply_header(const char* format) {
+  char buffer[512];
+  std::snprintf(buffer, sizeof buffer, kPlyHeader, format);
+  return buffer;
+}
+
+TEST_F(MeshIoTest, AsciiPly) {
+  const std::string path = write("quad.ply", ply_header("ascii") +
+                                                 "0 0 0 255\n1 0 0 255\n1 1 0.5 255\n0 1 0 255\n"
+                                                 "4 0 1 2 3 7\n2 0 1\n");
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 4u);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3));
+  expect_vertex(mesh, 2, {1, 1, 0.5f});
+}
+
+TEST_F(MeshIoTest, BinaryPlyBothByteOrders) {
+  for (bool big_endian : {false, true}) {
+    std::string body;
+    const float xyz[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0.5f}, {0, 1, 0}};
+    for (const auto& p : xyz) {
+      put_f32(body, p[0], big_endian);
+      put_f32(body, p[1], big_endian);
+      double z = p[2];
+      std::uint64_t bits;
+      std::memcpy(&bits, &z, 8);
+      for (int k = 0; k < 8; ++k) body.push_back(char(bits >> (8 * (big_endian ? 7 - k : k))));
+      body.push_back(char(200));  // red
+    }
+    body.push_back(4);
+    for (std::uint32_t i : {0u, 1u, 2u, 3u}) put_u32(body, i, big_endian);
+    put_u32(body, 7, big_endian);                                          // flags
+    body += big_endian ? std::string("\0\2", 2) : std::string("\2\0", 2);  // ushort count 2
+    put_u32(body, 0, big_endian);
+    put_u32(body, 1, big_endian);
+    const char* format = big_endian ? "binary_big_endian" : "binary_little_endian";
+    const TriangleMesh mesh = load_mesh(write("quad.ply", ply_header(format) + body));
+    ASSERT_EQ(mesh.vertices.size(), 4u) << format;
+    ASSERT_EQ(mesh.triangles.size(), 2u) << format;
+    EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3)) << format;
+    expect_vertex(mesh, 2, {1, 1, 0.5f});
+  }
+}
+
+TEST_F(MeshIoTest, OffWithCommentsColoursAndCountsOnHeaderLine) {
+  const std::string path = write("quad.off",
+                                 "COFF 5 2 0\n# vertices with colours\n"
+                                 "0 0 0 255 0 0 255\n1 0 0 255 0 0 255\n1 1 0 1 1 1 1\n"
+                                 "0 1 0 1 1 1 1\n0 0 3 1 1 1 1\n\n"
+                                 "4 0 1 2 3 255 0 0\n3 0 4 1\n");
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 5u);
+  ASSERT_EQ(mesh.triangles.size(), 3u);
+  EXPECT_EQ(mesh.triangles[2], Eigen::Vector3i(0, 4, 1));
+  expect_vertex(mesh, 4, {0, 0, 3});
+
+  const TriangleMesh plain =
+      load_mesh(write("tri.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"));
+  EXPECT_EQ(plain.triangles.size(), 1u);
+}
+
+TriangleMesh tetrahedron() {
+  TriangleMesh mesh;
+  mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  mesh.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  return mesh;
+}
+
+TEST_F(MeshIoTest, GlbRoundTripIsExactAndExtensionIsCaseInsensitive) {
+  TriangleMesh mesh = tetrahedron();
+  mesh.vertices[3] = {0.1234567f, -2.5e-3f, 7.0f};
+  const std::string path = (dir_ / "tet.GLB").string();
+  save_glb(path, mesh);
+  const TriangleMesh loaded = load_mesh(path);
+  ASSERT_EQ(loaded.vertices.size(), mesh.vertices.size());
+  ASSERT_EQ(loaded.triangles.size(), mesh.triangles.size());
+  for (size_t i = 0; i < mesh.vertices.size(); ++i) EXPECT_EQ(loaded.vertices[i], mesh.vertices[i]);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    EXPECT_EQ(loaded.triangles[t], mesh.triangles[t]);
+  }
+}
+
+TEST_F(MeshIoTest, SaveGlbIsDeterministicAndReportsUnwritablePaths) {
+  const std::string a = (dir_ / "a.glb").string(), b = (dir_ / "b.glb").string();
+  save_glb(a, tetrahedron());
+  save_glb(b, tetrahedron());
+  EXPECT_FALSE(read_bytes(a).empty());
+  EXPECT_EQ(read_bytes(a), read_bytes(b));
+  EXPECT_EQ(read_bytes(a).substr(0, 4), "glTF");
+
+  const std::string bad = (dir_ / "no_such_dir" / "x.glb").string();
+  try {
+    save_glb(bad, tetrahedron());
+    ADD_FAILURE() << "save_glb to a missing directory did not throw";
+  } catch (const InputError& e) {
+    EXPECT_TRUE(Contains(e.what(), bad));
+  }
+  EXPECT_THROW(save_glb((dir_ / "empty.glb").string(), TriangleMesh{}), InputError);
+}
+
+// A .gltf with an embedded (data URI) buffer: 3 float32 positions (0,0,0), (1,0,0), (0,1,0) and
+// uint16 indices `i0 i1 i2`. `nodes` and `scenes` are JSON fragments.
+std::string gltf_json(int i0, int i1, int i2, const std::string& nodes, const std::string& scenes) {
+  std::string buffer;
+  for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put_f32(buffer, v);
+  for (int i : {i0, i1, i2}) buffer += std::string{char(i & 255), char(i >> 8)};
+  buffer += std::string(2, '\0');
+  return R"({"asset": {"version": "2.0"},
+  "buffers": [{"byteLength": 44, "uri": "data:application/octet-stream;base64,)" +
+         base64(buffer) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                  {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
+             {"primitives": [{"attributes": {"POSITION": 0}},
+                             {"attributes": {"POSITION": 0}, "mode": 1}]}],
+  "nodes": )" +
+         nodes + ",\n  " + scenes + "}\n";
+}
+
+TEST_F(MeshIoTest, GltfAppliesNodeTransformsDownTheDefaultScene) {
+  // Scene 1 (the default): node 0 (translate x+1, rotate 90 deg about z) -> node 1 (scale 2,
+  // mesh 0), and node 2 (matrix: translate z+5; mesh 1 = one non-indexed triangle + one LINES
+  // primitive, skipped). Node 3 is in scene 0 only and must not load.
+  const std::string nodes = R"([
+    {"translation": [1, 0, 0], "rotation": [0, 0, 0.7071067811865476, 0.7071067811865476],
+     "children": [1]},
+    {"scale": [2, 2, 2], "mesh": 0},
+    {"matrix": [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,5,1], "mesh": 1},
+    {"mesh": 0}])";
+  const std::string path = write(
+      "scene.gltf",
+      gltf_json(0, 1, 2, nodes, R"("scenes": [{"nodes": [3]}, {"nodes": [0, 2]}], "scene": 1)"));
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(path);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_TRUE(Contains(err, "skipped 1 primitives"));
+  ASSERT_EQ(mesh.vertices.size(), 6u);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  expect_vertex(mesh, 0, {1, 0, 0});
+  expect_vertex(mesh, 1, {1, 2, 0});   // R * (2, 0, 0) + (1, 0, 0)
+  expect_vertex(mesh, 2, {-1, 0, 0});  // R * (0, 2, 0) + (1, 0, 0)
+  expect_vertex(mesh, 4, {1, 0, 5});
+  EXPECT_EQ(mesh.triangles[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(3, 4, 5));
+}
+
+TEST_F(MeshIoTest, GltfMirroringTransformKeepsTrianglesCounterClockwise) {
+  const std::string path = write("mirror.gltf", gltf_json(0, 1, 2, R"([{"scale": [-1, 1, 1],
+    "mesh": 0}])",
+                                                          R"("scenes": [{"nodes": [0]}])"));
+  const TriangleMesh mesh = load_mesh(path);
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  const Eigen::Vector3i& t = mesh.triangles[0];
+  const Eigen::Vector3f normal =
+      (mesh.vertices[t[1]] - mesh.vertices[t[0]]).cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
+  EXPECT_GT(normal.z(), 0.0f) << "the mirrored triangle's winding was not flipped back";
+}
+
+TEST_F(MeshIoTest, ScaleIsAppliedAndMustBeFinitePositive) {
+  const std::string path = write("tri.obj", "v 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n");
+  const TriangleMesh mesh = load_mesh(path, 1e-3);
+  expect_vertex(mesh, 0, {1e-3f, 2e-3f, 3e-3f});
+  expect_vertex(mesh, 2, {7e-3f, 8e-3f, 10e-3f});
+  for (double scale : {0.0, -1.0, std::nan(""), HUGE_VAL}) {
+    const std::string message = load_error(path, scale);
+    EXPECT_TRUE(Contains(message, path));
+    EXPECT_TRUE(Contains(message, "scale"));
+  }
+}
+
+// ------------------------------------------------------------------------------ bad inputs
+
+TEST_F(MeshIoTest, MissingFileNamesThePath) {
+  const std::string path = (dir_ / "does_not_exist.obj").string();
+  const std::string message = load_error(path);
+  EXPECT_TRUE(Contains(message, path));
+  EXPECT_TRUE(Contains(message, "not found"));
+}
+
+TEST_F(MeshIoTest, UnknownExtensionListsSupportedOnes) {
+  const std::string path = write("mesh.xyz", "v 0 0 0\n");
+  const std::string message = load_error(path);
+  EXPECT_TRUE(Contains(message, path));
+  EXPECT_TRUE(Contains(message, "'.xyz'"));
+  EXPECT_TRUE(Contains(message, ".glb, .gltf, .obj, .stl, .ply, .off"));
+}
+
+TEST_F(MeshIoTest, EmptyMeshes) {
+  EXPECT_TRUE(Contains(load_error(write("empty.obj", "")), "no vertices"));
+  EXPECT_TRUE(Contains(load_error(write("points.obj", "v 0 0 0\nv 1 0 0\n")), "no triangles"));
+  EXPECT_TRUE(Contains(load_error(write("empty.off", "OFF\n0 0 0\n")), "no vertices"));
+  EXPECT_TRUE(Contains(load_error(write("empty.stl", "solid x\nendsolid x\n")), "no vertices"));
+}
+
+TEST_F(MeshIoTest, NonFiniteVerticesAreErrorsInEveryFormat) {
+  const std::string tri = "\nf 1 2 3\n";
+  std::string message = load_error(write("nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0" + tri));
+  EXPECT_TRUE(Contains(message, "vertex 2 (counted from 1"));
+  EXPECT_TRUE(Contains(message, "not finite"));
+  EXPECT_TRUE(Contains(load_error(write("inf.obj", "v 0 0 0\nv 1 0 0\nv 0 inf 0" + tri)),
+                       "vertex 3 (counted from 1"));
+  EXPECT_TRUE(
+      Contains(load_error(write("big.obj", "v 0 0 0\nv 1e400 0 0\nv 0 1 0" + tri)), "not finite"));
+  EXPECT_TRUE(Contains(load_error(write("huge.obj", "v 0 0 0\nv 1e300 0 0\nv 0 1 0" + tri)),
+                       "float range"));
+  EXPECT_TRUE(Contains(
+      load_error(write("nan.ply", ply_header("ascii") + "0 0 0 1\nnan 0 0 1\n1 1 0 1\n0 1 0 1\n"
+                                                        "3 0 1 2 0\n2 0 1\n")),
+      "vertex 1 (counted from 0)"));
+  const std::string nan_stl = binary_stl({{{{0, 0, 0}, {NAN, 0, 0}, {0, 1, 0}}}});
+  EXPECT_TRUE(Contains(load_error(write("nan.stl", nan_stl)), "not finite"));
+  EXPECT_TRUE(
+      Contains(load_error(write("inf.off", "OFF\n3 1 0\n0 0 0\n-inf 0 0\n0 1 0\n3 0 1 2\n")),
+               "vertex 1 (counted from 0)"));
+}
+
+TEST_F(MeshIoTest, OutOfRangeIndicesNameTheTriangleAndIndex) {
+  std::string message =
+      load_error(write("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n"));
+  EXPECT_TRUE(Contains(message, "triangle 1 (line 5)"));
+  EXPECT_TRUE(Contains(message, "vertex index 9 (counted from 1"));
+  EXPECT_TRUE(Contains(message, "3 vertices"));
+  EXPECT_TRUE(Contains(load_error(write("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")),
+                       "vertex index 0"));
+  EXPECT_TRUE(Contains(load_error(write("neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n")),
+                       "triangle 0"));
+
+  message = load_error(write("bad.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 7\n"));
+  EXPECT_TRUE(Contains(message, "triangle 1 (line 7)"));
+  EXPECT_TRUE(Contains(message, "vertex index 7 (counted from 0)"));
+
+  message = load_error(write(
+      "bad.ply", ply_header("ascii") + "0 0 0 1\n1 0 0 1\n1 1 0 1\n0 1 0 1\n3 0 1 4 0\n2 0 1\n"));
+  EXPECT_TRUE(Contains(message, "vertex index 4"));
+
+  const std::string path =
+      write("bad.gltf", gltf_json(0, 1, 5, R"([{"mesh": 0}])", R"("scenes": [{"nodes": [0]}])"));
+  message = load_error(path);
+  EXPECT_TRUE(Contains(message, path));
+  EXPECT_TRUE(Contains(message, "triangle 0 has vertex index 5"));
+}
+
+TEST_F(MeshIoTest, ParseErrorsNameTheFileAndLine) {
+  std::string message = load_error(write("bad.obj", "v 0 0 0\nv 1 zero 0\n"));
+  EXPECT_TRUE(Contains(message, "line 2"));
+  EXPECT_TRUE(Contains(message, "'zero'"));
+  EXPECT_TRUE(Contains(load_error(write("short.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n")), "declares 3"));
+  EXPECT_TRUE(Contains(load_error(write("cut.ply", ply_header("binary_little_endian") + "abc")),
+                       "ends early"));
+  EXPECT_TRUE(Contains(load_error(write("junk.stl", std::string(100, 'x'))), "neither binary STL"));
+  EXPECT_TRUE(Contains(load_error(write("junk.glb", "not a glb at all")), "glTF"));
+}
+
+TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {
+  const std::string path = write("degenerate.obj",
+                                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0.5 1e-7 0\n"
+                                 "f 1 2 3\n"    // fine
+                                 "f 1 1 2\n"    // repeated index
+                                 "f 1 2 4\n"    // collinear: zero area
+                                 "f 1 2 5\n");  // thin (height 1e-7 of its length) but valid
+  MeshLoadReport report;
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(path, 1.0, &report);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.degenerate_triangles_dropped, 2);
+  ASSERT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 1, 4));
+  EXPECT_EQ(err, "warning: " + path + ": dropped 2 degenerate triangles\n");
+
+  const std::string all = write("all.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
+  ::testing::internal::CaptureStderr();
+  EXPECT_TRUE(Contains(load_error(all), "all 2 triangles are degenerate"));
+  ::testing::internal::GetCapturedStderr();
+}
+
+// --------------------------------------------------------------------- generated meshes/*.glb
+
+struct GeneratedObject {
+  const char* file;
+  Eigen::Vector3d size_mm;        // documented bounding-box size (meshes/README.md)
+  int parts = 1;                  // separate closed pieces
+  double sphere_radius_mm = 0.0;  // > 0: every vertex lies on this sphere
+};
+
+void PrintTo(const GeneratedObject& object, std::ostream* os) { *os << object.file; }
+
+class GeneratedMeshTest : public ::testing::TestWithParam<GeneratedObject> {};
+
+int find_root(std::vector<int>& parent, int v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+
+TEST_P(GeneratedMeshTest, IsClosedOutwardAndHasTheDocumentedSize) {
+  const GeneratedObject& object = GetParam();
+  const std::string path = std::string(PG_SOURCE_DIR) + "/meshes/" + object.file;
+  ASSERT_TRUE(fs::exists(path)) << path << " missing: run build/tools/make_meshes meshes/";
+  EXPECT_LT(fs::file_size(path), 1u << 20);
+  MeshLoadReport report;
+  const TriangleMesh mesh = load_mesh(path, 1.0, &report);
+  EXPECT_EQ(report.degenerate_triangles_dropped, 0);
+
+  const Bounds3 bounds = mesh_bounds(mesh);
+  const Eigen::Vector3d size_mm = (bounds.max - bounds.min).cast<double>() * 1e3;
+  const Eigen::Vector3d centre_mm = 0.5 * (bounds.max + bounds.min).cast<double>() * 1e3;
+  EXPECT_LT((size_mm - object.size_mm).cwiseAbs().maxCoeff(), 0.05)
+      << "size " << size_mm.transpose() << " mm, documented " << object.size_mm.transpose();
+  EXPECT_LT(centre_mm.norm(), 1e-3) << "bounding-box centre " << centre_mm.transpose() << " mm";
+
+  // Connected parts (triangles sharing vertices).
+  const int n = static_cast<int>(mesh.vertices.size());
+  std::vector<int> parent(static_cast<size_t>(n));
+  std::iota(parent.begin(), parent.end(), 0);
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    parent[find_root(parent, t[1])] = find_root(parent, t[0]);
+    parent[find_root(parent, t[2])] = find_root(parent, t[0]);
+  }
+  // Per part: each directed edge once and its reverse once (closed, consistently oriented),
+  // and a positive signed volume (outward).
+  std::map<std::pair<int, int>, int> directed_edges;
+  std::map<int, double> volume;  // part root -> signed volume [m^3]
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) ++directed_edges[{t[k], t[(k + 1) % 3]}];
+    const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices[t[1]].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices[t[2]].cast<double>();
+    volume[find_root(parent, t[0])] += a.dot(b.cross(c)) / 6.0;
+  }
+  std::map<int, int> bad_edges;  // part root -> edges that are open, non-manifold or flipped
+  for (const auto& [edge, count] : directed_edges) {
+    const auto reverse = directed_edges.find({edge.second, edge.first});
+    if (count != 1 || reverse == directed_edges.end() || reverse->second != 1) {
+      ++bad_edges[find_root(parent, edge.first)];
+    }
+  }
+  EXPECT_EQ(static_cast<int>(volume.size()), object.parts);
+  for (const auto& [part, part_volume] : volume) {
+    EXPECT_EQ(bad_edges[part], 0) << "part of vertex " << part << " is not closed and oriented";
+    EXPECT_GT(part_volume, 0.0) << "part of vertex " << part << " faces inward";
+  }
+
+  if (object.sphere_radius_mm > 0) {
+    const double radius = object.sphere_radius_mm * 1e-3;
+    double worst = 0.0;
+    for (const Eigen::Vector3f& v : mesh.vertices) {
+      worst = std::max(worst, std::abs(v.cast<double>().norm() - radius) / radius);
+    }
+    EXPECT_LT(worst, 1e-6) << "worst relative radius error " << worst;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Meshes, GeneratedMeshTest,
+    ::testing::Values(GeneratedObject{"sphere_r4mm.glb", {8, 8, 8}, 1, 4},
+                      GeneratedObject{"sphere_r6mm.glb", {12, 12, 12}, 1, 6},
+                      GeneratedObject{"sphere_r8mm.glb", {16, 16, 16}, 1, 8},
+                      GeneratedObject{"ball_bearing_0p5in.glb", {12.7, 12.7, 12.7}, 1, 6.35},
+                      GeneratedObject{"cube.glb", {20, 20, 20}},
+                      GeneratedObject{"toy_brick.glb", {31.8, 15.8, 11.3}, 9},   // body + 8 studs
+                      GeneratedObject{"toy_human.glb", {22.03, 9.6, 39.3}, 13},  // see README
+                      GeneratedObject{"pyramid.glb", {44.45, 44.45, 12.7}}),
+    [](const ::testing::TestParamInfo<GeneratedObject>& info) {
+      std::string name = info.param.file;
+      return name.substr(0, name.find('.'));
+    });
+
+}  // namespace
+}  // namespace pg
