@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Installs the build and run-time dependencies from Debian 12's packages.
+set -euo pipefail
+packages=(
+  cmake g++ make pkg-config
+  libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
+  libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
+  libcli11-dev libgtest-dev libbenchmark-dev
+)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+echo "install_deps: installing ${missing[*]}"
+$sudo apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"

@@ -1,0 +1,96 @@
+#pragma once
+// The tactile renderer: ray-casts object meshes into the sensor's gel, deforms the gel, shades it
+// with the sensor's lights and emits colour plus ground truth (normals, indentation, mask,
+// contact points). Cost follows the contact area and the requested outputs.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pg/core/dataset.h"
+#include "pg/core/sensor.h"
+#include "pg/sim/mesh.h"
+
+namespace pg {
+
+// One mesh's acceleration structure (an Embree BVH), built once and shared by every sensor and
+// thread; per frame only the object's pose changes. Immutable and thread-safe after creation.
+class ObjectShape {
+ public:
+  explicit ObjectShape(TriangleMesh mesh);
+  ~ObjectShape();
+  ObjectShape(const ObjectShape&) = delete;
+  ObjectShape& operator=(const ObjectShape&) = delete;
+
+  const TriangleMesh& mesh() const { return mesh_; }
+  const Bounds3& bounds() const { return bounds_; }
+  // Every edge shared by exactly two triangles. For closed meshes a ray that starts inside the
+  // object is recognised (its first hit faces away) and counts as full penetration.
+  bool closed() const { return closed_; }
+
+  struct Impl;
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  TriangleMesh mesh_;
+  Bounds3 bounds_;
+  bool closed_ = false;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct RenderSettings {
+  // Outputs. Work that no requested output needs is not done.
+  bool color = true;
+  bool normal = true;
+  bool depth = true;
+  bool mask = true;
+  bool contact_points = false;  // contact points in each object's frame
+  bool shadows = false;         // shadows the deformed gel casts on itself
+  bool noise = true;
+  std::string background;  // "" = synthetic (shading of the undeformed gel), else an image path
+  // Work skipping; all on by default. Switch one off only to measure what it saves.
+  bool cull = true;               // skip objects whose bounds do not reach the gel slab
+  bool footprint = true;          // cast rays only near the contact, not over the whole image
+  bool slab_limited_rays = true;  // start rays at the slab, not at the camera's near plane
+  bool no_contact_cache = true;   // a frame without contact is the cached background
+};
+
+struct RenderStats {
+  bool contact = false;
+  int objects_culled = 0;
+  long rays_cast = 0;
+  int contact_pixels = 0;
+  int clamped_pixels = 0;  // penetration beyond the gel's max indentation, clamped
+  int shaded_pixels = 0;   // pixels whose surface differs from the undeformed gel
+};
+
+struct RenderedFrame {
+  FrameImages images;  // only the requested outputs are filled
+  // Per object: the object surface points where it touches the gel, in the object frame [m].
+  std::vector<std::vector<Eigen::Vector3f>> contact_points_object;
+  RenderStats stats;
+};
+
+// Renders one sensor. Thread-safe: render() may be called from several threads at once.
+class SensorRenderer {
+ public:
+  // Throws InputError for a background image that is missing or unreadable (naming its path).
+  SensorRenderer(SensorModel sensor, std::vector<std::shared_ptr<const ObjectShape>> objects,
+                 RenderSettings settings);
+  ~SensorRenderer();
+
+  // T_sensor_objects[i] is object i's pose in the sensor frame. `noise_seed` seeds this frame's
+  // noise (the same seed gives the same image).
+  RenderedFrame render(const std::vector<SE3>& T_sensor_objects, std::uint64_t noise_seed) const;
+
+  const SensorModel& sensor() const;
+  const RenderSettings& settings() const;
+  // The no-contact images (before noise): what a frame without contact shows.
+  const ImageF& background_color() const;
+  const ImageF& undeformed_normals() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace pg

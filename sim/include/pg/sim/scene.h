@@ -1,0 +1,50 @@
+#pragma once
+// Scene files: sensors, objects, trajectories and render options (JSON; schema in README.md).
+#include <string>
+#include <vector>
+
+#include "pg/core/sensor.h"
+#include "pg/core/trajectory.h"
+#include <nlohmann/json_fwd.hpp>
+
+namespace pg {
+
+struct SceneSensor {
+  std::string name;
+  SensorModel model;
+  Trajectory T_world_sensor;  // by default the world is the first sensor's frame
+};
+
+struct SceneObject {
+  std::string name;
+  std::string mesh_path;  // resolved against the scene file's folder
+  double scale = 1.0;
+  Trajectory T_world_object;
+};
+
+struct SceneRender {
+  std::vector<std::string> outputs = {"color", "normal", "depth", "mask"};
+  bool noise = true;
+  bool shadows = false;
+  std::string background;  // "" = synthetic (the sensor's own shading of the undeformed gel)
+  std::uint64_t seed = 0;
+};
+
+struct Scene {
+  std::string path;  // the scene file
+  int frames = 1;
+  double fps = 60.0;
+  std::vector<SceneSensor> sensors;
+  std::vector<SceneObject> objects;
+  int tracked_object = 0;  // index into objects: the object whose pose goes into poses.csv
+  SceneRender render;
+};
+
+// Throws InputError naming the file, line/column (malformed JSON) or field (missing, wrong type,
+// unknown key, out of range).
+Scene load_scene(const std::string& path);
+// The same for JSON already parsed; relative mesh/background paths resolve against `base_dir`.
+Scene scene_from_json(const nlohmann::json& j, const std::string& name,
+                      const std::string& base_dir);
+
+}  // namespace pg

@@ -1,0 +1,56 @@
+#pragma once
+// Renders a whole scene: every sensor, every frame, into the dataset format.
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pg/sim/renderer.h"
+#include "pg/sim/scene.h"
+
+namespace pg {
+
+// Command-line style overrides of what the scene file asks for.
+struct RenderOverrides {
+  std::vector<std::string> outputs;  // empty: the scene's
+  int width = 0, height = 0;         // 0: the sensors' own
+};
+
+class SceneRenderer {
+ public:
+  // Loads the meshes (InputError naming the mesh file) and builds one renderer per sensor.
+  SceneRenderer(Scene scene, const RenderOverrides& overrides = {});
+
+  const Scene& scene() const { return scene_; }
+  const SensorRenderer& sensor(int i) const { return *sensors_[i]; }
+  int sensor_count() const { return int(sensors_.size()); }
+
+  // Object poses in sensor i's frame at `frame`.
+  std::vector<SE3> object_poses_in_sensor(int sensor, int frame) const;
+  // One rendered frame per sensor. Thread-safe.
+  std::vector<RenderedFrame> render_frame(int frame) const;
+  // The seed of sensor i's noise at `frame`, from the scene's seed.
+  std::uint64_t noise_seed(int sensor, int frame) const;
+
+ private:
+  Scene scene_;
+  std::vector<std::shared_ptr<const ObjectShape>> shapes_;
+  std::vector<std::unique_ptr<SensorRenderer>> sensors_;
+};
+
+struct RenderSummary {
+  int frames = 0;
+  int contact_frames = 0;  // frames where some sensor saw contact
+  int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
+  double seconds = 0;
+  std::vector<std::string> dataset_dirs;  // one per sensor
+};
+
+// Progress callback: (frames done, frames total).
+using ProgressFn = std::function<void(int, int)>;
+
+// Writes OUT (one sensor) or OUT/<sensor name>/ (several sensors) in the dataset format.
+RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
+                                      const ProgressFn& progress = nullptr);
+
+}  // namespace pg

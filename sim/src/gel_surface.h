@@ -1,0 +1,64 @@
+#pragma once
+// The gel's surface as the camera sees it: per-pixel rays to the undeformed gel, the elastic
+// deformation model, and the deformed surface's normals. Free functions over plain arrays.
+#include <Eigen/Core>
+#include <vector>
+
+#include "pg/core/sensor.h"
+#include "pixel_rect.h"
+
+namespace pg {
+
+// Per-sensor constants: one ray per pixel from the camera centre, and where it meets the gel.
+struct GelGeometry {
+  int width = 0, height = 0;
+  Eigen::Vector3f origin_sensor;             // camera centre in S
+  std::vector<Eigen::Vector3f> dir_sensor;   // per pixel, z = 1: t is the camera depth [m]
+  std::vector<float> t_gel;                  // camera depth of the undeformed gel surface [m]
+  float px_per_m = 0;                        // image scale at the gel centre
+  float z_gel_min = 0;                       // lowest undeformed gel z in view [m]
+
+  int index(int x, int y) const { return y * width + x; }
+  // The gel surface point seen through pixel i when displaced by u toward the camera.
+  Eigen::Vector3f point(int i, float u) const { return origin_sensor + dir_sensor[i] * (t_gel[i] - u); }
+};
+
+GelGeometry make_gel_geometry(const SensorModel& sensor);
+
+// Box-radius for which three box passes approximate a Gaussian of `sigma_px` (at least 1).
+int gaussian_box_radius(double sigma_px);
+// Three box passes of radius r over `rect`, values outside `rect` taken as zero (so `rect` must
+// reach 3 r beyond any non-zero input). src -> dst; scratch is image-sized and may be src.
+void gaussian_blur(const float* src, float* dst, float* scratch, int width, const PixelRect& rect,
+                   int r);
+
+// Elastic model: the coated gel surface cannot bend more sharply than rho =
+// elastic.bend_radius_m. With r the rigid indentation (image-sized, zero away from the contact),
+// u is the morphological closing of r by the paraboloid |d|^2 / (2 rho):
+//   dilation  d(x) = max_q r(q) - |x - q|^2 / (2 rho)
+//   erosion   u(x) = min_q d(q) + |x - q|^2 / (2 rho)
+// i.e. the lowest surface above r that any paraboloid of curvature 1 / rho can touch from above.
+// So u >= r (the gel never passes through the object); u = r wherever the indentation is no more
+// sharply convex than 1 / rho (the gel takes the object's shape); the convex corner where a
+// contact ends is rounded by a paraboloid that leaves the object tangentially and meets the
+// undeformed gel tangentially (sink-in around the contact, and C1: no kink, no normal outliers).
+// Both passes are separable, each an O(n) lower-envelope scan per line.
+struct ElasticKernel {
+  bool enabled = false;
+  float alpha = 0;  // paraboloid coefficient 1 / (2 rho) in image units [m / px^2]
+  // Pixels the deformation reaches beyond a contact whose deepest indentation is `depth_m`.
+  int support(float depth_m) const;
+};
+ElasticKernel make_elastic_kernel(const ElasticModel& model, float px_per_m);
+
+// Fills u over `rect` (which must contain the contact dilated by kernel.support(deepest)) from
+// the rigid indentation. `scratch` has the image's size. Pixels outside `rect` are not touched.
+void elastic_displacement(const ElasticKernel& kernel, int width, const PixelRect& rect,
+                          const float* rigid, float* scratch, float* u);
+
+// Unit normals (pointing +z, out of the gel toward the object) of the surface displaced by u,
+// over `rect`, written to normals (3 floats per pixel, image-sized). u is read on rect dilated
+// by one pixel (clipped to the image), so it must be valid (or zero) there.
+void surface_normals(const GelGeometry& g, const float* u, const PixelRect& rect, float* normals);
+
+}  // namespace pg

@@ -1,0 +1,142 @@
+#include <embree3/rtcore.h>
+
+#include <limits>
+#include <map>
+#include <mutex>
+#include <stdexcept>
+#include <utility>
+
+#include "pg/core/error.h"
+#include "raycast.h"
+
+namespace pg {
+
+namespace {
+
+// One Embree device for the process, created on first use and released with the last shape.
+std::shared_ptr<RTCDeviceTy> shared_device() {
+  static std::mutex mutex;
+  static std::weak_ptr<RTCDeviceTy> weak;
+  std::lock_guard<std::mutex> lock(mutex);
+  auto device = weak.lock();
+  if (!device) {
+    RTCDevice raw = rtcNewDevice(nullptr);
+    if (!raw) throw std::runtime_error("Embree: cannot create a device");
+    device = std::shared_ptr<RTCDeviceTy>(raw, [](RTCDevice d) { rtcReleaseDevice(d); });
+    weak = device;
+  }
+  return device;
+}
+
+// Every undirected edge used by exactly two triangles.
+bool is_closed(const TriangleMesh& mesh) {
+  std::map<std::pair<int, int>, int> edge_count;
+  for (const auto& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      ++edge_count[{std::min(a, b), std::max(a, b)}];
+    }
+  }
+  for (const auto& [edge, count] : edge_count) {
+    if (count != 2) return false;
+  }
+  return !edge_count.empty();
+}
+
+}  // namespace
+
+struct ObjectShape::Impl {
+  std::shared_ptr<RTCDeviceTy> device;
+  RTCScene scene = nullptr;
+  std::vector<Eigen::Vector3f> face_normals;  // (v1 - v0) x (v2 - v0): outward for CCW
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+  }
+};
+
+ObjectShape::ObjectShape(TriangleMesh mesh)
+    : mesh_(std::move(mesh)), impl_(std::make_unique<Impl>()) {
+  if (mesh_.vertices.empty() || mesh_.triangles.empty()) {
+    throw InputError("ObjectShape: empty mesh");
+  }
+  bounds_ = mesh_bounds(mesh_);
+  closed_ = is_closed(mesh_);
+  impl_->device = shared_device();
+  RTCDevice device = impl_->device.get();
+  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                         mesh_.vertices.size()));
+  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
+                                                            RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+                                                            mesh_.triangles.size()));
+  for (std::size_t i = 0; i < mesh_.vertices.size(); ++i) {
+    for (int k = 0; k < 3; ++k) vb[3 * i + k] = mesh_.vertices[i][k];
+  }
+  impl_->face_normals.reserve(mesh_.triangles.size());
+  for (std::size_t i = 0; i < mesh_.triangles.size(); ++i) {
+    const auto& t = mesh_.triangles[i];
+    for (int k = 0; k < 3; ++k) ib[3 * i + k] = unsigned(t[k]);
+    const auto& v0 = mesh_.vertices[t[0]];
+    impl_->face_normals.push_back((mesh_.vertices[t[1]] - v0).cross(mesh_.vertices[t[2]] - v0));
+  }
+  rtcCommitGeometry(geom);
+  impl_->scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  // Watertight: a ray through a vertex or an edge shared by many triangles never slips through.
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
+  rtcAttachGeometry(impl_->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(impl_->scene);
+}
+
+ObjectShape::~ObjectShape() = default;
+
+void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPacket& rays,
+               PacketHits& hits) {
+  // Instead of an Embree instance, move the rays into the object frame: the BVH stays shared
+  // and read-only, so any number of threads and sensors can cast at once.
+  const SE3 T_object_sensor = T_sensor_object.inverse();
+  const Eigen::Matrix3f R = T_object_sensor.rotation_matrix().cast<float>();
+  const Eigen::Vector3f origin =
+      (T_object_sensor * rays.origin_sensor.cast<double>()).cast<float>();
+
+  alignas(64) RTCRayHit16 rh;
+  alignas(64) int valid[kPacket];
+  for (int i = 0; i < kPacket; ++i) {
+    valid[i] = i < rays.count ? -1 : 0;
+    const Eigen::Vector3f d =
+        i < rays.count ? Eigen::Vector3f(R * rays.dir_sensor[i]) : Eigen::Vector3f(0, 0, 1);
+    rh.ray.org_x[i] = origin.x();
+    rh.ray.org_y[i] = origin.y();
+    rh.ray.org_z[i] = origin.z();
+    rh.ray.dir_x[i] = d.x();
+    rh.ray.dir_y[i] = d.y();
+    rh.ray.dir_z[i] = d.z();
+    rh.ray.tnear[i] = i < rays.count ? rays.tnear[i] : 0.0f;
+    rh.ray.tfar[i] = i < rays.count ? rays.tfar[i] : 0.0f;
+    rh.ray.time[i] = 0.0f;
+    rh.ray.mask[i] = 0xFFFFFFFFu;
+    rh.ray.id[i] = unsigned(i);
+    rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  rtcIntersect16(valid, shape.impl().scene, &context, &rh);
+  const auto& normals = shape.impl().face_normals;
+  for (int i = 0; i < rays.count; ++i) {
+    if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
+      hits.t[i] = std::numeric_limits<float>::infinity();
+      hits.back_face[i] = false;
+      continue;
+    }
+    hits.t[i] = rh.ray.tfar[i];
+    const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
+    hits.back_face[i] = normals[rh.hit.primID[i]].dot(d) > 0.0f;
+  }
+}
+
+}  // namespace pg

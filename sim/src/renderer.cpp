@@ -1,0 +1,454 @@
+// Per-frame pipeline (DESIGN.md, "Renderer pipeline"): cull -> footprint -> rays -> indentation ->
+// elastic deformation -> normals -> shading -> background blend -> noise; each step only over the
+// pixels it can change, and only for the outputs asked for.
+#include "pg/sim/renderer.h"
+
+#include <tbb/enumerable_thread_specific.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "gel_surface.h"
+#include "pg/core/error.h"
+#include "raycast.h"
+#include "shading.h"
+
+namespace pg {
+
+namespace {
+
+// Image-sized scratch arrays, one set per thread. Between frames `rigid`, `hit_object` and `u`
+// are all zero / -1: each frame clears what it wrote.
+struct Workspace {
+  std::vector<float> rigid, hit_t, u, scratch, normals, color, blend_a, blend_b;
+  std::vector<std::int16_t> hit_object;
+  std::vector<float> row;  // one row of 0-255 colour values, for the noise pass
+  explicit Workspace(int w, int h)
+      : rigid(std::size_t(w) * h, 0.0f),
+        hit_t(std::size_t(w) * h, 0.0f),
+        u(std::size_t(w) * h, 0.0f),
+        scratch(std::size_t(w) * h, 0.0f),
+        normals(std::size_t(w) * h * 3, 0.0f),
+        color(std::size_t(w) * h * 3, 0.0f),
+        blend_a(std::size_t(w) * h, 0.0f),
+        blend_b(std::size_t(w) * h, 0.0f),
+        hit_object(std::size_t(w) * h, -1),
+        row(std::size_t(w) * 3, 0.0f) {}
+};
+
+ImageF resample_bilinear(const ImageF& src, int w, int h) {
+  if (src.width == w && src.height == h) return src;
+  ImageF dst(w, h, src.channels);
+  // Integer downsampling factors average whole blocks; anything else is bilinear.
+  const bool block = src.width % w == 0 && src.height % h == 0 && src.width / w == src.height / h;
+  const int f = block ? src.width / w : 1;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < src.channels; ++c) {
+        float v = 0.0f;
+        if (block) {
+          for (int dy = 0; dy < f; ++dy)
+            for (int dx = 0; dx < f; ++dx) v += src.at(x * f + dx, y * f + dy, c);
+          v /= float(f * f);
+        } else {
+          const float sx = std::clamp((x + 0.5f) * src.width / w - 0.5f, 0.0f, src.width - 1.0f);
+          const float sy = std::clamp((y + 0.5f) * src.height / h - 0.5f, 0.0f, src.height - 1.0f);
+          const int x0 = int(sx), y0 = int(sy);
+          const int x1 = std::min(x0 + 1, src.width - 1), y1 = std::min(y0 + 1, src.height - 1);
+          const float ax = sx - x0, ay = sy - y0;
+          v = (1 - ay) * ((1 - ax) * src.at(x0, y0, c) + ax * src.at(x1, y0, c)) +
+              ay * ((1 - ax) * src.at(x0, y1, c) + ax * src.at(x1, y1, c));
+        }
+        dst.at(x, y, c) = v;
+      }
+    }
+  }
+  return dst;
+}
+
+}  // namespace
+
+struct SensorRenderer::State {
+  SensorModel sensor;
+  RenderSettings settings;
+  std::vector<std::shared_ptr<const ObjectShape>> objects;
+  GelGeometry gel;
+  ElasticKernel kernel;
+  Shader shader;
+  NoiseTable noise;
+  int tile = 4;          // coarse-pass tile size [px], a multiple of the 4x4 ray packets
+  float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
+  int blend_radius = 0;  // box radius of the real-background blend blur, 0 without one
+  ImageF normals0;       // undeformed gel normals
+  ImageF sim0;           // shading of the undeformed gel, linear [0, 1]
+  ImageF background;     // what a no-contact frame shows: sim0, or the real background
+  std::vector<float> background_255;
+  ImageU8 background_u8;
+  mutable tbb::enumerable_thread_specific<Workspace> workspaces;
+
+  State(SensorModel s, std::vector<std::shared_ptr<const ObjectShape>> objs, RenderSettings rs)
+      : sensor(std::move(s)),
+        settings(std::move(rs)),
+        objects(std::move(objs)),
+        workspaces([this] { return Workspace(gel.width, gel.height); }) {}
+
+  int width() const { return gel.width; }
+  int height() const { return gel.height; }
+  float slab_m() const { return float(sensor.gel.max_indentation_m); }
+
+  void shade_rect(const PixelRect& rect, const float* u, const float* normals, float* rgb) const;
+  void prepare();
+  PixelRect footprint(const SE3& T_sensor_object, const ObjectShape& shape) const;
+  void cast(const std::vector<int>& pixels, const std::vector<int>& active,
+            const std::vector<SE3>& poses, bool coarse, Workspace& ws, RenderStats& stats,
+            std::vector<char>* near) const;
+  void finish_color(const PixelRect& region, const float* rgb, std::uint64_t seed, ImageU8& out,
+                    Workspace& ws) const;
+};
+
+void SensorRenderer::State::shade_rect(const PixelRect& rect, const float* u, const float* normals,
+                                       float* rgb) const {
+  float visibility[8];
+  const bool shadows = settings.shadows && shader.lights.size() <= 8;
+  for (int y = rect.y0; y < rect.y1; ++y) {
+    for (int x = rect.x0; x < rect.x1; ++x) {
+      const int i = gel.index(x, y);
+      if (shadows) light_visibility(shader, gel, sensor, u, rect, i, visibility);
+      const Eigen::Vector3f n(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
+      const Eigen::Vector3f c =
+          shade(shader, gel.point(i, u[i]), n, shadows ? visibility : nullptr);
+      rgb[3 * i] = c.x();
+      rgb[3 * i + 1] = c.y();
+      rgb[3 * i + 2] = c.z();
+    }
+  }
+}
+
+void SensorRenderer::State::prepare() {
+  gel = make_gel_geometry(sensor);
+  kernel = make_elastic_kernel(sensor.gel.elastic, gel.px_per_m);
+  shader = make_shader(sensor);
+  // Tiles of about 0.3 mm; a coarse ray counts as near when the object is within two tile widths
+  // of the gel, which catches any contact whose surface rises slower than about 63 degrees.
+  tile = std::max(4, 4 * int(std::lround(0.0003 * gel.px_per_m / 4.0)));
+  margin_m = 2.0f * float(tile) / gel.px_per_m;
+  const int w = width(), h = height();
+  const PixelRect all{0, 0, w, h};
+  std::vector<float> zero(std::size_t(w) * h, 0.0f);
+  normals0 = ImageF(w, h, 3);
+  surface_normals(gel, zero.data(), all, normals0.data.data());
+  sim0 = ImageF(w, h, 3);
+  shade_rect(all, zero.data(), normals0.data.data(), sim0.data.data());
+  background = sim0;
+  if (!settings.background.empty()) {
+    const ImageF real = read_image_float(settings.background);
+    if (real.channels < 3) {
+      throw InputError(settings.background + ": background image must be RGB");
+    }
+    ImageF rgb(real.width, real.height, 3);
+    for (int y = 0; y < real.height; ++y)
+      for (int x = 0; x < real.width; ++x)
+        for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
+    background = resample_bilinear(rgb, w, h);
+    blend_radius = gaussian_box_radius(sensor.shading.background_blur_m * gel.px_per_m);
+  }
+  background_255.resize(background.data.size());
+  background_u8 = ImageU8(w, h, 3);
+  for (std::size_t i = 0; i < background.data.size(); ++i) {
+    background_255[i] = std::clamp(background.data[i], 0.0f, 1.0f) * 255.0f;
+    background_u8.data[i] = std::uint8_t(background_255[i] + 0.5f);
+  }
+}
+
+// Pixels whose rays could meet the object: its bounds, cut to the slab the gel can be indented
+// in, projected into the image (plus a pixel).
+PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object,
+                                           const ObjectShape& shape) const {
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector3d hi = -lo;
+  const Bounds3& b = shape.bounds();
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d corner((k & 1) ? b.max.x() : b.min.x(), (k & 2) ? b.max.y() : b.min.y(),
+                                 (k & 4) ? b.max.z() : b.min.z());
+    const Eigen::Vector3d p = T_sensor_object * corner;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double z_lo = std::max(lo.z(), double(gel.z_gel_min) - slab_m() - margin_m);
+  const double z_hi = std::min(hi.z(), double(margin_m));
+  if (z_lo > z_hi) return {};
+  const CameraModel& cam = sensor.camera;
+  PixelRect r{std::numeric_limits<int>::max(), std::numeric_limits<int>::max(),
+              std::numeric_limits<int>::min(), std::numeric_limits<int>::min()};
+  for (int k = 0; k < 8; ++k) {
+    const Eigen::Vector3d p((k & 1) ? hi.x() : lo.x(), (k & 2) ? hi.y() : lo.y(),
+                            (k & 4) ? z_hi : z_lo);
+    const Eigen::Vector2d px = cam.project(p + Eigen::Vector3d(0, 0, cam.distance_m));
+    r.x0 = std::min(r.x0, int(std::floor(px.x())));
+    r.y0 = std::min(r.y0, int(std::floor(px.y())));
+    r.x1 = std::max(r.x1, int(std::ceil(px.x())) + 1);
+    r.y1 = std::max(r.y1, int(std::ceil(px.y())) + 1);
+  }
+  return r.dilated(1).clipped(width(), height());
+}
+
+// Casts the rays of `pixels` against every active object. Fine pass: records the rigid
+// indentation (deepest over objects, clamped to the slab). Coarse pass: marks in `near` the
+// pixels where an object comes within margin_m of the gel.
+void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vector<int>& active,
+                                 const std::vector<SE3>& poses, bool coarse, Workspace& ws,
+                                 RenderStats& stats, std::vector<char>* near) const {
+  const float slab = slab_m();
+  const float extra = coarse ? margin_m : 0.0f;
+  RayPacket rays;
+  rays.origin_sensor = gel.origin_sensor;
+  PacketHits hits;
+  for (std::size_t start = 0; start < pixels.size(); start += kPacket) {
+    rays.count = int(std::min<std::size_t>(kPacket, pixels.size() - start));
+    for (int k = 0; k < rays.count; ++k) {
+      const int i = pixels[start + k];
+      rays.dir_sensor[k] = gel.dir_sensor[i];
+      rays.tnear[k] =
+          settings.slab_limited_rays ? gel.t_gel[i] - slab - extra : float(sensor.camera.near_m);
+    }
+    for (int obj : active) {
+      const ObjectShape& shape = *objects[obj];
+      for (int k = 0; k < rays.count; ++k) {
+        // A closed mesh needs its first surface beyond the gel too, to tell inside from outside.
+        rays.tfar[k] = shape.closed() ? std::numeric_limits<float>::infinity()
+                                      : gel.t_gel[pixels[start + k]] + extra;
+      }
+      intersect(shape, poses[obj], rays, hits);
+      stats.rays_cast += rays.count;
+      for (int k = 0; k < rays.count; ++k) {
+        const int i = pixels[start + k];
+        if (!std::isfinite(hits.t[k])) continue;
+        const bool inside = shape.closed() && hits.back_face[k];
+        const float pen =
+            inside ? std::numeric_limits<float>::infinity() : gel.t_gel[i] - hits.t[k];
+        if (coarse) {
+          if (pen > -margin_m) (*near)[start + k] = 1;
+          continue;
+        }
+        if (pen <= 0.0f || pen <= ws.rigid[i]) continue;
+        ws.rigid[i] = pen;
+        ws.hit_t[i] = inside ? gel.t_gel[i] - slab : hits.t[k];
+        ws.hit_object[i] = std::int16_t(obj);
+      }
+    }
+  }
+}
+
+void SensorRenderer::State::finish_color(const PixelRect& region, const float* rgb,
+                                         std::uint64_t seed, ImageU8& out, Workspace& ws) const {
+  const int w = width(), h = height();
+  out = settings.noise && sensor.noise.sigma > 0 ? ImageU8(w, h, 3) : background_u8;
+  const bool noisy = settings.noise && sensor.noise.sigma > 0;
+  const float sigma = float(sensor.noise.sigma);
+  for (int y = 0; y < h; ++y) {
+    const std::size_t row0 = std::size_t(y) * w * 3;
+    const bool in_region = y >= region.y0 && y < region.y1;
+    if (!in_region) {
+      if (noisy)
+        noise.apply(&background_255[row0], &out.data[row0], std::size_t(w) * 3, sigma, seed, row0);
+      continue;
+    }
+    float* row = ws.row.data();
+    std::memcpy(row, &background_255[row0], sizeof(float) * w * 3);
+    for (int x = region.x0; x < region.x1; ++x) {
+      for (int c = 0; c < 3; ++c)
+        row[3 * x + c] = std::clamp(rgb[row0 + 3 * x + c], 0.0f, 1.0f) * 255.0f;
+    }
+    if (noisy) {
+      noise.apply(row, &out.data[row0], std::size_t(w) * 3, sigma, seed, row0);
+    } else {
+      for (int x = region.x0; x < region.x1; ++x)
+        for (int c = 0; c < 3; ++c)
+          out.data[row0 + 3 * x + c] = std::uint8_t(row[3 * x + c] + 0.5f);
+    }
+  }
+}
+
+SensorRenderer::SensorRenderer(SensorModel sensor,
+                               std::vector<std::shared_ptr<const ObjectShape>> objects,
+                               RenderSettings settings)
+    : state_(std::make_unique<State>(std::move(sensor), std::move(objects), std::move(settings))) {
+  state_->prepare();
+}
+
+SensorRenderer::~SensorRenderer() = default;
+
+const SensorModel& SensorRenderer::sensor() const { return state_->sensor; }
+const RenderSettings& SensorRenderer::settings() const { return state_->settings; }
+const ImageF& SensorRenderer::background_color() const { return state_->background; }
+const ImageF& SensorRenderer::undeformed_normals() const { return state_->normals0; }
+
+RenderedFrame SensorRenderer::render(const std::vector<SE3>& T_sensor_objects,
+                                     std::uint64_t noise_seed) const {
+  const State& s = *state_;
+  if (T_sensor_objects.size() != s.objects.size()) {
+    throw std::invalid_argument("SensorRenderer::render: one pose per object expected");
+  }
+  const int w = s.width(), h = s.height();
+  const PixelRect all{0, 0, w, h};
+  const RenderSettings& opt = s.settings;
+  RenderedFrame out;
+  RenderStats& stats = out.stats;
+  Workspace& ws = s.workspaces.local();
+
+  // 1-2. Cull and footprint.
+  std::vector<int> active;
+  PixelRect cast_rect;
+  for (std::size_t i = 0; i < s.objects.size(); ++i) {
+    const PixelRect fp = s.footprint(T_sensor_objects[i], *s.objects[i]);
+    if (opt.cull && fp.empty()) {
+      ++stats.objects_culled;
+      continue;
+    }
+    active.push_back(int(i));
+    cast_rect = cast_rect.united(opt.footprint ? fp : all);
+  }
+
+  // 3. Rays: a coarse pass over the footprint's tile corners, then every pixel of the tiles near
+  // the gel. Without the footprint skip, every pixel.
+  PixelRect contact;
+  if (!active.empty()) {
+    std::vector<int> pixels;
+    if (opt.footprint) {
+      const PixelRect& r = cast_rect;
+      const int nx = (r.width() + s.tile - 1) / s.tile, ny = (r.height() + s.tile - 1) / s.tile;
+      std::vector<int> corners;
+      for (int b = 0; b <= ny; ++b)
+        for (int a = 0; a <= nx; ++a)
+          corners.push_back(s.gel.index(std::min(r.x0 + a * s.tile, r.x1 - 1),
+                                        std::min(r.y0 + b * s.tile, r.y1 - 1)));
+      std::vector<char> near(corners.size(), 0);
+      s.cast(corners, active, T_sensor_objects, true, ws, stats, &near);
+      for (int b = 0; b < ny; ++b) {
+        for (int a = 0; a < nx; ++a) {
+          const int c = b * (nx + 1) + a;
+          if (!(near[c] || near[c + 1] || near[c + nx + 1] || near[c + nx + 2])) continue;
+          // The tile's pixels in 4x4 blocks, so that each packet is coherent.
+          const PixelRect t = PixelRect{r.x0 + a * s.tile, r.y0 + b * s.tile,
+                                        r.x0 + (a + 1) * s.tile, r.y0 + (b + 1) * s.tile}
+                                  .clipped(r.x1, r.y1);
+          for (int by = t.y0; by < t.y1; by += 4)
+            for (int bx = t.x0; bx < t.x1; bx += 4)
+              for (int y = by; y < std::min(by + 4, t.y1); ++y)
+                for (int x = bx; x < std::min(bx + 4, t.x1); ++x)
+                  pixels.push_back(s.gel.index(x, y));
+        }
+      }
+    } else {
+      for (int by = cast_rect.y0; by < cast_rect.y1; by += 4)
+        for (int bx = cast_rect.x0; bx < cast_rect.x1; bx += 4)
+          for (int y = by; y < std::min(by + 4, cast_rect.y1); ++y)
+            for (int x = bx; x < std::min(bx + 4, cast_rect.x1); ++x)
+              pixels.push_back(s.gel.index(x, y));
+    }
+    s.cast(pixels, active, T_sensor_objects, false, ws, stats, nullptr);
+    for (int i : pixels) {
+      if (ws.rigid[i] <= 0.0f) continue;
+      contact.include(i % w, i / w);
+      ++stats.contact_pixels;
+      if (ws.rigid[i] > s.slab_m()) {
+        ws.rigid[i] = s.slab_m();
+        ++stats.clamped_pixels;
+      }
+    }
+  }
+  stats.contact = !contact.empty();
+
+  // 4. Elastic deformation and the region whose surface differs from the undeformed gel.
+  PixelRect region;
+  if (stats.contact) {
+    float deepest = 0.0f;
+    for (int y = contact.y0; y < contact.y1; ++y)
+      for (int x = contact.x0; x < contact.x1; ++x) deepest = std::max(deepest, ws.rigid[s.gel.index(x, y)]);
+    region = contact.dilated(s.kernel.support(deepest) + 1).clipped(w, h);
+    elastic_displacement(s.kernel, w, region, ws.rigid.data(), ws.scratch.data(), ws.u.data());
+    stats.shaded_pixels = int(region.area());
+  } else if (!opt.no_contact_cache) {
+    region = all;  // measuring the cache: shade the whole undeformed gel again
+  }
+
+  // 5. Normals and colour over the region.
+  const bool need_normals = opt.normal || opt.color;
+  if (need_normals && !region.empty())
+    surface_normals(s.gel, ws.u.data(), region, ws.normals.data());
+  if (opt.color) {
+    PixelRect color_region = region;
+    if (!region.empty()) {
+      s.shade_rect(region, ws.u.data(), ws.normals.data(), ws.color.data());
+      if (s.blend_radius > 0) {
+        // TACTO's blend: real background + blur(sim - sim_bg) * gain, channel by channel.
+        color_region = region.dilated(3 * s.blend_radius).clipped(w, h);
+        const float gain = float(s.sensor.shading.background_gain);
+        for (int c = 0; c < 3; ++c) {
+          float* diff = ws.blend_a.data();
+          float* blurred = ws.blend_b.data();
+          for (int y = color_region.y0; y < color_region.y1; ++y)
+            for (int x = color_region.x0; x < color_region.x1; ++x) {
+              const int i = s.gel.index(x, y);
+              diff[i] = region.contains(x, y) ? ws.color[3 * i + c] - s.sim0.data[3 * i + c] : 0.0f;
+            }
+          gaussian_blur(diff, blurred, ws.scratch.data(), w, color_region, s.blend_radius);
+          for (int y = color_region.y0; y < color_region.y1; ++y)
+            for (int x = color_region.x0; x < color_region.x1; ++x) {
+              const int i = s.gel.index(x, y);
+              ws.color[3 * i + c] = s.background.data[3 * i + c] + gain * blurred[i];
+            }
+        }
+      }
+    }
+    s.finish_color(color_region, ws.color.data(), noise_seed, out.images.color, ws);
+  }
+
+  // 6. Ground truth.
+  if (opt.normal) {
+    out.images.normal = s.normals0;
+    for (int y = region.y0; y < region.y1; ++y)
+      std::memcpy(&out.images.normal.at(region.x0, y),
+                  &ws.normals[3 * std::size_t(s.gel.index(region.x0, y))],
+                  sizeof(float) * 3 * region.width());
+  }
+  if (opt.depth) {
+    out.images.depth = ImageF(w, h, 1, 0.0f);
+    for (int y = region.y0; y < region.y1; ++y)
+      for (int x = region.x0; x < region.x1; ++x)
+        out.images.depth.at(x, y) = ws.u[s.gel.index(x, y)];
+  }
+  if (opt.mask) {
+    out.images.mask = ImageU8(w, h, 1, 0);
+    for (int y = contact.y0; y < contact.y1; ++y)
+      for (int x = contact.x0; x < contact.x1; ++x)
+        if (ws.rigid[s.gel.index(x, y)] > 0.0f) out.images.mask.at(x, y) = 255;
+  }
+  if (opt.contact_points) {
+    out.contact_points_object.resize(s.objects.size());
+    std::vector<SE3> T_object_sensor;
+    for (const auto& T : T_sensor_objects) T_object_sensor.push_back(T.inverse());
+    for (int y = contact.y0; y < contact.y1; ++y)
+      for (int x = contact.x0; x < contact.x1; ++x) {
+        const int i = s.gel.index(x, y);
+        if (ws.rigid[i] <= 0.0f) continue;
+        const int obj = ws.hit_object[i];
+        const Eigen::Vector3d p_sensor =
+            (s.gel.origin_sensor + s.gel.dir_sensor[i] * ws.hit_t[i]).cast<double>();
+        out.contact_points_object[obj].push_back((T_object_sensor[obj] * p_sensor).cast<float>());
+      }
+  }
+
+  // 7. Leave the workspace clean for the next frame.
+  const PixelRect dirty = cast_rect.united(region);
+  for (int y = dirty.y0; y < dirty.y1; ++y) {
+    const std::size_t i0 = std::size_t(s.gel.index(dirty.x0, y)), n = std::size_t(dirty.width());
+    std::fill_n(&ws.rigid[i0], n, 0.0f);
+    std::fill_n(&ws.u[i0], n, 0.0f);
+    std::fill_n(&ws.hit_object[i0], n, std::int16_t(-1));
+  }
+  return out;
+}
+
+}  // namespace pg

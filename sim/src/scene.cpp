@@ -1,0 +1,201 @@
+#include "pg/sim/scene.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "pg/core/dataset.h"
+#include "pg/core/json_fields.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string resolve(const std::string& base_dir, const std::string& p) {
+  const fs::path path(p);
+  return (path.is_absolute() ? path : fs::path(base_dir) / path).lexically_normal().string();
+}
+
+// {"position": [m], "rpy": [rad]} or {"position": [m], "quaternion": [x, y, z, w]}.
+SE3 read_pose(const nlohmann::json& j, const std::string& where) {
+  JsonFields f(j, where);
+  const Eigen::Vector3d position = f.optional<Eigen::Vector3d>("position", Eigen::Vector3d::Zero());
+  SE3 pose = SE3::Translation(position);
+  if (f.has("rpy") && f.has("quaternion")) {
+    throw InputError(where + ": give either rpy or quaternion, not both");
+  }
+  if (f.has("rpy")) pose = pose_from_position_rpy(position, f.required<Eigen::Vector3d>("rpy"));
+  if (f.has("quaternion")) {
+    const auto& q = f.at("quaternion");
+    if (!q.is_array() || q.size() != 4 ||
+        !std::all_of(q.begin(), q.end(), [](const auto& v) { return v.is_number(); })) {
+      throw InputError(f.field("quaternion") + ": expected an array of 4 numbers [x, y, z, w]");
+    }
+    const Eigen::Quaterniond quat(q[3].get<double>(), q[0].get<double>(), q[1].get<double>(),
+                                  q[2].get<double>());
+    if (!quat.coeffs().allFinite() || quat.norm() < 1e-9) {
+      throw InputError(f.field("quaternion") + ": must be finite and non-zero");
+    }
+    pose = SE3(quat, position);
+  }
+  f.finish();
+  return pose;
+}
+
+// An object's or sensor's motion: "pose" (constant) or "trajectory" with "waypoints" or "poses".
+Trajectory read_motion(JsonFields& f) {
+  if (f.has("pose") && f.has("trajectory")) {
+    throw InputError(f.field("pose") + ": give either pose or trajectory, not both");
+  }
+  if (f.has("pose")) return Trajectory::constant(read_pose(f.at("pose"), f.field("pose")));
+  if (!f.has("trajectory")) return Trajectory();
+  JsonFields t(f.at("trajectory"), f.field("trajectory"));
+  if (t.has("waypoints") == t.has("poses")) {
+    throw InputError(f.field("trajectory") + ": expected exactly one of waypoints or poses");
+  }
+  if (t.has("poses")) {
+    const auto& arr = t.at("poses");
+    if (!arr.is_array() || arr.empty()) {
+      throw InputError(t.field("poses") + ": expected a non-empty array of poses");
+    }
+    std::vector<SE3> poses;
+    for (std::size_t i = 0; i < arr.size(); ++i) {
+      poses.push_back(read_pose(arr[i], t.field("poses") + "[" + std::to_string(i) + "]"));
+    }
+    t.finish();
+    return Trajectory::from_poses(poses);
+  }
+  const auto& arr = t.at("waypoints");
+  if (!arr.is_array() || arr.empty()) {
+    throw InputError(t.field("waypoints") + ": expected a non-empty array of waypoints");
+  }
+  std::vector<Waypoint> waypoints;
+  for (std::size_t i = 0; i < arr.size(); ++i) {
+    const std::string where = t.field("waypoints") + "[" + std::to_string(i) + "]";
+    JsonFields w(arr[i], where);
+    Waypoint wp;
+    wp.frame = w.required<int>("frame");
+    wp.position_m = w.optional<Eigen::Vector3d>("position", Eigen::Vector3d::Zero());
+    wp.rpy_rad = w.optional<Eigen::Vector3d>("rpy", Eigen::Vector3d::Zero());
+    w.finish();
+    if (!waypoints.empty() && wp.frame <= waypoints.back().frame) {
+      throw InputError(where + ".frame: frames must increase strictly (" +
+                       std::to_string(wp.frame) + " after " +
+                       std::to_string(waypoints.back().frame) + ")");
+    }
+    waypoints.push_back(wp);
+  }
+  t.finish();
+  return Trajectory::from_waypoints(waypoints);
+}
+
+SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
+                        const std::string& base_dir, int index) {
+  JsonFields f(j, where);
+  SceneSensor s;
+  s.name = f.optional<std::string>("name", "sensor" + std::to_string(index));
+  if (f.has("sensor") && f.has("sensor_file")) {
+    throw InputError(where + ": give either sensor or sensor_file, not both");
+  }
+  if (f.has("sensor_file")) {
+    s.model = load_sensor_file(resolve(base_dir, f.required<std::string>("sensor_file")));
+  } else if (f.has("sensor") && f.at("sensor").is_string()) {
+    try {
+      s.model = sensor_preset(f.required<std::string>("sensor"));
+    } catch (const InputError& e) {
+      throw InputError(f.field("sensor") + ": " + e.what());
+    }
+  } else if (f.has("sensor")) {
+    s.model = sensor_from_json(f.at("sensor"), f.field("sensor"));
+  } else {
+    s.model = sensor_preset("digit");
+  }
+  s.T_world_sensor = read_motion(f);
+  f.finish();
+  return s;
+}
+
+SceneObject read_object(const nlohmann::json& j, const std::string& where,
+                        const std::string& base_dir, int index) {
+  JsonFields f(j, where);
+  SceneObject o;
+  o.name = f.optional<std::string>("name", "object" + std::to_string(index));
+  o.mesh_path = resolve(base_dir, f.required<std::string>("mesh"));
+  o.scale = f.number_in("scale", 1e-6, 1e6, 1.0);
+  o.T_world_object = read_motion(f);
+  f.finish();
+  return o;
+}
+
+template <typename Read>
+auto read_array(JsonFields& f, const std::string& key, Read read) {
+  const auto& arr = f.at(key);
+  if (!arr.is_array() || arr.empty()) {
+    throw InputError(f.field(key) + ": expected a non-empty array");
+  }
+  std::vector<decltype(read(arr[0], std::string(), 0))> out;
+  for (std::size_t i = 0; i < arr.size(); ++i) {
+    out.push_back(read(arr[i], f.field(key) + "[" + std::to_string(i) + "]", int(i)));
+  }
+  return out;
+}
+
+}  // namespace
+
+Scene scene_from_json(const nlohmann::json& j, const std::string& name,
+                      const std::string& base_dir) {
+  JsonFields f(j, name);
+  Scene scene;
+  scene.path = name;
+  scene.frames = f.required<int>("frames");
+  if (scene.frames < 1 || scene.frames > 10000000) {
+    throw InputError(f.field("frames") + ": must be in [1, 10000000]");
+  }
+  scene.fps = f.number_in("fps", 1e-3, 1e6, scene.fps);
+  scene.sensors =
+      read_array(f, "sensors", [&](const nlohmann::json& s, const std::string& w, int i) {
+        return read_sensor(s, w, base_dir, i);
+      });
+  scene.objects =
+      read_array(f, "objects", [&](const nlohmann::json& o, const std::string& w, int i) {
+        return read_object(o, w, base_dir, i);
+      });
+  if (f.has("tracked_object")) {
+    const std::string tracked = f.required<std::string>("tracked_object");
+    const auto it = std::find_if(scene.objects.begin(), scene.objects.end(),
+                                 [&](const SceneObject& o) { return o.name == tracked; });
+    if (it == scene.objects.end()) {
+      throw InputError(f.field("tracked_object") + ": no object is named '" + tracked + "'");
+    }
+    scene.tracked_object = int(it - scene.objects.begin());
+  }
+  if (f.has("render")) {
+    JsonFields r(f.at("render"), f.field("render"));
+    auto& render = scene.render;
+    render.outputs = r.optional<std::vector<std::string>>("outputs", render.outputs);
+    for (const auto& o : render.outputs) {
+      const auto& names = dataset_output_names();
+      if (std::find(names.begin(), names.end(), o) == names.end()) {
+        throw InputError(r.field("outputs") + ": unknown output '" + o +
+                         "' (known: color, normal, depth, mask)");
+      }
+    }
+    render.noise = r.optional<bool>("noise", render.noise);
+    render.shadows = r.optional<bool>("shadows", render.shadows);
+    const std::string bg = r.optional<std::string>("background", "synthetic");
+    render.background = (bg == "synthetic" || bg == "none") ? "" : resolve(base_dir, bg);
+    render.seed = r.optional<std::uint64_t>("seed", render.seed);
+    r.finish();
+  }
+  f.finish();
+  return scene;
+}
+
+Scene load_scene(const std::string& path) {
+  const std::string base = fs::path(path).parent_path().string();
+  return scene_from_json(parse_json_file(path), path, base.empty() ? "." : base);
+}
+
+}  // namespace pg

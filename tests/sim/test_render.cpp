@@ -1,0 +1,317 @@
+// Renderer accuracy against analytic shapes, the work-skipping paths against brute force, colour
+// properties, determinism, resolution consistency and bad input.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pg/core/error.h"
+#include "pg/sim/primitives.h"
+#include "pg/sim/renderer.h"
+
+namespace pg {
+namespace {
+
+constexpr double kRadius = 0.006;  // sphere radius [m]
+constexpr double kPress = 0.001;   // press depth [m]
+
+std::shared_ptr<const ObjectShape> sphere_shape() {
+  static const auto shape = std::make_shared<ObjectShape>(make_uv_sphere(float(kRadius), 180, 360));
+  return shape;
+}
+
+// A DIGIT with a flat gel, so that the analytic answers are simple.
+SensorModel flat_digit(const std::string& preset = "digit_240x320", bool elastic = false) {
+  SensorModel s = sensor_preset(preset);
+  s.gel.sag_m = 0.0;
+  s.gel.elastic.enabled = elastic;
+  return s;
+}
+
+RenderSettings quiet_settings() {
+  RenderSettings r;
+  r.noise = false;
+  return r;
+}
+
+// The sphere's centre sits kRadius - kPress above the gel plane z = 0, at (cx, cy).
+SE3 pressed_sphere(double cx = 0.0, double cy = 0.0, double press = kPress) {
+  return SE3::Translation({cx, cy, kRadius - press});
+}
+
+// Camera depth along pixel (x, y)'s ray of its first intersection with the analytic sphere.
+double analytic_sphere_t(const CameraModel& cam, const Eigen::Vector3d& centre, int x, int y) {
+  const Eigen::Vector3d o(0, 0, -cam.distance_m), d = cam.ray(x, y);
+  const Eigen::Vector3d oc = o - centre;
+  const double a = d.squaredNorm(), b = 2 * d.dot(oc), c = oc.squaredNorm() - kRadius * kRadius;
+  const double disc = b * b - 4 * a * c;
+  return disc < 0 ? INFINITY : (-b - std::sqrt(disc)) / (2 * a);
+}
+
+double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+Eigen::Vector3d normal_at(const ImageF& n, int x, int y) {
+  return {n.at(x, y, 0), n.at(x, y, 1), n.at(x, y, 2)};
+}
+
+TEST(RenderSphere, RigidIndentationNormalsAndRadiusMatchTheAnalyticCap) {
+  const SensorModel sensor = flat_digit();
+  const SensorRenderer r(sensor, {sphere_shape()}, quiet_settings());
+  const SE3 pose = pressed_sphere();
+  const RenderedFrame f = r.render({pose}, 0);
+  ASSERT_TRUE(f.stats.contact);
+  const auto& cam = sensor.camera;
+  const Eigen::Vector3d centre = pose.translation();
+  // Contact radius on the gel plane: a = sqrt(2 R d - d^2).
+  const double a = std::sqrt(2 * kRadius * kPress - kPress * kPress);
+  const double px_per_m = cam.fx / cam.distance_m;
+  int core = 0, mask_mismatch_far_from_edge = 0;
+  double max_err = 0, max_angle = 0;
+  for (int y = 0; y < cam.height; ++y) {
+    for (int x = 0; x < cam.width; ++x) {
+      const double t = analytic_sphere_t(cam, centre, x, y);
+      const double depth = std::max(0.0, cam.distance_m - t);
+      const Eigen::Vector3d p_gel = cam.ray(x, y) * cam.distance_m;  // on the plane z = 0
+      const double r_px = p_gel.head<2>().norm() * px_per_m;
+      const bool analytic_contact = depth > 0;
+      const bool rendered_contact = f.images.mask.at(x, y) > 0;
+      // Contact radius within one pixel: the mask only disagrees within a pixel of the edge.
+      if (analytic_contact != rendered_contact && std::abs(r_px - a * px_per_m) > 1.0) {
+        ++mask_mismatch_far_from_edge;
+      }
+      if (r_px > 0.9 * a * px_per_m) continue;  // the contact core
+      ++core;
+      max_err = std::max(max_err, std::abs(f.images.depth.at(x, y) - depth));
+      const Eigen::Vector3d p_obj = Eigen::Vector3d(0, 0, -cam.distance_m) + cam.ray(x, y) * t;
+      max_angle = std::max(max_angle, angle_deg(normal_at(f.images.normal, x, y), centre - p_obj));
+    }
+  }
+  EXPECT_GT(core, 2000);
+  EXPECT_EQ(mask_mismatch_far_from_edge, 0);
+  EXPECT_LT(max_err, 0.01 * kPress) << "indentation error in the core [m]";
+  EXPECT_LT(max_angle, 1.0) << "normal error in the core [deg]";
+}
+
+TEST(RenderSphere, ElasticGelConformsInsideAndFallsOffSmoothlyOutside) {
+  const SE3 pose = pressed_sphere();
+  const RenderedFrame rigid = SensorRenderer(flat_digit(), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const RenderedFrame soft =
+      SensorRenderer(flat_digit("digit_240x320", true), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const ImageF& dr = rigid.images.depth;
+  const ImageF& de = soft.images.depth;
+  const int w = dr.width, h = dr.height;
+  double max_core_diff = 0, max_below = 0, max_step_outside = 0, max_step_core = 0;
+  int outside_deformed = 0;
+  for (int y = 1; y < h - 1; ++y) {
+    for (int x = 1; x < w - 1; ++x) {
+      const float r = dr.at(x, y), e = de.at(x, y);
+      // The gel never passes through the object: elastic >= rigid (up to the 1 um blend).
+      max_below = std::max(max_below, double(r - e));
+      const double step = std::max(std::abs(de.at(x + 1, y) - e), std::abs(de.at(x, y + 1) - e));
+      if (r > 0.5 * kPress) {
+        max_core_diff = std::max(max_core_diff, double(std::abs(e - r)));
+        max_step_core = std::max(max_step_core, step);
+      } else if (r == 0.0f) {
+        outside_deformed += e > 1e-6f;
+        max_step_outside = std::max(max_step_outside, step);
+      }
+    }
+  }
+  EXPECT_LT(max_below, 1e-6) << "elastic surface below the rigid one [m]";
+  EXPECT_LT(max_core_diff, 0.01 * kPress) << "elastic differs from rigid in the core [m]";
+  EXPECT_GT(outside_deformed, 500) << "no fall-off around the contact";
+  // Continuity at the contact edge: no step larger than the steepest step inside the contact.
+  EXPECT_LE(max_step_outside, max_step_core * 1.05);
+  // Smooth normals: no pixel's normal is an outlier against its 3x3 neighbourhood mean.
+  double worst = 0;
+  for (int y = 2; y < h - 2; ++y) {
+    for (int x = 2; x < w - 2; ++x) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+          if (dx || dy) mean += normal_at(soft.images.normal, x + dx, y + dy);
+      worst = std::max(worst, angle_deg(normal_at(soft.images.normal, x, y), mean));
+    }
+  }
+  EXPECT_LT(worst, 3.0) << "normal outlier against its neighbours [deg]";
+}
+
+TEST(RenderSkip, EverySkipGivesTheSameImagesAsBruteForce) {
+  const SensorModel sensor = sensor_preset("digit");
+  const auto cube = std::make_shared<ObjectShape>(make_box({0.004f, 0.004f, 0.004f}));
+  // A cube corner pressed in, and a second object far away (culled).
+  const SE3 corner = SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
+  const std::vector<SE3> poses = {corner, pressed_sphere(0.0, 0.0, -0.01)};
+  RenderSettings fast = quiet_settings();
+  fast.noise = true;
+  const RenderedFrame a = SensorRenderer(sensor, {cube, sphere_shape()}, fast).render(poses, 5);
+  ASSERT_TRUE(a.stats.contact);
+  EXPECT_EQ(a.stats.objects_culled, 1);
+  for (int k = 0; k < 4; ++k) {
+    RenderSettings slow = fast;
+    (k == 0 ? slow.cull : k == 1 ? slow.footprint : k == 2 ? slow.slab_limited_rays : slow.no_contact_cache) = false;
+    const RenderedFrame b = SensorRenderer(sensor, {cube, sphere_shape()}, slow).render(poses, 5);
+    EXPECT_EQ(a.images.mask.data, b.images.mask.data) << "skip " << k;
+    EXPECT_EQ(a.images.color.data, b.images.color.data) << "skip " << k;
+    for (std::size_t i = 0; i < a.images.depth.data.size(); ++i) {
+      ASSERT_NEAR(a.images.depth.data[i], b.images.depth.data[i], 2e-7) << "skip " << k;
+    }
+    if (k == 1) {
+      EXPECT_GT(b.stats.rays_cast, 3 * a.stats.rays_cast);
+    }
+  }
+}
+
+TEST(RenderColor, NoContactFrameIsTheBackgroundAndFlatPressKeepsIt) {
+  SensorModel sensor = flat_digit("digit", false);
+  const auto slab = std::make_shared<ObjectShape>(make_box({0.02f, 0.02f, 0.005f}));
+  const SensorRenderer r(sensor, {slab}, quiet_settings());
+  const RenderedFrame none = r.render({SE3::Translation({0, 0, 0.01})}, 0);
+  EXPECT_FALSE(none.stats.contact);
+  ImageU8 bg(r.background_color().width, r.background_color().height, 3);
+  for (std::size_t i = 0; i < bg.data.size(); ++i) {
+    bg.data[i] = std::uint8_t(std::clamp(r.background_color().data[i], 0.0f, 1.0f) * 255.0f + 0.5f);
+  }
+  EXPECT_EQ(none.images.color.data, bg.data);
+  // A flat face 0.3 mm into a flat gel: the core keeps the background's colour.
+  const RenderedFrame flat = r.render({SE3::Translation({0, 0, 0.005 - 0.0003})}, 0);
+  ASSERT_TRUE(flat.stats.contact);
+  int checked = 0;
+  for (int y = 40; y < 120; ++y) {
+    for (int x = 30; x < 90; ++x) {
+      for (int c = 0; c < 3; ++c) EXPECT_NEAR(flat.images.color.at(x, y, c), bg.at(x, y, c), 3);
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, 80 * 60);
+}
+
+TEST(RenderColor, SlopeTowardALightBrightensItsChannel) {
+  const SensorModel sensor = flat_digit("digit_240x320", false);
+  const SensorRenderer r(sensor, {sphere_shape()}, quiet_settings());
+  const RenderedFrame f = r.render({pressed_sphere()}, 0);
+  const auto& cam = sensor.camera;
+  for (std::size_t k = 0; k < sensor.lights.size(); ++k) {
+    const int c = sensor.lights[k].color.maxCoeff() == sensor.lights[k].color.x() ? 0
+                  : sensor.lights[k].color.y() > 0.5 ? 1 : 2;
+    const Eigen::Vector2d dir = sensor.lights[k].position_m.head<2>().normalized();
+    // Points 2 mm from the contact centre, toward and away from the light.
+    const Eigen::Vector2d toward = Eigen::Vector2d(cam.cx, cam.cy) + dir * 0.002 * cam.fx / cam.distance_m;
+    const Eigen::Vector2d away = Eigen::Vector2d(cam.cx, cam.cy) - dir * 0.002 * cam.fx / cam.distance_m;
+    const int tx = int(std::lround(toward.x())), ty = int(std::lround(toward.y()));
+    const int ax = int(std::lround(away.x())), ay = int(std::lround(away.y()));
+    const double bg_t = r.background_color().at(tx, ty, c) * 255.0;
+    const double bg_a = r.background_color().at(ax, ay, c) * 255.0;
+    EXPECT_GT(f.images.color.at(tx, ty, c), bg_t + 5) << "light " << k;
+    EXPECT_LT(f.images.color.at(ax, ay, c), bg_a - 5) << "light " << k;
+  }
+}
+
+TEST(RenderColor, DeterministicWithASeedAndNoiseHasTheConfiguredSigma) {
+  const SensorModel sensor = sensor_preset("digit");
+  RenderSettings s;  // noise on
+  const SensorRenderer r(sensor, {sphere_shape()}, s);
+  const RenderedFrame a = r.render({pressed_sphere()}, 42), b = r.render({pressed_sphere()}, 42);
+  const RenderedFrame c = r.render({pressed_sphere()}, 43);
+  EXPECT_EQ(a.images.color.data, b.images.color.data);
+  EXPECT_NE(a.images.color.data, c.images.color.data);
+  // Noise statistics on a no-contact frame, where the clean image is the background.
+  const RenderedFrame n = r.render({pressed_sphere(0, 0, -0.01)}, 7);
+  double sum = 0, sum_sq = 0;
+  int count = 0;
+  for (std::size_t i = 0; i < n.images.color.data.size(); ++i) {
+    const double clean = r.background_color().data[i] * 255.0;
+    if (clean < 30 || clean > 225) continue;  // away from clipping
+    const double e = n.images.color.data[i] - clean;
+    sum += e;
+    sum_sq += e * e;
+    ++count;
+  }
+  ASSERT_GT(count, 10000);
+  EXPECT_NEAR(sum / count, 0.0, 0.3);
+  EXPECT_NEAR(std::sqrt(sum_sq / count), std::sqrt(7.0 * 7.0 + 1.0 / 12.0), 0.3);
+}
+
+TEST(RenderResolution, HalfResolutionAgreesWithDownsampledFullResolution) {
+  const SE3 pose = SE3(quaternion_from_rpy({0.1, 0.0, 0.0}), Eigen::Vector3d(0.001, 0.0015, kRadius - kPress));
+  const RenderedFrame lo = SensorRenderer(sensor_preset("digit"), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const RenderedFrame hi = SensorRenderer(sensor_preset("digit_240x320"), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  double color_err = 0, depth_err = 0;
+  for (int y = 0; y < 160; ++y) {
+    for (int x = 0; x < 120; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        double v = 0;
+        for (int k = 0; k < 4; ++k) v += hi.images.color.at(2 * x + (k & 1), 2 * y + (k >> 1), c);
+        color_err += std::abs(v / 4 - lo.images.color.at(x, y, c));
+      }
+      double d = 0;
+      for (int k = 0; k < 4; ++k) d += hi.images.depth.at(2 * x + (k & 1), 2 * y + (k >> 1));
+      depth_err = std::max(depth_err, std::abs(d / 4 - lo.images.depth.at(x, y)));
+    }
+  }
+  EXPECT_LT(color_err / (120 * 160 * 3), 1.0) << "mean colour difference [levels]";
+  EXPECT_LT(depth_err, 0.1 * kPress) << "largest depth difference [m]";
+}
+
+TEST(RenderBadInput, OpenMeshRendersWhereItCrossesTheGel) {
+  // A single open square sheet, tilted, crossing the gel surface.
+  TriangleMesh sheet;
+  sheet.vertices = {{-0.005f, -0.005f, 0}, {0.005f, -0.005f, 0}, {0.005f, 0.005f, 0}, {-0.005f, 0.005f, 0}};
+  sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
+  const auto shape = std::make_shared<ObjectShape>(sheet);
+  EXPECT_FALSE(shape->closed());
+  const SensorRenderer r(flat_digit("digit"), {shape}, quiet_settings());
+  const RenderedFrame f = r.render({SE3(quaternion_from_rpy({0, 0.1, 0}), Eigen::Vector3d::Zero())}, 0);
+  ASSERT_TRUE(f.stats.contact);
+  // Contact on one side of the tilt only, never deeper than the sheet goes.
+  int left = 0, right = 0;
+  for (int y = 0; y < 160; ++y)
+    for (int x = 0; x < 120; ++x)
+      if (f.images.mask.at(x, y)) (x < 60 ? left : right)++;
+  EXPECT_GT(left + right, 100);
+  EXPECT_TRUE(left == 0 || right == 0) << left << " " << right;
+}
+
+TEST(RenderBadInput, PenetrationBeyondTheGelIsClampedAndCounted) {
+  SensorModel sensor = flat_digit("digit");
+  const SensorRenderer r(sensor, {sphere_shape()}, quiet_settings());
+  const RenderedFrame f = r.render({pressed_sphere(0, 0, 0.004)}, 0);
+  EXPECT_GT(f.stats.clamped_pixels, 100);
+  float deepest = 0;
+  for (float d : f.images.depth.data) deepest = std::max(deepest, d);
+  EXPECT_NEAR(deepest, sensor.gel.max_indentation_m, 1e-9);
+  for (float n : f.images.normal.data) ASSERT_TRUE(std::isfinite(n));
+}
+
+TEST(RenderBadInput, MissingBackgroundImageNamesThePath) {
+  RenderSettings s;
+  s.background = "/no/such/bg.jpg";
+  try {
+    SensorRenderer r(sensor_preset("digit"), {sphere_shape()}, s);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/no/such/bg.jpg"), std::string::npos);
+  }
+}
+
+TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {
+  RenderSettings s = quiet_settings();
+  s.color = false;
+  s.normal = false;
+  s.contact_points = true;
+  const SensorRenderer r(flat_digit("digit"), {sphere_shape()}, s);
+  const RenderedFrame f = r.render({pressed_sphere()}, 0);
+  EXPECT_TRUE(f.images.color.empty());
+  EXPECT_TRUE(f.images.normal.empty());
+  EXPECT_FALSE(f.images.depth.empty());
+  ASSERT_EQ(f.contact_points_object.size(), 1u);
+  ASSERT_GT(f.contact_points_object[0].size(), 100u);
+  for (const auto& p : f.contact_points_object[0]) {
+    EXPECT_NEAR(p.norm(), kRadius, 2e-6);  // on the (faceted) sphere
+    EXPECT_LT(p.z(), -(kRadius - kPress) + 1e-6);  // its lower cap
+  }
+}
+
+}  // namespace
+}  // namespace pg

@@ -1,0 +1,46 @@
+#pragma once
+// A progress line for long jobs: frames done, rate, ETA. On a terminal it redraws one line;
+// otherwise (CI logs) it prints a line every 10%.
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+namespace pg {
+
+class Progress {
+ public:
+  Progress(std::string label, int total, bool enabled = true)
+      : label_(std::move(label)), total_(total), enabled_(enabled), tty_(isatty(fileno(stderr))),
+        start_(std::chrono::steady_clock::now()) {}
+
+  void update(int done) {
+    if (!enabled_ || total_ <= 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const bool last = done >= total_;
+    if (tty_) {
+      if (!last && std::chrono::duration<double>(now - last_draw_).count() < 0.1) return;
+    } else {
+      const int decile = done * 10 / total_;
+      if (!last && decile == last_decile_) return;
+      last_decile_ = decile;
+    }
+    last_draw_ = now;
+    const double rate = elapsed > 0 ? done / elapsed : 0.0;
+    const double eta = rate > 0 ? (total_ - done) / rate : 0.0;
+    std::fprintf(stderr, "%s%s %d/%d frames  %.1f fps  ETA %.1f s%s", tty_ ? "\r" : "",
+                 label_.c_str(), done, total_, rate, eta, tty_ && !last ? "   " : "\n");
+    std::fflush(stderr);
+  }
+
+ private:
+  std::string label_;
+  int total_;
+  bool enabled_, tty_;
+  int last_decile_ = -1;
+  std::chrono::steady_clock::time_point start_, last_draw_{};
+};
+
+}  // namespace pg

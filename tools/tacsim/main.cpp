@@ -1,0 +1,137 @@
+// tacsim: the tactile renderer's command line.
+//   tacsim render SCENE --out DIR   render a scene into the dataset format
+//   tacsim info DIR                 describe a dataset
+//   tacsim bench                    the renderer's speed benchmark
+#include <tbb/global_control.h>
+
+#include <cstdio>
+#include <memory>
+#include <sstream>
+
+#include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "bench.h"
+#include "pg/core/dataset.h"
+#include "pg/sim/scene_renderer.h"
+
+namespace pg {
+namespace {
+
+std::vector<std::string> split_list(const std::string& s) {
+  std::vector<std::string> out;
+  std::stringstream ss(s);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+struct RenderArgs {
+  std::string scene, out, outputs;
+  int threads = 0, width = 0, height = 0;
+  bool quiet = false;
+};
+
+int run_render(const RenderArgs& a) {
+  RenderOverrides overrides;
+  overrides.outputs = split_list(a.outputs);
+  for (const auto& o : overrides.outputs) {
+    const auto& names = dataset_output_names();
+    if (std::find(names.begin(), names.end(), o) == names.end()) {
+      throw InputError("--outputs: unknown output '" + o + "' (known: color, normal, depth, mask)");
+    }
+  }
+  overrides.width = a.width;
+  overrides.height = a.height;
+  std::unique_ptr<tbb::global_control> threads;
+  if (a.threads > 0) {
+    threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                    a.threads);
+  }
+  const SceneRenderer renderer(load_scene(a.scene), overrides);
+  Progress progress("rendering", renderer.scene().frames, !a.quiet);
+  const RenderSummary s = render_scene_to_dataset(
+      renderer, a.out, [&](int done, int) { progress.update(done); });
+  const auto& cam = renderer.sensor(0).sensor().camera;
+  std::printf("rendered %d frames x %d sensor(s) at %dx%d in %.2f s (%.1f frames/s, with image "
+              "writing) -> %s\n",
+              s.frames, renderer.sensor_count(), cam.width, cam.height, s.seconds,
+              s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
+  std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
+  if (s.contact_frames == 0) {
+    std::fprintf(stderr,
+                 "warning: %s: no object touches the gel in any frame; every frame shows the "
+                 "background only\n",
+                 a.scene.c_str());
+  }
+  if (s.clamped_frames > 0) {
+    std::fprintf(stderr,
+                 "warning: %s: in %d frames an object penetrates beyond the gel's maximum "
+                 "indentation; the indentation was clamped there\n",
+                 a.scene.c_str(), s.clamped_frames);
+  }
+  return kExitOk;
+}
+
+int run_info(const std::string& dir) {
+  const Dataset d = Dataset::open(dir);
+  const DatasetInfo& info = d.info();
+  int contact = 0;
+  for (const auto& p : d.poses()) contact += p.contact;
+  std::string outputs;
+  for (const auto& o : info.outputs) outputs += (outputs.empty() ? "" : ", ") + o;
+  std::printf("dataset   %s\n", dir.c_str());
+  std::printf("sensor    %s, %dx%d px, fx %.2f px\n", info.sensor.name.c_str(), info.width(),
+              info.height(), info.sensor.camera.fx);
+  std::printf("frames    %d at %.1f fps (%d with contact)\n", info.frames, info.fps, contact);
+  std::printf("outputs   %s\n", outputs.c_str());
+  std::printf("object    %s (%s, scale %g)\n", info.object_name.c_str(), info.object_mesh.c_str(),
+              info.object_scale);
+  std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
+  return kExitOk;
+}
+
+}  // namespace
+}  // namespace pg
+
+int main(int argc, char** argv) {
+  using namespace pg;
+  CLI::App app{"tacsim: a vision-based tactile sensor simulator (DIGIT, GelSight Mini)"};
+  app.require_subcommand(1);
+
+  RenderArgs render;
+  CLI::App* cmd_render = app.add_subcommand("render", "Render a scene file into a dataset folder");
+  cmd_render->add_option("scene", render.scene, "Scene file (JSON)")->required();
+  cmd_render->add_option("--out,-o", render.out, "Output dataset folder")->required();
+  cmd_render->add_option("--outputs", render.outputs,
+                         "Comma-separated outputs (color,normal,depth,mask); default: the scene's");
+  cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
+      ->check(CLI::Range(8, 8192));
+  cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
+      ->check(CLI::Range(8, 8192));
+  cmd_render->add_flag("--quiet,-q", render.quiet, "No progress line");
+
+  std::string info_dir;
+  CLI::App* cmd_info = app.add_subcommand("info", "Describe a dataset folder");
+  cmd_info->add_option("dataset", info_dir, "Dataset folder")->required();
+
+  BenchArgs bench;
+  CLI::App* cmd_bench = app.add_subcommand("bench", "Benchmark the renderer (frames/s per case)");
+  cmd_bench->add_option("--frames", bench.frames, "Frames per timed run")->check(CLI::PositiveNumber);
+  cmd_bench->add_option("--repeats", bench.repeats, "Timed runs per case (median reported)")
+      ->check(CLI::PositiveNumber);
+  cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
+  cmd_bench->add_flag("--quick", bench.quick, "Fewer frames, for a smoke test");
+
+  return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_render->parsed()) return run_render(render);
+    if (cmd_info->parsed()) return run_info(info_dir);
+    if (cmd_bench->parsed()) return run_bench(bench);
+    return kExitUsage;
+  });
+}
