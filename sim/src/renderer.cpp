@@ -67,6 +67,35 @@ ImageF resample_bilinear(const ImageF& src, int w, int h) {
   return dst;
 }
 
+// Per row of `region`, the run [first, second) of pixels whose normal or shading can differ from
+// the undeformed gel's: those whose displacement, or a 3x3 neighbour's, is non-zero. Without
+// contact (the no-contact cache switched off) every row is one full run.
+std::vector<std::pair<int, int>> moved_runs(int width, const float* u,
+                                            const PixelRect& region, bool contact) {
+  std::vector<std::pair<int, int>> runs(std::size_t(region.height()), {region.x0, region.x1});
+  if (!contact) return runs;
+  std::vector<std::pair<int, int>> moved(runs.size(), {region.x1, region.x0});
+  for (int y = region.y0; y < region.y1; ++y) {
+    auto& m = moved[y - region.y0];
+    for (int x = region.x0; x < region.x1; ++x) {
+      if (u[y * width + x] > 0.0f) {
+        m.first = std::min(m.first, x);
+        m.second = std::max(m.second, x + 1);
+      }
+    }
+  }
+  for (int r = 0; r < int(runs.size()); ++r) {
+    int x0 = region.x1, x1 = region.x0;
+    for (int d = -1; d <= 1; ++d) {
+      if (r + d < 0 || r + d >= int(runs.size())) continue;
+      x0 = std::min(x0, moved[r + d].first - 1);
+      x1 = std::max(x1, moved[r + d].second + 1);
+    }
+    runs[r] = {std::max(x0, region.x0), std::min(x1, region.x1)};
+  }
+  return runs;
+}
+
 }  // namespace
 
 struct SensorRenderer::State {
@@ -97,7 +126,9 @@ struct SensorRenderer::State {
   int height() const { return gel.height; }
   float slab_m() const { return float(sensor.gel.max_indentation_m); }
 
-  void shade_rect(const PixelRect& rect, const float* u, const float* normals, float* rgb) const;
+  // Shades the pixels of `rect`; u must be valid on `deformed` (zero elsewhere).
+  void shade_rect(const PixelRect& rect, const PixelRect& deformed, const float* u,
+                  const float* normals, float* rgb) const;
   void prepare();
   PixelRect footprint(const SE3& T_sensor_object, const ObjectShape& shape) const;
   void cast(const std::vector<int>& pixels, const std::vector<int>& active,
@@ -107,21 +138,42 @@ struct SensorRenderer::State {
                     Workspace& ws) const;
 };
 
-void SensorRenderer::State::shade_rect(const PixelRect& rect, const float* u, const float* normals,
-                                       float* rgb) const {
-  float visibility[8];
-  const bool shadows = settings.shadows && shader.lights.size() <= 8;
+void SensorRenderer::State::shade_rect(const PixelRect& rect, const PixelRect& deformed,
+                                       const float* u, const float* normals, float* rgb) const {
+  const int n = rect.width();
+  if (n <= 0) return;
+  thread_local std::vector<float> soa, visibility;
+  soa.resize(std::size_t(n) * 6);
+  const bool shadows = settings.shadows;
+  const std::size_t lights = shader.lights.size();
+  if (shadows) visibility.resize(lights * n);
+  std::vector<float> vis_one(lights);
+  ShadeSpan span;
+  span.count = n;
+  span.px = soa.data();
+  span.py = soa.data() + n;
+  span.pz = soa.data() + 2 * n;
+  span.nx = soa.data() + 3 * n;
+  span.ny = soa.data() + 4 * n;
+  span.nz = soa.data() + 5 * n;
+  span.visibility = shadows ? visibility.data() : nullptr;
+  float* out = soa.data();
   for (int y = rect.y0; y < rect.y1; ++y) {
-    for (int x = rect.x0; x < rect.x1; ++x) {
-      const int i = gel.index(x, y);
-      if (shadows) light_visibility(shader, gel, sensor, u, rect, i, visibility);
-      const Eigen::Vector3f n(normals[3 * i], normals[3 * i + 1], normals[3 * i + 2]);
-      const Eigen::Vector3f c =
-          shade(shader, gel.point(i, u[i]), n, shadows ? visibility : nullptr);
-      rgb[3 * i] = c.x();
-      rgb[3 * i + 1] = c.y();
-      rgb[3 * i + 2] = c.z();
+    for (int k = 0; k < n; ++k) {
+      const int i = gel.index(rect.x0 + k, y);
+      const Eigen::Vector3f p = gel.point(i, u[i]);
+      out[k] = p.x();
+      out[n + k] = p.y();
+      out[2 * n + k] = p.z();
+      out[3 * n + k] = normals[3 * i];
+      out[4 * n + k] = normals[3 * i + 1];
+      out[5 * n + k] = normals[3 * i + 2];
+      if (shadows) {
+        light_visibility(shader, gel, sensor, u, deformed, i, vis_one.data());
+        for (std::size_t l = 0; l < lights; ++l) visibility[l * n + k] = vis_one[l];
+      }
     }
+    shade_span(shader, span, rgb + 3 * std::size_t(gel.index(rect.x0, y)));
   }
 }
 
@@ -139,7 +191,7 @@ void SensorRenderer::State::prepare() {
   normals0 = ImageF(w, h, 3);
   surface_normals(gel, zero.data(), all, normals0.data.data());
   sim0 = ImageF(w, h, 3);
-  shade_rect(all, zero.data(), normals0.data.data(), sim0.data.data());
+  shade_rect(all, all, zero.data(), normals0.data.data(), sim0.data.data());
   background = sim0;
   if (!settings.background.empty()) {
     const ImageF real = read_image_float(settings.background);
@@ -368,19 +420,42 @@ RenderedFrame SensorRenderer::render(const std::vector<SE3>& T_sensor_objects,
       for (int x = contact.x0; x < contact.x1; ++x) deepest = std::max(deepest, ws.rigid[s.gel.index(x, y)]);
     region = contact.dilated(s.kernel.support(deepest) + 1).clipped(w, h);
     elastic_displacement(s.kernel, w, region, ws.rigid.data(), ws.scratch.data(), ws.u.data());
-    stats.shaded_pixels = int(region.area());
   } else if (!opt.no_contact_cache) {
     region = all;  // measuring the cache: shade the whole undeformed gel again
   }
 
-  // 5. Normals and colour over the region.
-  const bool need_normals = opt.normal || opt.color;
-  if (need_normals && !region.empty())
-    surface_normals(s.gel, ws.u.data(), region, ws.normals.data());
+  // 5. Normals and colour, only on the runs of each row whose surface (or a neighbour's) moved;
+  // the rest of the region keeps the undeformed gel's normals and shading.
+  const std::vector<std::pair<int, int>> runs = moved_runs(w, ws.u.data(), region, stats.contact);
+  for (const auto& r : runs) stats.shaded_pixels += std::max(0, r.second - r.first);
+  auto for_each_run = [&](auto&& body) {
+    for (int y = region.y0; y < region.y1; ++y) {
+      const auto& r = runs[y - region.y0];
+      if (r.first < r.second) body(PixelRect{r.first, y, r.second, y + 1});
+    }
+  };
+  // Outside the runs the region holds the undeformed gel's values.
+  auto fill_outside_runs = [&](float* dst, const ImageF& src) {
+    for (int y = region.y0; y < region.y1; ++y) {
+      const auto& r = runs[y - region.y0];
+      for (int x = region.x0; x < region.x1; ++x) {
+        if (x >= r.first && x < r.second) continue;
+        const std::size_t i = 3 * std::size_t(s.gel.index(x, y));
+        std::copy_n(&src.data[i], 3, &dst[i]);
+      }
+    }
+  };
+  if (opt.normal || opt.color) {
+    for_each_run([&](const PixelRect& r) { surface_normals(s.gel, ws.u.data(), r, ws.normals.data()); });
+    fill_outside_runs(ws.normals.data(), s.normals0);
+  }
   if (opt.color) {
     PixelRect color_region = region;
     if (!region.empty()) {
-      s.shade_rect(region, ws.u.data(), ws.normals.data(), ws.color.data());
+      for_each_run([&](const PixelRect& r) {
+        s.shade_rect(r, region, ws.u.data(), ws.normals.data(), ws.color.data());
+      });
+      fill_outside_runs(ws.color.data(), s.sim0);
       if (s.blend_radius > 0) {
         // TACTO's blend: real background + blur(sim - sim_bg) * gain, channel by channel.
         color_region = region.dilated(3 * s.blend_radius).clipped(w, h);

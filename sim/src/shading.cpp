@@ -64,6 +64,77 @@ Eigen::Vector3f shade(const Shader& shader, const Eigen::Vector3f& p, const Eige
   return rgb;
 }
 
+void shade_span(const Shader& shader, const ShadeSpan& in, float* rgb) {
+  const int n = in.count;
+  thread_local std::vector<float> buf;
+  buf.resize(std::size_t(n) * 9);
+  float* vx = buf.data();
+  float* vy = vx + n;
+  float* vz = vy + n;
+  float* acc_r = vz + n;
+  float* acc_g = acc_r + n;
+  float* acc_b = acc_g + n;
+  float* lambert = acc_b + n;
+  float* spec = lambert + n;
+  float* falloff = spec + n;
+  const ShadingModel& m = shader.model;
+  const float cx = shader.camera.x(), cy = shader.camera.y(), cz = shader.camera.z();
+  for (int i = 0; i < n; ++i) {
+    const float x = cx - in.px[i], y = cy - in.py[i], z = cz - in.pz[i];
+    const float inv = 1.0f / std::sqrt(x * x + y * y + z * z);
+    vx[i] = x * inv;
+    vy[i] = y * inv;
+    vz[i] = z * inv;
+    acc_r[i] = acc_g[i] = acc_b[i] = 0.0f;
+  }
+  const float ambient = float(m.ambient), diffuse = float(m.diffuse), specular = float(m.specular);
+  for (std::size_t k = 0; k < shader.lights.size(); ++k) {
+    const ShadingLight& light = shader.lights[k];
+    const float lx0 = light.position.x(), ly0 = light.position.y(), lz0 = light.position.z();
+    for (int i = 0; i < n; ++i) {
+      float lx = lx0 - in.px[i], ly = ly0 - in.py[i], lz = lz0 - in.pz[i];
+      const float d_sq = lx * lx + ly * ly + lz * lz;
+      const float inv = 1.0f / std::sqrt(d_sq);
+      lx *= inv;
+      ly *= inv;
+      lz *= inv;
+      // The coating faces the camera: its normal is -n.
+      const float ndotl = -(in.nx[i] * lx + in.ny[i] * ly + in.nz[i] * lz);
+      const float hx = lx + vx[i], hy = ly + vy[i], hz = lz + vz[i];
+      const float ndoth = -(in.nx[i] * hx + in.ny[i] * hy + in.nz[i] * hz) /
+                          std::sqrt(hx * hx + hy * hy + hz * hz);
+      lambert[i] = std::max(0.0f, ndotl);
+      spec[i] = ndotl > 0.0f ? std::max(0.0f, ndoth) : 0.0f;
+      falloff[i] = light.d0_sq / d_sq;
+    }
+    // spec^shininess by binary powering, each step a vector loop.
+    float* base = spec;
+    thread_local std::vector<float> power_buf;
+    power_buf.assign(std::size_t(n), 1.0f);
+    float* result = power_buf.data();
+    for (int e = m.shininess; e > 0; e >>= 1) {
+      if (e & 1) {
+        for (int i = 0; i < n; ++i) result[i] *= base[i];
+      }
+      for (int i = 0; i < n; ++i) base[i] *= base[i];
+    }
+    const float* vis = in.visibility ? in.visibility + std::size_t(k) * n : nullptr;
+    const float r = light.color.x(), g = light.color.y(), b = light.color.z();
+    for (int i = 0; i < n; ++i) {
+      const float v = vis ? vis[i] : 1.0f;
+      const float w = (ambient + v * (diffuse * lambert[i] + specular * result[i])) * falloff[i];
+      acc_r[i] += r * w;
+      acc_g[i] += g * w;
+      acc_b[i] += b * w;
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    rgb[3 * i] = acc_r[i];
+    rgb[3 * i + 1] = acc_g[i];
+    rgb[3 * i + 2] = acc_b[i];
+  }
+}
+
 void light_visibility(const Shader& shader, const GelGeometry& g, const SensorModel& sensor,
                       const float* u, const PixelRect& rect, int i, float* visibility) {
   constexpr int kSteps = 24;

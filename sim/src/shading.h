@@ -29,6 +29,16 @@ Shader make_shader(const SensorModel& sensor);
 Eigen::Vector3f shade(const Shader& shader, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
                       const float* visibility);
 
+// The same for a run of pixels in structure-of-arrays form, written so that the compiler
+// vectorises it: points p, outward normals n; rgb is interleaved (3 per pixel). `visibility`
+// holds count values per light (light-major), or nullptr.
+struct ShadeSpan {
+  int count = 0;
+  const float *px, *py, *pz, *nx, *ny, *nz;
+  const float* visibility = nullptr;
+};
+void shade_span(const Shader& shader, const ShadeSpan& span, float* rgb);
+
 // Fraction of each light that reaches the surface point of pixel i, marching from the point
 // toward the light over the deformed height field u (valid on `rect`, undeformed elsewhere):
 // the light is blocked where the path leaves the gel through its deformed surface.
