@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "pg/core/error.h"
+#include "rasterize.h"
 #include "raycast.h"
 
 namespace pg {
@@ -49,6 +50,7 @@ struct ObjectShape::Impl {
   std::shared_ptr<RTCDeviceTy> device;
   RTCScene scene = nullptr;
   std::vector<Eigen::Vector3f> face_normals;  // (v1 - v0) x (v2 - v0): outward for CCW
+  TriangleClusters clusters;                  // for rasterizing the triangles near the gel
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
   }
@@ -80,6 +82,7 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
     const auto& v0 = mesh_.vertices[t[0]];
     impl_->face_normals.push_back((mesh_.vertices[t[1]] - v0).cross(mesh_.vertices[t[2]] - v0));
   }
+  impl_->clusters = make_clusters(mesh_);
   rtcCommitGeometry(geom);
   impl_->scene = rtcNewScene(device);
   rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
@@ -91,6 +94,10 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
 }
 
 ObjectShape::~ObjectShape() = default;
+
+const TriangleClusters& triangle_clusters(const ObjectShape& shape) {
+  return shape.impl().clusters;
+}
 
 void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPacket& rays,
                PacketHits& hits) {

@@ -24,6 +24,9 @@ struct PacketHits {
   bool back_face[kPacket];    // the hit surface faces away from the ray (ray started inside)
 };
 
+struct TriangleClusters;
+const TriangleClusters& triangle_clusters(const ObjectShape& shape);
+
 // Intersects the packet with `shape` at pose T_sensor_object, filling `hits`.
 void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPacket& rays,
                PacketHits& hits);

@@ -52,12 +52,16 @@ struct RenderSettings {
   bool footprint = true;          // cast rays only near the contact, not over the whole image
   bool slab_limited_rays = true;  // start rays at the slab, not at the camera's near plane
   bool no_contact_cache = true;   // a frame without contact is the cached background
+  // Fine pass by rasterizing the triangles near the gel instead of a ray per pixel, where that
+  // is cheaper (same result; rays are kept where an object reaches deeper than the gel allows).
+  bool rasterize = true;
 };
 
 struct RenderStats {
   bool contact = false;
   int objects_culled = 0;
   long rays_cast = 0;
+  long triangles_rasterized = 0;
   int contact_pixels = 0;
   int clamped_pixels = 0;  // penetration beyond the gel's max indentation, clamped
   int shaded_pixels = 0;   // pixels whose surface differs from the undeformed gel

@@ -1,0 +1,112 @@
+// The tacsim command line as a user meets it: exit codes, messages, and a real render.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "pg/core/dataset.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int code = -1;
+  std::string out;  // stdout and stderr together
+};
+
+CliRun tacsim(const std::string& args) {
+  const std::string cmd = std::string(TACSIM_PATH) + " " + args + " 2>&1";
+  CliRun r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), int(buf.size()), pipe)) r.out += buf.data();
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    path = fs::temp_directory_path() /
+           ("pg_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+  std::string str(const std::string& sub = "") const { return (path / sub).string(); }
+};
+
+const std::string kScenes = std::string(PG_SOURCE_DIR) + "/scenes/";
+
+TEST(TacsimCli, UsageErrorsExitWithTwo) {
+  EXPECT_EQ(tacsim("").code, 2);
+  EXPECT_EQ(tacsim("frobnicate").code, 2);
+  EXPECT_EQ(tacsim("render").code, 2);  // missing SCENE and --out
+  EXPECT_EQ(tacsim("render x.json --out y --width 3").code, 2);
+}
+
+TEST(TacsimCli, HelpOnEverySubcommand) {
+  for (const char* sub : {"", "render ", "info ", "bench "}) {
+    const CliRun r = tacsim(std::string(sub) + "--help");
+    EXPECT_EQ(r.code, 0) << sub;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
+  }
+  EXPECT_NE(tacsim("render --help").out.find("--outputs"), std::string::npos);
+}
+
+TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
+  TempDir tmp;
+  CliRun r = tacsim("render /no/such/scene.json --out " + tmp.str("o"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("/no/such/scene.json"), std::string::npos) << r.out;
+  std::ofstream(tmp.str("bad.json")) << "{\n  \"frames\": 3,\n  oops\n}\n";
+  r = tacsim("render " + tmp.str("bad.json") + " --out " + tmp.str("o"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("bad.json:3:"), std::string::npos) << r.out;
+  r = tacsim("render " + kScenes + "examples/sphere_press.json --outputs color,colour --out " +
+             tmp.str("o"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("colour"), std::string::npos) << r.out;
+  r = tacsim("info " + tmp.str("nothing"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("nothing"), std::string::npos) << r.out;
+}
+
+TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
+  TempDir tmp;
+  const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json --out " + tmp.str("d") +
+                       " --threads 2 --width 60 --height 80");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("frames/s"), std::string::npos);  // progress and summary
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_EQ(d.info().width(), 60);
+  EXPECT_EQ(d.info().height(), 80);
+  EXPECT_GT(d.frames(), 0);
+  for (const auto& p : d.poses()) EXPECT_TRUE(p.contact);
+  const CliRun info = tacsim("info " + tmp.str("d"));
+  EXPECT_EQ(info.code, 0);
+  EXPECT_NE(info.out.find("60x80"), std::string::npos) << info.out;
+}
+
+TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
+  TempDir tmp;
+  const CliRun r = tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string warning = "no object touches the gel";
+  const auto first = r.out.find(warning);
+  ASSERT_NE(first, std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(warning, first + 1), std::string::npos) << "said more than once";
+  const Dataset d = Dataset::open(tmp.str("d"));
+  for (const auto& p : d.poses()) EXPECT_FALSE(p.contact);
+}
+
+}  // namespace
+}  // namespace pg
