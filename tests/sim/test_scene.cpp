@@ -1,0 +1,402 @@
+// Scene files: every field parses, defaults, path resolution, error messages that name the file
+// and the field, trajectories through the loader, and the committed scenes under scenes/.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "pg/core/error.h"
+#include "pg/core/se3.h"
+#include "pg/core/sensor.h"
+#include "pg/sim/mesh.h"
+#include "pg/sim/scene.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+using Eigen::Vector3d;
+using nlohmann::json;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kMm = 1e-3;
+
+// A fresh folder under the system temp dir per test, removed with its contents afterwards.
+class SceneFileTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    const auto stamp = std::chrono::steady_clock::now().time_since_epoch().count();
+    dir_ = fs::temp_directory_path() /
+           ("pg_test_scene_" + std::string(info->name()) + "_" + std::to_string(stamp));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    std::error_code ignored;
+    fs::remove_all(dir_, ignored);
+  }
+
+  std::string write(const std::string& relative, const std::string& text) {
+    const fs::path path = dir_ / relative;
+    fs::create_directories(path.parent_path());
+    std::ofstream(path) << text;
+    return path.string();
+  }
+  std::string write(const std::string& relative, const json& j) {
+    return write(relative, j.dump(2));
+  }
+  std::string in_dir(const std::string& relative) const {
+    return (dir_ / relative).lexically_normal().string();
+  }
+
+  fs::path dir_;
+};
+
+// The InputError message of loading `path`; fails the test if it loads.
+std::string load_error(const std::string& path) {
+  try {
+    load_scene(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << path << " loaded, but an InputError was expected";
+  return "";
+}
+
+json minimal_scene() {
+  return {{"frames", 3},
+          {"sensors", json::array({json::object()})},
+          {"objects", json::array({json{{"mesh", "m.glb"}}})}};
+}
+
+json waypoint(int frame, const Vector3d& position, const Vector3d& rpy) {
+  return {{"frame", frame},
+          {"position", {position.x(), position.y(), position.z()}},
+          {"rpy", {rpy.x(), rpy.y(), rpy.z()}}};
+}
+
+void expect_near(const SE3& actual, const Vector3d& position, const Eigen::Quaterniond& rotation,
+                 double tol = 1e-12) {
+  EXPECT_LT((actual.translation() - position).norm(), tol)
+      << "translation " << actual.translation().transpose() << ", expected "
+      << position.transpose();
+  EXPECT_LT(rotation_distance(actual, SE3(rotation, position)), tol);
+}
+
+// --------------------------------------------------------------------------- parsing
+
+TEST_F(SceneFileTest, FullSceneParsesEveryField) {
+  write("sensors/mini.json", json{{"preset", "gelsight_mini"}, {"noise", {{"sigma", 2.5}}}});
+  const json scene = {
+      {"frames", 12},
+      {"fps", 30},
+      {"sensors",
+       {{{"name", "left"},
+         {"sensor", "digit_240x320"},
+         {"pose", {{"position", {0.01, 0, 0}}, {"rpy", {0, 0, kPi / 2}}}}},
+        {{"name", "right"},
+         {"sensor",
+          {{"preset", "digit"},
+           {"width", 60},
+           {"height", 80},
+           {"gel", {{"sag_m", 0.004}}},
+           {"noise", {{"sigma", 3}}}}},
+         {"pose", {{"position", {0, 0, 0.02}}, {"quaternion", {1, 0, 0, 0}}}}},
+        {{"name", "from_file"},
+         {"sensor_file", "sensors/mini.json"},
+         {"trajectory", {{"poses", {{{"position", {0, 0, 0}}}, {{"position", {0, 0, 0.001}}}}}}}}}},
+      {"objects",
+       {{{"name", "cube"},
+         {"mesh", "meshes/cube.glb"},
+         {"scale", 0.5},
+         {"trajectory",
+          {{"waypoints",
+            {waypoint(0, {0, 0, 0.01}, {0, 0, 0}), waypoint(10, {0.002, 0, 0.01}, {0.1, 0, 0})}}}}},
+        {{"name", "ball"}, {"mesh", "/abs/ball.obj"}, {"pose", {{"position", {0, 0, 0.005}}}}}}},
+      {"tracked_object", "ball"},
+      {"render",
+       {{"outputs", {"color", "mask"}},
+        {"noise", false},
+        {"shadows", true},
+        {"background", "bg/real.png"},
+        {"seed", 42}}}};
+  const Scene s = load_scene(write("scene.json", scene));
+
+  EXPECT_EQ(s.frames, 12);
+  EXPECT_DOUBLE_EQ(s.fps, 30.0);
+  ASSERT_EQ(s.sensors.size(), 3u);
+  EXPECT_EQ(s.sensors[0].name, "left");
+  EXPECT_EQ(s.sensors[0].model.camera.width, 240);
+  EXPECT_EQ(s.sensors[0].model.camera.height, 320);
+  expect_near(s.sensors[0].T_world_sensor.at(7), {0.01, 0, 0},
+              quaternion_from_rpy({0, 0, kPi / 2}));
+  EXPECT_EQ(s.sensors[1].model.camera.width, 60);
+  EXPECT_EQ(s.sensors[1].model.camera.height, 80);
+  EXPECT_DOUBLE_EQ(s.sensors[1].model.gel.sag_m, 0.004);
+  EXPECT_DOUBLE_EQ(s.sensors[1].model.noise.sigma, 3.0);
+  // quaternion [x, y, z, w] = [1, 0, 0, 0]: half a turn about x.
+  expect_near(s.sensors[1].T_world_sensor.at(0), {0, 0, 0.02},
+              Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vector3d::UnitX())));
+  EXPECT_EQ(s.sensors[2].model.name, "gelsight_mini");
+  EXPECT_DOUBLE_EQ(s.sensors[2].model.noise.sigma, 2.5);
+  EXPECT_DOUBLE_EQ(s.sensors[2].T_world_sensor.at(0).translation().z(), 0.0);
+  EXPECT_DOUBLE_EQ(s.sensors[2].T_world_sensor.at(1).translation().z(), 0.001);
+  EXPECT_DOUBLE_EQ(s.sensors[2].T_world_sensor.at(9).translation().z(), 0.001);  // holds last
+
+  ASSERT_EQ(s.objects.size(), 2u);
+  EXPECT_EQ(s.objects[0].name, "cube");
+  EXPECT_EQ(s.objects[0].mesh_path, in_dir("meshes/cube.glb"));
+  EXPECT_DOUBLE_EQ(s.objects[0].scale, 0.5);
+  expect_near(s.objects[0].T_world_object.at(10), {0.002, 0, 0.01},
+              quaternion_from_rpy({0.1, 0, 0}));
+  EXPECT_EQ(s.objects[1].mesh_path, "/abs/ball.obj");
+  expect_near(s.objects[1].T_world_object.at(4), {0, 0, 0.005}, Eigen::Quaterniond::Identity());
+  EXPECT_EQ(s.tracked_object, 1);
+
+  EXPECT_EQ(s.render.outputs, (std::vector<std::string>{"color", "mask"}));
+  EXPECT_FALSE(s.render.noise);
+  EXPECT_TRUE(s.render.shadows);
+  EXPECT_EQ(s.render.background, in_dir("bg/real.png"));
+  EXPECT_EQ(s.render.seed, 42u);
+}
+
+TEST_F(SceneFileTest, DefaultsMakeTheFirstSensorTheWorld) {
+  const Scene s = load_scene(write("scene.json", minimal_scene()));
+  EXPECT_EQ(s.frames, 3);
+  EXPECT_DOUBLE_EQ(s.fps, 60.0);
+  ASSERT_EQ(s.sensors.size(), 1u);
+  EXPECT_EQ(s.sensors[0].name, "sensor0");
+  EXPECT_EQ(s.sensors[0].model.name, "digit");
+  EXPECT_EQ(s.sensors[0].model.camera.width, 120);
+  EXPECT_EQ(s.sensors[0].model.camera.height, 160);
+  ASSERT_EQ(s.objects.size(), 1u);
+  EXPECT_EQ(s.objects[0].name, "object0");
+  EXPECT_DOUBLE_EQ(s.objects[0].scale, 1.0);
+  for (int f : {0, 1, 2, 100}) {
+    expect_near(s.sensors[0].T_world_sensor.at(f), Vector3d::Zero(),
+                Eigen::Quaterniond::Identity());
+    expect_near(s.objects[0].T_world_object.at(f), Vector3d::Zero(),
+                Eigen::Quaterniond::Identity());
+  }
+  EXPECT_EQ(s.tracked_object, 0);
+  EXPECT_EQ(s.render.outputs, (std::vector<std::string>{"color", "normal", "depth", "mask"}));
+  EXPECT_TRUE(s.render.noise);
+  EXPECT_FALSE(s.render.shadows);
+  EXPECT_EQ(s.render.background, "");  // synthetic
+  EXPECT_EQ(s.render.seed, 0u);
+
+  json explicit_synthetic = minimal_scene();
+  explicit_synthetic["render"] = {{"background", "synthetic"}};
+  EXPECT_EQ(load_scene(write("synthetic.json", explicit_synthetic)).render.background, "");
+}
+
+TEST_F(SceneFileTest, RelativePathsResolveAgainstTheSceneFolder) {
+  write("s.json", json{{"preset", "digit"}, {"width", 60}, {"height", 80}});
+  json j = minimal_scene();
+  j["sensors"][0] = {{"sensor_file", "../../s.json"}};
+  j["objects"] = {{{"mesh", "../m/x.glb"}}, {{"mesh", "./y.obj"}}, {{"mesh", "z.stl"}}};
+  j["render"] = {{"background", "../../bg.png"}};
+  const Scene s = load_scene(write("a/b/scene.json", j));
+  EXPECT_EQ(s.sensors[0].model.camera.width, 60);  // found dir/s.json
+  EXPECT_EQ(s.objects[0].mesh_path, in_dir("a/m/x.glb"));
+  EXPECT_EQ(s.objects[1].mesh_path, in_dir("a/b/y.obj"));
+  EXPECT_EQ(s.objects[2].mesh_path, in_dir("a/b/z.stl"));
+  EXPECT_EQ(s.render.background, in_dir("bg.png"));
+}
+
+// --------------------------------------------------------------------------- errors
+
+TEST_F(SceneFileTest, MalformedJsonGivesFileLineAndColumn) {
+  const std::string path = write("broken.json", std::string("{\n  \"frames\": 3,\n  \"sensors\": [,]\n}\n"));
+  const std::string message = load_error(path);
+  EXPECT_EQ(message.rfind(path + ":3:", 0), 0u) << message;
+  EXPECT_NE(message.find("malformed JSON"), std::string::npos) << message;
+}
+
+TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
+  struct Case {
+    std::string name;
+    std::function<void(json&)> edit;
+    std::vector<std::string> expected;  // substrings of the message
+  };
+  const std::vector<Case> cases = {
+      {"missing frames", [](json& j) { j.erase("frames"); }, {": frames", "missing"}},
+      {"frames of the wrong type", [](json& j) { j["frames"] = "ten"; },
+       {": frames", "expected an integer, got a string"}},
+      {"unknown top-level key", [](json& j) { j["colour"] = "red"; }, {": colour: unknown key"}},
+      {"unknown nested key", [](json& j) { j["objects"][0]["colour"] = "red"; },
+       {": objects[0].colour: unknown key"}},
+      {"waypoint frames not increasing",
+       [](json& j) {
+         j["objects"][0]["trajectory"]["waypoints"] = {waypoint(5, {0, 0, 0}, {0, 0, 0}),
+                                                       waypoint(5, {0, 0, 0}, {0, 0, 0})};
+       },
+       {"objects[0].trajectory.waypoints[1].frame", "increase"}},
+      {"both pose and trajectory",
+       [](json& j) {
+         j["objects"][0]["pose"] = {{"position", {0, 0, 0}}};
+         j["objects"][0]["trajectory"] = {{"poses", {{{"position", {0, 0, 0}}}}}};
+       },
+       {"objects[0].pose", "either pose or trajectory"}},
+      {"unknown output", [](json& j) { j["render"] = {{"outputs", {"color", "rgb"}}}; },
+       {"render.outputs", "unknown output 'rgb'"}},
+      {"unknown tracked object", [](json& j) { j["tracked_object"] = "ghost"; },
+       {": tracked_object", "'ghost'"}},
+      {"unknown sensor preset", [](json& j) { j["sensors"][0]["sensor"] = "digit9"; },
+       {"sensors[0].sensor", "unknown sensor preset 'digit9'"}},
+  };
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    SCOPED_TRACE(cases[i].name);
+    json j = minimal_scene();
+    cases[i].edit(j);
+    const std::string path = write("case" + std::to_string(i) + ".json", j);
+    const std::string message = load_error(path);
+    EXPECT_EQ(message.rfind(path, 0), 0u) << "message does not start with the file: " << message;
+    for (const std::string& part : cases[i].expected) {
+      EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
+    }
+  }
+}
+
+// --------------------------------------------------------------------------- trajectories
+
+TEST_F(SceneFileTest, WaypointsInterpolateLinearlyAndBySlerp) {
+  json j = minimal_scene();
+  j["objects"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0.01}, {0, 0, 0}),
+                                                waypoint(10, {0.01, 0, 0.01}, {0, 0, kPi / 2})};
+  const Scene scene = load_scene(write("scene.json", j));
+  const Trajectory& t = scene.objects[0].T_world_object;
+  expect_near(t.at(5), {0.005, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 4}), 1e-12);
+  expect_near(t.at(2), {0.002, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 10}), 1e-12);
+  expect_near(t.at(-3), {0, 0, 0.01}, Eigen::Quaterniond::Identity());  // holds the first
+  expect_near(t.at(20), {0.01, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 2}));  // and the last
+}
+
+// --------------------------------------------------------------------------- committed scenes
+
+// Every .json under scenes/ is a scene, except sensor files in scenes/sensors/.
+std::vector<fs::path> committed_scenes() {
+  std::vector<fs::path> scenes;
+  const fs::path root = fs::path(PG_SOURCE_DIR) / "scenes";
+  for (const auto& entry : fs::recursive_directory_iterator(root)) {
+    const fs::path rel = entry.path().lexically_relative(root);
+    if (entry.is_regular_file() && entry.path().extension() == ".json" &&
+        *rel.begin() != "sensors") {
+      scenes.push_back(entry.path());
+    }
+  }
+  std::sort(scenes.begin(), scenes.end());
+  return scenes;
+}
+
+// Points on the mesh surface at most 0.25 mm apart: on the convex gel the middle of a long
+// straight edge reaches deeper than the vertices at its ends.
+const std::vector<Vector3d>& surface_points(const std::string& mesh_path) {
+  static std::map<std::string, std::vector<Vector3d>> cache;
+  auto it = cache.find(mesh_path);
+  if (it != cache.end()) return it->second;
+  const TriangleMesh mesh = load_mesh(mesh_path);
+  std::vector<Vector3d> points;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Vector3d a = mesh.vertices[t[0]].cast<double>();
+    const Vector3d ab = mesh.vertices[t[1]].cast<double>() - a;
+    const Vector3d ac = mesh.vertices[t[2]].cast<double>() - a;
+    const double longest = std::max({ab.norm(), ac.norm(), (ac - ab).norm()});
+    const int n = std::max(1, int(std::ceil(longest / (0.25 * kMm))));
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) points.push_back(a + ab * i / n + ac * j / n);
+    }
+  }
+  return cache.emplace(mesh_path, std::move(points)).first->second;
+}
+
+struct Contact {
+  double depth = -std::numeric_limits<double>::infinity();  // max of surface_z - z [m]
+  double max_abs_x = 0.0, max_abs_y = 0.0;  // extent of the penetrating points [m]
+};
+
+Contact contact_in_sensor(const std::vector<Vector3d>& p_object, const SE3& T_sensor_object,
+                          const GelModel& gel) {
+  Contact c;
+  for (const Vector3d& p : p_object) {
+    const Vector3d q = T_sensor_object * p;
+    if (q.z() >= 0.0) continue;  // surface_z <= 0: cannot penetrate
+    const double depth = gel.surface_z(q.x(), q.y()) - q.z();
+    c.depth = std::max(c.depth, depth);
+    if (depth > 0.0) {
+      c.max_abs_x = std::max(c.max_abs_x, std::abs(q.x()));
+      c.max_abs_y = std::max(c.max_abs_y, std::abs(q.y()));
+    }
+  }
+  return c;
+}
+
+TEST(CommittedScenes, AllLoadAndTheirMeshesExist) {
+  const std::vector<fs::path> scenes = committed_scenes();
+  ASSERT_GE(scenes.size(), 84u) << "expected the 80 benchmark scenes, default.json and examples";
+  for (const fs::path& path : scenes) {
+    SCOPED_TRACE(path.string());
+    Scene s;
+    ASSERT_NO_THROW(s = load_scene(path.string()));
+    for (const SceneObject& o : s.objects) {
+      EXPECT_TRUE(fs::is_regular_file(o.mesh_path)) << "missing mesh " << o.mesh_path;
+    }
+  }
+  EXPECT_TRUE(fs::exists(fs::path(PG_SOURCE_DIR) / "scenes" / "default.json"));
+}
+
+// The paper's protocol: 20 sequences per simulated object, 300 frames each, one DIGIT (120x160)
+// at the world origin, the object 0.2-2.0 mm into the gel inside the visible area (|x| < 8 mm,
+// |y| < 10 mm) at every 10th frame.
+TEST(CommittedScenes, BenchmarkHasTwentyContactSequencesPerObject) {
+  const fs::path dir = fs::path(PG_SOURCE_DIR) / "scenes" / "benchmark";
+  std::map<std::string, std::set<std::string>> by_object;
+  for (const fs::path& path : committed_scenes()) {
+    if (path.parent_path() != dir) continue;
+    const std::string stem = path.stem().string();
+    by_object[stem.substr(0, stem.rfind('_'))].insert(stem.substr(stem.rfind('_') + 1));
+  }
+  std::set<std::string> numbers;
+  for (int i = 0; i < 20; ++i) numbers.insert((i < 10 ? "0" : "") + std::to_string(i));
+  const std::vector<std::string> objects = {"cube", "sphere", "toy_brick", "toy_human"};
+  ASSERT_EQ(by_object.size(), objects.size());
+  for (const std::string& object : objects) EXPECT_EQ(by_object[object], numbers) << object;
+
+  for (const std::string& object : objects) {
+    for (const std::string& nn : numbers) {
+      const std::string path = (dir / (object + "_" + nn + ".json")).string();
+      SCOPED_TRACE(path);
+      const Scene s = load_scene(path);
+      EXPECT_EQ(s.frames, 300);
+      ASSERT_EQ(s.sensors.size(), 1u);
+      ASSERT_EQ(s.objects.size(), 1u);
+      EXPECT_EQ(s.objects[s.tracked_object].name, object);
+      const SensorModel& sensor = s.sensors[0].model;
+      EXPECT_EQ(sensor.camera.width, 120);
+      EXPECT_EQ(sensor.camera.height, 160);
+      const std::vector<Vector3d>& points = surface_points(s.objects[0].mesh_path);
+      for (int f = 0; f < s.frames; f += 10) {
+        const SE3 T_sensor_object =
+            s.sensors[0].T_world_sensor.at(f).inverse() * s.objects[0].T_world_object.at(f);
+        const Contact c = contact_in_sensor(points, T_sensor_object, sensor.gel);
+        EXPECT_GE(c.depth, 0.2 * kMm) << "frame " << f;
+        EXPECT_LE(c.depth, 2.0 * kMm) << "frame " << f;
+        EXPECT_LT(c.max_abs_x, 8.0 * kMm) << "frame " << f;
+        EXPECT_LT(c.max_abs_y, 10.0 * kMm) << "frame " << f;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace pg
