@@ -79,6 +79,7 @@ void read_gel(const nlohmann::json& j, const std::string& where, GelModel& gel) 
     JsonFields e(f.at("elastic"), f.field("elastic"));
     gel.elastic.enabled = e.optional<bool>("enabled", gel.elastic.enabled);
     gel.elastic.bend_radius_m = e.number_in("bend_radius_m", 1e-6, 1.0, gel.elastic.bend_radius_m);
+    gel.elastic.smoothing_m = e.number_in("smoothing_m", 0.0, 0.01, gel.elastic.smoothing_m);
     e.finish();
   }
   f.finish();
@@ -232,7 +233,8 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
         {"max_indentation_m", g.max_indentation_m},
         {"elastic",
          {{"enabled", g.elastic.enabled},
-          {"bend_radius_m", g.elastic.bend_radius_m}}}}},
+          {"bend_radius_m", g.elastic.bend_radius_m},
+          {"smoothing_m", g.elastic.smoothing_m}}}}},
       {"lights", lights},
       {"shading",
        {{"ambient", s.shading.ambient},

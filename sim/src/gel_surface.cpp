@@ -41,13 +41,15 @@ ElasticKernel make_elastic_kernel(const ElasticModel& model, float px_per_m) {
   if (!model.enabled) return k;
   k.enabled = true;
   k.alpha = float(1.0 / (2.0 * model.bend_radius_m * double(px_per_m) * double(px_per_m)));
+  const double sigma_px = model.smoothing_m * px_per_m;
+  k.blur_radius = sigma_px < 0.3 ? 0 : gaussian_box_radius(sigma_px);
   return k;
 }
 
 int ElasticKernel::support(float depth_m) const {
   if (!enabled) return 0;
   // The closing never reaches beyond the dilation's reach.
-  return int(std::ceil(std::sqrt(std::max(depth_m, 0.0f) / alpha))) + 1;
+  return int(std::ceil(std::sqrt(std::max(depth_m, 0.0f) / alpha))) + 3 * blur_radius + 1;
 }
 
 namespace {
@@ -150,13 +152,19 @@ void elastic_displacement(const ElasticKernel& kernel, int width, const PixelRec
     }
     return;
   }
-  // Closing = erosion of the dilation: rigid -> u (dilated) -> u (closed), via scratch.
+  // Closing = erosion of the dilation: rigid -> u (dilated) -> u (closed), via scratch; then
+  // the smoothing u -> scratch.
   parabolic_2d(rigid, scratch, u, width, rect, kernel.alpha, 1.0f);
   parabolic_2d(u, scratch, u, width, rect, kernel.alpha, -1.0f);
+  const float* surface = u;
+  if (kernel.blur_radius > 0) {
+    gaussian_blur(u, scratch, u, width, rect, kernel.blur_radius);
+    surface = scratch;
+  }
   for (int y = rect.y0; y < rect.y1; ++y) {
     for (int x = rect.x0; x < rect.x1; ++x) {
       const int i = y * width + x;
-      u[i] = std::max(rigid[i], u[i]);  // exact in theory; guards float rounding
+      u[i] = std::max(rigid[i], surface[i]);  // the closing is >= r; smoothing may dip below
     }
   }
 }

@@ -42,10 +42,12 @@ void gaussian_blur(const float* src, float* dst, float* scratch, int width, cons
 // sharply convex than 1 / rho (the gel takes the object's shape); the convex corner where a
 // contact ends is rounded by a paraboloid that leaves the object tangentially and meets the
 // undeformed gel tangentially (sink-in around the contact, and C1: no kink, no normal outliers).
-// Both passes are separable, each an O(n) lower-envelope scan per line.
+// Both passes are separable, each an O(n) lower-envelope scan per line. Finally the surface is
+// smoothed by a Gaussian of elastic.smoothing_m, keeping u >= r: u = max(r, G * closing(r)).
 struct ElasticKernel {
   bool enabled = false;
-  float alpha = 0;  // paraboloid coefficient 1 / (2 rho) in image units [m / px^2]
+  float alpha = 0;      // paraboloid coefficient 1 / (2 rho) in image units [m / px^2]
+  int blur_radius = 0;  // box radius of the smoothing, 0 for none
   // Pixels the deformation reaches beyond a contact whose deepest indentation is `depth_m`.
   int support(float depth_m) const;
 };

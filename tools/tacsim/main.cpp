@@ -2,6 +2,7 @@
 //   tacsim render SCENE --out DIR   render a scene into the dataset format
 //   tacsim info DIR                 describe a dataset
 //   tacsim bench                    the renderer's speed benchmark
+//   tacsim sheet SCENES --out PNG   a contact sheet of one frame per scene
 #include <tbb/global_control.h>
 
 #include <cstdio>
@@ -11,6 +12,7 @@
 #include "../common/cli_main.h"
 #include "../common/progress.h"
 #include "bench.h"
+#include "sheet.h"
 #include "pg/core/dataset.h"
 #include "pg/sim/scene_renderer.h"
 
@@ -128,7 +130,18 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
   cmd_bench->add_flag("--quick", bench.quick, "Fewer frames, for a smoke test");
 
+  SheetArgs sheet;
+  CLI::App* cmd_sheet =
+      app.add_subcommand("sheet", "Render one frame of each scene into a contact sheet PNG");
+  cmd_sheet->add_option("scenes", sheet.scenes, "Scene files")->required();
+  cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
+  cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(CLI::NonNegativeNumber);
+  cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")->check(CLI::Range(8, 8192));
+  cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")->check(CLI::Range(8, 8192));
+  cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
+
   return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_sheet->parsed()) return run_sheet(sheet);
     if (cmd_render->parsed()) return run_render(render);
     if (cmd_info->parsed()) return run_info(info_dir);
     if (cmd_bench->parsed()) return run_bench(bench);

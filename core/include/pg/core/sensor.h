@@ -39,6 +39,9 @@ struct CameraModel {
 struct ElasticModel {
   bool enabled = true;
   double bend_radius_m = 0.001;  // smallest radius of curvature of the free gel surface [m]
+  // The coating smooths away surface detail finer than this (Gaussian sigma) [m]; it also keeps
+  // the pixel staircase of steep contact walls out of the normals.
+  double smoothing_m = 0.00005;
 };
 
 struct GelModel {

@@ -1,0 +1,57 @@
+#include "sheet.h"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "pg/sim/scene_renderer.h"
+
+namespace pg {
+
+namespace {
+
+void paste(ImageU8& sheet, const ImageU8& tile, int x0, int y0) {
+  for (int y = 0; y < tile.height; ++y)
+    for (int x = 0; x < tile.width; ++x)
+      for (int c = 0; c < 3; ++c) sheet.at(x0 + x, y0 + y, c) = tile.at(x, y, tile.channels == 3 ? c : 0);
+}
+
+ImageU8 to_u8(const ImageF& image, float scale, float offset) {
+  ImageU8 out(image.width, image.height, image.channels);
+  for (std::size_t i = 0; i < image.data.size(); ++i) {
+    out.data[i] = std::uint8_t(std::clamp(image.data[i] * scale + offset, 0.0f, 1.0f) * 255.0f + 0.5f);
+  }
+  return out;
+}
+
+}  // namespace
+
+int run_sheet(const SheetArgs& args) {
+  std::vector<std::vector<ImageU8>> columns;
+  for (const auto& path : args.scenes) {
+    Scene scene = load_scene(path);
+    if (!args.background.empty()) scene.render.background = args.background;
+    RenderOverrides overrides;
+    overrides.outputs = {"color", "normal", "depth"};
+    overrides.width = args.width;
+    overrides.height = args.height;
+    const SceneRenderer renderer(scene, overrides);
+    const int frame = std::min(args.frame, scene.frames - 1);
+    const RenderedFrame f = renderer.render_frame(frame)[0];
+    const float deepest = std::max(1e-9f, *std::max_element(f.images.depth.data.begin(),
+                                                            f.images.depth.data.end()));
+    columns.push_back({f.images.color, to_u8(f.images.normal, 0.5f, 0.5f),
+                       to_u8(f.images.depth, 1.0f / deepest, 0.0f)});
+    std::printf("%s: frame %d, contact %s, deepest %.3f mm\n", path.c_str(), frame,
+                f.stats.contact ? "yes" : "no", deepest * 1e3);
+  }
+  const int gap = 4, w = columns[0][0].width, h = columns[0][0].height;
+  const int n = int(columns.size());
+  ImageU8 sheet(n * w + (n - 1) * gap, 3 * h + 2 * gap, 3, 255);
+  for (int i = 0; i < n; ++i)
+    for (int r = 0; r < 3; ++r) paste(sheet, columns[i][r], i * (w + gap), r * (h + gap));
+  write_image(args.out, sheet);
+  std::printf("wrote %s (%dx%d)\n", args.out.c_str(), sheet.width, sheet.height);
+  return 0;
+}
+
+}  // namespace pg
