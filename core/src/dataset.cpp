@@ -11,6 +11,7 @@
 
 #include "pg/core/error.h"
 #include "pg/core/json_fields.h"
+#include "pg/core/point_io.h"
 
 namespace pg {
 
@@ -25,6 +26,7 @@ constexpr int kPosesColumns = 17;
 constexpr int kFormatVersion = 1;
 
 std::string extension_of(const std::string& output) {
+  if (output == "points") return ".ply";
   return (output == "normal" || output == "depth") ? ".exr" : ".png";
 }
 
@@ -81,12 +83,7 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
   if (info.frames < 0) throw InputError(f.field("frames") + ": must be >= 0");
   info.fps = f.required_number_in("fps", 1e-6, 1e6);
   info.outputs = f.required<std::vector<std::string>>("outputs");
-  for (const auto& o : info.outputs) {
-    const auto& names = dataset_output_names();
-    if (std::find(names.begin(), names.end(), o) == names.end()) {
-      throw InputError(f.field("outputs") + ": unknown output '" + o + "'");
-    }
-  }
+  for (const auto& o : info.outputs) check_output_name(o, f.field("outputs"));
   info.scene = f.optional<std::string>("scene", "");
   info.seed = f.optional<std::uint64_t>("seed", 0);
   if (f.has("object")) {
@@ -113,8 +110,16 @@ void write_text_atomically(const std::string& path, const std::string& text) {
 }  // namespace
 
 const std::vector<std::string>& dataset_output_names() {
-  static const std::vector<std::string> names = {"color", "normal", "depth", "mask"};
+  static const std::vector<std::string> names = {"color", "normal", "depth", "mask", "points"};
   return names;
+}
+
+void check_output_name(const std::string& name, const std::string& where) {
+  const auto& names = dataset_output_names();
+  if (std::find(names.begin(), names.end(), name) != names.end()) return;
+  std::string known;
+  for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+  throw InputError(where + ": unknown output '" + name + "' (known: " + known + ")");
 }
 
 bool DatasetInfo::has_output(const std::string& name) const {
@@ -221,6 +226,7 @@ void DatasetWriter::write_frame(const FramePose& pose, const FrameImages& images
     if (o == "normal") check_image(path, images.normal, w, h, 3), write_image(path, images.normal);
     if (o == "depth") check_image(path, images.depth, w, h, 1), write_image(path, images.depth);
     if (o == "mask") check_image(path, images.mask, w, h, 1), write_image(path, images.mask);
+    if (o == "points") write_ply(path, images.contact_points);
   }
   std::lock_guard<std::mutex> lock(mutex_);
   poses_[pose.frame] = pose;
@@ -286,6 +292,13 @@ ImageF Dataset::depth(int frame) const {
 }
 ImageU8 Dataset::mask(int frame) const {
   return read_checked<std::uint8_t>(*this, "mask", frame, read_image_u8);
+}
+std::vector<Eigen::Vector3f> Dataset::contact_points(int frame) const {
+  if (!info_.has_output("points")) throw InputError(dir_ + ": dataset has no 'points' output");
+  if (frame < 0 || frame >= frames()) {
+    throw InputError(dir_ + ": frame " + std::to_string(frame) + " out of range");
+  }
+  return read_ply(dataset_frame_path(dir_, "points", frame));
 }
 
 }  // namespace pg

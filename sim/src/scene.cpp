@@ -175,13 +175,7 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
     JsonFields r(f.at("render"), f.field("render"));
     auto& render = scene.render;
     render.outputs = r.optional<std::vector<std::string>>("outputs", render.outputs);
-    for (const auto& o : render.outputs) {
-      const auto& names = dataset_output_names();
-      if (std::find(names.begin(), names.end(), o) == names.end()) {
-        throw InputError(r.field("outputs") + ": unknown output '" + o +
-                         "' (known: color, normal, depth, mask)");
-      }
-    }
+    for (const auto& o : render.outputs) check_output_name(o, r.field("outputs"));
     render.noise = r.optional<bool>("noise", render.noise);
     render.shadows = r.optional<bool>("shadows", render.shadows);
     const std::string bg = r.optional<std::string>("background", "synthetic");

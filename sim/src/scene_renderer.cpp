@@ -26,6 +26,7 @@ RenderSettings settings_for(const SceneRender& render, const std::vector<std::st
   s.normal = wants("normal");
   s.depth = wants("depth");
   s.mask = wants("mask");
+  s.contact_points = wants("points");
   s.noise = render.noise;
   s.shadows = render.shadows;
   s.background = render.background;
@@ -111,7 +112,11 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
       pose.T_world_object = tracked.T_world_object.at(frame);
       pose.T_world_sensor = scene.sensors[i].T_world_sensor.at(frame);
       pose.contact = frames[i].stats.contact;
-      writers[i]->write_frame(pose, frames[i].images);
+      FrameImages images = frames[i].images;
+      if (!frames[i].contact_points_object.empty()) {
+        images.contact_points = frames[i].contact_points_object[scene.tracked_object];
+      }
+      writers[i]->write_frame(pose, images);
       contact = contact || frames[i].stats.contact;
       clamped = clamped || frames[i].stats.clamped_pixels > 0;
     }

@@ -5,6 +5,7 @@
 
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/point_io.h"
 
 namespace pg {
 namespace {
@@ -178,6 +179,46 @@ TEST(Dataset, ReaderRejectsBadInfo) {
   write_small(tmp.str("d"), 1);
   std::ofstream(tmp.str("d/dataset.json")) << "{\"format\": \"patchgraph-dataset\", ";
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "dataset.json:1:");
+}
+
+TEST(Dataset, ContactPointsRoundTripAsPly) {
+  TempDir tmp;
+  DatasetInfo info = small_info(2);
+  info.outputs = {"mask", "points"};
+  DatasetWriter w(tmp.str("d"), info);
+  for (int i = 0; i < 2; ++i) {
+    FramePose p;
+    p.frame = i;
+    FrameImages f = make_frame(24, 32, i);
+    for (int k = 0; k < 5 * i; ++k) f.contact_points.push_back({0.001f * k, -0.002f, 0.0003f * i});
+    w.write_frame(p, f);
+  }
+  w.finish();
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_TRUE(d.contact_points(0).empty());
+  const auto pts = d.contact_points(1);
+  ASSERT_EQ(pts.size(), 5u);
+  EXPECT_EQ(pts[3], Eigen::Vector3f(0.003f, -0.002f, 0.0003f));
+  expect_input_error([&] { d.color(0); }, "no 'color' output");
+}
+
+TEST(PointIo, PlyRoundTripWithNormalsAndErrors) {
+  TempDir tmp;
+  std::vector<Eigen::Vector3f> p = {{1, 2, 3}, {-1, 0.5f, 1e-6f}}, n = {{0, 0, 1}, {1, 0, 0}};
+  write_ply(tmp.str("a.ply"), p, &n);
+  std::vector<Eigen::Vector3f> n2;
+  EXPECT_EQ(read_ply(tmp.str("a.ply"), &n2), p);
+  EXPECT_EQ(n2, n);
+  expect_input_error([&] { read_ply(tmp.str("none.ply")); }, "none.ply");
+  std::ofstream(tmp.str("t.ply"), std::ios::binary)
+      << "ply\nformat binary_little_endian 1.0\nelement vertex 9\nproperty float x\n"
+         "property float y\nproperty float z\nend_header\nabc";
+  expect_input_error([&] { read_ply(tmp.str("t.ply")); }, "truncated");
+  std::ofstream(tmp.str("x.ply")) << "solid\n";
+  expect_input_error([&] { read_ply(tmp.str("x.ply")); }, "not a PLY");
+  std::vector<Eigen::Vector3f> bad = {{NAN, 0, 0}};
+  write_ply(tmp.str("nan.ply"), bad);
+  expect_input_error([&] { read_ply(tmp.str("nan.ply")); }, "not finite");
 }
 
 TEST(Image, FormatsRoundTrip) {

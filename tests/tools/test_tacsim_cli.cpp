@@ -96,6 +96,26 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
   EXPECT_NE(info.out.find("60x80"), std::string::npos) << info.out;
 }
 
+TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
+  TempDir tmp;
+  const CliRun r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask,points --out " +
+                          tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  int datasets = 0;
+  for (const auto& entry : fs::directory_iterator(tmp.path / "d")) {
+    const Dataset d = Dataset::open(entry.path().string());
+    ++datasets;
+    for (int i = 0; i < d.frames(); ++i) {
+      EXPECT_TRUE(d.poses()[i].contact) << entry.path() << " frame " << i;
+      // The pinched cube's contact points lie on its faces (|coordinate| = 10 mm on one axis).
+      const auto pts = d.contact_points(i);
+      ASSERT_GT(pts.size(), 20u);
+      for (const auto& p : pts) EXPECT_NEAR(p.cwiseAbs().maxCoeff(), 0.010, 2e-5);
+    }
+  }
+  EXPECT_EQ(datasets, 2);
+}
+
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   TempDir tmp;
   const CliRun r = tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));

@@ -38,12 +38,7 @@ struct RenderArgs {
 int run_render(const RenderArgs& a) {
   RenderOverrides overrides;
   overrides.outputs = split_list(a.outputs);
-  for (const auto& o : overrides.outputs) {
-    const auto& names = dataset_output_names();
-    if (std::find(names.begin(), names.end(), o) == names.end()) {
-      throw InputError("--outputs: unknown output '" + o + "' (known: color, normal, depth, mask)");
-    }
-  }
+  for (const auto& o : overrides.outputs) check_output_name(o, "--outputs");
   overrides.width = a.width;
   overrides.height = a.height;
   std::unique_ptr<tbb::global_control> threads;
@@ -107,7 +102,7 @@ int main(int argc, char** argv) {
   cmd_render->add_option("scene", render.scene, "Scene file (JSON)")->required();
   cmd_render->add_option("--out,-o", render.out, "Output dataset folder")->required();
   cmd_render->add_option("--outputs", render.outputs,
-                         "Comma-separated outputs (color,normal,depth,mask); default: the scene's");
+                         "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
       ->check(CLI::NonNegativeNumber);
   cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")

@@ -5,6 +5,7 @@
 //   DIR/poses.csv         one row per frame (world frame, metres, unit quaternions x y z w)
 //   DIR/color/000000.png  8-bit RGB           DIR/normal/000000.exr  float xyz in S
 //   DIR/depth/000000.exr  indentation [m]     DIR/mask/000000.png    contact 0/255
+//   DIR/points/000000.ply the tracked object's contact points, in its own frame (optional)
 #include <mutex>
 #include <string>
 #include <vector>
@@ -14,8 +15,10 @@
 
 namespace pg {
 
-// Names of the per-frame image outputs, in file order.
+// Names of the per-frame outputs, in file order, and an error if `name` is not one of them
+// (`where` names the field, e.g. "--outputs").
 const std::vector<std::string>& dataset_output_names();
+void check_output_name(const std::string& name, const std::string& where);
 
 struct FramePose {
   int frame = 0;
@@ -46,6 +49,7 @@ struct FrameImages {
   ImageF normal;   // width x height x 3, unit normals in S
   ImageF depth;    // width x height x 1, gel indentation [m]
   ImageU8 mask;    // width x height x 1, 0 or 255
+  std::vector<Eigen::Vector3f> contact_points;  // object frame [m], for the "points" output
 };
 
 // Path of one frame's image for an output, e.g. DIR/color/000042.png.
@@ -85,6 +89,7 @@ class Dataset {
   ImageF normal(int frame) const;
   ImageF depth(int frame) const;
   ImageU8 mask(int frame) const;
+  std::vector<Eigen::Vector3f> contact_points(int frame) const;
 
  private:
   std::string dir_;
