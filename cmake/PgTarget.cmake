@@ -3,6 +3,10 @@ function(pg_target_defaults target)
   target_compile_features(${target} PUBLIC cxx_std_17)
   set_target_properties(${target} PROPERTIES CXX_EXTENSIONS OFF)
   target_compile_options(${target} PRIVATE -Wall -Wextra)
+  # Eigen objects cross into Debian's prebuilt libraries (Ceres was built for baseline x86-64,
+  # where Eigen aligns to 16 bytes). Keep that alignment whatever -march says, or memory that
+  # one side allocates the other frees with the wrong allocator.
+  target_compile_definitions(${target} PUBLIC EIGEN_MAX_ALIGN_BYTES=16)
   if(PG_NATIVE)
     # Built and run on the same machine (as the README commands do): use its vector units.
     target_compile_options(${target} PRIVATE -march=native)

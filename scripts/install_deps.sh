@@ -6,6 +6,7 @@ packages=(
   libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
   libcli11-dev libgtest-dev libbenchmark-dev
+  python3-matplotlib
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -38,7 +38,7 @@ struct CameraModel {
 // object tangentially and curving back to the undeformed gel (sink-in around the contact).
 struct ElasticModel {
   bool enabled = true;
-  double bend_radius_m = 0.001;  // smallest radius of curvature of the free gel surface [m]
+  double bend_radius_m = 0.0005;  // smallest radius of curvature of the free gel surface [m]
   // The coating smooths away surface detail finer than this (Gaussian sigma) [m]; it also keeps
   // the pixel staircase of steep contact walls out of the normals.
   double smoothing_m = 0.00005;

@@ -1,0 +1,19 @@
+#pragma once
+// Points spread evenly over a mesh's surface, with the faces' outward normals: the known object
+// model of the GroundtruthPatch baseline, and reference surfaces for tests.
+#include <cstdint>
+
+#include "pg/sim/mesh.h"
+
+namespace pg {
+
+struct SurfaceSamples {
+  std::vector<Eigen::Vector3f> points;   // object frame [m]
+  std::vector<Eigen::Vector3f> normals;  // unit, outward
+};
+
+// About one point per spacing_m^2 of area (at least one per triangle), placed by a seeded
+// stratified scheme: deterministic for a mesh, spacing and seed.
+SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed = 1);
+
+}  // namespace pg

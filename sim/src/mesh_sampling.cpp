@@ -1,0 +1,38 @@
+#include "pg/sim/mesh_sampling.h"
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <random>
+
+namespace pg {
+
+SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed) {
+  SurfaceSamples out;
+  std::mt19937_64 rng(seed);
+  auto uniform = [&] { return float((double(rng() >> 11) + 0.5) * 0x1.0p-53); };
+  const double density = 1.0 / (spacing_m * spacing_m);
+  double carry = 0.0;  // fractional samples carried from triangle to triangle
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3f a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
+    const Eigen::Vector3f cross = (b - a).cross(c - a);
+    const double area = 0.5 * cross.norm();
+    if (!(area > 0.0)) continue;
+    const Eigen::Vector3f n = cross.normalized();
+    carry += area * density;
+    const int count = std::max(1, int(carry));
+    carry -= count;
+    for (int k = 0; k < count; ++k) {
+      // Uniform in the triangle: reflect the unit square's upper half.
+      float u = uniform(), v = uniform();
+      if (u + v > 1.0f) {
+        u = 1.0f - u;
+        v = 1.0f - v;
+      }
+      out.points.push_back(a + u * (b - a) + v * (c - a));
+      out.normals.push_back(n);
+    }
+  }
+  return out;
+}
+
+}  // namespace pg

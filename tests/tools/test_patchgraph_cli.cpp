@@ -1,0 +1,110 @@
+// The patchgraph command line as a user meets it: exit codes, messages, outputs.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "pg/core/dataset.h"
+#include "pg/core/json_fields.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int code = -1;
+  std::string out;
+};
+
+CliRun run(const std::string& binary, const std::string& args) {
+  const std::string cmd = binary + " " + args + " 2>&1";
+  CliRun r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (!pipe) return r;
+  std::array<char, 4096> buf;
+  while (std::fgets(buf.data(), int(buf.size()), pipe)) r.out += buf.data();
+  const int status = pclose(pipe);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+CliRun patchgraph(const std::string& args) { return run(PATCHGRAPH_PATH, args); }
+
+// One small dataset for the whole suite: the default cube scene, 60 frames, normals only.
+class PatchgraphCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("pg_pgcli_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                                          "/scenes/default.json -q --outputs normal,mask --out " +
+                                          (dir_ / "data").string());
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  static void TearDownTestSuite() { fs::remove_all(dir_); }
+  static std::string data() { return (dir_ / "data").string(); }
+  static std::string out(const std::string& name) { return (dir_ / name).string(); }
+  static fs::path dir_;
+};
+fs::path PatchgraphCli::dir_;
+
+TEST_F(PatchgraphCli, UsageAndInputErrors) {
+  EXPECT_EQ(patchgraph("").code, 2);
+  EXPECT_EQ(patchgraph("track").code, 2);
+  for (const char* sub : {"--help", "track --help", "eval --help"}) {
+    EXPECT_EQ(patchgraph(sub).code, 0) << sub;
+  }
+  CliRun r = patchgraph("track /no/such/data --out " + out("x"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("/no/such/data"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " --method icpgraph --out " + out("x"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("unknown method 'icpgraph'"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " --normals unet.pt --out " + out("x"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--normals"), std::string::npos) << r.out;
+}
+
+TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
+  const CliRun r = patchgraph("track " + data() + " -q --out " + out("track"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("final error"), std::string::npos) << r.out;
+  const auto summary = parse_json_file(out("track") + "/summary.json");
+  for (const char* key : {"method", "frames", "translation_rmse_m", "rotation_rmse_rad",
+                          "final_translation_error_m", "final_rotation_error_rad", "mean_frame_ms",
+                          "hz"}) {
+    EXPECT_TRUE(summary.contains(key)) << key;
+  }
+  EXPECT_EQ(summary["method"], "patchgraph");
+  EXPECT_EQ(summary["frames"], 60);
+  EXPECT_LT(summary["final_translation_error_m"].get<double>(), 2e-3);
+  EXPECT_GT(summary["hz"].get<double>(), 0.0);
+  EXPECT_EQ(read_poses_csv(out("track") + "/poses.csv").size(), 60u);
+  std::ifstream errors(out("track") + "/errors.csv");
+  int lines = 0;
+  for (std::string line; std::getline(errors, line);) ++lines;
+  EXPECT_EQ(lines, 61);
+  EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
+}
+
+TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
+  const CliRun r = patchgraph("eval --datasets " + data() + " --methods constvel patchgraph -q "
+                              "--no-plots --out " + out("eval"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream results(out("eval") + "/results.csv");
+  int lines = 0;
+  for (std::string line; std::getline(results, line);) ++lines;
+  EXPECT_EQ(lines, 3);
+  std::ifstream md(out("eval") + "/summary.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| cube | patchgraph | 1 |"), std::string::npos) << text;
+  EXPECT_TRUE(fs::exists(out("eval") + "/runs"));
+}
+
+}  // namespace
+}  // namespace pg

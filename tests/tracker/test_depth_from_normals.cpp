@@ -1,0 +1,212 @@
+// Normals -> indentation (eq. 4 + DST Poisson): the solver against its own discrete operator,
+// analytic sphere normals against the analytic indentation at both DIGIT resolutions, cropped
+// against full-image integration, and bad input.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "pg/core/error.h"
+#include "pg/tracker/contact_cloud.h"
+#include "pg/tracker/depth_from_normals.h"
+#include "pg/tracker/poisson_dst.h"
+#include "tracker_test_util.h"
+
+namespace pg {
+namespace {
+
+using test::analytic_sphere_frame;
+
+TEST(PoissonDst, FastSizesFactorIntoSmallPrimesAndAreMinimal) {
+  for (int n = 1; n < 400; ++n) {
+    const int m = dst_fast_size(n);
+    ASSERT_GE(m, n);
+    int k = m + 1;
+    for (int p : {2, 3, 5, 7}) while (k % p == 0) k /= p;
+    EXPECT_EQ(k, 1) << n;
+  }
+  EXPECT_EQ(dst_fast_size(319), 319);
+  EXPECT_EQ(dst_fast_size(320), 323);  // 324 = 2^2 3^4
+  EXPECT_EQ(dst_fast_size(120), 124);  // 125 = 5^3
+}
+
+TEST(PoissonDst, SolvesItsDiscreteOperatorToFloatPrecisionAndReusesPlans) {
+  for (DstBackend backend : {DstBackend::kRealFft, DstBackend::kFftwR2r}) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> uni(-1, 1);
+  PoissonDstSolver solver(PoissonDstOptions{backend, false, 32});
+  for (auto [nx, ny] : {std::pair{15, 20}, std::pair{34, 26}, std::pair{15, 20}, std::pair{1, 7}}) {
+    // A random w with w = 0 outside; f = its 5-point Laplacian; the solve must give w back.
+    std::vector<float> w(nx * ny);
+    for (auto& v : w) v = uni(rng);
+    auto at = [&](int x, int y) { return (x < 0 || y < 0 || x >= nx || y >= ny) ? 0.0f : w[y * nx + x]; };
+    float* f = solver.grid(nx, ny);
+    for (int y = 0; y < ny; ++y) {
+      for (int x = 0; x < nx; ++x) {
+        f[y * nx + x] = at(x + 1, y) + at(x - 1, y) + at(x, y + 1) + at(x, y - 1) - 4 * at(x, y);
+      }
+    }
+    solver.solve();
+    double max_err = 0;
+    for (int i = 0; i < nx * ny; ++i) max_err = std::max(max_err, double(std::abs(f[i] - w[i])));
+    EXPECT_LT(max_err, 2e-5) << nx << " x " << ny << (backend == DstBackend::kRealFft ? " real fft" : " r2r");
+  }
+  EXPECT_EQ(solver.plans_created(), 3);
+  EXPECT_EQ(solver.cached_sizes(), 3);
+  }
+}
+
+struct SphereCase {
+  const char* preset;
+  double press_m;
+};
+void PrintTo(const SphereCase& c, std::ostream* os) {
+  *os << c.preset << ", press " << c.press_m * 1e3 << " mm";
+}
+
+class AnalyticSphere : public ::testing::TestWithParam<SphereCase> {};
+
+// Eq. 4: analytic normals of a sphere (R = 6 mm) pressed into the curved DIGIT gel, integrated
+// against the undeformed gel's normals, give the analytic indentation within 2% of the press
+// depth in the contact core (where u > press / 2), with and without cropping.
+TEST_P(AnalyticSphere, DepthWithinTwoPercentOfPressInTheCore) {
+  const SphereCase sc = GetParam();
+  const SensorModel sensor = sensor_preset(sc.preset);
+  const double R = 0.006;
+  // Centre off the middle so the contact is not symmetric about the image axes.
+  const Eigen::Vector3d c(0.0015, -0.002, 0.0);
+  const Eigen::Vector3d centre(c.x(), c.y(), sensor.gel.surface_z(c.x(), c.y()) + R - sc.press_m);
+  const auto frame = analytic_sphere_frame(sensor, centre, R);
+  for (bool crop : {true, false}) {
+    DepthOptions options;
+    options.crop = crop;
+    DepthFromNormals solver(sensor, options, frame.reference);
+    DepthResult out;
+    solver.compute(frame.normal, out);
+    double max_err = 0, true_max = 0;
+    int core = 0;
+    for (int i = 0; i < sensor.camera.width * sensor.camera.height; ++i) {
+      const double u = frame.depth.data[i];
+      true_max = std::max(true_max, u);
+      if (u > 0.5 * sc.press_m) {
+        ++core;
+        max_err = std::max(max_err, std::abs(double(out.depth.data[i]) - u));
+      }
+    }
+    EXPECT_GT(core, 100);
+    EXPECT_LT(max_err, 0.02 * sc.press_m)
+        << sc.preset << (crop ? " cropped" : " full") << ": largest core error " << max_err * 1e6
+        << " um for a press of " << sc.press_m * 1e6 << " um (true max " << true_max * 1e6
+        << " um), " << core << " core pixels";
+    if (crop) {
+      EXPECT_LT(out.window.area(), long(sensor.camera.width) * sensor.camera.height / 2)
+          << "the crop should cover the contact, not the image";
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Resolutions, AnalyticSphere,
+                         ::testing::Values(SphereCase{"digit", 0.001},
+                                           SphereCase{"digit_240x320", 0.001},
+                                           SphereCase{"digit_240x320", 0.0003}),
+                         [](const ::testing::TestParamInfo<SphereCase>& info) {
+                           return std::string(info.param.preset) + "_press" +
+                                  std::to_string(int(std::lround(info.param.press_m * 1e6))) +
+                                  "um";
+                         });
+
+TEST(DepthFromNormals, GelModelReferenceMatchesANoContactFrameReference) {
+  // Without a reference image the sensor model's gel stands in for it; on analytic normals the
+  // two agree to well under the accuracy target.
+  const SensorModel sensor = sensor_preset("digit");
+  const Eigen::Vector3d centre(0, 0, 0.006 - 0.001);
+  const auto frame = analytic_sphere_frame(sensor, centre, 0.006);
+  DepthFromNormals with_ref(sensor, DepthOptions(), frame.reference);
+  DepthFromNormals with_model(sensor, DepthOptions());
+  DepthResult a, b;
+  with_ref.compute(frame.normal, a);
+  with_model.compute(frame.normal, b);
+  double max_diff = 0;
+  for (std::size_t i = 0; i < a.depth.data.size(); ++i) {
+    max_diff = std::max(max_diff, double(std::abs(a.depth.data[i] - b.depth.data[i])));
+  }
+  EXPECT_LT(max_diff, 10e-6) << "[m]";
+}
+
+TEST(DepthFromNormals, ReusedResultIsClearedBetweenFrames) {
+  const SensorModel sensor = sensor_preset("digit");
+  const auto pressed = analytic_sphere_frame(sensor, {0.003, 0.004, 0.006 - 0.001}, 0.006);
+  const auto other = analytic_sphere_frame(sensor, {-0.003, -0.004, 0.006 - 0.0005}, 0.006);
+  DepthFromNormals solver(sensor, DepthOptions(), pressed.reference);
+  DepthResult reused, fresh;
+  solver.compute(pressed.normal, reused);
+  solver.compute(other.normal, reused);
+  DepthFromNormals solver2(sensor, DepthOptions(), pressed.reference);
+  solver2.compute(other.normal, fresh);
+  EXPECT_EQ(reused.depth.data, fresh.depth.data);
+  solver.compute(pressed.reference, reused);  // no contact
+  EXPECT_EQ(reused.disturbed_pixels, 0);
+  for (float u : reused.depth.data) ASSERT_EQ(u, 0.0f);
+}
+
+TEST(DepthBadInput, AllBackgroundFrameIsNoContact) {
+  const SensorModel sensor = sensor_preset("digit");
+  ContactCloudBuilder builder(sensor, ContactCloudOptions());
+  const ContactFrame f = builder.build(undeformed_gel_normals(builder.rays()));
+  EXPECT_EQ(f.status, ContactStatus::kNoContact);
+  EXPECT_TRUE(f.cloud_sensor.empty());
+  EXPECT_EQ(f.mask.pixels, 0);
+  EXPECT_TRUE(f.depth.window.empty());
+}
+
+TEST(DepthBadInput, TinyContactBelowTheMinimumAreaIsNoContact) {
+  const SensorModel sensor = sensor_preset("digit");
+  // A 2 mm sphere pressed 0.15 mm: about 0.9 mm^2 of contact, of which ~0.2 mm^2 deeper than 0.1 mm.
+  const auto frame = analytic_sphere_frame(sensor, {0, 0, 0.001 - 0.00015}, 0.001);
+  ContactCloudOptions options;
+  options.mask.min_area_m2 = 1e-6;
+  ContactCloudBuilder builder(sensor, options, frame.reference);
+  const ContactFrame f = builder.build(frame.normal);
+  EXPECT_GT(f.mask.pixels, 0);
+  EXPECT_LT(f.mask.area_m2, 1e-6);
+  EXPECT_EQ(f.status, ContactStatus::kNoContact);
+  EXPECT_TRUE(f.cloud_sensor.empty());
+}
+
+TEST(DepthBadInput, NanNormalsAreRejectedAndCounted) {
+  const SensorModel sensor = sensor_preset("digit");
+  auto frame = analytic_sphere_frame(sensor, {0, 0, 0.006 - 0.001}, 0.006);
+  ContactCloudBuilder builder(sensor, ContactCloudOptions(), frame.reference);
+  const ContactFrame clean = builder.build(frame.normal);
+  ASSERT_EQ(clean.status, ContactStatus::kContact);
+  // Poison 25 pixels inside the contact and 5 outside (NaN, inf, zero length).
+  int poisoned = 0;
+  for (int k = 0; k < 25; ++k) {
+    frame.normal.at(55 + k % 5, 75 + k / 5, k % 3) = k % 2 ? NAN : INFINITY;
+    ++poisoned;
+  }
+  for (int k = 0; k < 5; ++k) {
+    for (int c = 0; c < 3; ++c) frame.normal.at(2 + k, 3, c) = 0.0f;
+    ++poisoned;
+  }
+  const ContactFrame f = builder.build(frame.normal);
+  EXPECT_EQ(f.rejected_normals, poisoned);
+  EXPECT_EQ(f.depth.invalid_normals, poisoned);
+  EXPECT_EQ(f.status, ContactStatus::kContact);
+  for (std::size_t i = 0; i < f.cloud_sensor.size(); ++i) {
+    ASSERT_TRUE(f.cloud_sensor.points[i].allFinite());
+    ASSERT_TRUE(f.cloud_sensor.normals[i].allFinite());
+  }
+  EXPECT_LE(f.cloud_sensor.size() + 25, clean.cloud_sensor.size() + 2);
+  for (float u : f.depth.depth.data) ASSERT_TRUE(std::isfinite(u));
+}
+
+TEST(DepthBadInput, WrongImageSizeIsAnInputError) {
+  const SensorModel sensor = sensor_preset("digit");
+  DepthFromNormals solver(sensor, DepthOptions());
+  DepthResult out;
+  EXPECT_THROW(solver.compute(ImageF(10, 10, 3), out), InputError);
+  EXPECT_THROW(DepthFromNormals(sensor, DepthOptions(), ImageF(120, 160, 1)), InputError);
+}
+
+}  // namespace
+}  // namespace pg

@@ -1,0 +1,435 @@
+// Point-to-plane ICP: Jacobians against numeric differentiation, the k-d tree against brute
+// force, recovery of known transforms between renders (clean and with outliers), degeneracy on a
+// flat patch and a sphere, the information matrix's convention, and bad input.
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "pg/sim/primitives.h"
+#include "pg/tracker/contact_cloud.h"
+#include "pg/tracker/icp.h"
+#include "tracker_test_util.h"
+
+namespace pg {
+namespace {
+
+using namespace pg::test;
+
+SE3 random_pose(std::mt19937& rng, double t_m, double r_rad) {
+  std::normal_distribution<double> g(0, 1);
+  Vector6d xi;
+  xi << Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized() * t_m,
+      Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized() * r_rad;
+  return SE3::exp(xi);
+}
+
+TEST(PointToPlane, JacobiansMatchNumericDifferentiation) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0, 1);
+  const double h = 1e-6;
+  for (int trial = 0; trial < 20; ++trial) {
+    const SE3 T = random_pose(rng, 0.01, 0.5);
+    const Eigen::Vector3d p(g(rng) * 0.01, g(rng) * 0.01, g(rng) * 0.01);
+    const Eigen::Vector3d q(g(rng) * 0.01, g(rng) * 0.01, g(rng) * 0.01);
+    const Eigen::Vector3d n = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+    const Matrix16d J_left = point_to_plane_jacobian_left(T, p, n);
+    const Matrix16d J_right = point_to_plane_jacobian_right(T, p, n);
+    for (int k = 0; k < 6; ++k) {
+      const Vector6d e = Vector6d::Unit(k) * h;
+      const double left = (point_to_plane_residual(SE3::exp(e) * T, p, q, n) -
+                           point_to_plane_residual(SE3::exp(-e) * T, p, q, n)) / (2 * h);
+      const double right = (point_to_plane_residual(T * SE3::exp(e), p, q, n) -
+                            point_to_plane_residual(T * SE3::exp(-e), p, q, n)) / (2 * h);
+      EXPECT_NEAR(J_left[k], left, 1e-7) << "trial " << trial << " column " << k;
+      EXPECT_NEAR(J_right[k], right, 1e-7) << "trial " << trial << " column " << k;
+    }
+  }
+}
+
+TEST(PointToPlane, RobustWeightsDownweightLargeResiduals) {
+  const double c = 1e-4;
+  for (RobustKernel k : {RobustKernel::kNone, RobustKernel::kHuber, RobustKernel::kTukey}) {
+    EXPECT_NEAR(robust_weight(k, c, 0.0), 1.0, 1e-12);
+    EXPECT_NEAR(robust_weight(k, c, 0.3 * c), robust_weight(k, c, -0.3 * c), 1e-12);
+  }
+  EXPECT_NEAR(robust_weight(RobustKernel::kHuber, c, 4 * c), 0.25, 1e-12);
+  EXPECT_EQ(robust_weight(RobustKernel::kTukey, c, 1.01 * c), 0.0);
+  EXPECT_GT(robust_weight(RobustKernel::kTukey, c, 0.5 * c), 0.5);
+}
+
+TEST(KdTree, NearestAndTwoNearestMatchBruteForce) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-0.01f, 0.01f);
+  PointCloud cloud;
+  for (int i = 0; i < 3000; ++i) cloud.push_back({u(rng), u(rng), u(rng)}, {0, 0, 1});
+  const PointCloudTree tree(cloud);
+  for (int k = 0; k < 300; ++k) {
+    const Eigen::Vector3f q(u(rng), u(rng), u(rng));
+    std::vector<std::pair<float, int>> all;
+    for (int i = 0; i < 3000; ++i) all.push_back({(cloud.points[i] - q).squaredNorm(), i});
+    std::sort(all.begin(), all.end());
+    float d_sq = 0;
+    const float r = 0.0015f;
+    const int j = tree.nearest(q, r, &d_sq);
+    if (all[0].first < r * r) {
+      EXPECT_EQ(j, all[0].second);
+      EXPECT_FLOAT_EQ(d_sq, all[0].first);
+    } else {
+      EXPECT_EQ(j, -1);
+    }
+    const auto two = tree.nearest_two(q, r);
+    for (int s = 0; s < 2; ++s) {
+      if (all[s].first < r * r) {
+        EXPECT_EQ(two.index[s], all[s].second);
+        EXPECT_FLOAT_EQ(two.distance_sq[s], all[s].first);
+      } else {
+        EXPECT_EQ(two.index[s], -1);
+        EXPECT_FLOAT_EQ(two.distance_sq[s], r * r);
+      }
+    }
+  }
+}
+
+TEST(VoxelDownsample, OnePointPerVoxelAtTheCentroidWithUnitNormals) {
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> u(0.0f, 0.004f);
+  PointCloud cloud;
+  for (int i = 0; i < 5000; ++i) {
+    cloud.push_back({u(rng), u(rng), 0.001f}, Eigen::Vector3f(u(rng), u(rng), 0.01f).normalized());
+  }
+  PointCloud out;
+  voxel_downsample(cloud, 0.001, out);
+  EXPECT_EQ(out.size(), 16u);  // 4 x 4 voxels on the plane
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    EXPECT_NEAR(out.points[i].z(), 0.001f, 1e-7);
+    EXPECT_NEAR(out.normals[i].norm(), 1.0f, 1e-5);
+    // Centroid of ~300 uniform points: near the voxel centre.
+    const Eigen::Vector3f centre = ((out.points[i] / 0.001f).array().floor() + 0.5f) * 0.001f;
+    EXPECT_LT((out.points[i] - centre).head<2>().norm(), 0.0001f);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Registration of two renders of the same object, `delta` apart.
+
+struct TwoRenders {
+  PointCloud cloud_a, cloud_b;  // each in its own sensor frame
+  SE3 T_a_b;                    // truth: maps frame B's sensor coordinates to frame A's
+};
+
+TwoRenders two_renders(const RenderCase& rc, const SE3& T_sensor_object_a, const SE3& delta) {
+  const SE3 T_sensor_object_b = delta * T_sensor_object_a;
+  ContactCloudBuilder builder(rc.sensor, test::all_contact_pixels(), rc.renderer->undeformed_normals());
+  TwoRenders out;
+  out.cloud_a = builder.build(render(rc, T_sensor_object_a).images.normal).cloud_sensor;
+  out.cloud_b = builder.build(render(rc, T_sensor_object_b).images.normal).cloud_sensor;
+  // p_a = T_sa_o o and p_b = T_sb_o o, so p_a = T_sa_o T_sb_o^-1 p_b.
+  out.T_a_b = T_sensor_object_a * T_sensor_object_b.inverse();
+  return out;
+}
+
+// 0.5 mm and 3 degrees: a translation mostly along the gel and a rotation about an oblique axis
+// through the contact.
+SE3 test_motion() {
+  const Eigen::Vector3d axis = Eigen::Vector3d(0.3, 1.0, 0.4).normalized();
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(rad(3.0), axis));
+  const Eigen::Vector3d pivot(0, 0, -0.001);
+  const Eigen::Vector3d t = Eigen::Vector3d(0.4, -0.28, 0.08).normalized() * 0.0005;
+  return SE3::Translation(t) * SE3::Translation(pivot) * SE3(q, Eigen::Vector3d::Zero()) *
+         SE3::Translation(-pivot);
+}
+
+void add_outliers(PointCloud& cloud, double fraction, std::mt19937& rng) {
+  // Points scattered over the cloud's extent and 0.2-1 mm off it.
+  Eigen::Vector3f lo = cloud.points[0], hi = lo;
+  for (const auto& p : cloud.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  std::uniform_real_distribution<float> u(0, 1);
+  const int n = int(std::lround(fraction / (1 - fraction) * cloud.size()));
+  const std::size_t original = cloud.size();
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f& base = cloud.points[std::size_t(u(rng) * (original - 1))];
+    const Eigen::Vector3f dir = Eigen::Vector3f(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f).normalized();
+    cloud.push_back(base + dir * (0.0002f + 0.0008f * u(rng)), dir);
+  }
+}
+
+struct Error {
+  double translation_m, rotation_rad;
+};
+Error pose_error(const SE3& estimate, const SE3& truth) {
+  return {translation_distance(estimate, truth), rotation_distance(estimate, truth)};
+}
+
+void check_registration(const std::string& name, const RenderCase& rc, const SE3& pose,
+                        double outlier_fraction, RobustKernel kernel, double max_translation_m,
+                        double max_rotation_rad, bool must_converge = true) {
+  TwoRenders tr = two_renders(rc, pose, test_motion());
+  ASSERT_GT(tr.cloud_a.size(), 200u) << name;
+  ASSERT_GT(tr.cloud_b.size(), 200u) << name;
+  std::mt19937 rng(21);
+  if (outlier_fraction > 0) add_outliers(tr.cloud_b, outlier_fraction, rng);
+  const PointCloudTree target(tr.cloud_a);
+  IcpOptions options;
+  options.kernel = kernel;
+  PointToPlaneIcp icp(options);
+  const IcpResult r = icp.align(tr.cloud_b, target, SE3::Identity());
+  const Error e = pose_error(r.T_target_source, tr.T_a_b);
+  const Error start = pose_error(SE3::Identity(), tr.T_a_b);
+  std::printf("  %-34s %5zu/%5zu pts, %2d it, %s, inliers %d, rms %.4f mm: error %.4f mm %.4f deg "
+              "(from %.3f mm %.2f deg), %d unconstrained, %ld queries\n",
+              name.c_str(), tr.cloud_b.size(), tr.cloud_a.size(), r.iterations,
+              to_string(r.status), r.inliers, r.rms_m * 1e3, e.translation_m * 1e3,
+              deg(e.rotation_rad), start.translation_m * 1e3, deg(start.rotation_rad),
+              r.degeneracy.unconstrained, icp.last_queries());
+  if (must_converge) {
+    EXPECT_TRUE(r.converged) << name << ": " << to_string(r.status);
+  }
+  EXPECT_EQ(r.degeneracy.unconstrained, 0) << name;
+  EXPECT_LT(e.translation_m, max_translation_m) << name << ": " << e.translation_m * 1e3 << " mm";
+  EXPECT_LT(e.rotation_rad, max_rotation_rad) << name << ": " << deg(e.rotation_rad) << " deg";
+}
+
+SE3 cube_corner_pose() {
+  const double tip = 0.009 + 0.001 / std::sqrt(3.0);
+  return press_pose({tip, tip, tip}, {1, 1, 1}, 0.0015, 0.3);
+}
+SE3 brick_pose() { return press_pose({0.0159, 0.0079, 0.00395}, {1, 1, 2}, 0.0012, 0.2); }
+
+// At the real DIGIT stream's 240x320 the targets hold: 0.02 mm and 0.05 deg. At the
+// paper's 120x160 the translation target holds but the rotation error is 0.14-0.22 deg: the
+// patches are small (250-400 points over 2-3 mm) and nearest-neighbour point-to-plane on a
+// 0.16 mm pixel grid across the brick's 0.2 mm stud rim limits it (clouds from ground-truth depth
+// give the same error), so 120x160 is held to 0.3 deg.
+TEST(IcpRenders, RecoversTheMotionBetweenTwoRendersOfTheCubeCornerAndTheToyBrick) {
+  for (const char* preset : {"digit_240x320", "digit"}) {
+    const bool full = std::string(preset) == "digit_240x320";
+    const double max_rotation = rad(full ? 0.05 : 0.3);
+    const RenderCase cube = make_render_case(preset, mesh_shape("cube.glb"));
+    const RenderCase brick = make_render_case(preset, mesh_shape("toy_brick.glb"));
+    check_registration(std::string("cube corner ") + preset, cube, cube_corner_pose(), 0.0,
+                       RobustKernel::kHuber, 0.02e-3, max_rotation);
+    check_registration(std::string("toy brick ") + preset, brick, brick_pose(), 0.0,
+                       RobustKernel::kHuber, 0.02e-3, max_rotation);
+  }
+}
+
+// 10% of the source points 0.2-1 mm off the surface. Tukey's biweight rejects them (and
+// converges); Huber only bounds their pull (0.01 mm, 0.5 deg) and converges slowly.
+TEST(IcpRenders, RobustKernelKeepsTheErrorSmallWithTenPercentOutliers) {
+  for (const char* preset : {"digit_240x320", "digit"}) {
+    const bool full = std::string(preset) == "digit_240x320";
+    const RenderCase cube = make_render_case(preset, mesh_shape("cube.glb"));
+    const RenderCase brick = make_render_case(preset, mesh_shape("toy_brick.glb"));
+    check_registration(std::string("cube corner + 10% outliers ") + preset + " tukey", cube,
+                       cube_corner_pose(), 0.1, RobustKernel::kTukey, 0.05e-3,
+                       rad(full ? 0.1 : 0.3));
+    check_registration(std::string("toy brick + 10% outliers ") + preset + " tukey", brick,
+                       brick_pose(), 0.1, RobustKernel::kTukey, 0.05e-3, rad(full ? 0.1 : 0.3));
+    check_registration(std::string("cube corner + 10% outliers ") + preset + " huber", cube,
+                       cube_corner_pose(), 0.1, RobustKernel::kHuber, 0.05e-3, rad(1.0), false);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Degeneracy: synthetic patches whose unobservable directions are known.
+
+// A 4 x 4 mm grid on the plane z = 0 around (1, -2) mm, normals +z.
+PointCloud flat_patch(double spacing_m) {
+  PointCloud cloud;
+  for (double x = -0.002; x <= 0.002 + 1e-12; x += spacing_m) {
+    for (double y = -0.002; y <= 0.002 + 1e-12; y += spacing_m) {
+      cloud.push_back(Eigen::Vector3f(float(0.001 + x), float(-0.002 + y), 0.0f), {0, 0, 1});
+    }
+  }
+  return cloud;
+}
+
+// The cap of a sphere (radius R, centre s) within `cap_m` of its lowest point, outward normals.
+PointCloud sphere_cap(const Eigen::Vector3d& s, double R, double cap_m, double spacing_m) {
+  PointCloud cloud;
+  for (double x = -cap_m; x <= cap_m + 1e-12; x += spacing_m) {
+    for (double y = -cap_m; y <= cap_m + 1e-12; y += spacing_m) {
+      if (x * x + y * y > cap_m * cap_m) continue;
+      const Eigen::Vector3d n(x / R, y / R, -std::sqrt(1 - (x * x + y * y) / (R * R)));
+      cloud.push_back((s + R * n).cast<float>(), n.cast<float>());
+    }
+  }
+  return cloud;
+}
+
+// Distance of twist v from the column span of B (least squares), relative to |v|.
+double off_span(const Vector6d& v, const Eigen::Matrix<double, 6, 3>& B) {
+  const Eigen::Vector3d a = B.colPivHouseholderQr().solve(v);
+  return (B * a - v).norm() / v.norm();
+}
+
+TEST(IcpDegeneracy, FlatPatchLeavesInPlaneTranslationAndYawAtTheGuess) {
+  const PointCloud target = flat_patch(0.0001);
+  const PointCloudTree tree(target);
+  // The source is the target moved by the inverse of a motion with all six components.
+  const SE3 truth = SE3::exp((Vector6d() << 0.0004, -0.0003, 0.0002, rad(1.5), rad(-1.0), rad(5.0)).finished());
+  const PointCloud source = transform_cloud(truth.inverse(), target);
+  PointToPlaneIcp icp;
+  const IcpResult r = icp.align(source, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged) << to_string(r.status);
+  EXPECT_EQ(r.degeneracy.unconstrained, 3);
+  // The unconstrained twists (about the centre c) span x, y translation and rotation about z.
+  Eigen::Matrix<double, 6, 3> B = Eigen::Matrix<double, 6, 3>::Zero();
+  B(0, 0) = B(1, 1) = B(5, 2) = 1.0;
+  const Matrix6Xd N = r.degeneracy.unconstrained_twists();
+  for (int i = 0; i < N.cols(); ++i) EXPECT_LT(off_span(N.col(i), B), 1e-6) << N.col(i).transpose();
+  std::printf("  flat patch eigenvalues (scaled): %s\n",
+              ::testing::PrintToString(r.degeneracy.eigenvalues.transpose()).c_str());
+  // The plane is aligned (z, roll, pitch recovered)...
+  EXPECT_LT(r.rms_m, 1e-7);
+  const Eigen::Matrix3d R = r.T_target_source.rotation_matrix();
+  // (the source plane's normal R_truth^T e_z must map to e_z)
+  EXPECT_LT((R.row(2) - truth.rotation_matrix().row(2)).norm(), 1e-6);
+  // ... while x, y and yaw stay at the guess (identity) up to the second-order coupling of the
+  // roll/pitch rotations (the truth has 0.4 mm, -0.3 mm and 5 deg there).
+  const Eigen::Vector3d c = r.degeneracy.centre_target;
+  const Eigen::Vector3d moved_c = r.T_target_source * (r.T_target_source.inverse() * c);
+  (void)moved_c;
+  const Eigen::Vector3d centroid_source = r.T_target_source.inverse() * c;
+  const Eigen::Vector3d shift = r.T_target_source * centroid_source - centroid_source;
+  EXPECT_LT(shift.head<2>().norm(), 0.01e-3) << "in-plane motion of the centroid [m]";
+  const double yaw = std::atan2(R(1, 0) - R(0, 1), R(0, 0) + R(1, 1));
+  EXPECT_LT(std::abs(yaw), rad(0.05)) << deg(yaw) << " deg";
+}
+
+TEST(IcpDegeneracy, SphereLeavesTheRotationsAboutItsCentreAtTheGuess) {
+  const double R = 0.006;
+  const Eigen::Vector3d s(0.0005, -0.001, 0.005);
+  // The target cap is wide enough that the source cap, turned 10 deg about s (1 mm along the
+  // surface), still lies inside it: no correspondences at the target's rim.
+  const PointCloud target = sphere_cap(s, R, 0.004, 0.00005);
+  const PointCloudTree tree(target);
+  // Truth: a 10 deg rotation about the centre, then a translation.
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(rad(10), Eigen::Vector3d(1, 2, 0.5).normalized()));
+  const SE3 truth = SE3::Translation({0.0003, -0.0002, 0.0001}) * SE3::Translation(s) *
+                    SE3(q, Eigen::Vector3d::Zero()) * SE3::Translation(-s);
+  const PointCloud source = transform_cloud(truth.inverse(), sphere_cap(s, R, 0.002, 0.00007));
+  PointToPlaneIcp icp;
+  const IcpResult r = icp.align(source, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged) << to_string(r.status);
+  EXPECT_EQ(r.degeneracy.unconstrained, 3);
+  std::printf("  sphere eigenvalues (scaled): %s\n",
+              ::testing::PrintToString(r.degeneracy.eigenvalues.transpose()).c_str());
+  // Rotations about s, as twists about c: [phi x (c - s); phi].
+  const Eigen::Vector3d c = r.degeneracy.centre_target;
+  Eigen::Matrix<double, 6, 3> B;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector3d phi = Eigen::Vector3d::Unit(k);
+    B.col(k) << phi.cross(c - s), phi;
+  }
+  const Matrix6Xd N = r.degeneracy.unconstrained_twists();
+  for (int i = 0; i < N.cols(); ++i) EXPECT_LT(off_span(N.col(i), B), 1e-2) << N.col(i).transpose();
+  // The orientation stays at the guess; the centre is recovered.
+  EXPECT_LT(rotation_angle(r.T_target_source.rotation()), rad(0.01));
+  const Eigen::Vector3d s_source = truth.inverse() * s;
+  EXPECT_LT((r.T_target_source * s_source - s).norm(), 1e-6);
+}
+
+TEST(IcpDegeneracy, RenderedSphereReportsThreeRotationsAndKeepsItsOrientation) {
+  const double R = 0.006;
+  const auto sphere = std::make_shared<ObjectShape>(make_uv_sphere(float(R), 90, 180));
+  const RenderCase rc = make_render_case("digit_240x320", sphere);
+  const SE3 pose_a = SE3::Translation({0.0005, -0.001, R - 0.001});
+  // B: 0.3 mm along the gel and 8 deg about the sphere's centre.
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(rad(8), Eigen::Vector3d(0.2, 1, 0.3).normalized()));
+  const SE3 pose_b = SE3::Translation({0.0003, 0.0001, 0}) * pose_a * SE3(q, Eigen::Vector3d::Zero());
+  const TwoRenders tr = two_renders(rc, pose_a, pose_b * pose_a.inverse());
+  const PointCloudTree tree(tr.cloud_a);
+  const IcpResult r = PointToPlaneIcp().align(tr.cloud_b, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged) << to_string(r.status);
+  std::printf("  rendered sphere eigenvalues (scaled): %s\n",
+              ::testing::PrintToString(r.degeneracy.eigenvalues.transpose()).c_str());
+  EXPECT_EQ(r.degeneracy.unconstrained, 3);
+  EXPECT_LT(rotation_angle(r.T_target_source.rotation()), rad(0.05));
+  // The centre of B's sphere lands on A's.
+  const Eigen::Vector3d centre_a = pose_a.translation(), centre_b = pose_b.translation();
+  EXPECT_LT((r.T_target_source * centre_b - centre_a).norm(), 0.005e-3);
+}
+
+TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
+  // A cube-corner-like patch of three planes: well constrained.
+  PointCloud target;
+  for (int a = 0; a < 30; ++a) {
+    for (int b = 0; b < 30; ++b) {
+      const float u = 0.0001f * a, v = 0.0001f * b;
+      target.push_back({u, v, 0}, {0, 0, -1});
+      target.push_back({u, 0, v}, {0, -1, 0});
+      target.push_back({0, u, v}, {-1, 0, 0});
+    }
+  }
+  const PointCloudTree tree(target);
+  const SE3 truth = SE3::exp((Vector6d() << 0.0001, 0.0002, -0.0001, 0.01, -0.02, 0.015).finished());
+  const PointCloud source = transform_cloud(truth.inverse(), target);
+  IcpOptions options;
+  options.kernel = RobustKernel::kNone;
+  const IcpResult r = PointToPlaneIcp(options).align(source, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged);
+  EXPECT_EQ(r.degeneracy.unconstrained, 0);
+  EXPECT_LT(translation_distance(r.T_target_source, truth), 1e-8);
+  // Sum of J_right^T J_right over the correspondences at the optimum.
+  Matrix6d H = Matrix6d::Zero();
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const Eigen::Vector3f p = (r.T_target_source * source.points[i].cast<double>()).cast<float>();
+    const int j = tree.nearest(p, 1e-3f);
+    ASSERT_GE(j, 0);
+    const Matrix16d J = point_to_plane_jacobian_right(
+        r.T_target_source, source.points[i].cast<double>(), target.normals[j].cast<double>());
+    H += J.transpose() * J;
+  }
+  EXPECT_LT((r.hessian - H).norm(), 1e-6 * H.norm()) << r.hessian << "\n\n" << H;
+  // Exact data: the residual sigma sits at its floor.
+  EXPECT_DOUBLE_EQ(r.residual_sigma_m, options.min_residual_sigma_m);
+  EXPECT_LT((r.information - H / (1e-5 * 1e-5)).norm(), 1e-6 * r.information.norm());
+}
+
+TEST(IcpBadInput, TooFewPointsOrNoOverlapIsNotConverged) {
+  const PointCloud target = flat_patch(0.0001);
+  const PointCloudTree tree(target);
+  PointCloud few;
+  for (int i = 0; i < 5; ++i) few.push_back(target.points[i], target.normals[i]);
+  const SE3 guess = SE3::Translation({1e-4, 0, 0});
+  const IcpResult a = PointToPlaneIcp().align(few, tree, guess);
+  EXPECT_FALSE(a.converged);
+  EXPECT_EQ(a.status, IcpStatus::kTooFewPoints);
+  EXPECT_EQ(a.iterations, 0);
+  EXPECT_LT(translation_distance(a.T_target_source, guess), 1e-15);
+  // Empty clouds and a target without normals.
+  EXPECT_EQ(PointToPlaneIcp().align(PointCloud(), tree, guess).status, IcpStatus::kTooFewPoints);
+  PointCloud no_normals = target;
+  no_normals.normals.clear();
+  EXPECT_EQ(PointToPlaneIcp().align(target, PointCloudTree(no_normals), guess).status,
+            IcpStatus::kTooFewPoints);
+  EXPECT_EQ(PointToPlaneIcp().align(target, PointCloudTree(PointCloud()), guess).status,
+            IcpStatus::kTooFewPoints);
+  // Enough points, but 5 cm away: no correspondences.
+  const IcpResult far = PointToPlaneIcp().align(target, tree, SE3::Translation({0.05, 0, 0}));
+  EXPECT_FALSE(far.converged);
+  EXPECT_EQ(far.status, IcpStatus::kTooFewCorrespondences);
+}
+
+TEST(IcpReuse, OneTreeServesManyCallsAndMostQueriesAreSkippedNearConvergence) {
+  const PointCloud target = sphere_cap({0, 0, 0.005}, 0.006, 0.003, 0.00005);
+  const PointCloudTree tree(target);
+  IcpOptions options;
+  options.max_iterations = 10;
+  options.convergence_translation_m = 0;  // run all 10 iterations
+  options.convergence_rotation_rad = 0;
+  PointToPlaneIcp icp(options);
+  PointCloud source = transform_cloud(SE3::Translation({0.0001, 0.00005, 0.0001}), target);
+  const IcpResult first = icp.align(source, tree, SE3::Identity());
+  const IcpResult second = icp.align(source, tree, SE3::Identity());
+  EXPECT_EQ(first.iterations, 10);
+  EXPECT_LT(translation_distance(first.T_target_source, second.T_target_source), 1e-12);
+  EXPECT_LT(icp.last_queries(), long(3 * source.size())) << "of " << 10 * source.size();
+}
+
+}  // namespace
+}  // namespace pg

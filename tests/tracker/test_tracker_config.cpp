@@ -1,0 +1,63 @@
+// The tracker config file: defaults, overrides, a JSON round trip, and errors that name the field.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "pg/core/error.h"
+#include "pg/core/json_fields.h"
+#include "pg/tracker/tracker_config.h"
+
+namespace pg {
+namespace {
+
+std::string error_of(const std::string& text) {
+  try {
+    tracker_config_from_json(parse_json_text(text, "cfg.json"), "cfg.json");
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(TrackerConfig, EmptyObjectGivesTheDefaults) {
+  const TrackerConfig c = tracker_config_from_json(nlohmann::json::object(), "cfg.json");
+  EXPECT_EQ(c.depth.crop, DepthOptions().crop);
+  EXPECT_EQ(c.mask.min_depth_m, MaskOptions().min_depth_m);
+  EXPECT_EQ(c.icp.max_iterations, IcpOptions().max_iterations);
+  EXPECT_EQ(c.icp.kernel, IcpOptions().kernel);
+}
+
+TEST(TrackerConfig, OverridesAndRoundTrips) {
+  const TrackerConfig c = tracker_config_from_json(
+      parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6},
+                          "mask": {"min_depth_m": 5e-5},
+                          "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4}})",
+                      "cfg.json"),
+      "cfg.json");
+  EXPECT_FALSE(c.depth.crop);
+  EXPECT_EQ(c.depth.crop_margin_px, 6);
+  EXPECT_DOUBLE_EQ(c.mask.min_depth_m, 5e-5);
+  EXPECT_EQ(c.icp.kernel, RobustKernel::kTukey);
+  EXPECT_DOUBLE_EQ(c.icp.kernel_scale_m, 2e-4);
+  EXPECT_DOUBLE_EQ(c.icp.voxel_size_m, 1e-4);
+  const TrackerConfig back = tracker_config_from_json(tracker_config_to_json(c), "round trip");
+  EXPECT_EQ(tracker_config_to_json(back), tracker_config_to_json(c));
+}
+
+TEST(TrackerConfig, ErrorsNameTheFileAndField) {
+  EXPECT_NE(error_of(R"({"dept": {}})").find("cfg.json: dept"), std::string::npos)
+      << error_of(R"({"dept": {}})");
+  EXPECT_NE(error_of(R"({"icp": {"max_iter": 3}})").find("cfg.json: icp.max_iter"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"icp": {"kernel": "cauchy"}})").find("icp.kernel"), std::string::npos);
+  EXPECT_NE(error_of(R"({"mask": {"min_depth_m": "x"}})").find("mask.min_depth_m"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"depth": {"crop_margin_px": 0}})").find("depth.crop_margin_px"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"icp": {"max_correspondence_m": -1}})").find("max_correspondence_m"),
+            std::string::npos);
+  EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
+}
+
+}  // namespace
+}  // namespace pg

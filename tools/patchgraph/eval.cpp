@@ -1,0 +1,139 @@
+#include "eval.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) {
+  std::vector<std::string> out;
+  for (const auto& root : roots) {
+    if (fs::is_regular_file(fs::path(root) / "dataset.json")) {
+      out.push_back(root);
+      continue;
+    }
+    if (!fs::is_directory(root)) throw InputError(root + ": not a dataset or a folder of datasets");
+    std::vector<std::string> found;
+    for (const auto& entry : fs::directory_iterator(root)) {
+      if (fs::is_regular_file(entry.path() / "dataset.json")) found.push_back(entry.path().string());
+    }
+    if (found.empty()) throw InputError(root + ": holds no dataset (no */dataset.json)");
+    std::sort(found.begin(), found.end());
+    out.insert(out.end(), found.begin(), found.end());
+  }
+  return out;
+}
+
+// Quartiles by linear interpolation between order statistics.
+double quantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  const double pos = q * (v.size() - 1);
+  const std::size_t lo = std::size_t(pos);
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (pos - lo) * (v[hi] - v[lo]);
+}
+
+struct Row {
+  std::string dataset, object, method;
+  TrackSummary s;
+};
+
+void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream out(path);
+  out.precision(9);
+  out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
+         "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz\n";
+  for (const auto& r : rows) {
+    out << r.dataset << "," << r.object << "," << r.method << "," << r.s.frames << ","
+        << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
+        << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
+        << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << "\n";
+  }
+  if (!out) throw InputError(path + ": cannot write");
+}
+
+std::string summary_markdown(const std::vector<Row>& rows, const std::vector<std::string>& methods) {
+  std::map<std::string, std::map<std::string, std::vector<const Row*>>> by;
+  for (const auto& r : rows) by[r.object][r.method].push_back(&r);
+  std::ostringstream md;
+  md << "| object | method | runs | final translation [mm] median (q1-q3) | final rotation [rad] "
+        "median (q1-q3) | median update [ms] |\n|---|---|---:|---|---|---:|\n";
+  char line[512];
+  for (const auto& [object, per_method] : by) {
+    for (const auto& m : methods) {
+      const auto it = per_method.find(m);
+      if (it == per_method.end()) continue;
+      std::vector<double> t, rot, ms;
+      for (const Row* r : it->second) {
+        t.push_back(r->s.final_translation_error_m * 1e3);
+        rot.push_back(r->s.final_rotation_error_rad);
+        ms.push_back(r->s.median_frame_ms);
+      }
+      std::snprintf(line, sizeof(line), "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
+                    object.c_str(), m.c_str(), t.size(), quantile(t, 0.5), quantile(t, 0.25),
+                    quantile(t, 0.75), quantile(rot, 0.5), quantile(rot, 0.25), quantile(rot, 0.75),
+                    quantile(ms, 0.5));
+      md << line;
+    }
+  }
+  return md.str();
+}
+
+}  // namespace
+
+int run_eval(const EvalArgs& args) {
+  const std::vector<std::string> datasets = expand_datasets(args.datasets);
+  std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
+  for (const auto& m : methods) method_from_string(m);  // fail before any work
+  fs::create_directories(fs::path(args.out) / "runs");
+  std::vector<Row> rows;
+  int done = 0;
+  const int total = int(datasets.size() * methods.size());
+  for (const auto& dir : datasets) {
+    const Dataset dataset = Dataset::open(dir);
+    for (const auto& m : methods) {
+      TrackArgs a = args.track;
+      a.method = m;
+      const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
+      const std::string name = fs::path(dir).filename().string() + "_" + m;
+      write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
+      rows.push_back({dir, dataset.info().object_name, m, run.summary});
+      ++done;
+      if (!args.track.quiet) {
+        std::fprintf(stderr, "[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n", done, total,
+                     name.c_str(), dataset.info().object_name.c_str(),
+                     run.summary.final_translation_error_m * 1e3,
+                     run.summary.final_rotation_error_rad, run.summary.hz);
+      }
+    }
+  }
+  const std::string results = (fs::path(args.out) / "results.csv").string();
+  write_results_csv(results, rows);
+  const std::string md = summary_markdown(rows, methods);
+  std::ofstream((fs::path(args.out) / "summary.md").string()) << md;
+  std::printf("%s", md.c_str());
+  std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
+  if (!args.no_plots) {
+    const fs::path script = fs::path(PG_SOURCE_DIR) / "tools" / "plot_eval.py";
+    // Debian's interpreter, where python3-matplotlib is installed (not a user's own python3).
+    const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + args.out + "'";
+    if (std::system(cmd.c_str()) != 0) {
+      std::fprintf(stderr, "warning: plots not made (%s failed; is python3-matplotlib installed?)\n",
+                   cmd.c_str());
+    }
+  }
+  return 0;
+}
+
+}  // namespace pg

@@ -1,0 +1,63 @@
+// patchgraph: the tracker's command line.
+//   patchgraph track DATASET --method M --normals gt --out OUT
+//   patchgraph eval --datasets DIR... --methods M... --out OUT
+#include <cstdio>
+#include <filesystem>
+
+#include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "eval.h"
+#include "track_args.h"
+
+namespace pg {
+namespace {
+
+int run_track(const TrackArgs& a) {
+  const Dataset dataset = Dataset::open(a.dataset);
+  const TrackOptions options = make_track_options(a, dataset);
+  Progress progress("tracking", dataset.frames(), !a.quiet);
+  const TrackRun run = track_dataset(dataset, options, [&](int done, int) { progress.update(done); });
+  write_track_outputs(run, dataset, a.out);
+  const TrackSummary& s = run.summary;
+  std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
+              a.dataset.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
+              s.episodes);
+  std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
+              s.final_rotation_error_rad);
+  std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3, s.rotation_rmse_rad);
+  std::printf("per-frame update median %.3f ms (%.0f Hz), mean %.3f ms -> %s\n", s.median_frame_ms,
+              s.hz, s.mean_frame_ms, a.out.c_str());
+  return kExitOk;
+}
+
+}  // namespace
+}  // namespace pg
+
+int main(int argc, char** argv) {
+  using namespace pg;
+  CLI::App app{"patchgraph: in-hand object tracking from tactile images (PatchGraph)"};
+  app.require_subcommand(1);
+
+  TrackArgs track;
+  CLI::App* cmd_track = app.add_subcommand("track", "Track the object of one dataset");
+  cmd_track->add_option("dataset", track.dataset, "Dataset folder (from tacsim render)")->required();
+  cmd_track->add_option("--out,-o", track.out, "Output folder")->required();
+  add_track_options(*cmd_track, track);
+  cmd_track->add_flag("--quiet,-q", track.quiet, "No progress line");
+
+  EvalArgs eval;
+  CLI::App* cmd_eval = app.add_subcommand("eval", "Run methods x datasets and summarise the errors");
+  cmd_eval->add_option("--datasets", eval.datasets, "Dataset folders, or folders of datasets")
+      ->required();
+  cmd_eval->add_option("--methods", eval.methods, "Methods (default: all four)");
+  cmd_eval->add_option("--out,-o", eval.out, "Output folder")->required();
+  add_track_options(*cmd_eval, eval.track, /*with_method=*/false);
+  cmd_eval->add_flag("--no-plots", eval.no_plots, "Skip the matplotlib plots");
+  cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
+
+  return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_track->parsed()) return run_track(track);
+    if (cmd_eval->parsed()) return run_eval(eval);
+    return kExitUsage;
+  });
+}

@@ -1,0 +1,27 @@
+#pragma once
+// Options shared by `patchgraph track` and `patchgraph eval`.
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "pg/graph/track_dataset.h"
+
+namespace pg {
+
+struct TrackArgs {
+  std::string dataset, out;
+  std::string method = "patchgraph";
+  std::string normals = "gt";
+  std::string config;  // tracker config JSON (depth, mask, icp options)
+  int window = 5;
+  int keyframe_interval = 10;
+  bool no_registration_information = false;
+  double end_effector_noise = 1e-5, vision_noise = 1e-4;
+  std::uint64_t seed = 0;
+  bool quiet = false;
+};
+
+void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
+// Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
+TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset);
+
+}  // namespace pg

@@ -1,0 +1,211 @@
+// Speed of the tracker's measurement front end (issue 4 targets, Release, 2 cores):
+//   normals -> cloud     120x160 < 0.3 ms, 240x320 < 1 ms per frame
+//   ICP                  5k points against a 50k-point patch, 10 iterations, tree reused: < 1 ms
+//   Poisson              cropped vs full-image integration of a small contact
+// Data are analytic (a sphere pressed into the DIGIT gel; a smooth bumpy patch), so the benchmark
+// needs neither the renderer nor files.
+//
+//   bench_tracker --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include <benchmark/benchmark.h>
+#include <tbb/global_control.h>
+
+#include <cmath>
+#include <random>
+
+#include "pg/tracker/contact_cloud.h"
+#include "pg/tracker/icp.h"
+
+namespace pg {
+namespace {
+
+// Normals of a sphere (radius R, centre c in S) pressed into the rigid gel; elsewhere the
+// undeformed gel's normals.
+ImageF sphere_normals(const GelRays& rays, const ImageF& reference, const Eigen::Vector3d& c,
+                      double R) {
+  ImageF n = reference;
+  const Eigen::Vector3d o = rays.origin_sensor.cast<double>();
+  for (int y = 0; y < rays.height; ++y) {
+    for (int x = 0; x < rays.width; ++x) {
+      const int i = rays.index(x, y);
+      const Eigen::Vector3d d = rays.dir_sensor[i].cast<double>();
+      const Eigen::Vector3d oc = o - c;
+      const double a = d.squaredNorm(), b = 2 * d.dot(oc), cc = oc.squaredNorm() - R * R;
+      const double disc = b * b - 4 * a * cc;
+      if (disc <= 0) continue;
+      const double t = (-b - std::sqrt(disc)) / (2 * a);
+      if (t >= rays.t_gel[i]) continue;
+      const Eigen::Vector3d normal = (c - (o + d * t)).normalized();
+      for (int k = 0; k < 3; ++k) n.at(x, y, k) = float(normal[k]);
+    }
+  }
+  return n;
+}
+
+struct SphereFrame {
+  SensorModel sensor;
+  ImageF normals;
+};
+
+SphereFrame sphere_frame(const char* preset, double R, double press) {
+  SphereFrame f;
+  f.sensor = sensor_preset(preset);
+  const GelRays rays = make_gel_rays(f.sensor.camera, f.sensor.gel);
+  f.normals = sphere_normals(rays, undeformed_gel_normals(rays), {0.001, -0.002, R - press}, R);
+  return f;
+}
+
+// Normals -> indentation -> mask -> cloud for one frame (a 6 mm sphere pressed 1 mm).
+void BM_NormalsToCloud(benchmark::State& state, const char* preset) {
+  const SphereFrame f = sphere_frame(preset, 0.006, 0.001);
+  ContactCloudBuilder builder(f.sensor, ContactCloudOptions());
+  ContactFrame frame;
+  builder.build(f.normals, frame);  // plans made here, as on a tracker's first frame
+  for (auto _ : state) {
+    builder.build(f.normals, frame);
+    benchmark::DoNotOptimize(frame.cloud_sensor.points.data());
+  }
+  state.counters["points"] = double(frame.cloud_sensor.size());
+  state.counters["grid_px"] = double(frame.depth.window.area());
+}
+BENCHMARK_CAPTURE(BM_NormalsToCloud, digit_120x160, "digit")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_NormalsToCloud, digit_240x320, "digit_240x320")
+    ->Unit(benchmark::kMicrosecond);
+
+// Integration alone on a small contact (a 4 mm sphere pressed 0.3 mm at 240x320), cropped to the
+// contact or over the whole image.
+void BM_PoissonSmallContact(benchmark::State& state, bool crop) {
+  const SphereFrame f = sphere_frame("digit_240x320", 0.004, 0.0003);
+  DepthOptions options;
+  options.crop = crop;
+  DepthFromNormals depth(f.sensor, options);
+  DepthResult out;
+  depth.compute(f.normals, out);
+  for (auto _ : state) {
+    depth.compute(f.normals, out);
+    benchmark::DoNotOptimize(out.depth.data.data());
+  }
+  state.counters["grid_px"] = double(out.window.area());
+}
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, cropped, true)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, full_image, false)->Unit(benchmark::kMicrosecond);
+
+// A smooth bumpy surface z = A sin(x / l) sin(y / l) with its normals: fully constrained.
+Eigen::Vector3f bumpy_point(float x, float y) {
+  const float A = 0.0005f, l = 0.0015f;
+  return {x, y, A * std::sin(x / l) * std::sin(y / l)};
+}
+Eigen::Vector3f bumpy_normal(float x, float y) {
+  const float A = 0.0005f, l = 0.0015f;
+  const float zx = A / l * std::cos(x / l) * std::sin(y / l);
+  const float zy = A / l * std::sin(x / l) * std::cos(y / l);
+  return Eigen::Vector3f(-zx, -zy, 1.0f).normalized();
+}
+
+// 0.24 mm and 1.6 deg; 30 um and 0.3 deg.
+const SE3 kLargeMotion = SE3::exp((Vector6d() << 2e-4, -1e-4, 1e-4, 0.01, -0.015, 0.02).finished());
+const SE3 kSmallMotion = SE3::exp((Vector6d() << 2e-5, -1.5e-5, 1.5e-5, 0.003, -0.003, 0.003).finished());
+
+struct IcpData {
+  // 5k points over 5 x 5 mm, moved by `motion`: a jittered 71 x 71 grid in raster order, as
+  // back-projected contact pixels come.
+  PointCloud source;
+  std::unique_ptr<PointCloudTree> patch;  // 50k points over 10 x 10 mm, on a grid
+};
+
+IcpData icp_data(const SE3& motion) {
+  IcpData d;
+  PointCloud patch;
+  const int side = 224;  // 50176 points, 0.045 mm apart
+  for (int a = 0; a < side; ++a) {
+    for (int b = 0; b < side; ++b) {
+      const float x = -0.005f + 0.01f * a / (side - 1), y = -0.005f + 0.01f * b / (side - 1);
+      patch.push_back(bumpy_point(x, y), bumpy_normal(x, y));
+    }
+  }
+  d.patch = std::make_unique<PointCloudTree>(std::move(patch));
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> jitter(-0.02e-3f, 0.02e-3f);
+  const Eigen::Matrix3f R = motion.rotation_matrix().cast<float>();
+  const Eigen::Vector3f t = motion.translation().cast<float>();
+  for (int a = 0; a < 71; ++a) {
+    for (int b = 0; b < 71; ++b) {
+      const float x = -0.0025f + 0.005f * b / 70 + jitter(rng);
+      const float y = -0.0025f + 0.005f * a / 70 + jitter(rng);
+      d.source.push_back(R * bumpy_point(x, y) + t, R * bumpy_normal(x, y));
+    }
+  }
+  return d;
+}
+
+// 10 Gauss-Newton iterations (convergence disabled), the patch tree built once outside the loop.
+// Argument: oneTBB threads (1 shows the work itself: CPU time = wall time).
+void BM_Icp5kAgainst50k(benchmark::State& state) {
+  const tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
+                                    std::size_t(state.range(0)));
+  const IcpData d = icp_data(kLargeMotion);
+  IcpOptions options;
+  options.max_iterations = 10;
+  options.convergence_translation_m = 0;
+  options.convergence_rotation_rad = 0;
+  PointToPlaneIcp icp(options);
+  IcpResult r;
+  for (auto _ : state) {
+    r = icp.align(d.source, *d.patch, SE3::Identity());
+    benchmark::DoNotOptimize(r.T_target_source);
+  }
+  state.counters["iterations"] = r.iterations;
+  state.counters["queries"] = double(icp.last_queries());
+  state.counters["inliers"] = r.inliers;
+}
+BENCHMARK(BM_Icp5kAgainst50k)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// The same with a 0.1 mm voxel grid on the source (about 2.5k points left).
+void BM_Icp5kVoxel100umAgainst50k(benchmark::State& state) {
+  const tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
+                                    std::size_t(state.range(0)));
+  const IcpData d = icp_data(kLargeMotion);
+  IcpOptions options;
+  options.max_iterations = 10;
+  options.convergence_translation_m = 0;
+  options.convergence_rotation_rad = 0;
+  options.voxel_size_m = 1e-4;
+  PointToPlaneIcp icp(options);
+  IcpResult r;
+  for (auto _ : state) {
+    r = icp.align(d.source, *d.patch, SE3::Identity());
+    benchmark::DoNotOptimize(r.T_target_source);
+  }
+  state.counters["source_points"] = r.source_points;
+  state.counters["queries"] = double(icp.last_queries());
+}
+BENCHMARK(BM_Icp5kVoxel100umAgainst50k)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// A frame-to-frame case: the guess is 30 um and 0.3 deg off (motion between frames at 60 Hz),
+// default convergence thresholds.
+void BM_Icp5kAgainst50kConverging(benchmark::State& state) {
+  const IcpData d = icp_data(kSmallMotion);
+  PointToPlaneIcp icp;
+  IcpResult r;
+  for (auto _ : state) {
+    r = icp.align(d.source, *d.patch, SE3::Identity());
+    benchmark::DoNotOptimize(r.T_target_source);
+  }
+  state.counters["iterations"] = r.iterations;
+  state.counters["queries"] = double(icp.last_queries());
+}
+BENCHMARK(BM_Icp5kAgainst50kConverging)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+// Building the 50k-point patch tree (paid once per patch update, not per frame).
+void BM_BuildTree50k(benchmark::State& state) {
+  const IcpData d = icp_data(kLargeMotion);
+  for (auto _ : state) {
+    PointCloudTree tree(d.patch->cloud());
+    benchmark::DoNotOptimize(&tree);
+  }
+}
+BENCHMARK(BM_BuildTree50k)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace pg
+
+BENCHMARK_MAIN();

@@ -1,0 +1,70 @@
+#pragma once
+// Tracking a rendered (or recorded) dataset end to end: normals -> contact cloud -> PatchGraph,
+// with the paper's simulated measurement noise, and the errors against ground truth.
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pg/core/dataset.h"
+#include "pg/graph/tracker.h"
+#include "pg/tracker/tracker_config.h"
+
+namespace pg {
+
+struct TrackOptions {
+  GraphOptions graph;
+  TrackerConfig front_end;  // depth, mask and ICP options (the ICP options go to graph.icp)
+  // Simulated measurement noise (paper eq. 8 and 9): sensor poses e~ = e exp(N(0, s^2 I)) and
+  // the vision prior o~ = o exp(N(0, s^2 I)), seeded. Units [m] and [rad] alike.
+  double end_effector_noise = 1e-5;
+  double vision_noise = 1e-4;
+  std::uint64_t seed = 0;
+  PointCloud model_object;  // the known object, for the GroundtruthPatch baseline
+};
+
+struct FrameResult {
+  int frame = 0;
+  SE3 T_world_object;     // estimated, as it was right after this frame's update
+  SE3 T_world_object_gt;  // ground truth
+  double translation_error_m = 0;
+  double rotation_error_rad = 0;
+  bool contact = false;      // the frame's cloud was used
+  bool new_episode = false;
+  bool image_to_patch = false;
+  double frame_ms = 0;       // normals -> cloud -> registrations -> graph update
+};
+
+struct TrackSummary {
+  std::string method;
+  int frames = 0;
+  int contact_frames = 0;
+  int episodes = 0;
+  double translation_rmse_m = 0;
+  double rotation_rmse_rad = 0;
+  double final_translation_error_m = 0;
+  double final_rotation_error_rad = 0;
+  double mean_frame_ms = 0;
+  double median_frame_ms = 0;
+  double hz = 0;  // 1000 / median_frame_ms
+};
+
+struct TrackRun {
+  std::vector<FrameResult> frames;
+  TrackSummary summary;
+  std::unique_ptr<PatchGraphTracker> tracker;
+};
+
+// Reads the dataset's normal images ("gt" normals) frame by frame. Throws InputError when the
+// dataset has no normal output or a frame is unreadable.
+TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
+                       const std::function<void(int, int)>& progress = nullptr);
+
+// The summary of per-frame results (RMSE over all frames, final = last frame).
+TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
+
+// OUT/poses.csv (the dataset's pose columns, estimated), OUT/errors.csv, OUT/summary.json,
+// OUT/patch.ply. Throws InputError naming the path.
+void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir);
+
+}  // namespace pg

@@ -1,0 +1,111 @@
+#pragma once
+// PatchGraph: tracks an object's pose from per-frame contact clouds with a fixed-lag factor
+// graph (paper eq. 3): object poses o_t and sensor poses e_t, with image-to-image (eq. 5),
+// image-to-patch (eq. 6), constant-velocity (eq. 7), end-effector (eq. 8) and vision (eq. 9)
+// factors, solved by Ceres over a sliding window.
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pg/graph/patch_map.h"
+#include "pg/graph/pose_block.h"
+#include "pg/tracker/icp.h"
+
+namespace pg {
+
+// The paper's section V-C objectives.
+enum class Method {
+  kConstVel,          // velocity prior (and the end-effector and vision priors) only
+  kImageToImage,      // + image-to-image factors
+  kPatchGraph,        // + image-to-patch factors against the local patch (the paper's method)
+  kGroundTruthPatch,  // image-to-patch factors against the known object model
+};
+const char* to_string(Method method);
+// "constvel", "imagetoimage", "patchgraph", "gtpatch"; throws InputError for other names.
+Method method_from_string(const std::string& name);
+const std::vector<std::string>& method_names();
+
+struct GraphOptions {
+  Method method = Method::kPatchGraph;
+  // Factor sigmas, all six axes alike ([m] and [rad]); the paper's values.
+  double sigma_image_to_image = 1e-3;
+  double sigma_image_to_patch = 1e-3;
+  double sigma_velocity = 1e-2;
+  double sigma_end_effector = 1e-5;
+  double sigma_vision = 1e-4;
+  // Registration factors carry no information along the directions the ICP Hessian leaves
+  // unconstrained (a sphere's rotation, a flat face's slide): those follow the velocity prior
+  // instead of registration noise. The other directions keep the sigma above.
+  bool registration_information = true;
+  int window = 5;               // frames optimised at each update; 0 keeps every frame (batch)
+  int solver_iterations = 10;   // Levenberg-Marquardt iterations per update
+  PatchMapOptions patch;
+  IcpOptions icp;
+};
+
+struct TrackerInput {
+  PointCloud cloud_sensor;        // the contact's points in the sensor frame; empty: no contact
+  SE3 T_world_sensor_measured;    // e~_t: the end-effector pose measurement
+  SE3 T_world_object_prior;       // o~_t: the vision prior, used at the start of a contact episode
+};
+
+struct TrackerEstimate {
+  SE3 T_world_object;
+  SE3 T_world_sensor;
+  bool contact = false;
+  bool new_episode = false;        // a contact episode started at this frame
+  bool image_to_image = false;     // an image-to-image factor was added
+  bool image_to_patch = false;     // an image-to-patch factor was added
+  bool keyframe = false;           // the cloud was fused into the patch
+  int unconstrained_directions = 0;  // of the image-to-patch registration
+  double solve_ms = 0;             // graph update time
+};
+
+class PatchGraphTracker {
+ public:
+  // `model_object` (object frame) is required by kGroundTruthPatch and ignored otherwise.
+  explicit PatchGraphTracker(GraphOptions options, const PointCloud& model_object = {});
+  ~PatchGraphTracker();
+
+  TrackerEstimate add(const TrackerInput& input);
+
+  // The estimate of every frame so far: the window's latest solution, frozen before it.
+  std::vector<SE3> object_trajectory() const;
+  // Re-solves the whole sequence with every factor kept (the batch reference for the window).
+  void solve_batch(int iterations = 50);
+
+  const PatchMap& patch() const { return patch_; }
+  const GraphOptions& options() const { return options_; }
+  int frames() const { return int(frames_.size()); }
+
+ private:
+  struct Frame {
+    double o[kPoseBlockSize];  // T_world_object
+    double e[kPoseBlockSize];  // T_world_sensor
+    bool contact = false;
+  };
+  enum class FactorKind { kImageToImage, kImageToPatch, kVelocity, kEndEffector, kVision };
+  struct Factor {
+    FactorKind kind;
+    int frames[3] = {-1, -1, -1};  // absolute frame indices, oldest first; the last is the newest
+    SE3 measured;
+    Matrix6d sqrt_info;
+  };
+  void solve(int first_frame, int iterations);
+  bool register_to_patch(Frame& f, TrackerEstimate& est);
+  bool register_to_previous(Frame& f, TrackerEstimate& est);
+  Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
+
+  GraphOptions options_;
+  PatchMap patch_;
+  PointToPlaneIcp icp_;
+  std::vector<Frame> frames_;
+  std::vector<Factor> factors_;
+  bool in_episode_ = false;
+  int last_keyframe_ = -1;
+  std::unique_ptr<PointCloudTree> previous_tree_;  // the previous frame's cloud, for eq. 5
+  PointCloud current_cloud_;
+};
+
+}  // namespace pg

@@ -1,0 +1,151 @@
+#include "pg/graph/track_dataset.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "pg/core/error.h"
+#include "pg/tracker/contact_cloud.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Standard normal samples from a seeded 64-bit Mersenne twister (Box-Muller written out, so the
+// same seed gives the same noise with every standard library).
+class Gaussian {
+ public:
+  explicit Gaussian(std::uint64_t seed) : rng_(seed) {}
+  double operator()() {
+    auto uniform = [&] { return (double(rng_() >> 11) + 0.5) * 0x1.0p-53; };
+    return std::sqrt(-2.0 * std::log(uniform())) * std::cos(2.0 * M_PI * uniform());
+  }
+  SE3 perturb(const SE3& pose, double sigma) {
+    Vector6d xi;
+    for (int k = 0; k < 6; ++k) xi[k] = sigma * (*this)();
+    return pose * SE3::exp(xi);
+  }
+
+ private:
+  std::mt19937_64 rng_;
+};
+
+}  // namespace
+
+TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
+                       const std::function<void(int, int)>& progress) {
+  if (!dataset.info().has_output("normal")) {
+    throw InputError(dataset.dir() + ": dataset has no 'normal' output, needed for --normals gt");
+  }
+  GraphOptions graph = options.graph;
+  graph.icp = options.front_end.icp;
+  TrackRun run;
+  run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
+  ContactCloudBuilder builder(dataset.info().sensor, options.front_end.contact_cloud());
+  Gaussian noise(options.seed);
+  ContactFrame contact;
+  for (int i = 0; i < dataset.frames(); ++i) {
+    const FramePose& gt = dataset.poses()[i];
+    const ImageF normals = dataset.normal(i);  // decoding is not part of the timed update
+    TrackerInput input;
+    input.T_world_sensor_measured = noise.perturb(gt.T_world_sensor, options.end_effector_noise);
+    input.T_world_object_prior = noise.perturb(gt.T_world_object, options.vision_noise);
+    const auto start = std::chrono::steady_clock::now();
+    builder.build(normals, contact);
+    if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
+    const TrackerEstimate est = run.tracker->add(input);
+    FrameResult r;
+    r.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    r.frame = i;
+    r.T_world_object = est.T_world_object;
+    r.T_world_object_gt = gt.T_world_object;
+    r.translation_error_m = translation_distance(est.T_world_object, gt.T_world_object);
+    r.rotation_error_rad = rotation_distance(est.T_world_object, gt.T_world_object);
+    r.contact = est.contact;
+    r.new_episode = est.new_episode;
+    r.image_to_patch = est.image_to_patch;
+    run.frames.push_back(r);
+    if (progress) progress(i + 1, dataset.frames());
+  }
+  run.summary = summarize(run.frames, to_string(graph.method));
+  return run;
+}
+
+TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method) {
+  TrackSummary s;
+  s.method = method;
+  s.frames = int(frames.size());
+  if (frames.empty()) return s;
+  double t_sq = 0, r_sq = 0, ms = 0;
+  std::vector<double> times;
+  for (const auto& f : frames) {
+    t_sq += f.translation_error_m * f.translation_error_m;
+    r_sq += f.rotation_error_rad * f.rotation_error_rad;
+    ms += f.frame_ms;
+    times.push_back(f.frame_ms);
+    s.contact_frames += f.contact;
+    s.episodes += f.new_episode;
+  }
+  s.translation_rmse_m = std::sqrt(t_sq / frames.size());
+  s.rotation_rmse_rad = std::sqrt(r_sq / frames.size());
+  s.final_translation_error_m = frames.back().translation_error_m;
+  s.final_rotation_error_rad = frames.back().rotation_error_rad;
+  s.mean_frame_ms = ms / frames.size();
+  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
+  s.median_frame_ms = times[times.size() / 2];
+  s.hz = s.median_frame_ms > 0 ? 1000.0 / s.median_frame_ms : 0.0;
+  return s;
+}
+
+void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir) {
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw InputError(out_dir + ": cannot create the output folder: " + ec.message());
+  std::vector<FramePose> poses = dataset.poses();
+  for (std::size_t i = 0; i < poses.size() && i < run.frames.size(); ++i) {
+    poses[i].T_world_object = run.frames[i].T_world_object;
+    poses[i].contact = run.frames[i].contact;
+  }
+  write_poses_csv((fs::path(out_dir) / "poses.csv").string(), poses);
+  const std::string errors_path = (fs::path(out_dir) / "errors.csv").string();
+  std::ofstream errors(errors_path);
+  errors.precision(9);
+  errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,frame_ms\n";
+  for (const auto& f : run.frames) {
+    errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
+           << f.contact << "," << f.new_episode << "," << f.image_to_patch << "," << f.frame_ms
+           << "\n";
+  }
+  if (!errors) throw InputError(errors_path + ": cannot write");
+  const TrackSummary& s = run.summary;
+  const nlohmann::json summary = {
+      {"dataset", dataset.dir()},
+      {"object", dataset.info().object_name},
+      {"method", s.method},
+      {"frames", s.frames},
+      {"contact_frames", s.contact_frames},
+      {"episodes", s.episodes},
+      {"translation_rmse_m", s.translation_rmse_m},
+      {"rotation_rmse_rad", s.rotation_rmse_rad},
+      {"final_translation_error_m", s.final_translation_error_m},
+      {"final_rotation_error_rad", s.final_rotation_error_rad},
+      {"mean_frame_ms", s.mean_frame_ms},
+      {"median_frame_ms", s.median_frame_ms},
+      {"hz", s.hz},
+      {"window", run.tracker->options().window},
+      {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
+      {"registration_information", run.tracker->options().registration_information},
+      {"patch_points", run.tracker->patch().cloud_object().size()},
+  };
+  const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
+  std::ofstream(summary_path) << summary.dump(2) << "\n";
+  run.tracker->patch().save_ply((fs::path(out_dir) / "patch.ply").string());
+}
+
+}  // namespace pg

@@ -1,0 +1,242 @@
+#include "pg/graph/tracker.h"
+
+#include <ceres/ceres.h>
+
+#include <chrono>
+
+#include "pg/core/error.h"
+#include "pg/graph/factors.h"
+
+namespace pg {
+
+namespace {
+
+const SE3Manifold& se3_manifold() {
+  static const SE3Manifold manifold;
+  return manifold;
+}
+
+// o_t = o_{t-1} (o_{t-2}^-1 o_{t-1}): the last body-frame motion repeated.
+SE3 predict(const SE3& o_prev2, const SE3& o_prev) { return o_prev * (o_prev2.inverse() * o_prev); }
+
+}  // namespace
+
+const std::vector<std::string>& method_names() {
+  static const std::vector<std::string> names = {"constvel", "imagetoimage", "patchgraph",
+                                                 "gtpatch"};
+  return names;
+}
+
+const char* to_string(Method method) {
+  return method_names()[static_cast<int>(method)].c_str();
+}
+
+Method method_from_string(const std::string& name) {
+  const auto& names = method_names();
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == name) return static_cast<Method>(i);
+  }
+  throw InputError("unknown method '" + name +
+                   "' (known: constvel, imagetoimage, patchgraph, gtpatch)");
+}
+
+PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& model_object)
+    : options_(std::move(options)), patch_(options_.patch), icp_(options_.icp) {
+  if (options_.method == Method::kGroundTruthPatch) {
+    if (model_object.empty()) {
+      throw std::invalid_argument("PatchGraphTracker: gtpatch needs the object model's points");
+    }
+    patch_.set_model(model_object);
+  }
+}
+
+PatchGraphTracker::~PatchGraphTracker() = default;
+
+Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double sigma) const {
+  if (!options_.registration_information || r.degeneracy.unconstrained == 0) {
+    return isotropic_sqrt_info(sigma);
+  }
+  // The registration says nothing along the directions its Hessian leaves free (a sphere's
+  // rotations, a flat face's slide and spin): give those zero information, the others the
+  // factor's sigma. The report's twists perturb T_target_source on the left (target frame); the
+  // factors' residuals live in the right tangent: T exp(xi_R) = exp(xi_L) T, xi_R = Ad_T^-1 xi_L.
+  const Matrix6Xd free_left = r.degeneracy.unconstrained_twists_at_origin();
+  const Matrix6Xd free_right = r.T_target_source.inverse().adjoint() * free_left;
+  const Matrix6d projector =
+      Matrix6d::Identity() -
+      free_right * (free_right.transpose() * free_right).inverse() * free_right.transpose();
+  return projector / sigma;  // P symmetric and idempotent: (P / s)^T (P / s) = P / s^2
+}
+
+bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
+  const int t = int(frames_.size()) - 1;
+  if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return false;
+  const Frame& p = frames_[t - 1];
+  // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
+  const SE3 T_sp_o = pose_from_block(p.e).inverse() * pose_from_block(p.o);
+  const SE3 T_sc_o = pose_from_block(f.e).inverse() * pose_from_block(f.o);
+  const IcpResult r = icp_.align(current_cloud_, *previous_tree_, T_sp_o * T_sc_o.inverse());
+  if (!r.converged) return false;
+  factors_.push_back({FactorKind::kImageToImage, {t - 1, t, -1}, r.T_target_source,
+                      registration_sqrt_info(r, options_.sigma_image_to_image)});
+  est.image_to_image = true;
+  return true;
+}
+
+bool PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
+  if (patch_.empty()) return false;
+  const int t = int(frames_.size()) - 1;
+  const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
+  const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
+  est.unconstrained_directions = r.degeneracy.unconstrained;
+  if (!r.converged) return false;
+  factors_.push_back({FactorKind::kImageToPatch, {t, -1, -1}, r.T_target_source,
+                      registration_sqrt_info(r, options_.sigma_image_to_patch)});
+  est.image_to_patch = true;
+  return true;
+}
+
+TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
+  const auto start = std::chrono::steady_clock::now();
+  TrackerEstimate est;
+  const int t = int(frames_.size());
+  Frame f;
+  pose_to_block(input.T_world_sensor_measured, f.e);
+  const SE3 o_init = t >= 2 ? predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o))
+                     : t == 1 ? pose_from_block(frames_[0].o)
+                              : input.T_world_object_prior;
+  pose_to_block(o_init, f.o);
+  f.contact = !input.cloud_sensor.empty();
+  frames_.push_back(f);
+  Frame& cur = frames_.back();
+  current_cloud_ = input.cloud_sensor;
+
+  // Priors: the end-effector measurement every frame (eq. 8), the velocity prior (eq. 7), and
+  // the vision prior on the first pose of each contact episode (eq. 9) and of the sequence.
+  factors_.push_back({FactorKind::kEndEffector, {t, -1, -1}, input.T_world_sensor_measured,
+                      isotropic_sqrt_info(options_.sigma_end_effector)});
+  if (t >= 2) {
+    factors_.push_back({FactorKind::kVelocity, {t - 2, t - 1, t}, SE3(),
+                        isotropic_sqrt_info(options_.sigma_velocity)});
+  }
+  est.contact = cur.contact;
+  est.new_episode = cur.contact && !in_episode_;
+  if (t == 0 || est.new_episode) {
+    pose_to_block(input.T_world_object_prior, cur.o);
+    factors_.push_back({FactorKind::kVision, {t, -1, -1}, input.T_world_object_prior,
+                        isotropic_sqrt_info(options_.sigma_vision)});
+  }
+  if (est.new_episode && options_.method == Method::kPatchGraph) {
+    patch_.reset();
+    last_keyframe_ = -1;
+  }
+  in_episode_ = cur.contact;
+
+  // Registrations (eq. 5 and 6) at the predicted poses.
+  if (cur.contact) {
+    const Method m = options_.method;
+    if (m == Method::kImageToImage || m == Method::kPatchGraph) register_to_previous(cur, est);
+    if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) register_to_patch(cur, est);
+  }
+
+  const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
+  solve(first, options_.solver_iterations);
+
+  // Key frame: fuse the cloud into the patch with the solved pose.
+  Frame& solved = frames_.back();
+  if (options_.method == Method::kPatchGraph && solved.contact &&
+      (last_keyframe_ < 0 || t - last_keyframe_ >= options_.patch.keyframe_interval)) {
+    patch_.add_keyframe(current_cloud_,
+                        pose_from_block(solved.o).inverse() * pose_from_block(solved.e));
+    last_keyframe_ = t;
+    est.keyframe = true;
+  }
+  // This frame's cloud becomes the next frame's image-to-image target.
+  if (solved.contact && (options_.method == Method::kImageToImage ||
+                         options_.method == Method::kPatchGraph)) {
+    previous_tree_ = std::make_unique<PointCloudTree>(current_cloud_);
+  } else {
+    previous_tree_.reset();
+  }
+
+  est.T_world_object = pose_from_block(solved.o);
+  est.T_world_sensor = pose_from_block(solved.e);
+  est.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  return est;
+}
+
+void PatchGraphTracker::solve(int first_frame, int iterations) {
+  ceres::Problem::Options problem_options;
+  problem_options.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  auto* manifold = const_cast<SE3Manifold*>(&se3_manifold());
+  auto add_block = [&](double* block, int frame) {
+    if (problem.HasParameterBlock(block)) return;
+    problem.AddParameterBlock(block, kPoseBlockSize, manifold);
+    // Frames before the window are held at their estimates (conditioning, see docs).
+    if (frame < first_frame) problem.SetParameterBlockConstant(block);
+  };
+  // Factors are stored in the order of their newest frame: walk back to the window's start.
+  for (auto it = factors_.rbegin(); it != factors_.rend(); ++it) {
+    const Factor& fac = *it;
+    const int newest = std::max({fac.frames[0], fac.frames[1], fac.frames[2]});
+    if (newest < first_frame) break;
+    Frame& a = frames_[fac.frames[0]];
+    switch (fac.kind) {
+      case FactorKind::kEndEffector:
+        add_block(a.e, fac.frames[0]);
+        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr, a.e);
+        break;
+      case FactorKind::kVision:
+        add_block(a.o, fac.frames[0]);
+        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr, a.o);
+        break;
+      case FactorKind::kImageToPatch:
+        add_block(a.o, fac.frames[0]);
+        add_block(a.e, fac.frames[0]);
+        problem.AddResidualBlock(ImageToPatchFactor::create(fac.measured, fac.sqrt_info), nullptr,
+                                 a.o, a.e);
+        break;
+      case FactorKind::kImageToImage: {
+        Frame& b = frames_[fac.frames[1]];
+        add_block(a.o, fac.frames[0]);
+        add_block(a.e, fac.frames[0]);
+        add_block(b.o, fac.frames[1]);
+        add_block(b.e, fac.frames[1]);
+        problem.AddResidualBlock(ImageToImageFactor::create(fac.measured, fac.sqrt_info), nullptr,
+                                 a.o, a.e, b.o, b.e);
+        break;
+      }
+      case FactorKind::kVelocity: {
+        Frame& b = frames_[fac.frames[1]];
+        Frame& c = frames_[fac.frames[2]];
+        add_block(a.o, fac.frames[0]);
+        add_block(b.o, fac.frames[1]);
+        add_block(c.o, fac.frames[2]);
+        problem.AddResidualBlock(ConstantVelocityFactor::create(fac.sqrt_info), nullptr, a.o, b.o,
+                                 c.o);
+        break;
+      }
+    }
+  }
+  ceres::Solver::Options solver_options;
+  solver_options.max_num_iterations = iterations;
+  solver_options.linear_solver_type =
+      options_.window > 0 && options_.window <= 40 ? ceres::DENSE_NORMAL_CHOLESKY
+                                                     : ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.num_threads = 1;
+  solver_options.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(solver_options, &problem, &summary);
+}
+
+std::vector<SE3> PatchGraphTracker::object_trajectory() const {
+  std::vector<SE3> out;
+  out.reserve(frames_.size());
+  for (const auto& f : frames_) out.push_back(pose_from_block(f.o));
+  return out;
+}
+
+void PatchGraphTracker::solve_batch(int iterations) { solve(0, iterations); }
+
+}  // namespace pg

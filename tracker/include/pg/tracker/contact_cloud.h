@@ -1,0 +1,62 @@
+#pragma once
+// One tactile frame's normals -> indentation -> contact mask -> point cloud in the sensor frame
+// (paper section IV-B). The cloud is what the registrations of eq. 5 and eq. 6 align.
+#include "pg/core/image.h"
+#include "pg/core/sensor.h"
+#include "pg/tracker/contact_mask.h"
+#include "pg/tracker/depth_from_normals.h"
+#include "pg/tracker/point_cloud.h"
+
+namespace pg {
+
+struct ContactCloudOptions {
+  DepthOptions depth;
+  MaskOptions mask;
+};
+
+enum class ContactStatus {
+  kContact,    // cloud_sensor holds the contact's points
+  kNoContact,  // nothing deformed, or less contact than mask.min_area_m2: the cloud is empty
+};
+
+struct ContactFrame {
+  ContactStatus status = ContactStatus::kNoContact;
+  DepthResult depth;      // indentation [m] and the Poisson grid
+  ContactMask mask;       // contact pixels
+  // Back-projected contact pixels in S [m]: p_S = o + d (t_gel - u). Normals are the object's
+  // outward surface normals, i.e. minus the gel normals of the normal image (not re-estimated).
+  PointCloud cloud_sensor;
+  // Normals rejected anywhere in the image (NaN, inf, far from unit length); such pixels are taken
+  // as undisturbed by the integration and give no point.
+  int rejected_normals = 0;
+};
+
+// Back-projects the contact pixels in `box` (mask > 0) into S with their normals (see
+// ContactFrame::cloud_sensor). Pixels whose normal is not finite and roughly unit are skipped
+// and counted in the return value. `cloud_sensor` is cleared first; its capacity is reused.
+int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
+                         const PixelBox& box, const ImageF& normals, PointCloud& cloud_sensor);
+
+// Coordinates the steps for one sensor; keeps the per-sensor constants, FFTW plans and scratch
+// buffers, so frames allocate nothing once the sizes have been seen. Not thread-safe: one per
+// thread (or per sensor).
+class ContactCloudBuilder {
+ public:
+  // reference_normals: see DepthFromNormals (a no-contact frame's normals; empty = gel model).
+  ContactCloudBuilder(const SensorModel& sensor, const ContactCloudOptions& options,
+                      const ImageF& reference_normals = ImageF());
+
+  // normals: width x height x 3 unit gel normals in S (+z out of the gel), as rendered or as
+  // estimated from the colour image. `frame`'s buffers are reused.
+  void build(const ImageF& normals, ContactFrame& frame);
+  ContactFrame build(const ImageF& normals);
+
+  const GelRays& rays() const { return depth_.rays(); }
+  const ContactCloudOptions& options() const { return options_; }
+
+ private:
+  ContactCloudOptions options_;
+  DepthFromNormals depth_;
+};
+
+}  // namespace pg

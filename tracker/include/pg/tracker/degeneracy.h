@@ -1,0 +1,46 @@
+#pragma once
+// Which directions a registration constrains (the paper's stated limitation: flat patches and
+// sphere rotations are unobservable), and a Gauss-Newton step that leaves the others alone.
+//
+// The analysis runs where translations and rotations are comparable: twists are taken about a
+// centre c (the source cloud's centroid, in the target frame) and the rotation part is scaled by
+// a length L (the cloud's RMS radius about c):
+//   x = [rho_c; L phi],  exp(delta) = T_c exp([rho_c; phi]) T_c^-1,  T_c = translation by c.
+// A point-to-plane term then contributes at most about 1 per direction, and an eigenvalue of the
+// scaled Hessian below a ratio of the largest means the data leave that direction free.
+#include <Eigen/Core>
+
+#include "pg/core/se3.h"
+
+namespace pg {
+
+// At most 6 columns, stored inline (no heap allocation).
+using Matrix6Xd = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, 6>;
+
+struct DegeneracyReport {
+  Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();  // c [m]
+  double length_scale_m = 1.0;                              // L [m]
+  Vector6d eigenvalues = Vector6d::Zero();    // of the scaled Hessian, ascending [-]
+  Matrix6d eigenvectors = Matrix6d::Identity();  // columns, in scaled coordinates [rho_c; L phi]
+  int unconstrained = 6;  // how many of the first eigenvalues fall below the ratio
+
+  bool degenerate() const { return unconstrained > 0; }
+  // The unconstrained directions as twists [rho_c; phi] about c ([m; rad]), one per column.
+  Matrix6Xd unconstrained_twists() const;
+  // The same directions as twists [rho; phi] about the target frame's origin.
+  Matrix6Xd unconstrained_twists_at_origin() const;
+};
+
+// Eigen-decomposes H_scaled (the Hessian in [rho_c; L phi]); eigenvalues below
+// min_eigenvalue_ratio times the largest (or not positive) are unconstrained.
+DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
+                                    double length_scale_m, double min_eigenvalue_ratio);
+
+// The Gauss-Newton step for H_scaled x = -g_scaled restricted to the constrained eigenvectors,
+// returned as a twist [rho_c; phi] about c. The data say nothing about the unconstrained
+// directions N, so every step + N a fits them equally well; of those, the one with the least
+// rotation (and then the least translation of c) is returned, so that a sphere keeps its initial
+// orientation and a flat patch its initial in-plane position and yaw.
+Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scaled);
+
+}  // namespace pg

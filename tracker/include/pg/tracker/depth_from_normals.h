@@ -1,0 +1,79 @@
+#pragma once
+// Normals -> gel indentation (paper section IV-B, eq. 4): surface gradients from the normal
+// image, integrated by a Poisson solve with a zero (Dirichlet) boundary at the undisturbed gel.
+//
+// The normals are those of the deformed, curved gel, seen in perspective. With t the camera depth
+// of the gel surface along pixel (x, y)'s ray d = ((x - cx) / fx, (y - cy) / fy, 1), the tangent
+// dP/dx = t_x d + t (1 / fx, 0, 0) is perpendicular to the normal n, which gives eq. 4 in
+// perspective form for the log depth:
+//   d ln t / dx = -n_x / (fx n.d),   d ln t / dy = -n_y / (fy n.d)       [per pixel]
+// (for an orthographic camera n.d = n_z: the paper's dz/dx = n_x / n_z up to the sign convention).
+// Only the difference from a reference (no-contact) normal image is integrated, so the curved
+// gel's own shape cancels: w = ln(t / t_gel) solves  lap w = div(g - g_ref), w = 0 where the gel
+// is undisturbed, and the indentation is u = t_gel - t = t_gel (1 - exp(w)).
+#include <cstdint>
+#include <vector>
+
+#include "pg/core/image.h"
+#include "pg/core/sensor.h"
+#include "pg/tracker/gel_rays.h"
+#include "pg/tracker/pixel_box.h"
+#include "pg/tracker/poisson_dst.h"
+
+namespace pg {
+
+struct DepthOptions {
+  // Guard of eq. 4: n.d (n_z for an orthographic camera) is clamped to at least this, so a
+  // normal nearly perpendicular to its ray cannot produce an unbounded slope [-].
+  double min_normal_dot_ray = 0.2;
+  // A pixel is disturbed (deformed) when its normal differs from the reference normal by more
+  // than this angle [rad]. Raise it above the normal estimator's noise on real data.
+  double disturbed_angle_rad = 0.005;
+  // Integrate only over the disturbed pixels' bounding box plus a margin (false: the whole
+  // image). Either way the grid is padded so its DST sizes factor into small primes.
+  bool crop = true;
+  int crop_margin_px = 4;  // [px], at least 1
+  DstBackend dst_backend = DstBackend::kRealFft;  // see poisson_dst.h
+  bool measure_fft_plans = false;  // FFTW_MEASURE plans: 0.1-0.6 s on the first frame of a size
+};
+
+struct DepthResult {
+  ImageF depth;            // indentation u [m] along the camera z axis, width x height x 1
+  PixelBox window;         // the Poisson grid in image coordinates (may reach past the image)
+  PixelBox disturbed_box;  // bounding box of the disturbed pixels (empty: none)
+  int disturbed_pixels = 0;
+  int invalid_normals = 0;  // NaN, inf or far from unit length: ignored (taken as undisturbed)
+  int clamped_normals = 0;  // n.d below min_normal_dot_ray inside the grid, clamped
+};
+
+// Coordinates the per-sensor constants (rays, reference gradients), the FFTW plan cache and the
+// scratch buffers, so a frame allocates nothing once the sizes have been seen. Not thread-safe:
+// one per thread.
+class DepthFromNormals {
+ public:
+  // reference_normals: a no-contact frame's normal image (width x height x 3, in S), e.g. the
+  // normal estimator's output on a real sensor's no-contact image. Empty: the undeformed gel of
+  // the sensor model (undeformed_gel_normals). Throws InputError on a size mismatch or
+  // non-finite reference values.
+  DepthFromNormals(const SensorModel& sensor, const DepthOptions& options,
+                   const ImageF& reference_normals = ImageF());
+
+  // Fills `out` (its buffers are reused across calls). Throws InputError if `normals` is not
+  // width x height x 3.
+  void compute(const ImageF& normals, DepthResult& out);
+
+  const GelRays& rays() const { return rays_; }
+  const DepthOptions& options() const { return options_; }
+  const PoissonDstSolver& solver() const { return solver_; }
+
+ private:
+  DepthOptions options_;
+  GelRays rays_;
+  ImageF reference_normals_;
+  std::vector<float> reference_gradient_;  // g_ref per pixel: (d ln t / dx, d ln t / dy)
+  std::vector<float> gx_, gy_;             // g - g_ref over the grid plus a 1-pixel ring
+  std::vector<std::uint8_t> flags_;        // one row's disturbed flags
+  PoissonDstSolver solver_;
+};
+
+}  // namespace pg

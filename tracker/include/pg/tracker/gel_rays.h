@@ -1,0 +1,40 @@
+#pragma once
+// Per-pixel camera rays of a sensor and where they meet the undeformed gel: the geometry that
+// turns an indentation image into points in the sensor frame S, computed from the sensor model
+// alone (CameraModel + GelModel::surface_z), so it works for a real sensor too.
+#include <Eigen/Core>
+#include <vector>
+
+#include "pg/core/image.h"
+#include "pg/core/sensor.h"
+
+namespace pg {
+
+struct GelRays {
+  int width = 0, height = 0;             // [px]
+  double fx = 0, fy = 0;                 // focal lengths [px]
+  double px_per_m = 0;                   // image scale at the gel centre [px / m]
+  Eigen::Vector3f origin_sensor;         // camera centre in S [m]
+  std::vector<Eigen::Vector3f> dir_sensor;  // per pixel ray, z = 1 (t is the camera depth) [-]
+  std::vector<float> t_gel;                 // camera depth of the undeformed gel surface [m]
+
+  int index(int x, int y) const { return y * width + x; }
+  // The gel surface point seen through pixel i when indented by u [m] toward the camera:
+  //   p_S = o + d_i (t_gel_i - u)
+  Eigen::Vector3f point(int i, float u) const {
+    return origin_sensor + dir_sensor[i] * (t_gel[i] - u);
+  }
+  // Area of one pixel on the gel at its centre [m^2].
+  double pixel_area_m2() const { return 1.0 / (px_per_m * px_per_m); }
+};
+
+// Solves surface_z(d t) = t - distance for every pixel's ray (a fixed-point iteration; the gel's
+// slope is small).
+GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel);
+
+// Unit normals of the undeformed gel (+z, out of the gel), width x height x 3, built like a
+// rendered frame's: the cross product of the central differences of the gel points (one-sided
+// at the image border). The reference when no no-contact frame is available.
+ImageF undeformed_gel_normals(const GelRays& rays);
+
+}  // namespace pg

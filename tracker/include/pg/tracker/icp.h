@@ -1,0 +1,90 @@
+#pragma once
+// Point-to-plane ICP: the registration inside the image-to-image (eq. 5) and image-to-patch
+// (eq. 6) factors. Gauss-Newton on SE(3) with a robust kernel, correspondences from a reusable
+// k-d tree, a oneTBB-parallel reduction of the 6x6 system, and a degeneracy report whose
+// unconstrained directions the updates leave at the initial guess.
+#include <memory>
+
+#include "pg/core/se3.h"
+#include "pg/tracker/degeneracy.h"
+#include "pg/tracker/kd_tree.h"
+#include "pg/tracker/point_cloud.h"
+#include "pg/tracker/point_to_plane.h"
+
+namespace pg {
+
+class CorrespondenceCache;
+
+struct IcpOptions {
+  int max_iterations = 30;
+  double max_correspondence_m = 1e-3;  // pairs farther apart are not used [m]
+  RobustKernel kernel = RobustKernel::kHuber;
+  double kernel_scale_m = 1e-4;  // Huber: quadratic within; Tukey: zero weight beyond [m]
+  // Converged when an update moves the source centroid by less than this [m] and rotates by
+  // less than convergence_rotation_rad [rad].
+  double convergence_translation_m = 1e-7;
+  double convergence_rotation_rad = 1e-6;
+  int min_points = 20;      // fewer source points or correspondences: not converged [-]
+  double voxel_size_m = 0;  // downsample the source to this voxel edge first; 0: off [m]
+  // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
+  // degeneracy.h) is below this fraction of the largest [-].
+  double min_eigenvalue_ratio = 5e-3;
+  // Floor of the residual sigma used for the information matrix (exact synthetic data would
+  // otherwise give infinite information) [m].
+  double min_residual_sigma_m = 1e-5;
+};
+
+enum class IcpStatus {
+  kConverged,
+  kMaxIterations,           // the last update was still above the thresholds
+  kTooFewPoints,            // source (after downsampling) or target below min_points, or no normals
+  kTooFewCorrespondences,   // fewer than min_points pairs within max_correspondence_m
+};
+const char* to_string(IcpStatus status);
+
+struct IcpResult {
+  SE3 T_target_source;  // the guess when the registration failed early
+  // Gauss-Newton Hessian sum_i w_i J_i^T J_i at the optimum, in the right (source-frame) tangent:
+  // T_true = T_target_source * exp(eps), eps = [rho; phi] [m; rad].
+  Matrix6d hessian = Matrix6d::Zero();
+  // hessian / sigma^2: eps ~ N(0, information^-1). Near-zero along unconstrained directions.
+  // Units: 1/m^2 (translation block), 1/(m rad), 1/rad^2.
+  Matrix6d information = Matrix6d::Zero();
+  double residual_sigma_m = 0;  // weighted RMS point-to-plane residual, floored [m]
+  int inliers = 0;              // correspondences within max_correspondence_m with weight > 0
+  double rms_m = 0;             // RMS point-to-plane residual of the inliers [m]
+  bool converged = false;
+  IcpStatus status = IcpStatus::kTooFewPoints;
+  int iterations = 0;           // Gauss-Newton linearisations
+  int source_points = 0;        // after downsampling
+  DegeneracyReport degeneracy;  // at the last linearisation
+};
+
+// Holds the options and the per-point scratch (downsampled source, correspondence cache), so
+// repeated calls with clouds of similar size allocate nothing. Not thread-safe (one per thread); parallel inside.
+class PointToPlaneIcp {
+ public:
+  explicit PointToPlaneIcp(const IcpOptions& options = IcpOptions());
+  ~PointToPlaneIcp();
+  PointToPlaneIcp(PointToPlaneIcp&&) noexcept;
+  PointToPlaneIcp& operator=(PointToPlaneIcp&&) noexcept;
+
+  // Aligns source (points, normals optional) to target (points with normals) starting from the
+  // guess. The target tree is only read, so one tree serves many calls (and threads).
+  IcpResult align(const PointCloud& source, const PointCloudTree& target,
+                  const SE3& T_target_source_guess);
+
+  const IcpOptions& options() const { return options_; }
+  IcpOptions& options() { return options_; }
+  // Nearest-neighbour queries in the last align() call (the rest reused a provably unchanged
+  // correspondence).
+  long last_queries() const { return last_queries_; }
+
+ private:
+  IcpOptions options_;
+  PointCloud downsampled_;
+  std::unique_ptr<CorrespondenceCache> cache_;  // nearest neighbours kept between iterations
+  long last_queries_ = 0;
+};
+
+}  // namespace pg

@@ -1,0 +1,40 @@
+#pragma once
+// The tracker config file: options of each measurement step, every key optional (defaults in the
+// options structs), unknown keys rejected with the file and field named.
+//
+//   {
+//     "depth": {"min_normal_dot_ray": 0.2, "disturbed_angle_rad": 0.005, "crop": true,
+//               "crop_margin_px": 4, "dst_backend": "real_fft", "measure_fft_plans": false},
+//     "mask":  {"min_depth_m": 1e-4, "min_area_m2": 5e-7, "relative_depth": 0.5},
+//     "icp":   {"max_iterations": 30, "max_correspondence_m": 1e-3, "kernel": "huber",
+//               "kernel_scale_m": 1e-4, "convergence_translation_m": 1e-7,
+//               "convergence_rotation_rad": 1e-6, "min_points": 20, "voxel_size_m": 0,
+//               "min_eigenvalue_ratio": 5e-3, "min_residual_sigma_m": 1e-5}
+//   }
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+
+#include "pg/tracker/contact_cloud.h"
+#include "pg/tracker/icp.h"
+
+namespace pg {
+
+struct TrackerConfig {
+  DepthOptions depth;
+  MaskOptions mask;
+  IcpOptions icp;
+
+  ContactCloudOptions contact_cloud() const { return {depth, mask}; }
+};
+
+// `where` names the file in messages. Throws InputError naming the field for unknown keys, wrong
+// types and out-of-range values.
+TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where);
+TrackerConfig load_tracker_config(const std::string& path);
+nlohmann::json tracker_config_to_json(const TrackerConfig& config);
+
+// "none", "huber", "tukey"; throws InputError for other names.
+RobustKernel robust_kernel_from_string(const std::string& name);
+const char* to_string(RobustKernel kernel);
+
+}  // namespace pg

@@ -1,0 +1,47 @@
+#include "pg/tracker/contact_mask.h"
+
+#include <algorithm>
+#include <cassert>
+
+namespace pg {
+
+void contact_mask(const ImageF& depth, const PixelBox& window, const MaskOptions& options,
+                  double pixel_area_m2, ContactMask& out) {
+  assert(depth.channels == 1);
+  const int W = depth.width, H = depth.height;
+  if (!out.mask.same_shape(W, H, 1)) {
+    out.mask = ImageU8(W, H, 1, 0);
+  } else {
+    const PixelBox old = out.box.clip(W, H);
+    for (int y = old.y0; y < old.y1; ++y) std::fill_n(&out.mask.at(old.x0, y), old.width(), 0);
+  }
+  const PixelBox win = window.clip(W, H);
+  float deepest = 0.0f;
+  for (int y = win.y0; y < win.y1; ++y) {
+    const float* u = &depth.at(0, y);
+    for (int x = win.x0; x < win.x1; ++x) deepest = std::max(deepest, u[x]);
+  }
+  const float threshold =
+      std::max(float(options.min_depth_m), float(options.relative_depth) * deepest);
+  int pixels = 0, x0 = W, y0 = H, x1 = -1, y1 = -1;
+  for (int y = win.y0; y < win.y1; ++y) {
+    const float* u = &depth.at(0, y);
+    std::uint8_t* m = &out.mask.at(0, y);
+    for (int x = win.x0; x < win.x1; ++x) {
+      if (u[x] > threshold) {
+        m[x] = 255;
+        ++pixels;
+        x0 = std::min(x0, x);
+        x1 = std::max(x1, x);
+        y0 = std::min(y0, y);
+        y1 = std::max(y1, y);
+      }
+    }
+  }
+  out.pixels = pixels;
+  out.box = pixels > 0 ? PixelBox{x0, y0, x1 + 1, y1 + 1} : PixelBox{};
+  out.area_m2 = pixels * pixel_area_m2;
+  out.contact = pixels > 0 && out.area_m2 >= options.min_area_m2;
+}
+
+}  // namespace pg

@@ -1,0 +1,198 @@
+#include "pg/tracker/depth_from_normals.h"
+
+#include <algorithm>
+#include <cstdint>
+#include <cmath>
+#include <string>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace {
+
+// Eq. 4 in perspective form: the gradient of ln t (per pixel) from the normal n at a pixel whose
+// ray is d (d_z = 1). Scale-invariant in n. Returns false when n.d had to be clamped.
+inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float fx, float fy,
+                               float min_dot, float& gx, float& gy) {
+  const float dot = n[0] * d.x() + n[1] * d.y() + n[2];
+  const bool ok = dot >= min_dot;
+  const float inv = 1.0f / (ok ? dot : min_dot);
+  gx = -n[0] * inv / fx;
+  gy = -n[1] * inv / fy;
+  return ok;
+}
+
+// A usable normal: finite and roughly unit length (a learned estimator's output need not be
+// exactly unit; the gradient does not depend on the length).
+inline bool valid_normal(const float* n) {
+  const float sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f;
+}
+
+// One image row: flags[x] = 1 where the normal is valid and more than the threshold angle from
+// the reference (n.r < cos(angle) |n|, without a square root), else 0. Returns the number of
+// invalid normals and adds the flagged ones to `disturbed`. Branch-free, so it vectorises.
+int classify_row(const float* n, const float* ref, int width, float cos_threshold,
+                 std::uint8_t* flags, int& disturbed) {
+  const float c2 = cos_threshold * cos_threshold;
+  int invalid = 0, count = 0;
+  for (int x = 0; x < width; ++x) {
+    const float nx = n[3 * x], ny = n[3 * x + 1], nz = n[3 * x + 2];
+    const float sq = nx * nx + ny * ny + nz * nz;
+    const float dot = nx * ref[3 * x] + ny * ref[3 * x + 1] + nz * ref[3 * x + 2];
+    const bool valid = (sq > 0.25f) & (sq < 2.25f);  // false for NaN and inf
+    const bool far = (dot <= 0.0f) | (dot * dot < c2 * sq);
+    const bool flag = valid & far;
+    flags[x] = flag;
+    invalid += !valid;
+    count += flag;
+  }
+  disturbed += count;
+  return invalid;
+}
+
+// Grows [lo, hi) by `margin` on both sides and then to the next fast DST size, centring the
+// padding. The result may reach past the image.
+void fast_window(int lo, int hi, int margin, int& out_lo, int& out_hi) {
+  const int want = (hi - lo) + 2 * margin;
+  const int n = dst_fast_size(want);
+  out_lo = lo - margin - (n - want) / 2;
+  out_hi = out_lo + n;
+}
+
+void check_normal_image(const ImageF& image, const GelRays& rays, const char* what) {
+  if (!image.same_shape(rays.width, rays.height, 3)) {
+    throw InputError(std::string(what) + ": expected a " + std::to_string(rays.width) + " x " +
+                     std::to_string(rays.height) + " x 3 normal image, got " +
+                     std::to_string(image.width) + " x " + std::to_string(image.height) + " x " +
+                     std::to_string(image.channels));
+  }
+}
+
+}  // namespace
+
+DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions& options,
+                                   const ImageF& reference_normals)
+    : options_(options),
+      rays_(make_gel_rays(sensor.camera, sensor.gel)),
+      solver_(PoissonDstOptions{options.dst_backend, options.measure_fft_plans, 32}) {
+  options_.crop_margin_px = std::max(options_.crop_margin_px, 1);
+  if (reference_normals.empty()) {
+    reference_normals_ = undeformed_gel_normals(rays_);
+  } else {
+    check_normal_image(reference_normals, rays_, "reference normals");
+    reference_normals_ = reference_normals;
+  }
+  const std::size_t n = std::size_t(rays_.width) * rays_.height;
+  reference_gradient_.resize(2 * n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* nr = &reference_normals_.data[3 * i];
+    if (!valid_normal(nr)) {
+      throw InputError("reference normals: pixel (" + std::to_string(i % rays_.width) + ", " +
+                       std::to_string(i / rays_.width) + ") is not a finite unit normal");
+    }
+    log_depth_gradient(nr, rays_.dir_sensor[i], float(rays_.fx), float(rays_.fy),
+                       float(options_.min_normal_dot_ray), reference_gradient_[2 * i],
+                       reference_gradient_[2 * i + 1]);
+  }
+}
+
+void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
+  check_normal_image(normals, rays_, "normals");
+  const int W = rays_.width, H = rays_.height;
+
+  // Clear what the previous frame wrote (or allocate on first use).
+  if (!out.depth.same_shape(W, H, 1)) {
+    out.depth = ImageF(W, H, 1, 0.0f);
+  } else {
+    const PixelBox old = out.window.clip(W, H);
+    for (int y = old.y0; y < old.y1; ++y) {
+      std::fill_n(&out.depth.at(old.x0, y), old.width(), 0.0f);
+    }
+  }
+  out.window = {};
+  out.disturbed_box = {};
+  out.disturbed_pixels = out.invalid_normals = out.clamped_normals = 0;
+
+  // 1. Which pixels differ from the reference, row by row.
+  const float cos_threshold = float(std::cos(options_.disturbed_angle_rad));
+  flags_.resize(std::size_t(W));
+  int bx0 = W, by0 = H, bx1 = -1, by1 = -1;
+  for (int y = 0; y < H; ++y) {
+    const std::size_t row = 3 * std::size_t(y) * W;
+    int disturbed = 0;
+    out.invalid_normals += classify_row(normals.data.data() + row,
+                                        reference_normals_.data.data() + row, W, cos_threshold,
+                                        flags_.data(), disturbed);
+    if (disturbed == 0) continue;
+    out.disturbed_pixels += disturbed;
+    int first = 0, last = W - 1;
+    while (!flags_[first]) ++first;
+    while (!flags_[last]) --last;
+    bx0 = std::min(bx0, first);
+    bx1 = std::max(bx1, last);
+    by0 = std::min(by0, y);
+    by1 = y;
+  }
+  if (out.disturbed_pixels == 0) return;  // flat: u = 0 everywhere
+  out.disturbed_box = {bx0, by0, bx1 + 1, by1 + 1};
+
+  // 2. The Poisson grid: the disturbed box plus margin, or the whole image, at fast DST sizes.
+  const PixelBox need = options_.crop ? out.disturbed_box : PixelBox{0, 0, W, H};
+  const int margin = options_.crop ? options_.crop_margin_px : 0;
+  PixelBox& win = out.window;
+  fast_window(need.x0, need.x1, margin, win.x0, win.x1);
+  fast_window(need.y0, need.y1, margin, win.y0, win.y1);
+  const int nx = win.width(), ny = win.height();
+
+  // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image and at invalid
+  // normals (the gel there is taken as undisturbed).
+  const int gw = nx + 2, gh = ny + 2;
+  gx_.assign(std::size_t(gw) * gh, 0.0f);
+  gy_.assign(std::size_t(gw) * gh, 0.0f);
+  const PixelBox ring = PixelBox{win.x0 - 1, win.y0 - 1, win.x1 + 1, win.y1 + 1}.clip(W, H);
+  const float* nimg = normals.data.data();
+  const float fx = float(rays_.fx), fy = float(rays_.fy);
+  const float min_dot = float(options_.min_normal_dot_ray);
+  for (int y = ring.y0; y < ring.y1; ++y) {
+    for (int x = ring.x0; x < ring.x1; ++x) {
+      const std::size_t i = std::size_t(y) * W + x;
+      const float* n = nimg + 3 * i;
+      if (!valid_normal(n)) continue;
+      float gx, gy;
+      if (!log_depth_gradient(n, rays_.dir_sensor[i], fx, fy, min_dot, gx, gy)) {
+        ++out.clamped_normals;
+      }
+      const std::size_t j = std::size_t(y - win.y0 + 1) * gw + (x - win.x0 + 1);
+      gx_[j] = gx - reference_gradient_[2 * i];
+      gy_[j] = gy - reference_gradient_[2 * i + 1];
+    }
+  }
+
+  // 4. Right-hand side: the divergence of the gradient field, with the gradients averaged to the
+  // half-pixel positions so that it matches the 5-point Laplacian:
+  //   f = (g_x(x+1) - g_x(x-1)) / 2 + (g_y(y+1) - g_y(y-1)) / 2.
+  float* f = solver_.grid(nx, ny);
+  for (int y = 0; y < ny; ++y) {
+    const float* gxr = &gx_[std::size_t(y + 1) * gw + 1];
+    const float* gyu = &gy_[std::size_t(y) * gw + 1];
+    const float* gyd = &gy_[std::size_t(y + 2) * gw + 1];
+    float* fr = f + std::size_t(y) * nx;
+    for (int x = 0; x < nx; ++x) {
+      fr[x] = 0.5f * (gxr[x + 1] - gxr[x - 1]) + 0.5f * (gyd[x] - gyu[x]);
+    }
+  }
+  solver_.solve();
+
+  // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
+  const PixelBox inside = win.clip(W, H);
+  for (int y = inside.y0; y < inside.y1; ++y) {
+    const float* wr = f + std::size_t(y - win.y0) * nx - win.x0;
+    float* ur = &out.depth.at(0, y);
+    const float* tg = &rays_.t_gel[std::size_t(y) * W];
+    for (int x = inside.x0; x < inside.x1; ++x) ur[x] = tg[x] * -std::expm1(wr[x]);
+  }
+}
+
+}  // namespace pg

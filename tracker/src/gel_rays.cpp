@@ -1,0 +1,55 @@
+#include "pg/tracker/gel_rays.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pg {
+
+GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
+  GelRays rays;
+  rays.width = camera.width;
+  rays.height = camera.height;
+  rays.fx = camera.fx;
+  rays.fy = camera.fy;
+  rays.px_per_m = camera.fy / camera.distance_m;
+  rays.origin_sensor = Eigen::Vector3f(0.0f, 0.0f, float(-camera.distance_m));
+  const std::size_t n = std::size_t(camera.width) * camera.height;
+  rays.dir_sensor.resize(n);
+  rays.t_gel.resize(n);
+  for (int y = 0; y < camera.height; ++y) {
+    for (int x = 0; x < camera.width; ++x) {
+      const Eigen::Vector3d d = camera.ray(x, y);
+      // The ray point at camera depth t is (d.x t, d.y t, t - distance) in S; on the gel when
+      // z = surface_z(x, y). Iterate z <- surface_z(d (z + distance)).
+      double z = 0.0;
+      for (int it = 0; it < 50; ++it) {
+        const double t = z + camera.distance_m;
+        const double z_next = gel.surface_z(d.x() * t, d.y() * t);
+        const bool done = std::abs(z_next - z) < 1e-13;
+        z = z_next;
+        if (done) break;
+      }
+      const int i = rays.index(x, y);
+      rays.dir_sensor[i] = d.cast<float>();
+      rays.t_gel[i] = float(z + camera.distance_m);
+    }
+  }
+  return rays;
+}
+
+ImageF undeformed_gel_normals(const GelRays& rays) {
+  ImageF normals(rays.width, rays.height, 3, 0.0f);
+  for (int y = 0; y < rays.height; ++y) {
+    const int ym = std::max(y - 1, 0), yp = std::min(y + 1, rays.height - 1);
+    for (int x = 0; x < rays.width; ++x) {
+      const int xm = std::max(x - 1, 0), xp = std::min(x + 1, rays.width - 1);
+      const Eigen::Vector3f dx = rays.point(rays.index(xp, y), 0) - rays.point(rays.index(xm, y), 0);
+      const Eigen::Vector3f dy = rays.point(rays.index(x, yp), 0) - rays.point(rays.index(x, ym), 0);
+      const Eigen::Vector3f n = dx.cross(dy).normalized();
+      for (int c = 0; c < 3; ++c) normals.at(x, y, c) = n[c];
+    }
+  }
+  return normals;
+}
+
+}  // namespace pg
