@@ -25,6 +25,11 @@ int run_track(const TrackArgs& a) {
   std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
               s.final_rotation_error_rad);
   std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3, s.rotation_rmse_rad);
+  if (s.batch_translation_rmse_m >= 0) {
+    std::printf("batch RMSE      %.3f mm  %.4f rad; fixed-lag vs batch RMS %.4f mm  %.5f rad\n",
+                s.batch_translation_rmse_m * 1e3, s.batch_rotation_rmse_rad,
+                s.window_vs_batch_translation_rms_m * 1e3, s.window_vs_batch_rotation_rms_rad);
+  }
   std::printf("per-frame update median %.3f ms (%.0f Hz), mean %.3f ms -> %s\n", s.median_frame_ms,
               s.hz, s.mean_frame_ms, a.out.c_str());
   return kExitOk;

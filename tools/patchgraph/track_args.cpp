@@ -23,6 +23,8 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--seed", a.seed, "Seed of the simulated measurement noise");
+  app.add_flag("--compare-batch", a.compare_batch,
+               "Afterwards re-solve the whole sequence at once and report the difference");
 }
 
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
@@ -39,6 +41,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   o.end_effector_noise = a.end_effector_noise;
   o.vision_noise = a.vision_noise;
   o.seed = a.seed;
+  o.compare_batch = a.compare_batch;
   if (o.graph.method == Method::kGroundTruthPatch) {
     const auto& info = dataset.info();
     if (info.object_mesh.empty()) {

@@ -18,6 +18,7 @@ struct TrackArgs {
   double end_effector_noise = 1e-5, vision_noise = 1e-4;
   std::uint64_t seed = 0;
   bool quiet = false;
+  bool compare_batch = false;
 };
 
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);

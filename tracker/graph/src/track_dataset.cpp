@@ -74,6 +74,24 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     if (progress) progress(i + 1, dataset.frames());
   }
   run.summary = summarize(run.frames, to_string(graph.method));
+  if (options.compare_batch) {
+    run.tracker->solve_batch();
+    const std::vector<SE3> batch = run.tracker->object_trajectory();
+    double bt = 0, br = 0, dt = 0, dr = 0;
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      const SE3& gt = run.frames[i].T_world_object_gt;
+      const SE3& win = run.frames[i].T_world_object;
+      bt += std::pow(translation_distance(batch[i], gt), 2);
+      br += std::pow(rotation_distance(batch[i], gt), 2);
+      dt += std::pow(translation_distance(batch[i], win), 2);
+      dr += std::pow(rotation_distance(batch[i], win), 2);
+    }
+    const double n = double(std::max<std::size_t>(1, batch.size()));
+    run.summary.batch_translation_rmse_m = std::sqrt(bt / n);
+    run.summary.batch_rotation_rmse_rad = std::sqrt(br / n);
+    run.summary.window_vs_batch_translation_rms_m = std::sqrt(dt / n);
+    run.summary.window_vs_batch_rotation_rms_rad = std::sqrt(dr / n);
+  }
   return run;
 }
 
@@ -124,7 +142,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
-  const nlohmann::json summary = {
+  nlohmann::json summary = {
       {"dataset", dataset.dir()},
       {"object", dataset.info().object_name},
       {"method", s.method},
@@ -143,6 +161,12 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"registration_information", run.tracker->options().registration_information},
       {"patch_points", run.tracker->patch().cloud_object().size()},
   };
+  if (s.batch_translation_rmse_m >= 0) {
+    summary["batch_translation_rmse_m"] = s.batch_translation_rmse_m;
+    summary["batch_rotation_rmse_rad"] = s.batch_rotation_rmse_rad;
+    summary["window_vs_batch_translation_rms_m"] = s.window_vs_batch_translation_rms_m;
+    summary["window_vs_batch_rotation_rms_rad"] = s.window_vs_batch_rotation_rms_rad;
+  }
   const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
   std::ofstream(summary_path) << summary.dump(2) << "\n";
   run.tracker->patch().save_ply((fs::path(out_dir) / "patch.ply").string());

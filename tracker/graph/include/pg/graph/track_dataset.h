@@ -21,6 +21,9 @@ struct TrackOptions {
   double vision_noise = 1e-4;
   std::uint64_t seed = 0;
   PointCloud model_object;  // the known object, for the GroundtruthPatch baseline
+  // After tracking, re-solve the whole sequence with every factor (the batch reference) and
+  // report how far the fixed-lag estimates are from it.
+  bool compare_batch = false;
 };
 
 struct FrameResult {
@@ -47,6 +50,10 @@ struct TrackSummary {
   double mean_frame_ms = 0;
   double median_frame_ms = 0;
   double hz = 0;  // 1000 / median_frame_ms
+  // With compare_batch: the batch solution's errors against ground truth, and the RMS distance
+  // between the fixed-lag and the batch trajectories (-1 when not compared).
+  double batch_translation_rmse_m = -1, batch_rotation_rmse_rad = -1;
+  double window_vs_batch_translation_rms_m = -1, window_vs_batch_rotation_rms_rad = -1;
 };
 
 struct TrackRun {
