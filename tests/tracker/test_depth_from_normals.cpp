@@ -175,7 +175,7 @@ TEST(DepthBadInput, TinyContactBelowTheMinimumAreaIsNoContact) {
 TEST(DepthBadInput, NanNormalsAreRejectedAndCounted) {
   const SensorModel sensor = sensor_preset("digit");
   auto frame = analytic_sphere_frame(sensor, {0, 0, 0.006 - 0.001}, 0.006);
-  ContactCloudBuilder builder(sensor, ContactCloudOptions(), frame.reference);
+  ContactCloudBuilder builder(sensor, test::all_contact_pixels(), frame.reference);
   const ContactFrame clean = builder.build(frame.normal);
   ASSERT_EQ(clean.status, ContactStatus::kContact);
   // Poison 25 pixels inside the contact and 5 outside (NaN, inf, zero length).

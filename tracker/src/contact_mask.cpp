@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cassert>
+#include <vector>
 
 namespace pg {
 
@@ -16,10 +17,21 @@ void contact_mask(const ImageF& depth, const PixelBox& window, const MaskOptions
     for (int y = old.y0; y < old.y1; ++y) std::fill_n(&out.mask.at(old.x0, y), old.width(), 0);
   }
   const PixelBox win = window.clip(W, H);
-  float deepest = 0.0f;
+  // The relative threshold refers to a high percentile of the indented pixels rather than the
+  // single deepest one, so that one outlier pixel cannot empty the mask.
+  thread_local std::vector<float> indented;
+  indented.clear();
   for (int y = win.y0; y < win.y1; ++y) {
     const float* u = &depth.at(0, y);
-    for (int x = win.x0; x < win.x1; ++x) deepest = std::max(deepest, u[x]);
+    for (int x = win.x0; x < win.x1; ++x) {
+      if (u[x] > float(options.min_depth_m)) indented.push_back(u[x]);
+    }
+  }
+  float deepest = 0.0f;
+  if (!indented.empty()) {
+    const auto k = indented.begin() + std::ptrdiff_t(0.98 * double(indented.size() - 1));
+    std::nth_element(indented.begin(), k, indented.end());
+    deepest = *k;
   }
   const float threshold =
       std::max(float(options.min_depth_m), float(options.relative_depth) * deepest);

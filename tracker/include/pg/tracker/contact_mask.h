@@ -10,7 +10,7 @@ struct MaskOptions {
   double min_depth_m = 1e-4;    // a pixel is in contact when its indentation exceeds this [m]
   double min_area_m2 = 0.5e-6;  // less contact than this is no contact [m^2] (0.5 mm^2)
   // A pixel is in contact only where its indentation also exceeds this fraction of the frame's
-  // deepest. An elastic gel sinks in around a contact without touching the object there; that
+  // deepest (its 98th percentile, robust to a stray pixel). An elastic gel sinks in around a contact without touching the object there; that
   // ring is shallow, and its points would pull the registrations off the object's surface.
   double relative_depth = 0.5;
 };
