@@ -22,6 +22,10 @@ int run_track(const TrackArgs& a) {
   std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
               a.dataset.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
               s.episodes);
+  if (s.rejected_registrations > 0) {
+    std::fprintf(stderr, "warning: %d registrations were rejected as implausible jumps\n",
+                 s.rejected_registrations);
+  }
   std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
               s.final_rotation_error_rad);
   std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3, s.rotation_rmse_rad);

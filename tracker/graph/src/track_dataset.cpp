@@ -70,6 +70,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.contact = est.contact;
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
+    r.rejected_registrations = est.rejected_registrations;
     run.frames.push_back(r);
     if (progress) progress(i + 1, dataset.frames());
   }
@@ -109,6 +110,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     times.push_back(f.frame_ms);
     s.contact_frames += f.contact;
     s.episodes += f.new_episode;
+    s.rejected_registrations += f.rejected_registrations;
   }
   s.translation_rmse_m = std::sqrt(t_sq / frames.size());
   s.rotation_rmse_rad = std::sqrt(r_sq / frames.size());
@@ -134,10 +136,12 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   const std::string errors_path = (fs::path(out_dir) / "errors.csv").string();
   std::ofstream errors(errors_path);
   errors.precision(9);
-  errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,frame_ms\n";
+  errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
+            "rejected_registrations,frame_ms\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
-           << f.contact << "," << f.new_episode << "," << f.image_to_patch << "," << f.frame_ms
+           << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
+           << f.rejected_registrations << "," << f.frame_ms
            << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
@@ -149,6 +153,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"frames", s.frames},
       {"contact_frames", s.contact_frames},
       {"episodes", s.episodes},
+      {"rejected_registrations", s.rejected_registrations},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},
       {"final_translation_error_m", s.final_translation_error_m},

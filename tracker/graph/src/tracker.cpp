@@ -68,6 +68,11 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   return projector / sigma;  // P symmetric and idempotent: (P / s)^T (P / s) = P / s^2
 }
 
+bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
+  return translation_distance(r.T_target_source, guess) <= options_.max_registration_jump_m &&
+         rotation_distance(r.T_target_source, guess) <= options_.max_registration_jump_rad;
+}
+
 bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
   const int t = int(frames_.size()) - 1;
   if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return false;
@@ -75,8 +80,13 @@ bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
   // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
   const SE3 T_sp_o = pose_from_block(p.e).inverse() * pose_from_block(p.o);
   const SE3 T_sc_o = pose_from_block(f.e).inverse() * pose_from_block(f.o);
-  const IcpResult r = icp_.align(current_cloud_, *previous_tree_, T_sp_o * T_sc_o.inverse());
+  const SE3 guess = T_sp_o * T_sc_o.inverse();
+  const IcpResult r = icp_.align(current_cloud_, *previous_tree_, guess);
   if (!r.converged) return false;
+  if (!plausible(r, guess)) {
+    ++est.rejected_registrations;
+    return false;
+  }
   factors_.push_back({FactorKind::kImageToImage, {t - 1, t, -1}, r.T_target_source,
                       registration_sqrt_info(r, options_.sigma_image_to_image)});
   est.image_to_image = true;
@@ -90,6 +100,10 @@ bool PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
   const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
   est.unconstrained_directions = r.degeneracy.unconstrained;
   if (!r.converged) return false;
+  if (!plausible(r, guess)) {
+    ++est.rejected_registrations;
+    return false;
+  }
   factors_.push_back({FactorKind::kImageToPatch, {t, -1, -1}, r.T_target_source,
                       registration_sqrt_info(r, options_.sigma_image_to_patch)});
   est.image_to_patch = true;

@@ -12,7 +12,7 @@ struct MaskOptions {
   // A pixel is in contact only where its indentation also exceeds this fraction of the frame's
   // deepest (its 98th percentile, robust to a stray pixel). An elastic gel sinks in around a contact without touching the object there; that
   // ring is shallow, and its points would pull the registrations off the object's surface.
-  double relative_depth = 0.5;
+  double relative_depth = 0.0;
 };
 
 struct ContactMask {

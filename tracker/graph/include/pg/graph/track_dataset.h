@@ -35,6 +35,7 @@ struct FrameResult {
   bool contact = false;      // the frame's cloud was used
   bool new_episode = false;
   bool image_to_patch = false;
+  int rejected_registrations = 0;
   double frame_ms = 0;       // normals -> cloud -> registrations -> graph update
 };
 
@@ -43,6 +44,7 @@ struct TrackSummary {
   int frames = 0;
   int contact_frames = 0;
   int episodes = 0;
+  int rejected_registrations = 0;  // implausible registrations dropped (a tracking warning)
   double translation_rmse_m = 0;
   double rotation_rmse_rad = 0;
   double final_translation_error_m = 0;

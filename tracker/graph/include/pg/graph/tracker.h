@@ -38,6 +38,10 @@ struct GraphOptions {
   // unconstrained (a sphere's rotation, a flat face's slide): those follow the velocity prior
   // instead of registration noise. The other directions keep the sigma above.
   bool registration_information = true;
+  // A registration that moves the pose further than this from the prediction is rejected (and
+  // counted): a wrong local minimum must not become a factor that drags the velocity along.
+  double max_registration_jump_m = 3e-3;
+  double max_registration_jump_rad = 0.3;
   int window = 5;               // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;   // Levenberg-Marquardt iterations per update
   PatchMapOptions patch;
@@ -59,6 +63,7 @@ struct TrackerEstimate {
   bool image_to_patch = false;     // an image-to-patch factor was added
   bool keyframe = false;           // the cloud was fused into the patch
   int unconstrained_directions = 0;  // of the image-to-patch registration
+  int rejected_registrations = 0;    // converged, but too far from the prediction
   double solve_ms = 0;             // graph update time
 };
 
@@ -96,6 +101,7 @@ class PatchGraphTracker {
   bool register_to_patch(Frame& f, TrackerEstimate& est);
   bool register_to_previous(Frame& f, TrackerEstimate& est);
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
+  bool plausible(const IcpResult& r, const SE3& guess) const;
 
   GraphOptions options_;
   PatchMap patch_;
