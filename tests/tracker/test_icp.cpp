@@ -1,8 +1,9 @@
-// Point-to-plane ICP: Jacobians against numeric differentiation, the k-d tree against brute
-// force, recovery of known transforms between renders (clean and with outliers), degeneracy on a
+// Point-to-plane ICP: Jacobians against numeric differentiation, the nearest-neighbour search
+// (voxel grid and k-d tree) against brute force, recovery of known transforms between renders (clean and with outliers), degeneracy on a
 // flat patch and a sphere, the information matrix's convention, and bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 
 #include "pg/sim/primitives.h"
@@ -261,6 +262,61 @@ PointCloud sphere_cap(const Eigen::Vector3d& s, double R, double cap_m, double s
 }
 
 // Distance of twist v from the column span of B (least squares), relative to |v|.
+// The exact-search property of PointCloudTree on the surface clouds ICP meets (the grid's case):
+// with the voxel grid (default) and with the k-d tree alone, nearest() and nearest_two() equal
+// brute force for queries on, near, far from (k-d tree fallback) and outside the surface, with
+// and without hints. A flat patch has a zero-height bounding box.
+TEST(KdTree, VoxelGridAndKdTreeMatchBruteForceOnSurfaces) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  PointCloud cap = sphere_cap({0, 0, 0.006}, 0.006, 0.003, 0.00005);
+  for (auto& p : cap.points) p += 1e-5f * Eigen::Vector3f(u(rng), u(rng), u(rng));  // jitter
+  for (const PointCloud& cloud : {cap, flat_patch(0.0001)}) {
+    const PointCloudTree with_grid(cloud), kd_only(cloud, 12, false);
+    std::uniform_int_distribution<int> pick(0, int(cloud.size()) - 1);
+    for (int k = 0; k < 2000; ++k) {
+      // A surface point pushed along its normal by up to 2.5 mm (beyond the grid's rings), and
+      // sometimes moved sideways off the patch.
+      const int i = pick(rng);
+      const float off = 0.0025f * u(rng) * u(rng) * u(rng);
+      Eigen::Vector3f q = cloud.points[i] + off * cloud.normals[i];
+      if (k % 10 == 0) q.x() += 0.004f * u(rng);
+      std::vector<std::pair<float, int>> all;
+      for (std::size_t j = 0; j < cloud.size(); ++j) {
+        all.push_back({(cloud.points[j] - q).squaredNorm(), int(j)});
+      }
+      std::partial_sort(all.begin(), all.begin() + 2, all.end());
+      const float r = 0.0015f;
+      const int hint = k % 3 == 0 ? pick(rng) : -1;
+      for (const PointCloudTree* tree : {&with_grid, &kd_only}) {
+        const auto two = tree->nearest_two(q, r, hint);
+        // Distances must match; indices too, up to ties (the flat patch is a regular grid).
+        const auto index_distance_sq = [&](int j) { return (cloud.points[j] - q).squaredNorm(); };
+        for (int s = 0; s < 2; ++s) {
+          if (all[s].first < r * r) {
+            ASSERT_GE(two.index[s], 0) << "query " << k << " slot " << s;
+            ASSERT_FLOAT_EQ(index_distance_sq(two.index[s]), all[s].first) << "query " << k;
+            EXPECT_FLOAT_EQ(two.distance_sq[s], all[s].first);
+          } else {
+            EXPECT_EQ(two.index[s], -1) << "query " << k << " slot " << s;
+            EXPECT_FLOAT_EQ(two.distance_sq[s], r * r);
+          }
+        }
+        if (two.index[1] >= 0) {
+          EXPECT_NE(two.index[0], two.index[1]);
+        }
+        const int j = tree->nearest(q, 0.001f);
+        if (all[0].first < 1e-6f) {
+          ASSERT_GE(j, 0);
+          EXPECT_FLOAT_EQ(index_distance_sq(j), all[0].first);
+        } else {
+          EXPECT_EQ(j, -1);
+        }
+      }
+    }
+  }
+}
+
 double off_span(const Vector6d& v, const Eigen::Matrix<double, 6, 3>& B) {
   const Eigen::Vector3d a = B.colPivHouseholderQr().solve(v);
   return (B * a - v).norm() / v.norm();

@@ -112,7 +112,7 @@ struct IcpData {
   std::unique_ptr<PointCloudTree> patch;  // 50k points over 10 x 10 mm, on a grid
 };
 
-IcpData icp_data(const SE3& motion) {
+IcpData icp_data(const SE3& motion, bool voxel_grid = true) {
   IcpData d;
   PointCloud patch;
   const int side = 224;  // 50176 points, 0.045 mm apart
@@ -122,7 +122,7 @@ IcpData icp_data(const SE3& motion) {
       patch.push_back(bumpy_point(x, y), bumpy_normal(x, y));
     }
   }
-  d.patch = std::make_unique<PointCloudTree>(std::move(patch));
+  d.patch = std::make_unique<PointCloudTree>(std::move(patch), 12, voxel_grid);
   std::mt19937 rng(1);
   std::uniform_real_distribution<float> jitter(-0.02e-3f, 0.02e-3f);
   const Eigen::Matrix3f R = motion.rotation_matrix().cast<float>();
@@ -138,11 +138,12 @@ IcpData icp_data(const SE3& motion) {
 }
 
 // 10 Gauss-Newton iterations (convergence disabled), the patch tree built once outside the loop.
-// Argument: oneTBB threads (1 shows the work itself: CPU time = wall time).
+// Arguments: oneTBB threads (1 shows the work itself: CPU time = wall time); 1 = voxel grid + k-d
+// tree (the default), 0 = k-d tree alone.
 void BM_Icp5kAgainst50k(benchmark::State& state) {
   const tbb::global_control threads(tbb::global_control::max_allowed_parallelism,
                                     std::size_t(state.range(0)));
-  const IcpData d = icp_data(kLargeMotion);
+  const IcpData d = icp_data(kLargeMotion, state.range(1) != 0);
   IcpOptions options;
   options.max_iterations = 10;
   options.convergence_translation_m = 0;
@@ -157,7 +158,10 @@ void BM_Icp5kAgainst50k(benchmark::State& state) {
   state.counters["queries"] = double(icp.last_queries());
   state.counters["inliers"] = r.inliers;
 }
-BENCHMARK(BM_Icp5kAgainst50k)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond)->UseRealTime();
+BENCHMARK(BM_Icp5kAgainst50k)
+    ->ArgsProduct({{1, 2}, {1, 0}})
+    ->ArgNames({"threads", "grid"})
+    ->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 // The same with a 0.1 mm voxel grid on the source (about 2.5k points left).
 void BM_Icp5kVoxel100umAgainst50k(benchmark::State& state) {
@@ -195,15 +199,16 @@ void BM_Icp5kAgainst50kConverging(benchmark::State& state) {
 }
 BENCHMARK(BM_Icp5kAgainst50kConverging)->Unit(benchmark::kMicrosecond)->UseRealTime();
 
-// Building the 50k-point patch tree (paid once per patch update, not per frame).
+// Building the 50k-point patch tree (paid once per patch update, not per frame). Argument: 1 =
+// with the voxel grid, 0 = k-d tree alone.
 void BM_BuildTree50k(benchmark::State& state) {
   const IcpData d = icp_data(kLargeMotion);
   for (auto _ : state) {
-    PointCloudTree tree(d.patch->cloud());
+    PointCloudTree tree(d.patch->cloud(), 12, state.range(0) != 0);
     benchmark::DoNotOptimize(&tree);
   }
 }
-BENCHMARK(BM_BuildTree50k)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BuildTree50k)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace pg

@@ -15,60 +15,80 @@ namespace {
 constexpr std::size_t kGrainSize = 256;
 
 // The normal equations of one Gauss-Newton iteration (eq. 5/6 linearised), in scaled
-// coordinates x = [rho_c; L phi] (degeneracy.h).
+// coordinates x = [rho_c; L phi] (degeneracy.h). Sums are kept in kLanes partial sums each: the
+// terms of a chunk are added lane by lane, which compiles to vector FMAs with independent
+// accumulators (a single running sum cannot be vectorised or reordered without -ffast-math, and
+// its latency chain made the accumulation cost more than the rest of the linearisation).
+constexpr int kLanes = 8;
 struct NormalEquations {
-  double H[21] = {};  // upper triangle of sum w J J^T, row by row
-  double g[6] = {};   // sum w r J
-  double weighted_sq = 0;  // sum w r^2 [m^2]
-  double weight = 0;       // sum w
-  double sq = 0;           // sum r^2 over inliers [m^2]
+  double H[21][kLanes] = {};  // upper triangle of sum w J J^T, row by row
+  double g[6][kLanes] = {};   // sum w r J
+  double weighted_sq[kLanes] = {};  // sum w r^2 [m^2]
+  double weight[kLanes] = {};       // sum w
+  double sq[kLanes] = {};           // sum r^2 over inliers [m^2]
   int inliers = 0;
   long queries = 0;
 
-  // Adds m terms stored by column (J[a][i], w[i], r[i]): 27 dot products over the terms,
-  // which vectorise, instead of 27 read-modify-writes per term.
+  // Adds m terms stored by column (J[a][i], w[i], r[i]); the columns m..(m rounded up to
+  // kLanes) are overwritten with zero-weight terms.
   template <int kCapacity>
-  void add_terms(const double (&J)[6][kCapacity], const double* w, const double* r, int m) {
-    double wJ[6][kCapacity];
-    for (int a = 0; a < 6; ++a) {
-      for (int i = 0; i < m; ++i) wJ[a][i] = w[i] * J[a][i];
+  void add_terms(double (&J)[6][kCapacity], double* w, double* r, int m) {
+    static_assert(kCapacity % kLanes == 0);
+    const int padded = (m + kLanes - 1) / kLanes * kLanes;
+    for (int i = m; i < padded; ++i) {
+      w[i] = r[i] = 0;
+      for (int a = 0; a < 6; ++a) J[a][i] = 0;
     }
-    int k = 0;
-    for (int a = 0; a < 6; ++a) {
-      double ga = 0;
-      for (int i = 0; i < m; ++i) ga += wJ[a][i] * r[i];
-      g[a] += ga;
-      for (int b = a; b < 6; ++b) {
-        double h = 0;
-        for (int i = 0; i < m; ++i) h += wJ[a][i] * J[b][i];
-        H[k++] += h;
+    for (int i0 = 0; i0 < padded; i0 += kLanes) {
+      double wJ[6][kLanes];
+      for (int a = 0; a < 6; ++a) {
+        for (int l = 0; l < kLanes; ++l) wJ[a][l] = w[i0 + l] * J[a][i0 + l];
       }
-    }
-    for (int i = 0; i < m; ++i) {
-      weighted_sq += w[i] * r[i] * r[i];
-      weight += w[i];
-      sq += r[i] * r[i];
+      int k = 0;
+      for (int a = 0; a < 6; ++a) {
+        for (int l = 0; l < kLanes; ++l) g[a][l] += wJ[a][l] * r[i0 + l];
+        for (int b = a; b < 6; ++b, ++k) {
+          for (int l = 0; l < kLanes; ++l) H[k][l] += wJ[a][l] * J[b][i0 + l];
+        }
+      }
+      for (int l = 0; l < kLanes; ++l) {
+        const double wr = w[i0 + l] * r[i0 + l];
+        weighted_sq[l] += wr * r[i0 + l];
+        weight[l] += w[i0 + l];
+        sq[l] += r[i0 + l] * r[i0 + l];
+      }
     }
     inliers += m;
   }
   void add(const NormalEquations& o) {
-    for (int k = 0; k < 21; ++k) H[k] += o.H[k];
-    for (int k = 0; k < 6; ++k) g[k] += o.g[k];
-    weighted_sq += o.weighted_sq;
-    weight += o.weight;
-    sq += o.sq;
+    for (int l = 0; l < kLanes; ++l) {
+      for (int k = 0; k < 21; ++k) H[k][l] += o.H[k][l];
+      for (int a = 0; a < 6; ++a) g[a][l] += o.g[a][l];
+      weighted_sq[l] += o.weighted_sq[l];
+      weight[l] += o.weight[l];
+      sq[l] += o.sq[l];
+    }
     inliers += o.inliers;
     queries += o.queries;
+  }
+  static double total(const double (&lanes)[kLanes]) {
+    double s = 0;
+    for (double v : lanes) s += v;
+    return s;
   }
   Matrix6d hessian() const {
     Matrix6d M;
     int k = 0;
     for (int a = 0; a < 6; ++a) {
-      for (int b = a; b < 6; ++b) M(a, b) = M(b, a) = H[k++];
+      for (int b = a; b < 6; ++b) M(a, b) = M(b, a) = total(H[k++]);
     }
     return M;
   }
-  Vector6d gradient() const { return Eigen::Map<const Vector6d>(g); }
+  Vector6d gradient() const {
+    Vector6d v;
+    for (int a = 0; a < 6; ++a) v[a] = total(g[a]);
+    return v;
+  }
 };
 
 struct Centroid {
@@ -197,7 +217,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
       result.T_target_source = T;
       return result;
     }
-    result.rms_m = std::sqrt(eq.sq / eq.inliers);
+    result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);
     const Matrix6d H_scaled = eq.hessian();
     result.degeneracy = analyse_degeneracy(H_scaled, c, L, o.min_eigenvalue_ratio);
 
@@ -208,7 +228,8 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     const Matrix6d H_c = s.asDiagonal() * H_scaled * s.asDiagonal();
     const Matrix6d A = (SE3::Translation(-c) * T).adjoint();
     result.hessian = A.transpose() * H_c * A;
-    const double sigma_sq = eq.weighted_sq / std::max(eq.weight - 6.0, 1.0);
+    const double sigma_sq = NormalEquations::total(eq.weighted_sq) /
+                            std::max(NormalEquations::total(eq.weight) - 6.0, 1.0);
     result.residual_sigma_m = std::max(std::sqrt(sigma_sq), o.min_residual_sigma_m);
     result.information = result.hessian / (result.residual_sigma_m * result.residual_sigma_m);
 

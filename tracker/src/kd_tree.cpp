@@ -2,6 +2,8 @@
 
 #include <nanoflann.hpp>
 
+#include "voxel_grid.h"
+
 namespace pg {
 
 namespace {
@@ -59,20 +61,35 @@ struct TwoNearestWithin {
   bool full() const { return r.index[1] >= 0; }
 };
 
+// Rings of grid cells searched before a query is handed to the k-d tree: enough for queries
+// within ~3 cells (~6 point spacings) of the surface, which is every ICP query once the guess is
+// within the correspondence distance; farther ones gain nothing from the grid.
+constexpr int kMaxGridRings = 3;
+
 }  // namespace
 
 struct PointCloudTree::Impl {
   PointCloud cloud;
   CloudAdaptor adaptor;
   KdIndex index;
-  Impl(PointCloud c, int leaf_size)
+  VoxelGrid grid;
+  Impl(PointCloud c, int leaf_size, bool voxel_grid)
       : cloud(std::move(c)),
         adaptor{&cloud},
-        index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf_size))) {}
+        index(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(std::size_t(leaf_size))) {
+    if (voxel_grid) grid = VoxelGrid(cloud.points);
+  }
+  // The grid first; the k-d tree finishes (from the grid's partial answer) when the grid could
+  // not decide. Exact either way.
+  template <class ResultSet>
+  void search(const Eigen::Vector3f& query, ResultSet& result) const {
+    if (grid.valid() && grid.search(query, result, kMaxGridRings)) return;
+    index.findNeighbors(result, query.data(), nanoflann::SearchParams());
+  }
 };
 
-PointCloudTree::PointCloudTree(PointCloud cloud, int leaf_size)
-    : impl_(std::make_unique<Impl>(std::move(cloud), std::max(leaf_size, 1))) {}
+PointCloudTree::PointCloudTree(PointCloud cloud, int leaf_size, bool voxel_grid)
+    : impl_(std::make_unique<Impl>(std::move(cloud), std::max(leaf_size, 1), voxel_grid)) {}
 PointCloudTree::~PointCloudTree() = default;
 PointCloudTree::PointCloudTree(PointCloudTree&&) noexcept = default;
 PointCloudTree& PointCloudTree::operator=(PointCloudTree&&) noexcept = default;
@@ -84,7 +101,7 @@ int PointCloudTree::nearest(const Eigen::Vector3f& query, float max_distance_m,
                             float* distance_sq) const {
   if (size() == 0) return -1;
   NearestWithin result(max_distance_m * max_distance_m);
-  impl_->index.findNeighbors(result, query.data(), nanoflann::SearchParams());
+  impl_->search(query, result);
   if (!result.found) return -1;
   if (distance_sq) *distance_sq = result.best_sq;
   return int(result.best);
@@ -104,7 +121,7 @@ PointCloudTree::TwoNearest PointCloudTree::nearest_two(const Eigen::Vector3f& qu
       if (d_sq < result.worstDist()) result.addPoint(d_sq, std::uint32_t(h));
     }
   }
-  impl_->index.findNeighbors(result, query.data(), nanoflann::SearchParams());
+  impl_->search(query, result);
   return result.r;
 }
 

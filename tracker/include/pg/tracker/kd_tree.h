@@ -1,7 +1,10 @@
 #pragma once
-// A k-d tree (nanoflann) over a cloud's points, built once and queried many times: the object
-// patch of eq. 6 is registered against frame after frame without rebuilding. Immutable after
-// construction, so queries may run on several threads at once.
+// Exact nearest-neighbour search over a cloud's points, built once and queried many times: the
+// object patch of eq. 6 is registered against frame after frame without rebuilding. A voxel grid
+// (src/voxel_grid.h) answers the queries within a few point spacings of the surface, which is
+// every ICP query on the benchmark, about 1.1x faster than the k-d tree (nanoflann) alone; the
+// k-d tree answers the rest. Immutable after construction, so queries may run on several threads
+// at once.
 #include <Eigen/Core>
 #include <memory>
 
@@ -12,8 +15,9 @@ namespace pg {
 class PointCloudTree {
  public:
   // Takes the cloud (normals optional for queries, required as an ICP target). Build cost is
-  // O(n log n): about 5 ms for 50k points.
-  explicit PointCloudTree(PointCloud cloud, int leaf_size = 12);
+  // O(n log n): about 5 ms for 50k points, plus about a third for the grid. voxel_grid = false:
+  // the k-d tree alone (same answers).
+  explicit PointCloudTree(PointCloud cloud, int leaf_size = 12, bool voxel_grid = true);
   ~PointCloudTree();
   PointCloudTree(PointCloudTree&&) noexcept;
   PointCloudTree& operator=(PointCloudTree&&) noexcept;
