@@ -65,7 +65,12 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   const Matrix6d projector =
       Matrix6d::Identity() -
       free_right * (free_right.transpose() * free_right).inverse() * free_right.transpose();
-  return projector / sigma;  // P symmetric and idempotent: (P / s)^T (P / s) = P / s^2
+  // Not zero, though: with nothing else pinning them (the velocity prior only penalises changes
+  // of velocity), the free directions could drift linearly without bound. A weak pull toward the
+  // registration's answer there (its initial guess, the prediction) keeps them still.
+  // P and I - P are orthogonal projectors: S^T S = P / s^2 + (I - P) / s_free^2.
+  return projector / sigma +
+         (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
 }
 
 bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
@@ -132,6 +137,10 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   if (t >= 2) {
     factors_.push_back({FactorKind::kVelocity, {t - 2, t - 1, t}, SE3(),
                         isotropic_sqrt_info(options_.sigma_velocity)});
+  }
+  if (t >= 1 && options_.sigma_damping > 0) {
+    factors_.push_back({FactorKind::kDamping, {t - 1, t, -1}, SE3(),
+                        isotropic_sqrt_info(options_.sigma_damping)});
   }
   est.contact = cur.contact;
   est.new_episode = cur.contact && !in_episode_;
@@ -219,6 +228,13 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         add_block(b.e, fac.frames[1]);
         problem.AddResidualBlock(ImageToImageFactor::create(fac.measured, fac.sqrt_info), nullptr,
                                  a.o, a.e, b.o, b.e);
+        break;
+      }
+      case FactorKind::kDamping: {
+        Frame& b = frames_[fac.frames[1]];
+        add_block(a.o, fac.frames[0]);
+        add_block(b.o, fac.frames[1]);
+        problem.AddResidualBlock(VelocityDampingFactor::create(fac.sqrt_info), nullptr, a.o, b.o);
         break;
       }
       case FactorKind::kVelocity: {

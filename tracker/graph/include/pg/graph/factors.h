@@ -74,6 +74,23 @@ struct ConstantVelocityFactor {
   }
 };
 
+// Not in the paper: a weak zero-velocity prior, r = S log(o_{t-1}^-1 o_t). Along directions no
+// measurement sees (an edge's axis, a sphere's rotation) the velocity prior alone would let any
+// velocity that once entered continue for ever; this one lets it decay instead.
+struct VelocityDampingFactor {
+  Matrix6d sqrt_info;
+
+  template <typename T>
+  bool operator()(const T* o0, const T* o1, T* r) const {
+    detail::whiten(sqrt_info, pose_from_block(o0).inverse() * pose_from_block(o1), r);
+    return true;
+  }
+  static ceres::CostFunction* create(const Matrix6d& sqrt_info) {
+    return new ceres::AutoDiffCostFunction<VelocityDampingFactor, 6, 7, 7>(
+        new VelocityDampingFactor{sqrt_info});
+  }
+};
+
 // Eq. 8 (end-effector prior on e_t) and eq. 9 (vision prior on the first o_t of an episode):
 // r = S log(T_meas^-1 x).
 struct PosePriorFactor {

@@ -34,10 +34,13 @@ struct GraphOptions {
   double sigma_velocity = 1e-2;
   double sigma_end_effector = 1e-5;
   double sigma_vision = 1e-4;
+  double sigma_damping = 1e-2;  // zero-velocity prior (see VelocityDampingFactor); 0 turns it off
   // Registration factors carry no information along the directions the ICP Hessian leaves
   // unconstrained (a sphere's rotation, a flat face's slide): those follow the velocity prior
-  // instead of registration noise. The other directions keep the sigma above.
+  // instead of registration noise (but for a weak pull, sigma_unconstrained, that stops a drift
+  // the velocity prior cannot see). The other directions keep the sigma above.
   bool registration_information = true;
+  double sigma_unconstrained = 1e-1;  // registration sigma along those free directions
   // A registration that moves the pose further than this from the prediction is rejected (and
   // counted): a wrong local minimum must not become a factor that drags the velocity along.
   double max_registration_jump_m = 3e-3;
@@ -90,7 +93,8 @@ class PatchGraphTracker {
     double e[kPoseBlockSize];  // T_world_sensor
     bool contact = false;
   };
-  enum class FactorKind { kImageToImage, kImageToPatch, kVelocity, kEndEffector, kVision };
+  enum class FactorKind {
+    kImageToImage, kImageToPatch, kVelocity, kDamping, kEndEffector, kVision };
   struct Factor {
     FactorKind kind;
     int frames[3] = {-1, -1, -1};  // absolute frame indices, oldest first; the last is the newest
