@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "../common/test_support.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/point_io.h"
@@ -11,19 +12,8 @@ namespace pg {
 namespace {
 
 namespace fs = std::filesystem;
+using testing_support::TempDir;
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() /
-           ("pg_test_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string str(const std::string& sub = "") const { return (path / sub).string(); }
-};
 
 template <typename F>
 void expect_input_error(F&& f, const std::string& part) {

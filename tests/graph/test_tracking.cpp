@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "../common/test_support.h"
 #include "pg/core/json_fields.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/sim/scene_renderer.h"
@@ -12,18 +13,8 @@ namespace pg {
 namespace {
 
 namespace fs = std::filesystem;
+using testing_support::TempDir;
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() /
-           ("pg_track_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
 
 const std::string kRepo = PG_SOURCE_DIR;
 

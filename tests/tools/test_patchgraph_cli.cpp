@@ -8,6 +8,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "../common/test_support.h"
 #include "pg/core/dataset.h"
 #include "pg/core/json_fields.h"
 
@@ -15,23 +16,13 @@ namespace pg {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct CliRun {
-  int code = -1;
-  std::string out;
-};
+using testing_support::CliRun;
 
 CliRun run(const std::string& binary, const std::string& args) {
-  const std::string cmd = binary + " " + args + " 2>&1";
-  CliRun r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), int(buf.size()), pipe)) r.out += buf.data();
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return testing_support::run_command(binary, args);
 }
+
+
 
 CliRun patchgraph(const std::string& args) { return run(PATCHGRAPH_PATH, args); }
 

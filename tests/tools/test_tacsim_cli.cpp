@@ -7,42 +7,20 @@
 #include <filesystem>
 #include <fstream>
 
+#include "../common/test_support.h"
 #include "pg/core/dataset.h"
 
 namespace pg {
 namespace {
 
 namespace fs = std::filesystem;
+using testing_support::CliRun;
+using testing_support::TempDir;
 
-struct CliRun {
-  int code = -1;
-  std::string out;  // stdout and stderr together
-};
+CliRun tacsim(const std::string& args) { return testing_support::run_command(TACSIM_PATH, args); }
 
-CliRun tacsim(const std::string& args) {
-  const std::string cmd = std::string(TACSIM_PATH) + " " + args + " 2>&1";
-  CliRun r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf;
-  while (std::fgets(buf.data(), int(buf.size()), pipe)) r.out += buf.data();
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    path = fs::temp_directory_path() /
-           ("pg_cli_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-  std::string str(const std::string& sub = "") const { return (path / sub).string(); }
-};
+
 
 const std::string kScenes = std::string(PG_SOURCE_DIR) + "/scenes/";
 
