@@ -12,8 +12,9 @@ namespace pg {
 // Per-sensor constants: one ray per pixel from the camera centre, and where it meets the gel.
 struct GelGeometry {
   int width = 0, height = 0;
-  Eigen::Vector3f origin_sensor;             // camera centre in S
+  Eigen::Vector3f origin_sensor;             // camera centre in S, (0, 0, -camera distance)
   std::vector<Eigen::Vector3f> dir_sensor;   // per pixel, z = 1: t is the camera depth [m]
+  std::vector<float> dir_x, dir_y;           // the same x and y, as plain arrays for vector loops
   std::vector<float> t_gel;                  // camera depth of the undeformed gel surface [m]
   float px_per_m = 0;                        // image scale at the gel centre
   float z_gel_min = 0;                       // lowest undeformed gel z in view [m]
@@ -27,8 +28,9 @@ GelGeometry make_gel_geometry(const SensorModel& sensor);
 
 // Box-radius for which three box passes approximate a Gaussian of `sigma_px` (at least 1).
 int gaussian_box_radius(double sigma_px);
-// Three box passes of radius r over `rect`, values outside `rect` taken as zero (so `rect` must
-// reach 3 r beyond any non-zero input). src -> dst; scratch is image-sized and may be src.
+// Three box passes of radius r along rows and three along columns over `rect`, values outside
+// `rect` taken as zero at each pass (so `rect` should reach 3 r beyond any non-zero input, or
+// end at the image's edge). src -> dst; scratch is image-sized and may be src, but not dst.
 void gaussian_blur(const float* src, float* dst, float* scratch, int width, const PixelRect& rect,
                    int r);
 
@@ -48,15 +50,21 @@ struct ElasticKernel {
   bool enabled = false;
   float alpha = 0;      // paraboloid coefficient 1 / (2 rho) in image units [m / px^2]
   int blur_radius = 0;  // box radius of the smoothing, 0 for none
-  // Pixels the deformation reaches beyond a contact whose deepest indentation is `depth_m`.
-  int support(float depth_m) const;
+  // 1 / (2 alpha k) for k = 0 .. the longest image line: where two parabolas k pixels apart meet.
+  std::vector<float> inv_2alpha_k;
+  // Pixels the dilation reaches beyond a contact whose deepest indentation is `depth_m`.
+  int reach(float depth_m) const;
 };
-ElasticKernel make_elastic_kernel(const ElasticModel& model, float px_per_m);
+ElasticKernel make_elastic_kernel(const ElasticModel& model, float px_per_m, int longest_line);
 
-// Fills u over `rect` (which must contain the contact dilated by kernel.support(deepest)) from
-// the rigid indentation. `scratch` has the image's size. Pixels outside `rect` are not touched.
-void elastic_displacement(const ElasticKernel& kernel, int width, const PixelRect& rect,
-                          const float* rigid, float* scratch, float* u);
+// The deformed surface from the rigid indentation `rigid`, which is zero outside `contact` (its
+// deepest value `deepest`). Returns the rectangle outside which u is zero; u is written on all
+// of it and not touched elsewhere (so it must be zero there already). Work follows the contact:
+// each line is scanned only over the span where its input is non-zero. scratch_a and scratch_b
+// are image-sized.
+PixelRect elastic_displacement(const ElasticKernel& kernel, int width, int height,
+                               const PixelRect& contact, float deepest, const float* rigid,
+                               float* scratch_a, float* scratch_b, float* u);
 
 // Unit normals (pointing +z, out of the gel toward the object) of the surface displaced by u,
 // over `rect`, written to normals (3 floats per pixel, image-sized). u is read on rect dilated

@@ -22,6 +22,9 @@ struct PixelRect {
     if (o.empty()) return *this;
     return {std::min(x0, o.x0), std::min(y0, o.y0), std::max(x1, o.x1), std::max(y1, o.y1)};
   }
+  PixelRect intersected(const PixelRect& o) const {
+    return {std::max(x0, o.x0), std::max(y0, o.y0), std::min(x1, o.x1), std::min(y1, o.y1)};
+  }
   void include(int x, int y) { *this = united({x, y, x + 1, y + 1}); }
 };
 

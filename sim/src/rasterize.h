@@ -13,35 +13,47 @@
 
 namespace pg {
 
-// Triangles grouped by Morton order of their centroids, each group bounded by a sphere.
+// Triangles grouped by Morton order of their centroids, each group bounded by a sphere. Each
+// group keeps its own copy of its vertices, so that a frame transforms each vertex once (a
+// vertex is shared by about six triangles) and reads them from one small block.
 struct TriangleClusters {
   struct Cluster {
-    Eigen::Vector3f centre;  // object frame [m]
-    float radius = 0;
-    int first = 0, count = 0;  // into `order`
+    Eigen::Vector3f centre;       // of its bounding box, object frame [m]
+    Eigen::Vector3f half_extent;  // of its bounding box [m]
+    int first_triangle = 0, triangle_count = 0;  // into corner_a, b, c
+    int first_vertex = 0, vertex_count = 0;      // into x, y, z
   };
-  std::vector<int> order;  // triangle indices
+  static constexpr int kMaxTriangles = 85;  // per cluster, so that 255 vertices index in a byte
+  std::vector<float> x, y, z;  // vertices in the object frame [m], grouped by cluster
+  std::vector<std::uint8_t> corner_a, corner_b, corner_c;  // per triangle, into its cluster's
   std::vector<Cluster> clusters;
 };
 TriangleClusters make_clusters(const TriangleMesh& mesh, int per_cluster = 32);
 
-// Clusters that may reach into z in [z_lo, z_hi] of the sensor frame at this pose.
-std::vector<int> clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object,
-                                  float z_lo, float z_hi);
-long triangle_count(const TriangleClusters& c, const std::vector<int>& clusters);
+// The clusters that may reach into z in [z_lo, z_hi] of the sensor frame at this pose, their
+// triangle count and bounds, and the lowest z any cluster of the mesh may reach.
+struct SlabClusters {
+  std::vector<int> clusters;
+  long triangles = 0;
+  Eigen::Vector3f lo, hi;  // bounds of those clusters' boxes in the sensor frame [m]
+  float lowest_z = 0;      // [m]
+};
+void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo,
+                      float z_hi, SlabClusters& out);
 
 // Per-pixel first hit along each pixel's ray, for t >= tnear = t_gel - slab_m, over `rect`.
 // hit_t must hold +inf (or an earlier object's hit) on rect; back is set where the kept hit
-// faces away from the ray.
+// faces away from the ray. `touched` grows to cover every pixel written.
 struct SlabRaster {
   const GelGeometry* gel = nullptr;
   float slab_m = 0;
   PixelRect rect;
   float* hit_t = nullptr;
   std::uint8_t* back = nullptr;
+  PixelRect touched;
 };
-void rasterize_clusters(const TriangleMesh& mesh, const TriangleClusters& c,
-                        const std::vector<int>& clusters, const SE3& T_sensor_object,
+void rasterize_clusters(const TriangleClusters& c, const std::vector<int>& clusters,
+                        const SE3& T_sensor_object,
                         const Eigen::Vector4d& intrinsics /* fx fy cx cy */, SlabRaster& out);
 
 }  // namespace pg

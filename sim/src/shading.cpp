@@ -64,132 +64,162 @@ Eigen::Vector3f shade(const Shader& shader, const Eigen::Vector3f& p, const Eige
   return rgb;
 }
 
-void shade_span(const Shader& shader, const ShadeSpan& in, float* rgb) {
-  const int n = in.count;
-  thread_local std::vector<float> buf;
-  buf.resize(std::size_t(n) * 9);
-  float* vx = buf.data();
-  float* vy = vx + n;
-  float* vz = vy + n;
-  float* acc_r = vz + n;
-  float* acc_g = acc_r + n;
-  float* acc_b = acc_g + n;
-  float* lambert = acc_b + n;
-  float* spec = lambert + n;
-  float* falloff = spec + n;
-  const ShadingModel& m = shader.model;
-  const float cx = shader.camera.x(), cy = shader.camera.y(), cz = shader.camera.z();
+namespace {
+
+// The vector loops of shade_span, as functions of restrict-qualified arrays so that the compiler
+// vectorises them without run-time alias checks.
+
+// Unit vectors from the points p to the camera c.
+void view_directions(int n, const float* __restrict px, const float* __restrict py,
+                     const float* __restrict pz, const Eigen::Vector3f& c, float* __restrict vx,
+                     float* __restrict vy, float* __restrict vz) {
+  const float cx = c.x(), cy = c.y(), cz = c.z();
   for (int i = 0; i < n; ++i) {
-    const float x = cx - in.px[i], y = cy - in.py[i], z = cz - in.pz[i];
+    const float x = cx - px[i], y = cy - py[i], z = cz - pz[i];
     const float inv = 1.0f / std::sqrt(x * x + y * y + z * z);
     vx[i] = x * inv;
     vy[i] = y * inv;
     vz[i] = z * inv;
-    acc_r[i] = acc_g[i] = acc_b[i] = 0.0f;
   }
-  const float ambient = float(m.ambient), diffuse = float(m.diffuse), specular = float(m.specular);
-  for (std::size_t k = 0; k < shader.lights.size(); ++k) {
-    const ShadingLight& light = shader.lights[k];
-    const float lx0 = light.position.x(), ly0 = light.position.y(), lz0 = light.position.z();
-    for (int i = 0; i < n; ++i) {
-      float lx = lx0 - in.px[i], ly = ly0 - in.py[i], lz = lz0 - in.pz[i];
-      const float d_sq = lx * lx + ly * ly + lz * lz;
-      const float inv = 1.0f / std::sqrt(d_sq);
-      lx *= inv;
-      ly *= inv;
-      lz *= inv;
-      // The coating faces the camera: its normal is -n.
-      const float ndotl = -(in.nx[i] * lx + in.ny[i] * ly + in.nz[i] * lz);
-      const float hx = lx + vx[i], hy = ly + vy[i], hz = lz + vz[i];
-      const float ndoth = -(in.nx[i] * hx + in.ny[i] * hy + in.nz[i] * hz) /
-                          std::sqrt(hx * hx + hy * hy + hz * hz);
-      lambert[i] = std::max(0.0f, ndotl);
-      spec[i] = ndotl > 0.0f ? std::max(0.0f, ndoth) : 0.0f;
-      falloff[i] = light.d0_sq / d_sq;
-    }
-    // spec^shininess by binary powering, each step a vector loop.
-    float* base = spec;
-    thread_local std::vector<float> power_buf;
-    power_buf.assign(std::size_t(n), 1.0f);
-    float* result = power_buf.data();
-    for (int e = m.shininess; e > 0; e >>= 1) {
-      if (e & 1) {
-        for (int i = 0; i < n; ++i) result[i] *= base[i];
-      }
-      for (int i = 0; i < n; ++i) base[i] *= base[i];
-    }
-    const float* vis = in.visibility ? in.visibility + std::size_t(k) * n : nullptr;
-    const float r = light.color.x(), g = light.color.y(), b = light.color.z();
-    for (int i = 0; i < n; ++i) {
-      const float v = vis ? vis[i] : 1.0f;
-      const float w = (ambient + v * (diffuse * lambert[i] + specular * result[i])) * falloff[i];
-      acc_r[i] += r * w;
-      acc_g[i] += g * w;
-      acc_b[i] += b * w;
-    }
-  }
+}
+
+// One light at points p with outward normals n, seen along v: the Lambert term, the Blinn-Phong
+// base (n.h, zero where the light is behind the surface) and the fall-off (d0 / d)^2.
+void light_terms(int n, const ShadeSpan& in, const float* __restrict vx,
+                 const float* __restrict vy, const float* __restrict vz,
+                 const ShadingLight& light, float* __restrict lambert, float* __restrict base,
+                 float* __restrict falloff) {
+  const float* __restrict px = in.px;
+  const float* __restrict py = in.py;
+  const float* __restrict pz = in.pz;
+  const float* __restrict nx = in.nx;
+  const float* __restrict ny = in.ny;
+  const float* __restrict nz = in.nz;
+  const float lx0 = light.position.x(), ly0 = light.position.y(), lz0 = light.position.z();
+  const float d0_sq = light.d0_sq;
   for (int i = 0; i < n; ++i) {
-    rgb[3 * i] = acc_r[i];
-    rgb[3 * i + 1] = acc_g[i];
-    rgb[3 * i + 2] = acc_b[i];
+    float lx = lx0 - px[i], ly = ly0 - py[i], lz = lz0 - pz[i];
+    const float d_sq = lx * lx + ly * ly + lz * lz;
+    const float inv = 1.0f / std::sqrt(d_sq);
+    lx *= inv;
+    ly *= inv;
+    lz *= inv;
+    // The coating faces the camera: its normal is -n.
+    const float ndotl = -(nx[i] * lx + ny[i] * ly + nz[i] * lz);
+    const float hx = lx + vx[i], hy = ly + vy[i], hz = lz + vz[i];
+    const float ndoth =
+        -(nx[i] * hx + ny[i] * hy + nz[i] * hz) / std::sqrt(hx * hx + hy * hy + hz * hz);
+    lambert[i] = std::max(0.0f, ndotl);
+    base[i] = ndotl > 0.0f ? std::max(0.0f, ndoth) : 0.0f;
+    falloff[i] = d0_sq / d_sq;
   }
 }
 
-void light_visibility(const Shader& shader, const GelGeometry& g, const SensorModel& sensor,
-                      const float* u, const PixelRect& rect, int i, float* visibility) {
-  constexpr int kSteps = 24;
-  const Eigen::Vector3f p = g.point(i, u[i]);
-  const auto& cam = sensor.camera;
-  for (std::size_t k = 0; k < shader.lights.size(); ++k) {
-    const Eigen::Vector3f to_light = shader.lights[k].position - p;
-    // Only the dented part of the surface can block: march until the path drops below the
-    // deepest point of the deformed region (a conservative 2 * max indentation below the gel).
-    const float z_stop = g.z_gel_min - 2.0f * float(sensor.gel.max_indentation_m);
-    const float s_end =
-        to_light.z() < 0.0f ? std::min(1.0f, (z_stop - p.z()) / to_light.z()) : 1.0f;
-    float blocked = 0.0f;
-    for (int s = 1; s <= kSteps; ++s) {
-      const Eigen::Vector3f q = p + to_light * (s_end * float(s) / kSteps);
-      const float depth = q.z() + float(cam.distance_m);
-      if (depth <= 0.0f) break;
-      const int x = int(std::lround(cam.fx * q.x() / depth + cam.cx));
-      const int y = int(std::lround(cam.fy * q.y() / depth + cam.cy));
-      if (!rect.contains(x, y)) continue;
-      const int j = g.index(x, y);
-      // The surface z seen through pixel j; the path is outside the gel where it is above it.
-      const float z_surface = g.point(j, u[j]).z();
-      if (q.z() > z_surface + 1e-6f) {
-        blocked = 1.0f;
-        break;
-      }
+// base^e by binary powering, each step a vector loop; base is overwritten.
+void power(int n, int e, float* __restrict base, float* __restrict out) {
+  for (int i = 0; i < n; ++i) out[i] = 1.0f;
+  for (; e > 0; e >>= 1) {
+    if (e & 1) {
+      for (int i = 0; i < n; ++i) out[i] *= base[i];
     }
-    visibility[k] = 1.0f - blocked;
+    for (int i = 0; i < n; ++i) base[i] *= base[i];
   }
 }
 
-NoiseTable::NoiseTable() : samples_(std::size_t(1) << 20) {
-  // Box-Muller on a fixed splitmix64 stream: the same table on every platform.
-  std::uint64_t state = 0x5eed;
-  auto uniform = [&] { return (double((state = splitmix64(state)) >> 11) + 0.5) * 0x1.0p-53; };
-  for (std::size_t i = 0; i < samples_.size(); i += 2) {
-    const double r = std::sqrt(-2.0 * std::log(uniform())), a = 2.0 * M_PI * uniform();
-    samples_[i] = float(r * std::cos(a));
-    samples_[i + 1] = float(r * std::sin(a));
+// acc += colour * (ambient + visibility * (diffuse * lambert + specular * spec)) * fall-off.
+void accumulate(int n, const ShadingModel& m, const Eigen::Vector3f& color,
+                const float* __restrict visibility, const float* __restrict lambert,
+                const float* __restrict spec, const float* __restrict falloff,
+                float* __restrict acc_r, float* __restrict acc_g, float* __restrict acc_b) {
+  const float ambient = float(m.ambient), diffuse = float(m.diffuse), specular = float(m.specular);
+  const float r = color.x(), g = color.y(), b = color.z();
+  for (int i = 0; i < n; ++i) {
+    const float v = visibility ? visibility[i] : 1.0f;
+    const float w = (ambient + v * (diffuse * lambert[i] + specular * spec[i])) * falloff[i];
+    acc_r[i] += r * w;
+    acc_g[i] += g * w;
+    acc_b[i] += b * w;
   }
 }
 
-void NoiseTable::apply(const float* values_255, std::uint8_t* out, std::size_t n, float sigma,
+void interleave(int n, const float* __restrict r, const float* __restrict g,
+                const float* __restrict b, float* __restrict rgb) {
+  for (int i = 0; i < n; ++i) {
+    rgb[3 * i] = r[i];
+    rgb[3 * i + 1] = g[i];
+    rgb[3 * i + 2] = b[i];
+  }
+}
+
+}  // namespace
+
+void shade_span(const Shader& shader, const ShadeSpan& in, float* rgb) {
+  const int n = in.count;
+  thread_local std::vector<float> buf;
+  buf.assign(std::size_t(n) * 10, 0.0f);
+  float* vx = buf.data();
+  float *vy = vx + n, *vz = vy + n, *acc_r = vz + n, *acc_g = acc_r + n, *acc_b = acc_g + n;
+  float *lambert = acc_b + n, *base = lambert + n, *falloff = base + n, *spec = falloff + n;
+  view_directions(n, in.px, in.py, in.pz, shader.camera, vx, vy, vz);
+  for (std::size_t k = 0; k < shader.lights.size(); ++k) {
+    light_terms(n, in, vx, vy, vz, shader.lights[k], lambert, base, falloff);
+    power(n, shader.model.shininess, base, spec);
+    const float* vis = in.visibility ? in.visibility + std::size_t(k) * n : nullptr;
+    accumulate(n, shader.model, shader.lights[k].color, vis, lambert, spec, falloff, acc_r, acc_g,
+               acc_b);
+  }
+  interleave(n, acc_r, acc_g, acc_b, rgb);
+}
+
+namespace {
+
+// Unit normal samples, the same on every platform: Box-Muller on a fixed splitmix64 stream.
+const std::vector<float>& unit_normal_samples() {
+  static const std::vector<float> samples = [] {
+    std::vector<float> s(std::size_t(1) << 20);
+    std::uint64_t state = 0x5eed;
+    auto uniform = [&] { return (double((state = splitmix64(state)) >> 11) + 0.5) * 0x1.0p-53; };
+    for (std::size_t i = 0; i < s.size(); i += 2) {
+      const double r = std::sqrt(-2.0 * std::log(uniform())), a = 2.0 * M_PI * uniform();
+      s[i] = float(r * std::cos(a));
+      s[i + 1] = float(r * std::sin(a));
+    }
+    return s;
+  }();
+  return samples;
+}
+
+}  // namespace
+
+NoiseTable::NoiseTable(float sigma) {
+  const std::vector<float>& unit = unit_normal_samples();
+  float largest = 0.0f;
+  for (float v : unit) largest = std::max(largest, std::abs(v));
+  // As many fractional bits as 16 bits hold for both the values (up to 255) and the samples.
+  bits_ = 7;
+  while (bits_ > 0 && sigma * largest * float(1 << bits_) > 32767.0f) --bits_;
+  const float scale = sigma * float(1 << bits_);
+  samples_.resize(unit.size());
+  for (std::size_t i = 0; i < unit.size(); ++i) {
+    samples_[i] = std::int16_t(std::clamp(std::lround(scale * unit[i]), -32767l, 32767l));
+  }
+}
+
+void NoiseTable::apply(const std::int16_t* values, std::uint8_t* out, std::size_t n,
                        std::uint64_t seed, std::size_t position) const {
   // Sequential reads from a seeded offset: frames see shifted copies of one long stream, so a
   // pixel's noise is independent from frame to frame, and the reads stay cache-friendly.
   const std::size_t size = samples_.size();
   std::size_t offset = (std::size_t(splitmix64(seed)) + position) & (size - 1);
+  const int bits = bits_, half = (1 << bits) >> 1;
   for (std::size_t i = 0; i < n;) {
     const std::size_t run = std::min(n - i, size - offset);
-    const float* noise = samples_.data() + offset;
+    const std::int16_t* noise = samples_.data() + offset;
+    const std::int16_t* in = values + i;
+    std::uint8_t* dst = out + i;
     for (std::size_t k = 0; k < run; ++k) {
-      const float v = values_255[i + k] + sigma * noise[k];
-      out[i + k] = std::uint8_t(std::clamp(v + 0.5f, 0.0f, 255.0f));
+      const int v = (int(in[k]) + int(noise[k]) + half) >> bits;  // floor: rounds to nearest
+      dst[k] = std::uint8_t(std::clamp(v, 0, 255));
     }
     i += run;
     offset = 0;

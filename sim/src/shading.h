@@ -39,24 +39,25 @@ struct ShadeSpan {
 };
 void shade_span(const Shader& shader, const ShadeSpan& span, float* rgb);
 
-// Fraction of each light that reaches the surface point of pixel i, marching from the point
-// toward the light over the deformed height field u (valid on `rect`, undeformed elsewhere):
-// the light is blocked where the path leaves the gel through its deformed surface.
-void light_visibility(const Shader& shader, const GelGeometry& g, const SensorModel& sensor,
-                      const float* u, const PixelRect& rect, int i, float* visibility);
-
-// Gaussian pixel noise: a fixed table of unit normal samples read from an offset chosen per
-// frame from the seed. Cheap enough to add to every pixel of every frame.
+// Gaussian pixel noise: a fixed table of normal samples read from an offset chosen per frame
+// from the seed. Cheap enough to add to every pixel of every frame: values and samples are
+// 16-bit fixed point (value * 2^frac_bits), so that a frame reads little memory.
 class NoiseTable {
  public:
-  NoiseTable();
-  // Adds sigma * N(0, 1) to each of n values (0-255 scale), rounds and clamps to 8 bits.
-  // `position` is the index of values_255[0] in the frame, so a frame may be done in pieces.
-  void apply(const float* values_255, std::uint8_t* out, std::size_t n, float sigma,
-             std::uint64_t seed, std::size_t position = 0) const;
+  explicit NoiseTable(float sigma);
+  // Fixed-point scale of the values apply() takes.
+  int frac_bits() const { return bits_; }
+  std::int16_t to_fixed(float value_255) const {
+    return std::int16_t(value_255 * float(1 << bits_) + 0.5f);
+  }
+  // Adds sigma * N(0, 1) to each of n fixed-point values (0-255 scale), rounds and clamps to 8
+  // bits. `position` is the index of values[0] in the frame, so a frame may be done in pieces.
+  void apply(const std::int16_t* values, std::uint8_t* out, std::size_t n, std::uint64_t seed,
+             std::size_t position = 0) const;
 
  private:
-  std::vector<float> samples_;
+  std::vector<std::int16_t> samples_;
+  int bits_ = 0;
 };
 
 std::uint64_t splitmix64(std::uint64_t x);

@@ -350,5 +350,62 @@ TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {
   }
 }
 
+// Rendering into a reused frame rewrites only what changed since the frame it holds; the images
+// must equal a fresh render's whatever that frame was.
+TEST(RenderReuse, AReusedFrameHoldsTheSameImagesAsAFreshOne) {
+  const auto cube = std::make_shared<ObjectShape>(make_box({0.004f, 0.004f, 0.004f}));
+  const SE3 corner = SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
+  const SE3 away = SE3::Translation({0, 0, 0.02});
+  const std::vector<std::vector<SE3>> sequence = {
+      {pressed_sphere(0.002, 0.003), away}, {pressed_sphere(-0.003, -0.004, 0.0015), away},
+      {away, away},                         {away, corner},
+      {pressed_sphere(), corner},           {away, away}};
+  for (bool noise : {true, false}) {
+    RenderSettings s;
+    s.noise = noise;
+    s.contact_points = true;
+    const SensorRenderer r(sensor_preset("digit"), {sphere_shape(), cube}, s);
+    const SensorRenderer other(sensor_preset("digit"), {sphere_shape(), cube}, s);
+    RenderedFrame reused;
+    for (std::size_t k = 0; k < sequence.size(); ++k) {
+      if (k == 3) other.render(sequence[0], 9, reused);  // last filled by another renderer
+      if (k == 4) reused.images.normal = ImageF();     // an image moved out
+      r.render(sequence[k], 100 + k, reused);
+      const RenderedFrame fresh = r.render(sequence[k], 100 + k);
+      const std::string what = "frame " + std::to_string(k) + (noise ? " with noise" : "");
+      EXPECT_EQ(reused.images.color.data, fresh.images.color.data) << what;
+      EXPECT_EQ(reused.images.normal.data, fresh.images.normal.data) << what;
+      EXPECT_EQ(reused.images.depth.data, fresh.images.depth.data) << what;
+      EXPECT_EQ(reused.images.mask.data, fresh.images.mask.data) << what;
+      ASSERT_EQ(reused.contact_points_object.size(), fresh.contact_points_object.size());
+      for (std::size_t o = 0; o < fresh.contact_points_object.size(); ++o)
+        EXPECT_EQ(reused.contact_points_object[o].size(), fresh.contact_points_object[o].size());
+      EXPECT_EQ(reused.stats.contact_pixels, fresh.stats.contact_pixels) << what;
+    }
+  }
+}
+
+// Shadows only take light away, and only around a dent deep enough to cast them.
+TEST(RenderShadows, ShadowsOnlyDarkenAndFallBesideADeepPress) {
+  RenderSettings lit = quiet_settings(), shadowed = quiet_settings();
+  shadowed.shadows = true;
+  const SensorRenderer a(sensor_preset("digit_240x320"), {sphere_shape()}, lit);
+  const SensorRenderer b(sensor_preset("digit_240x320"), {sphere_shape()}, shadowed);
+  const RenderedFrame no_contact = b.render({pressed_sphere(0, 0, -0.01)}, 0);
+  EXPECT_EQ(no_contact.images.color.data, a.render({pressed_sphere(0, 0, -0.01)}, 0).images.color.data);
+  // Pressed beyond the gel's 2 mm: the steep wall of the dent hides the rim beyond it from the
+  // lights.
+  const SE3 deep = pressed_sphere(0, 0, 0.004);
+  const RenderedFrame fa = a.render({deep}, 0), fb = b.render({deep}, 0);
+  int darker = 0, brighter = 0;
+  for (std::size_t i = 0; i < fa.images.color.data.size(); ++i) {
+    const int d = int(fb.images.color.data[i]) - int(fa.images.color.data[i]);
+    brighter += d > 0;
+    darker += d < -10;
+  }
+  EXPECT_EQ(brighter, 0);
+  EXPECT_GT(darker, 100);
+}
+
 }  // namespace
 }  // namespace pg

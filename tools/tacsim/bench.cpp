@@ -1,5 +1,6 @@
 #include "bench.h"
 
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
@@ -7,9 +8,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
@@ -28,32 +31,100 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 struct Timing {
-  double fps = 0;
+  double fps = 0;             // frames rendered in parallel, one per thread at a time
+  double ms_one_thread = 0;   // latency of one frame rendered alone
   double contact_pixels = 0;
   double rays = 0;
+  double triangles = 0;
 };
 
-Timing time_case(const Case& c, const std::string& preset, bool shadows, const BenchArgs& args) {
+// One case ready to time: its renderer, and a frame per thread to render into (reused from
+// frame to frame, as a dataset writer would).
+struct Run {
+  std::unique_ptr<SensorRenderer> renderer;
+  std::vector<SE3> poses;
+  tbb::enumerable_thread_specific<RenderedFrame> frames;
+  RenderedFrame frame;  // for the one-thread timing
+  std::vector<double> fps, ms;
+};
+
+// One timed run of `frames` frames in parallel, then half as many on this thread alone.
+void time_once(Run& run, int frames) {
+  auto start = std::chrono::steady_clock::now();
+  tbb::parallel_for(0, frames, [&](int f) {
+    run.renderer->render(run.poses, std::uint64_t(f), run.frames.local());
+  });
+  run.fps.push_back(frames / seconds_since(start));
+  const int n = std::max(1, frames / 2);
+  start = std::chrono::steady_clock::now();
+  for (int f = 0; f < n; ++f) run.renderer->render(run.poses, std::uint64_t(f), run.frame);
+  run.ms.push_back(1e3 * seconds_since(start) / n);
+}
+
+// The cases of one resolution and shadow setting, their runs interleaved (a b c d a b c d ...)
+// so that a change in the machine's load falls on every case alike and their ratios hold.
+std::vector<Timing> time_cases(const std::vector<Case>& cases, const std::string& preset,
+                               bool shadows, const BenchArgs& args) {
   RenderSettings settings;
   settings.depth = false;
   settings.mask = false;
   settings.shadows = shadows;
-  const SensorRenderer renderer(sensor_preset(preset), {c.shape}, settings);
-  const std::vector<SE3> poses = {c.T_sensor_object};
-  const RenderedFrame probe = renderer.render(poses, 0);
-  Timing t;
-  t.contact_pixels = probe.stats.contact_pixels;
-  t.rays = double(probe.stats.rays_cast);
-  std::vector<double> fps;
-  for (int r = 0; r < args.repeats; ++r) {
-    const auto start = std::chrono::steady_clock::now();
-    tbb::parallel_for(0, args.frames, [&](int f) { renderer.render(poses, std::uint64_t(f)); });
-    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    fps.push_back(args.frames / s);
+  std::vector<Run> runs(cases.size());
+  std::vector<Timing> out(cases.size());
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    runs[c].renderer = std::make_unique<SensorRenderer>(sensor_preset(preset),
+                                                        std::vector{cases[c].shape}, settings);
+    runs[c].poses = {cases[c].T_sensor_object};
+    runs[c].renderer->render(runs[c].poses, 0, runs[c].frame);
+    const RenderStats& stats = runs[c].frame.stats;
+    out[c].contact_pixels = stats.contact_pixels;
+    out[c].rays = double(stats.rays_cast);
+    out[c].triangles = double(stats.triangles_rasterized);
   }
-  t.fps = median(fps);
-  return t;
+  for (int r = 0; r < args.repeats; ++r)
+    for (Run& run : runs) time_once(run, args.frames);
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    out[c].fps = median(runs[c].fps);
+    out[c].ms_one_thread = median(runs[c].ms);
+  }
+  return out;
+}
+
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  }
+  return "unknown CPU";
+}
+
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string one, five, fifteen;
+  in >> one >> five >> fifteen;
+  return in ? one + " " + five + " " + fifteen : "unknown";
+}
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  char text[64];
+  std::strftime(text, sizeof(text), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  return text;
+}
+
+// The command line that reproduces this run.
+std::string command(const BenchArgs& in) {
+  std::string cmd = "tacsim bench";
+  if (in.quick) cmd += " --quick";
+  cmd += " --frames " + std::to_string(in.frames) + " --repeats " + std::to_string(in.repeats);
+  if (in.threads > 0) cmd += " --threads " + std::to_string(in.threads);
+  if (!in.markdown.empty()) cmd += " --markdown " + in.markdown;
+  return cmd;
 }
 
 }  // namespace
@@ -79,19 +150,30 @@ int run_bench(const BenchArgs& in) {
       {"(c) flat face pressed 1.5 mm (half the gel)", slab, SE3::Translation({0, 0, 0.0035})},
       {"(d) 200k-triangle sphere pressed 1 mm", dense, SE3::Translation({0, 0, 0.005})},
   };
-  std::ostringstream table;
-  table << "| case | resolution | shadows | frames/s | contact px | rays/frame |\n"
-        << "|---|---|---|---:|---:|---:|\n";
-  std::printf("tacsim bench: colour + normals, noise on, %d threads, median of %d runs of %d frames\n",
-              threads, args.repeats, args.frames);
+  std::ostringstream head, table;
+  head << "Command: `" << command(in) << "`  \n"
+       << "Machine: " << cpu_model() << ", " << std::thread::hardware_concurrency()
+       << " logical CPUs (nproc), load average " << load_average() << " at the start  \n"
+       << "Date: " << utc_now() << "  \n"
+       << "Colour + normals, noise on; frames/s with " << threads
+       << " threads rendering frames in parallel, ms/frame with one thread alone; median of "
+       << args.repeats << " runs of " << args.frames
+       << " frames, the runs of the four cases of a row group interleaved.\n\n";
+  table << "| case | resolution | shadows | frames/s (" << threads
+        << " threads) | ms/frame (1 thread) | contact px | rays/frame | triangles/frame |\n"
+        << "|---|---|---|---:|---:|---:|---:|---:|\n";
+  std::printf("%s%s", head.str().c_str(), table.str().c_str());
+  std::fflush(stdout);
   for (const char* preset : {"digit", "digit_240x320"}) {
     for (bool shadows : {false, true}) {
-      for (const auto& c : cases) {
-        const Timing t = time_case(c, preset, shadows, args);
-        const auto cam = sensor_preset(preset).camera;
+      const std::vector<Timing> timings = time_cases(cases, preset, shadows, args);
+      const auto cam = sensor_preset(preset).camera;
+      for (std::size_t c = 0; c < cases.size(); ++c) {
+        const Timing& t = timings[c];
         char row[512];
-        std::snprintf(row, sizeof(row), "| %s | %dx%d | %s | %.0f | %.0f | %.0f |\n", c.name.c_str(),
-                      cam.width, cam.height, shadows ? "on" : "off", t.fps, t.contact_pixels, t.rays);
+        std::snprintf(row, sizeof(row), "| %s | %dx%d | %s | %.0f | %.3f | %.0f | %.0f | %.0f |\n",
+                      cases[c].name.c_str(), cam.width, cam.height, shadows ? "on" : "off",
+                      t.fps, t.ms_one_thread, t.contact_pixels, t.rays, t.triangles);
         table << row;
         std::printf("%s", row);
         std::fflush(stdout);
@@ -100,7 +182,7 @@ int run_bench(const BenchArgs& in) {
   }
   if (!args.markdown.empty()) {
     std::ofstream out(args.markdown);
-    out << table.str();
+    out << head.str() << table.str();
     if (!out) {
       std::fprintf(stderr, "error: %s: cannot write\n", args.markdown.c_str());
       return 1;

@@ -72,6 +72,13 @@ struct RenderedFrame {
   // Per object: the object surface points where it touches the gel, in the object frame [m].
   std::vector<std::vector<Eigen::Vector3f>> contact_points_object;
   RenderStats stats;
+  // Bookkeeping for rendering into this frame again: which renderer filled `images` (a number
+  // unique in the process, 0 for none) and the pixels [x0, x1) x [y0, y1) where they may differ
+  // from its no-contact images.
+  struct Filled {
+    std::uint64_t by = 0;
+    int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  } filled;
 };
 
 // Renders one sensor. Thread-safe: render() may be called from several threads at once.
@@ -85,6 +92,13 @@ class SensorRenderer {
   // T_sensor_objects[i] is object i's pose in the sensor frame. `noise_seed` seeds this frame's
   // noise (the same seed gives the same image).
   RenderedFrame render(const std::vector<SE3>& T_sensor_objects, std::uint64_t noise_seed) const;
+  // The same into `out`, reusing its buffers: no allocation once `out` has the images' sizes.
+  // When `out` was last filled by this renderer, only the pixels that differ from the
+  // no-contact images, then or now, are rewritten (besides the colour's noise), so a frame
+  // without contact costs little more than its noise. So reset `out.filled = {}` before
+  // editing or replacing pixels of out.images (an image moved out or resized is detected).
+  void render(const std::vector<SE3>& T_sensor_objects, std::uint64_t noise_seed,
+              RenderedFrame& out) const;
 
   const SensorModel& sensor() const;
   const RenderSettings& settings() const;

@@ -1,0 +1,110 @@
+#pragma once
+// Internal to pg_sim: the state of a SensorRenderer, shared by the files of its pipeline:
+// renderer.cpp (set-up, and each frame's steps in order), contact_pass.cpp (cull, footprint,
+// rigid indentation by rays or rasterization) and frame_outputs.cpp (shading, colour with
+// noise, ground truth).
+#include <tbb/enumerable_thread_specific.h>
+
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "gel_surface.h"
+#include "pg/sim/renderer.h"
+#include "pixel_rect.h"
+#include "rasterize.h"
+#include "shading.h"
+#include "shadows.h"
+
+namespace pg {
+
+// Per row of a rectangle, the run [first, second) of pixels to work on.
+using RowRuns = std::vector<std::pair<int, int>>;
+
+// Image-sized scratch arrays and per-frame lists, one set per thread. Between frames `rigid`
+// and `u` are zero, `hit_object` -1 and `raster_t` +inf: each frame restores what it wrote.
+struct Workspace {
+  std::vector<float> rigid, hit_t, u, scratch_a, scratch_b, normals, color;
+  std::vector<std::int16_t> hit_object;
+  std::vector<float> raster_t;  // first hit per pixel while rasterizing one object
+  std::vector<std::uint8_t> raster_back;
+  std::vector<std::int16_t> row;  // one row of fixed-point colour, for the noise pass
+  // Per-frame lists, kept from frame to frame to save their allocations.
+  std::vector<int> coarse_objects, ray_objects, pixels, corners;
+  std::vector<char> near;
+  std::vector<SlabClusters> slab;  // per object
+  RowRuns runs;
+  std::vector<float> soa, visibility;
+  ShadowCaster shadows;
+  Workspace(int w, int h, int objects, const ShadowCaster& caster);
+};
+
+// Where one frame differs from the no-contact frame.
+struct FrameRegions {
+  PixelRect touched;   // rigid, hit_t and hit_object were written here
+  PixelRect contact;   // bounding box of the pixels with a rigid indentation
+  float deepest = 0;   // the deepest rigid indentation [m]
+  PixelRect deformed;  // u is zero outside
+  PixelRect region;    // normals and shading may differ here (deformed, plus a pixel)
+  PixelRect color;     // colour may differ here (region, plus the background blend's blur)
+};
+
+struct SensorRenderer::State {
+  SensorModel sensor;
+  RenderSettings settings;
+  std::vector<std::shared_ptr<const ObjectShape>> objects;
+  GelGeometry gel;
+  ElasticKernel kernel;
+  Shader shader;
+  std::optional<NoiseTable> noise;  // when noise is on
+  int tile = 4;          // coarse-pass tile size [px], a multiple of the 4x4 ray packets
+  float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
+  int blend_radius = 0;  // box radius of the real-background blend blur, 0 without one
+  ImageF normals0;       // undeformed gel normals
+  ImageF sim0;           // shading of the undeformed gel, linear [0, 1]
+  ImageF background;     // what a no-contact frame shows: sim0, or the real background
+  ImageU8 background_u8;
+  std::vector<std::int16_t> background_fixed;  // the same in the noise table's fixed point
+  std::uint64_t id = 0;  // unique in the process: RenderedFrame::filled.by
+  mutable tbb::enumerable_thread_specific<Workspace> workspaces;
+
+  State(SensorModel s, std::vector<std::shared_ptr<const ObjectShape>> objs, RenderSettings rs);
+  void prepare();
+  int width() const { return gel.width; }
+  int height() const { return gel.height; }
+  float slab_m() const { return float(sensor.gel.max_indentation_m); }
+  bool noisy() const { return noise.has_value(); }
+
+  // contact_pass.cpp: steps 1-3, the rigid indentation (ws.rigid, hit_t, hit_object).
+  void find_contact(const std::vector<SE3>& T_sensor_objects, Workspace& ws, RenderStats& stats,
+                    FrameRegions& frame) const;
+  PixelRect footprint(const SE3& T_sensor_object, const ObjectShape& shape) const;
+
+  // renderer.cpp: step 4, the elastic deformation and the regions it moves.
+  void deform(Workspace& ws, RenderStats& stats, FrameRegions& frame) const;
+
+  // frame_outputs.cpp: steps 5-6.
+  // Shades the pixels of `rect` (one row) into rgb; u must be valid around it, and with
+  // `shadows` ws.shadows must hold this frame's surface.
+  void shade_row(const PixelRect& rect, const float* u, const float* normals, float* rgb,
+                 Workspace& ws, bool shadows) const;
+  void write_outputs(const std::vector<SE3>& T_sensor_objects, std::uint64_t seed,
+                     const FrameRegions& frame, Workspace& ws, RenderedFrame& out) const;
+
+ private:
+  void coarse_pass(const std::vector<SE3>& poses, const PixelRect& rect, Workspace& ws,
+                   RenderStats& stats, bool& deep) const;
+  void cast(const std::vector<int>& pixels, const std::vector<int>& objs,
+            const std::vector<SE3>& poses, bool coarse, Workspace& ws, RenderStats& stats,
+            bool* deep = nullptr) const;
+  void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect,
+                        Workspace& ws, RenderStats& stats, PixelRect& touched) const;
+  long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;
+  void record_hit(Workspace& ws, int i, int obj, float t, bool back_face) const;
+  void write_color(std::uint64_t seed, const FrameRegions& frame, bool reuse, Workspace& ws,
+                   RenderedFrame& out) const;
+  void write_ground_truth(const std::vector<SE3>& T_sensor_objects, const FrameRegions& frame,
+                          bool reuse, const Workspace& ws, RenderedFrame& out) const;
+};
+
+}  // namespace pg
