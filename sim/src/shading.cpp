@@ -28,44 +28,6 @@ Shader make_shader(const SensorModel& sensor) {
 
 namespace {
 
-inline float power(float x, int n) {
-  float r = 1.0f;
-  while (n > 0) {
-    if (n & 1) r *= x;
-    x *= x;
-    n >>= 1;
-  }
-  return r;
-}
-
-}  // namespace
-
-Eigen::Vector3f shade(const Shader& shader, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
-                      const float* visibility) {
-  const ShadingModel& m = shader.model;
-  const Eigen::Vector3f n_in = -n;  // the coating faces the camera and the lights
-  const Eigen::Vector3f to_camera = (shader.camera - p).normalized();
-  Eigen::Vector3f rgb = Eigen::Vector3f::Zero();
-  for (std::size_t k = 0; k < shader.lights.size(); ++k) {
-    const ShadingLight& light = shader.lights[k];
-    const Eigen::Vector3f to_light = light.position - p;
-    const float d_sq = to_light.squaredNorm();
-    const Eigen::Vector3f l = to_light / std::sqrt(d_sq);
-    const float lambert = std::max(0.0f, n_in.dot(l));
-    float spec = 0.0f;
-    if (lambert > 0.0f && m.specular > 0.0) {
-      const Eigen::Vector3f h = (l + to_camera).normalized();
-      spec = float(m.specular) * power(std::max(0.0f, n_in.dot(h)), m.shininess);
-    }
-    const float vis = visibility ? visibility[k] : 1.0f;
-    const float direct = vis * (float(m.diffuse) * lambert + spec);
-    rgb += light.color * ((float(m.ambient) + direct) * light.d0_sq / d_sq);
-  }
-  return rgb;
-}
-
-namespace {
-
 // The vector loops of shade_span, as functions of restrict-qualified arrays so that the compiler
 // vectorises them without run-time alias checks.
 

@@ -23,15 +23,10 @@ struct Shader {
 };
 Shader make_shader(const SensorModel& sensor);
 
-// Linear RGB in [0, ~1] of a gel point p with outward normal n (+z toward the object); the
-// coating is lit and seen from the camera side, so it reflects along -n. `visibility[k]` in
-// [0, 1] scales light k (shadows), or nullptr for fully lit.
-Eigen::Vector3f shade(const Shader& shader, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
-                      const float* visibility);
-
-// The same for a run of pixels in structure-of-arrays form, written so that the compiler
-// vectorises it: points p, outward normals n; rgb is interleaved (3 per pixel). `visibility`
-// holds count values per light (light-major), or nullptr.
+// Linear RGB in [0, ~1] of a run of gel points p with outward normals n (+z toward the
+// object), in structure-of-arrays form so that the compiler vectorises it; the coating is lit
+// and seen from the camera side, so it reflects along -n. rgb is interleaved (3 per pixel).
+// `visibility` holds count values in [0, 1] per light (light-major, shadows), or nullptr.
 struct ShadeSpan {
   int count = 0;
   const float *px, *py, *pz, *nx, *ny, *nz;
