@@ -499,6 +499,56 @@ ordered_json two_digits_pinch_json() {
   return scene_json(30, std::move(sensors), std::move(object), scene_seed("two_digits_pinch"));
 }
 
+// ------------------------------------------------------------------------- learned-normals data
+
+// The learned-normals training and validation sets (the paper's Table I): every frame an
+// independent press of the object in a random orientation, its lowest point at a random place
+// of the visible gel, 0.3-1.5 mm deep. Rendered on the elastic DIGIT gel with shadows and noise
+// (scripts/train_normals.sh adds the real background), so the network sees the non-ideal
+// effects of a real sensor.
+ordered_json random_presses_json(const fs::path& root, const std::string& object,
+                                 const std::string& mesh, const std::string& file, int frames) {
+  const Shape& s = shape(root / "meshes", mesh);
+  const pg::GelModel gel = pg::sensor_preset("digit").gel;
+  const std::string name = fs::path(file).stem().string();
+  Random rng(scene_seed(name));
+  ordered_json waypoints = ordered_json::array();
+  for (int f = 0; f < frames; ++f) {
+    for (int attempt = 0;; ++attempt) {
+      if (attempt == 100) throw std::runtime_error(file + ": no visible press found");
+      // Uniform random rotation (Shoemake), rounded as the file stores it.
+      const double u1 = rng.uniform(0, 1), u2 = rng.uniform(0, 2 * kPi), u3 = rng.uniform(0, 2 * kPi);
+      const Quaterniond q_random(std::sqrt(u1) * std::cos(u3), std::sqrt(1 - u1) * std::sin(u2),
+                                 std::sqrt(1 - u1) * std::cos(u2), std::sqrt(u1) * std::sin(u3));
+      Vector3d rpy = pg::rpy_from_quaternion(q_random.normalized());
+      for (int i = 0; i < 3; ++i) rpy[i] = round_to(rpy[i], 1e6);
+      const Quaterniond q = pg::quaternion_from_rpy(rpy);
+      const Vector2d target(rng.uniform(-4, 4) * kMm, rng.uniform(-5, 5) * kMm);
+      const double depth = rng.uniform(0.3, 1.5) * kMm;
+      const Vector3d lowest = extreme_centroid(s.points, q.inverse() * -Vector3d::UnitZ(),
+                                               -1.0, 1.0);
+      Vector3d t;
+      t.head<2>() = target - (q * lowest).head<2>();
+      t.z() = 0.0;
+      t.z() = measure_contact(s.points, pg::SE3(q, t), gel).depth - depth;
+      for (int i = 0; i < 3; ++i) t[i] = round_to(t[i], 1e7);
+      const Contact c = measure_contact(s.points, pg::SE3(q, t), gel);
+      if (c.depth < 0.25 * kMm || c.depth > 1.6 * kMm || c.max_abs_xy.x() > 0.9 * kVisibleX ||
+          c.max_abs_xy.y() > 0.9 * kVisibleY) {
+        continue;
+      }
+      waypoints.push_back({{"frame", f}, {"position", vec_json(t)}, {"rpy", vec_json(rpy)}});
+      break;
+    }
+  }
+  ordered_json object_json = {{"name", object},
+                              {"mesh", relative_mesh(file, "meshes/" + mesh)},
+                              {"trajectory", {{"waypoints", waypoints}}}};
+  ordered_json scene = scene_json(frames, kOneDigit, std::move(object_json), scene_seed(name));
+  scene["render"]["shadows"] = true;
+  return scene;
+}
+
 // ------------------------------------------------------------------------- checking and writing
 
 // One line per array element or object member unless the whole value fits in `width` columns.
@@ -614,6 +664,22 @@ std::vector<Output> make_all(const fs::path& root) {
                             root, "pinch slide", 0.8 * kMm));
   outputs.push_back(checked("scenes/examples/no_contact.json", no_contact_json(root), root,
                             "hover", -5.0 * kMm, /*expect_contact=*/false));
+  struct NormalsSet {
+    const char* object;
+    const char* mesh;
+    const char* split;
+    int frames;
+  };
+  for (const NormalsSet& n : {NormalsSet{"sphere", "sphere_r6mm.glb", "train", 50},
+                              NormalsSet{"cube", "cube.glb", "train", 50},
+                              NormalsSet{"sphere", "sphere_r6mm.glb", "val", 20},
+                              NormalsSet{"cube", "cube.glb", "val", 20},
+                              NormalsSet{"toy_brick", "toy_brick.glb", "val", 20},
+                              NormalsSet{"toy_human", "toy_human.glb", "val", 20}}) {
+    const std::string file = std::string("scenes/normals/") + n.object + "_" + n.split + ".json";
+    outputs.push_back(checked(file, random_presses_json(root, n.object, n.mesh, file, n.frames),
+                              root, "random presses", 0.0));
+  }
   return outputs;
 }
 

@@ -233,6 +233,12 @@ void DatasetWriter::write_frame(const FramePose& pose, const FrameImages& images
   written_[pose.frame] = 1;
 }
 
+void DatasetWriter::write_background(const ImageU8& color) {
+  const std::string path = (fs::path(dir_) / "background.png").string();
+  check_image(path, color, info_.width(), info_.height(), 3);
+  write_image(path, color);
+}
+
 void DatasetWriter::finish() {
   const auto missing = std::find(written_.begin(), written_.end(), 0);
   if (missing != written_.end()) {
@@ -284,6 +290,20 @@ Image<T> read_checked(const Dataset& d, const std::string& output, int frame, Re
 ImageU8 Dataset::color(int frame) const {
   return read_checked<std::uint8_t>(*this, "color", frame, read_image_u8);
 }
+ImageU8 Dataset::background() const {
+  const std::string path = (fs::path(dir_) / "background.png").string();
+  if (fs::is_regular_file(path)) {
+    ImageU8 image = read_image_u8(path);
+    check_image(path, image, info_.width(), info_.height(), 3);
+    return image;
+  }
+  for (const FramePose& p : poses_) {
+    if (!p.contact) return color(p.frame);
+  }
+  throw InputError(dir_ + ": no background.png and no frame without contact to use as the "
+                   "no-contact reference image");
+}
+
 ImageF Dataset::normal(int frame) const {
   return read_checked<float>(*this, "normal", frame, read_image_float);
 }

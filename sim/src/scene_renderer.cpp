@@ -3,6 +3,7 @@
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <filesystem>
@@ -38,6 +39,11 @@ RenderSettings settings_for(const SceneRender& render, const std::vector<std::st
 SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
     : scene_(std::move(scene)) {
   if (!overrides.outputs.empty()) scene_.render.outputs = overrides.outputs;
+  if (!overrides.background.empty()) scene_.render.background = overrides.background;
+  if (overrides.shadows) scene_.render.shadows = *overrides.shadows;
+  if (overrides.elastic) {
+    for (auto& sensor : scene_.sensors) sensor.model.gel.elastic.enabled = *overrides.elastic;
+  }
   for (auto& sensor : scene_.sensors) {
     if (overrides.width > 0 || overrides.height > 0) {
       const auto& cam = sensor.model.camera;
@@ -97,6 +103,14 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
                                 ? out_dir
                                 : (fs::path(out_dir) / scene.sensors[i].name).string();
     writers.push_back(std::make_unique<DatasetWriter>(dir, info));
+    if (info.has_output("color")) {
+      const ImageF& bg = renderer.sensor(i).background_color();
+      ImageU8 bg8(bg.width, bg.height, bg.channels);
+      for (std::size_t k = 0; k < bg.data.size(); ++k) {
+        bg8.data[k] = std::uint8_t(std::clamp(bg.data[k], 0.0f, 1.0f) * 255.0f + 0.5f);
+      }
+      writers.back()->write_background(bg8);
+    }
     summary.dataset_dirs.push_back(dir);
   }
   std::atomic<int> done{0}, contact_frames{0}, clamped_frames{0};

@@ -241,5 +241,28 @@ TEST(Image, ErrorsNameThePath) {
   expect_input_error([&] { write_image(tmp.str("x.unknownext"), ImageU8(2, 2, 1)); }, "x.unknownext");
 }
 
+TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {
+  TempDir tmp;
+  // Frames 0, 2, 4 have contact: without background.png, frame 1 is the reference.
+  write_small(tmp.str("a"), 5);
+  const Dataset a = Dataset::open(tmp.str("a"));
+  EXPECT_EQ(a.background().data, a.color(1).data);
+
+  DatasetWriter w(tmp.str("b"), small_info(1));
+  ImageU8 bg(24, 32, 3, 77);
+  w.write_background(bg);
+  FramePose p;
+  p.contact = true;
+  w.write_frame(p, make_frame(24, 32, 0));
+  w.finish();
+  const Dataset b = Dataset::open(tmp.str("b"));
+  EXPECT_EQ(b.background().data, bg.data);
+
+  // Neither a reference nor a frame without contact; and a reference of the wrong size.
+  fs::remove(tmp.str("b") + "/background.png");
+  expect_input_error([&] { b.background(); }, "no frame without contact");
+  EXPECT_THROW(w.write_background(ImageU8(10, 10, 3)), InputError);
+}
+
 }  // namespace
 }  // namespace pg

@@ -7,6 +7,7 @@
 
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "../common/cli_main.h"
@@ -30,10 +31,15 @@ std::vector<std::string> split_list(const std::string& s) {
 }
 
 struct RenderArgs {
-  std::string scene, out, outputs;
+  std::string scene, out, outputs, background, shadows, elastic;
   int threads = 0, width = 0, height = 0;
   bool quiet = false;
 };
+
+std::optional<bool> on_off(const std::string& value) {
+  if (value.empty()) return std::nullopt;
+  return value == "on";
+}
 
 int run_render(const RenderArgs& a) {
   RenderOverrides overrides;
@@ -41,6 +47,9 @@ int run_render(const RenderArgs& a) {
   for (const auto& o : overrides.outputs) check_output_name(o, "--outputs");
   overrides.width = a.width;
   overrides.height = a.height;
+  overrides.background = a.background;
+  overrides.shadows = on_off(a.shadows);
+  overrides.elastic = on_off(a.elastic);
   std::unique_ptr<tbb::global_control> threads;
   if (a.threads > 0) {
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -109,6 +118,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(8, 8192));
   cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
       ->check(CLI::Range(8, 8192));
+  cmd_render->add_option("--background", render.background,
+                         "Real background image for every sensor (TACTO-style blend)");
+  cmd_render->add_option("--shadows", render.shadows, "Override the scene: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd_render->add_option("--elastic", render.elastic, "Override the gel's elastic model: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
   cmd_render->add_flag("--quiet,-q", render.quiet, "No progress line");
 
   std::string info_dir;
@@ -124,6 +139,8 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
   cmd_bench->add_flag("--quick", bench.quick, "Fewer frames, for a smoke test");
+  cmd_bench->add_flag("--ablation", bench.ablation,
+                      "Switch each of the renderer's skips off in turn and report its cost ratio");
 
   SheetArgs sheet;
   CLI::App* cmd_sheet =

@@ -6,6 +6,7 @@
 //   DIR/color/000000.png  8-bit RGB           DIR/normal/000000.exr  float xyz in S
 //   DIR/depth/000000.exr  indentation [m]     DIR/mask/000000.png    contact 0/255
 //   DIR/points/000000.ply the tracked object's contact points, in its own frame (optional)
+//   DIR/background.png    the sensor's no-contact colour image, noise free (with "color")
 #include <mutex>
 #include <string>
 #include <vector>
@@ -62,6 +63,9 @@ class DatasetWriter {
   DatasetWriter(std::string dir, DatasetInfo info);
   // Writes the requested outputs (each must be present and of the sensor's image size).
   void write_frame(const FramePose& pose, const FrameImages& images);
+  // Writes DIR/background.png: what the sensor shows without contact (the reference frame a
+  // real sensor's pipeline captures before touching anything).
+  void write_background(const ImageU8& color);
   // Writes poses.csv; every frame 0..frames-1 must have been written.
   void finish();
 
@@ -90,6 +94,9 @@ class Dataset {
   ImageF depth(int frame) const;
   ImageU8 mask(int frame) const;
   std::vector<Eigen::Vector3f> contact_points(int frame) const;
+  // The no-contact reference colour image: DIR/background.png, or else the first frame that
+  // poses.csv marks as without contact. Throws InputError when there is neither.
+  ImageU8 background() const;
 
  private:
   std::string dir_;

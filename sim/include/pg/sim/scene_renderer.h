@@ -2,6 +2,7 @@
 // Renders a whole scene: every sensor, every frame, into the dataset format.
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,9 @@ namespace pg {
 struct RenderOverrides {
   std::vector<std::string> outputs;  // empty: the scene's
   int width = 0, height = 0;         // 0: the sensors' own
+  std::string background;            // a real background image for every sensor ("": the scene's)
+  std::optional<bool> shadows;       // unset: the scene's
+  std::optional<bool> elastic;       // every sensor's elastic gel model on/off; unset: the scene's
 };
 
 class SceneRenderer {
