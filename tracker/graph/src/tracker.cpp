@@ -16,6 +16,16 @@ const SE3Manifold& se3_manifold() {
   return manifold;
 }
 
+// Copies the points whose position and normal are finite; returns how many were left out.
+int copy_finite_points(const PointCloud& in, PointCloud& out) {
+  out.clear();
+  out.reserve(in.size());
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (in.points[i].allFinite() && in.normals[i].allFinite()) out.push_back(in.points[i], in.normals[i]);
+  }
+  return int(in.size() - out.size());
+}
+
 // o_t = o_{t-1} (o_{t-2}^-1 o_{t-1}): the last body-frame motion repeated.
 SE3 predict(const SE3& o_prev2, const SE3& o_prev) { return o_prev * (o_prev2.inverse() * o_prev); }
 
@@ -78,6 +88,22 @@ bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
          rotation_distance(r.T_target_source, guess) <= options_.max_registration_jump_rad;
 }
 
+bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
+  // What the solved poses say the registration should have measured (eq. 5 and 6).
+  SE3 solved;
+  if (fac.kind == FactorKind::kImageToPatch) {
+    const Frame& f = frames_[fac.frames[0]];
+    solved = pose_from_block(f.o).inverse() * pose_from_block(f.e);
+  } else {
+    const Frame& p = frames_[fac.frames[0]];
+    const Frame& c = frames_[fac.frames[1]];
+    solved = (pose_from_block(p.e).inverse() * pose_from_block(p.o)) *
+             (pose_from_block(c.e).inverse() * pose_from_block(c.o)).inverse();
+  }
+  return translation_distance(solved, fac.measured) > options_.max_registration_residual_m ||
+         rotation_distance(solved, fac.measured) > options_.max_registration_residual_rad;
+}
+
 bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
   const int t = int(frames_.size()) - 1;
   if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return false;
@@ -87,7 +113,10 @@ bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
   const SE3 T_sc_o = pose_from_block(f.e).inverse() * pose_from_block(f.o);
   const SE3 guess = T_sp_o * T_sc_o.inverse();
   const IcpResult r = icp_.align(current_cloud_, *previous_tree_, guess);
-  if (!r.converged) return false;
+  if (!r.converged) {
+    ++est.unconverged_registrations;
+    return false;
+  }
   if (!plausible(r, guess)) {
     ++est.rejected_registrations;
     return false;
@@ -104,7 +133,10 @@ bool PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
   const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
   est.unconstrained_directions = r.degeneracy.unconstrained;
-  if (!r.converged) return false;
+  if (!r.converged) {
+    ++est.unconverged_registrations;
+    return false;
+  }
   if (!plausible(r, guess)) {
     ++est.rejected_registrations;
     return false;
@@ -119,21 +151,32 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   const auto start = std::chrono::steady_clock::now();
   TrackerEstimate est;
   const int t = int(frames_.size());
+  // A non-finite measurement (a live pipeline's glitch; datasets are checked when read) is
+  // dropped and reported: inside the window one NaN would poison every later estimate.
+  const bool sensor_ok = is_finite(input.T_world_sensor_measured);
+  const bool prior_ok = is_finite(input.T_world_object_prior);
+  const int dropped_points = copy_finite_points(input.cloud_sensor, current_cloud_);
+  est.invalid_input = !sensor_ok || !prior_ok || dropped_points > 0;
   Frame f;
-  pose_to_block(input.T_world_sensor_measured, f.e);
+  pose_to_block(sensor_ok ? input.T_world_sensor_measured
+                : t >= 1  ? pose_from_block(frames_[t - 1].e)
+                          : SE3(),
+                f.e);
   const SE3 o_init = t >= 2 ? predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o))
                      : t == 1 ? pose_from_block(frames_[0].o)
-                              : input.T_world_object_prior;
+                     : prior_ok ? input.T_world_object_prior
+                                : SE3();
   pose_to_block(o_init, f.o);
-  f.contact = !input.cloud_sensor.empty();
+  f.contact = !current_cloud_.empty();
   frames_.push_back(f);
   Frame& cur = frames_.back();
-  current_cloud_ = input.cloud_sensor;
 
   // Priors: the end-effector measurement every frame (eq. 8), the velocity prior (eq. 7), and
   // the vision prior on the first pose of each contact episode (eq. 9) and of the sequence.
-  factors_.push_back({FactorKind::kEndEffector, {t, -1, -1}, input.T_world_sensor_measured,
-                      isotropic_sqrt_info(options_.sigma_end_effector)});
+  if (sensor_ok) {
+    factors_.push_back({FactorKind::kEndEffector, {t, -1, -1}, input.T_world_sensor_measured,
+                        isotropic_sqrt_info(options_.sigma_end_effector)});
+  }
   if (t >= 2) {
     factors_.push_back({FactorKind::kVelocity, {t - 2, t - 1, t}, SE3(),
                         isotropic_sqrt_info(options_.sigma_velocity)});
@@ -144,7 +187,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   }
   est.contact = cur.contact;
   est.new_episode = cur.contact && !in_episode_;
-  if (t == 0 || est.new_episode) {
+  if ((t == 0 || est.new_episode) && prior_ok) {
     pose_to_block(input.T_world_object_prior, cur.o);
     factors_.push_back({FactorKind::kVision, {t, -1, -1}, input.T_world_object_prior,
                         isotropic_sqrt_info(options_.sigma_vision)});
@@ -156,6 +199,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   in_episode_ = cur.contact;
 
   // Registrations (eq. 5 and 6) at the predicted poses.
+  const std::size_t first_registration = factors_.size();
   if (cur.contact) {
     const Method m = options_.method;
     if (m == Method::kImageToImage || m == Method::kPatchGraph) register_to_previous(cur, est);
@@ -164,6 +208,22 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
   solve(first, options_.solver_iterations);
+
+  // Lost: contact, but no registration constrains the solved pose (none was accepted, or the
+  // solution overrode every one of them: see registration_disagrees).
+  if (cur.contact) {
+    int agreeing = 0;
+    for (std::size_t k = first_registration; k < factors_.size(); ++k) {
+      if (registration_disagrees(factors_[k])) {
+        ++est.overridden_registrations;
+      } else {
+        ++agreeing;
+      }
+    }
+    unregistered_frames_ = agreeing > 0 || est.new_episode ? 0 : unregistered_frames_ + 1;
+    est.tracking_lost = options_.method != Method::kConstVel && options_.lost_after_frames > 0 &&
+                        unregistered_frames_ >= options_.lost_after_frames;
+  }
 
   // Key frame: fuse the cloud into the patch with the solved pose.
   Frame& solved = frames_.back();

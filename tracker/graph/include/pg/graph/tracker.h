@@ -45,6 +45,17 @@ struct GraphOptions {
   // counted): a wrong local minimum must not become a factor that drags the velocity along.
   double max_registration_jump_m = 3e-3;
   double max_registration_jump_rad = 0.3;
+  // A solved pose further than this from an accepted registration's answer means the other
+  // factors overrode the measurement (e.g. priors with sigmas far too small): it is counted
+  // (TrackerEstimate::overridden_registrations) and does not count as registered below.
+  double max_registration_residual_m = 1e-3;
+  double max_registration_residual_rad = 0.05;
+  // Tracking is reported lost (TrackerEstimate::tracking_lost) once this many consecutive
+  // contact frames of an episode got no registration that the solved pose agrees with (none
+  // converged, every one was rejected or overridden): the pose then rests on the priors alone.
+  // A new episode or an agreeing registration clears it. Methods without registrations
+  // (constvel) never report it; 0: never.
+  int lost_after_frames = 3;
   int window = 5;               // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;   // Levenberg-Marquardt iterations per update
   PatchMapOptions patch;
@@ -67,6 +78,12 @@ struct TrackerEstimate {
   bool keyframe = false;           // the cloud was fused into the patch
   int unconstrained_directions = 0;  // of the image-to-patch registration
   int rejected_registrations = 0;    // converged, but too far from the prediction
+  int unconverged_registrations = 0;  // ICP failed (too few points or matches, iteration limit)
+  int overridden_registrations = 0;   // accepted, but the solution disagrees (see GraphOptions)
+  bool tracking_lost = false;      // see GraphOptions::lost_after_frames
+  // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
+  // pose then holds the previous frame's, the object pose the prediction).
+  bool invalid_input = false;
   double solve_ms = 0;             // graph update time
 };
 
@@ -106,6 +123,7 @@ class PatchGraphTracker {
   bool register_to_previous(Frame& f, TrackerEstimate& est);
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
   bool plausible(const IcpResult& r, const SE3& guess) const;
+  bool registration_disagrees(const Factor& factor) const;
 
   GraphOptions options_;
   PatchMap patch_;
@@ -113,6 +131,7 @@ class PatchGraphTracker {
   std::vector<Frame> frames_;
   std::vector<Factor> factors_;
   bool in_episode_ = false;
+  int unregistered_frames_ = 0;  // consecutive contact frames without an agreeing registration
   int last_keyframe_ = -1;
   std::unique_ptr<PointCloudTree> previous_tree_;  // the previous frame's cloud, for eq. 5
   PointCloud current_cloud_;
