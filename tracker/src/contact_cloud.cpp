@@ -17,7 +17,7 @@ int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8
       const float* n = &normals.at(x, y, 0);
       const Eigen::Vector3f n_gel(n[0], n[1], n[2]);
       const float len = n_gel.norm();
-      if (!std::isfinite(len) || len < 0.5f || len > 1.5f) {
+      if (!std::isfinite(len) || len < 0.5f || len > 1.5f || n_gel.z() <= 0.0f) {
         ++rejected;
         continue;
       }

@@ -23,11 +23,38 @@ inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float f
   return ok;
 }
 
-// A usable normal: finite and roughly unit length (a learned estimator's output need not be
-// exactly unit; the gradient does not depend on the length).
+// A usable normal: finite, roughly unit length (a learned estimator's output need not be
+// exactly unit; the gradient does not depend on the length) and pointing out of the gel (+z):
+// the camera cannot see a surface that faces it from the object's side.
 inline bool valid_normal(const float* n) {
   const float sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f;
+  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f && n[2] > 0.0f;
+}
+
+// Fills the gradient at invalid normals (grid indices `holes`, ascending) by linear
+// interpolation between the nearest valid pixels left and right in the same grid row (or the one
+// valid side). Taking them as undisturbed instead (zero) would cut a dent into the integrated
+// indentation around every corrupted pixel inside a contact.
+void fill_holes(const std::vector<std::size_t>& holes, int gw, std::vector<float>& gx,
+                std::vector<float>& gy) {
+  std::vector<std::uint8_t> is_hole(gx.size(), 0);
+  for (std::size_t j : holes) is_hole[j] = 1;
+  for (std::size_t k = 0; k < holes.size();) {
+    // A run of holes [a, b) within one row.
+    const std::size_t a = holes[k], row_start = a - a % std::size_t(gw);
+    const std::size_t row_end = row_start + std::size_t(gw);
+    std::size_t b = a;
+    while (b < row_end && is_hole[b]) ++b;
+    while (k < holes.size() && holes[k] < b) ++k;
+    const bool left = a > row_start, right = b < row_end;
+    if (!left && !right) continue;  // a whole row of holes stays zero
+    for (std::size_t j = a; j < b; ++j) {
+      const float s = left && right ? float(j - a + 1) / float(b - a + 1) : left ? 0.0f : 1.0f;
+      const std::size_t l = left ? a - 1 : b, r = right ? b : a - 1;
+      gx[j] = (1 - s) * gx[l] + s * gx[r];
+      gy[j] = (1 - s) * gy[l] + s * gy[r];
+    }
+  }
 }
 
 // One image row: flags[x] = 1 where the normal is valid and more than the threshold angle from
@@ -41,7 +68,7 @@ int classify_row(const float* n, const float* ref, int width, float cos_threshol
     const float nx = n[3 * x], ny = n[3 * x + 1], nz = n[3 * x + 2];
     const float sq = nx * nx + ny * ny + nz * nz;
     const float dot = nx * ref[3 * x] + ny * ref[3 * x + 1] + nz * ref[3 * x + 2];
-    const bool valid = (sq > 0.25f) & (sq < 2.25f);  // false for NaN and inf
+    const bool valid = (sq > 0.25f) & (sq < 2.25f) & (nz > 0.0f);  // false for NaN and inf
     const bool far = (dot <= 0.0f) | (dot * dot < c2 * sq);
     const bool flag = valid & far;
     flags[x] = flag;
@@ -146,11 +173,12 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   fast_window(need.y0, need.y1, margin, win.y0, win.y1);
   const int nx = win.width(), ny = win.height();
 
-  // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image and at invalid
-  // normals (the gel there is taken as undisturbed).
+  // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image. Invalid normals
+  // are holes, filled afterwards from their row's valid neighbours.
   const int gw = nx + 2, gh = ny + 2;
   gx_.assign(std::size_t(gw) * gh, 0.0f);
   gy_.assign(std::size_t(gw) * gh, 0.0f);
+  std::vector<std::size_t> holes;  // grid indices; allocated only for a frame that has some
   const PixelBox ring = PixelBox{win.x0 - 1, win.y0 - 1, win.x1 + 1, win.y1 + 1}.clip(W, H);
   const float* nimg = normals.data.data();
   const float fx = float(rays_.fx), fy = float(rays_.fy);
@@ -159,7 +187,10 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
     for (int x = ring.x0; x < ring.x1; ++x) {
       const std::size_t i = std::size_t(y) * W + x;
       const float* n = nimg + 3 * i;
-      if (!valid_normal(n)) continue;
+      if (!valid_normal(n)) {
+        holes.push_back(std::size_t(y - win.y0 + 1) * gw + (x - win.x0 + 1));
+        continue;
+      }
       float gx, gy;
       if (!log_depth_gradient(n, rays_.dir_sensor[i], fx, fy, min_dot, gx, gy)) {
         ++out.clamped_normals;
@@ -169,6 +200,8 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
       gy_[j] = gy - reference_gradient_[2 * i + 1];
     }
   }
+
+  if (!holes.empty()) fill_holes(holes, gw, gx_, gy_);
 
   // 4. Right-hand side: the divergence of the gradient field, with the gradients averaged to the
   // half-pixel positions so that it matches the 5-point Laplacian:

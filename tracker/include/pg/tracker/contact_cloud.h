@@ -26,13 +26,14 @@ struct ContactFrame {
   // Back-projected contact pixels in S [m]: p_S = o + d (t_gel - u). Normals are the object's
   // outward surface normals, i.e. minus the gel normals of the normal image (not re-estimated).
   PointCloud cloud_sensor;
-  // Normals rejected anywhere in the image (NaN, inf, far from unit length); such pixels are taken
-  // as undisturbed by the integration and give no point.
+  // Normals rejected anywhere in the image (NaN, inf, far from unit length, or n.z <= 0: facing
+  // the camera, which a gel surface cannot); the integration fills their gradient from their
+  // neighbours, and they give no point.
   int rejected_normals = 0;
 };
 
 // Back-projects the contact pixels in `box` (mask > 0) into S with their normals (see
-// ContactFrame::cloud_sensor). Pixels whose normal is not finite and roughly unit are skipped
+// ContactFrame::cloud_sensor). Pixels whose normal is not finite, roughly unit and +z are skipped
 // and counted in the return value. `cloud_sensor` is cleared first; its capacity is reused.
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
                          const PixelBox& box, const ImageF& normals, PointCloud& cloud_sensor);

@@ -42,7 +42,9 @@ struct DepthResult {
   PixelBox window;         // the Poisson grid in image coordinates (may reach past the image)
   PixelBox disturbed_box;  // bounding box of the disturbed pixels (empty: none)
   int disturbed_pixels = 0;
-  int invalid_normals = 0;  // NaN, inf or far from unit length: ignored (taken as undisturbed)
+  // NaN, inf, far from unit length or n.z <= 0: their gradient is interpolated from the valid
+  // pixels beside them in the row (a dead pixel inside a contact leaves no dent).
+  int invalid_normals = 0;
   int clamped_normals = 0;  // n.d below min_normal_dot_ray inside the grid, clamped
 };
 
