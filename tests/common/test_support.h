@@ -7,7 +7,10 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <initializer_list>
 #include <string>
+
+#include "pg/core/error.h"
 
 namespace pg::testing_support {
 
@@ -40,6 +43,21 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
   const int status = pclose(pipe);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// Runs f and expects an InputError whose message contains every one of `parts` (a file name, a
+// field, what was expected).
+template <typename F>
+void expect_input_error(F&& f, std::initializer_list<std::string> parts) {
+  try {
+    f();
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    for (const auto& part : parts) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos)
+          << "'" << part << "' not in: " << e.what();
+    }
+  }
 }
 
 }  // namespace pg::testing_support

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "../common/test_support.h"
 #include "pg/core/error.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/sensor.h"
@@ -10,19 +11,7 @@
 namespace pg {
 namespace {
 
-// Expects an InputError whose message contains every one of `parts`.
-template <typename F>
-void expect_input_error(F&& f, std::initializer_list<std::string> parts) {
-  try {
-    f();
-    ADD_FAILURE() << "expected an InputError";
-  } catch (const InputError& e) {
-    for (const auto& p : parts) {
-      EXPECT_NE(std::string(e.what()).find(p), std::string::npos)
-          << "message '" << e.what() << "' lacks '" << p << "'";
-    }
-  }
-}
+using testing_support::expect_input_error;
 
 TEST(SensorPreset, DigitMatchesDesignDefaults) {
   const SensorModel s = sensor_preset("digit");

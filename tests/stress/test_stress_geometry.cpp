@@ -1,0 +1,224 @@
+// Stress: degenerate geometry (what a contact patch cannot show) and scale (objects from 1 mm to
+// 50 mm, presses from 1 um to past the gel, contact edges nearly parallel to the rays). The
+// assertions: nothing non-finite, the degeneracy is reported, unobservable motion does not run
+// away, and what is observable is still tracked.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "pg/sim/primitives.h"
+#include "stress_support.h"
+
+namespace pg::stress {
+namespace {
+
+using test::mesh_shape;
+
+std::shared_ptr<const ObjectShape> shape(TriangleMesh mesh) {
+  return std::make_shared<ObjectShape>(std::move(mesh));
+}
+
+// z error of the object's origin in S: the direction a pressed face always shows.
+double z_error_m(const StressFrame& f) {
+  return std::abs(f.estimate.T_world_object.translation().z() - f.T_world_object_gt.translation().z());
+}
+
+int max_unconstrained(const StressRun& run) {
+  int worst = 0;
+  for (const auto& f : run.frames) worst = std::max(worst, f.estimate.unconstrained_directions);
+  return worst;
+}
+
+// A 20 mm cube face down, pressed 0.5 mm, slid 2 mm along x and spun 0.2 rad about z over 60
+// frames: slide and spin are invisible to a flat patch.
+TEST(StressGeometry, FlatFaceSlidAndSpun) {
+  const ClosedLoop& loop = cube_loop();
+  std::vector<SE3> poses;
+  for (int f = 0; f < 60; ++f) {
+    const double s = f / 59.0;
+    poses.push_back(SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.2 * s, Eigen::Vector3d::UnitZ())),
+                        Eigen::Vector3d(0.002 * s, 0, 0.010 - 0.0005)));
+  }
+  const StressRun run = loop.track(poses);
+  run.print("FlatFaceSlidAndSpun");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_EQ(run.contact_frames, 60);
+  EXPECT_GE(max_unconstrained(run), 3) << "a flat patch leaves slide x, y and spin free";
+  for (const auto& f : run.frames) {
+    EXPECT_LT(z_error_m(f), 1e-4) << "the pressed depth is observable";
+    // Free directions follow the priors: the estimate may lag the slide, never outrun it.
+    EXPECT_LT(f.translation_error_m, 2.5e-3);
+    EXPECT_LT(f.rotation_error_rad, 0.25);
+  }
+}
+
+// A long thin plate (30 x 0.6 x 10 mm) pressed 0.4 mm on its long edge, at 0.3 rad to the image
+// axes, slid 1.5 mm along the edge: a strip of contact with near-vertical sides.
+TEST(StressGeometry, LongThinEdgeSlidAlongItself) {
+  const ClosedLoop loop(shape(make_box({0.015f, 0.0003f, 0.005f})));
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()));
+  std::vector<SE3> poses;
+  for (int f = 0; f < 60; ++f) {
+    const double s = 0.0015 * f / 59.0;
+    poses.push_back(SE3(q, q * Eigen::Vector3d(s, 0, 0) + Eigen::Vector3d(0, 0, 0.005 - 0.0004)));
+  }
+  const StressRun run = loop.track(poses);
+  run.print("LongThinEdgeSlidAlongItself");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_EQ(run.contact_frames, 60);
+  EXPECT_GE(max_unconstrained(run), 1) << "the slide along the edge is unobservable";
+  for (const auto& f : run.frames) {
+    EXPECT_LT(z_error_m(f), 1e-4);
+    EXPECT_LT(f.translation_error_m, 2e-3);
+    EXPECT_LT(f.rotation_error_rad, 0.1);
+  }
+}
+
+// A 6 mm sphere rolled 3 mm along x (rotating about y by distance / radius), then spun 0.5 rad
+// about z in place: its rotation is unobservable, its centre is not.
+TEST(StressGeometry, SphereRolledAndSpun) {
+  const double r = 0.006, press = 0.0008;
+  const ClosedLoop loop(mesh_shape("sphere_r6mm.glb"));
+  std::vector<SE3> poses;
+  for (int f = 0; f < 60; ++f) {
+    const double x = 0.003 * f / 59.0;
+    poses.push_back(SE3(Eigen::Quaterniond(Eigen::AngleAxisd(x / r, Eigen::Vector3d::UnitY())),
+                        Eigen::Vector3d(x - 0.0015, 0, r - press)));
+  }
+  const SE3 rolled = poses.back();
+  for (int f = 1; f <= 30; ++f) {
+    const Eigen::Quaterniond spin(Eigen::AngleAxisd(0.5 * f / 30.0, Eigen::Vector3d::UnitZ()));
+    poses.push_back(SE3(spin * rolled.rotation(), rolled.translation()));
+  }
+  const StressRun run = loop.track(poses);
+  run.print("SphereRolledAndSpun");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_GE(max_unconstrained(run), 3);
+  const SE3 first = run.frames.front().estimate.T_world_object;
+  for (const auto& f : run.frames) {
+    EXPECT_LT(f.translation_error_m, 3e-4) << "the centre is observable";
+    // The unobservable rotation keeps the initial orientation instead of wandering.
+    EXPECT_LT(rotation_distance(f.estimate.T_world_object, first), 0.05);
+  }
+  // ... which is the rotation's error: 0.5 rad rolled, then spun 0.5 rad.
+  EXPECT_GT(run.last().rotation_error_rad, 0.5);
+}
+
+// A featureless patch: a 50 mm sphere (radius 25 mm) pressed 0.2 mm, the contact nearly flat,
+// moved 1 mm sideways.
+TEST(StressGeometry, FeaturelessPatch) {
+  const ClosedLoop loop(shape(make_uv_sphere(0.025f, 128, 256)));
+  std::vector<SE3> poses;
+  for (int f = 0; f < 40; ++f) {
+    poses.push_back(SE3::Translation({0.001 * f / 39.0, 0.0005 * f / 39.0, 0.025 - 0.0002}));
+  }
+  const StressRun run = loop.track(poses);
+  run.print("FeaturelessPatch");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_EQ(run.contact_frames, 40);
+  EXPECT_GE(max_unconstrained(run), 3);
+  for (const auto& f : run.frames) {
+    EXPECT_LT(z_error_m(f), 1e-4);
+    EXPECT_LT(f.translation_error_m, 1.5e-3);
+  }
+}
+
+// Spheres of 1, 2, 5, 10, 20 and 50 mm diameter pressed 0.3 mm and slid 1 mm. A 1 mm sphere's
+// contact (about 20 pixels at 120x160) is at the edge of what the front end resolves: it may be
+// seen as no contact, or give too few points to register, and must then be reported as such.
+TEST(StressScale, ObjectsFrom1To50Millimetres) {
+  for (double diameter_mm : {1.0, 2.0, 5.0, 10.0, 20.0, 50.0}) {
+    SCOPED_TRACE("diameter " + std::to_string(diameter_mm) + " mm");
+    const double r = diameter_mm * 0.5e-3;
+    const ClosedLoop loop(shape(make_uv_sphere(float(r), 96, 192)));
+    std::vector<SE3> poses;
+    for (int f = 0; f < 30; ++f) poses.push_back(SE3::Translation({0.001 * f / 29.0, 0, r - 3e-4}));
+    const StressRun run = loop.track(poses);
+    ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+    int min_points = 1 << 30;
+    for (const auto& f : run.frames) min_points = std::min(min_points, f.cloud_points);
+    std::printf("diameter %4.0f mm: contact %d/30 frames, episodes %d, >= %d points, lost %d, "
+                "unconverged %d, max error %.3f mm\n",
+                diameter_mm, run.contact_frames, run.episodes, min_points, run.lost_frames,
+                run.unconverged_registrations, run.max_translation_error_m() * 1e3);
+    if (diameter_mm >= 2.0) {
+      EXPECT_EQ(run.contact_frames, 30);
+      EXPECT_LT(run.max_translation_error_m(), 5e-4);
+    } else {
+      // Untracked frames are reported: no contact, or registrations that did not converge.
+      EXPECT_LT(run.max_translation_error_m(), 1.5e-3);
+    }
+  }
+}
+
+// The default DIGIT (elastic gel, 2 mm maximum indentation, noise, every output) under a 6 mm
+// sphere pressed from 1 um to far past the gel, up to the whole sphere behind the gel surface.
+TEST(StressScale, PressesFromOneMicrometreToBeyondTheGel) {
+  const SensorModel sensor = sensor_preset("digit");
+  RenderSettings settings;
+  settings.contact_points = true;
+  const SensorRenderer renderer(sensor, {mesh_shape("sphere_r6mm.glb")}, settings);
+  ContactCloudBuilder builder(sensor, ContactCloudOptions());
+  for (double press : {1e-6, 1e-5, 1e-4, 1e-3, 2e-3, 3e-3, 6e-3, 12e-3, 30e-3}) {
+    SCOPED_TRACE("press " + std::to_string(press * 1e3) + " mm");
+    const RenderedFrame frame = renderer.render({SE3::Translation({0, 0, 0.006 - press})}, 7);
+    EXPECT_TRUE(all_finite(frame.images.normal));
+    EXPECT_TRUE(all_finite(frame.images.depth));
+    float deepest = 0;
+    for (float u : frame.images.depth.data) deepest = std::max(deepest, u);
+    EXPECT_LE(deepest, sensor.gel.max_indentation_m * 1.001);
+    if (press > sensor.gel.max_indentation_m && press < 0.012) {
+      EXPECT_GT(frame.stats.clamped_pixels, 0) << "clamping is reported";
+    }
+    const ContactFrame contact = builder.build(frame.images.normal);
+    EXPECT_TRUE(all_finite(contact.depth.depth));
+    EXPECT_TRUE(all_finite(contact.cloud_sensor));
+    if (press <= 1e-5) {
+      EXPECT_EQ(contact.status, ContactStatus::kNoContact) << "below the mask's threshold";
+    }
+    if (press >= 1e-3 && press <= 3e-3) {
+      EXPECT_EQ(contact.status, ContactStatus::kContact);
+    }
+  }
+}
+
+// A box pressed 1.5 mm into the rigid gel: its sides are parallel to the rays, so the rendered
+// normals at the contact edge have n.z near 0. And normal images no renderer makes: exactly
+// tangent (n.z = 0), pointing into the gel (n.z < 0), zero and non-finite normals.
+TEST(StressScale, SteepContactEdges) {
+  const ClosedLoop loop(shape(make_box({0.004f, 0.003f, 0.005f})));
+  const ImageF normals = loop.normals(SE3(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())), {0, 0, 0.005 - 0.0015}));
+  ASSERT_TRUE(all_finite(normals));
+  float min_nz = 1;
+  for (std::size_t i = 2; i < normals.data.size(); i += 3) min_nz = std::min(min_nz, normals.data[i]);
+  EXPECT_LT(min_nz, 0.3f) << "the case must reach steep normals";
+  ContactCloudBuilder builder(loop.render_case().sensor, ContactCloudOptions());
+  ContactFrame contact = builder.build(normals);
+  EXPECT_GT(contact.depth.clamped_normals, 0) << "the eq. 4 guard is reported";
+  EXPECT_TRUE(all_finite(contact.depth.depth));
+  EXPECT_TRUE(all_finite(contact.cloud_sensor));
+  EXPECT_EQ(contact.status, ContactStatus::kContact);
+
+  ImageF bad = normals;
+  const int w = bad.width, h = bad.height;
+  const float values[][3] = {{1, 0, 0}, {0, -1, 0}, {0.3f, 0, -0.95f}, {0, 0, 0},
+                             {NAN, 0, 1}, {INFINITY, 0, 0}, {0, 0, -1}};
+  for (int y = h / 2 - 20; y < h / 2 + 20; ++y) {
+    for (int x = w / 2 - 20; x < w / 2 + 20; ++x) {
+      const float* v = values[(x + 3 * y) % 7];
+      for (int k = 0; k < 3; ++k) bad.at(x, y, k) = v[k];
+    }
+  }
+  contact = builder.build(bad);
+  EXPECT_GT(contact.rejected_normals, 0);
+  EXPECT_TRUE(all_finite(contact.depth.depth));
+  EXPECT_TRUE(all_finite(contact.cloud_sensor));
+  float largest = 0;
+  for (float u : contact.depth.depth.data) largest = std::max(largest, std::abs(u));
+  EXPECT_LT(largest, 0.05f) << "indentation bounded";
+}
+
+}  // namespace
+}  // namespace pg::stress
