@@ -14,6 +14,7 @@
 #include <sstream>
 #include <thread>
 
+#include "../common/machine_info.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
 
@@ -95,36 +96,123 @@ std::vector<Timing> time_cases(const std::vector<Case>& cases, const std::string
   return out;
 }
 
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  for (std::string line; std::getline(in, line);) {
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  }
-  return "unknown CPU";
-}
-
-std::string load_average() {
-  std::ifstream in("/proc/loadavg");
-  std::string one, five, fifteen;
-  in >> one >> five >> fifteen;
-  return in ? one + " " + five + " " + fifteen : "unknown";
-}
-
-std::string utc_now() {
-  const std::time_t now = std::time(nullptr);
-  char text[64];
-  std::strftime(text, sizeof(text), "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
-  return text;
-}
-
 // The command line that reproduces this run.
 std::string command(const BenchArgs& in) {
   std::string cmd = "tacsim bench";
   if (in.quick) cmd += " --quick";
-  cmd += " --frames " + std::to_string(in.frames) + " --repeats " + std::to_string(in.repeats);
+  if (in.ablation) cmd += " --ablation";
+  if (!in.ablation) cmd += " --frames " + std::to_string(in.frames);
+  cmd += " --repeats " + std::to_string(in.repeats);
   if (in.threads > 0) cmd += " --threads " + std::to_string(in.threads);
   if (!in.markdown.empty()) cmd += " --markdown " + in.markdown;
   return cmd;
+}
+
+// The four cases.
+std::vector<Case> bench_cases() {
+  const auto sphere = std::make_shared<ObjectShape>(make_uv_sphere(0.006f, 72, 144));     // ~20k tris
+  const auto dense = std::make_shared<ObjectShape>(make_uv_sphere(0.006f, 250, 400));     // 200k tris
+  const auto slab = std::make_shared<ObjectShape>(make_box({0.015f, 0.015f, 0.005f}));
+  return {
+      {"(a) no contact: sphere r 6 mm, 5 mm above the gel", sphere, SE3::Translation({0, 0, 0.011})},
+      {"(b) sphere r 6 mm pressed 1 mm", sphere, SE3::Translation({0, 0, 0.005})},
+      {"(c) flat face pressed 1.5 mm (half the gel)", slab, SE3::Translation({0, 0, 0.0035})},
+      {"(d) 200k-triangle sphere pressed 1 mm", dense, SE3::Translation({0, 0, 0.005})},
+  };
+}
+
+// One skip of the renderer switched off (or, for "outputs", every output requested).
+struct Variant {
+  const char* name;
+  void (*apply)(RenderSettings&);
+};
+
+const Variant kVariants[] = {
+    {"all skips on (colour + normals)", [](RenderSettings&) {}},
+    {"no culling", [](RenderSettings& s) { s.cull = false; }},
+    {"no footprint (rays over the whole image)", [](RenderSettings& s) { s.footprint = false; }},
+    {"rays from the camera, not the slab", [](RenderSettings& s) { s.slab_limited_rays = false; }},
+    {"no no-contact cache", [](RenderSettings& s) { s.no_contact_cache = false; }},
+    {"no rasterizer (rays only)", [](RenderSettings& s) { s.rasterize = false; }},
+    // The slab limit matters where rays are cast: compare this row with the one above.
+    {"rays only, from the camera", [](RenderSettings& s) { s.rasterize = s.slab_limited_rays = false; }},
+    {"unrequested outputs too (+ depth, mask, contact points)",
+     [](RenderSettings& s) { s.depth = s.mask = s.contact_points = true; }},
+};
+
+// Milliseconds per frame on this thread, rendering into a reused frame for about `budget_s`.
+double time_frames(const SensorRenderer& renderer, const std::vector<SE3>& poses,
+                   RenderedFrame& frame, double budget_s) {
+  auto start = std::chrono::steady_clock::now();
+  int n = 0;
+  do {
+    renderer.render(poses, std::uint64_t(n), frame);
+    ++n;
+  } while (seconds_since(start) < budget_s);
+  return 1e3 * seconds_since(start) / n;
+}
+
+// Each skip switched off in turn: the cost of a frame (one thread) relative to the renderer with
+// every skip on. The runs of one case are interleaved, as in the speed table.
+int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const BenchArgs& in) {
+  const double budget_s = args.quick ? 0.02 : 0.15;
+  std::ostringstream out;
+  out << "Command: `" << command(in) << "`  \n"
+      << machine_line() << "  \n"
+      << "Date: " << utc_now() << "  \n"
+      << "One thread, noise on, rendering into a reused frame; ms per frame (median of "
+      << args.repeats << " runs of about " << budget_s
+      << " s each) and, in brackets, the cost relative to the first row.\n\n";
+  for (const char* preset : {"digit", "digit_240x320"}) {
+    const auto cam = sensor_preset(preset).camera;
+    out << "**" << cam.width << "x" << cam.height << "**\n\n| skip switched off |";
+    for (const Case& c : cases) out << " " << c.name.substr(0, 3) << " |";
+    out << "\n|---|";
+    for (std::size_t c = 0; c < cases.size(); ++c) out << "---:|";
+    out << "\n";
+    const int n_variants = int(std::size(kVariants));
+    std::vector<std::vector<double>> ms(cases.size() * n_variants);
+    std::vector<std::unique_ptr<SensorRenderer>> renderers(ms.size());
+    std::vector<RenderedFrame> frames(ms.size());
+    for (std::size_t c = 0; c < cases.size(); ++c) {
+      for (int v = 0; v < n_variants; ++v) {
+        RenderSettings settings;
+        settings.depth = false;
+        settings.mask = false;
+        kVariants[v].apply(settings);
+        renderers[c * n_variants + v] = std::make_unique<SensorRenderer>(
+            sensor_preset(preset), std::vector{cases[c].shape}, settings);
+      }
+    }
+    for (int r = 0; r < args.repeats; ++r) {
+      for (std::size_t c = 0; c < cases.size(); ++c) {
+        for (int v = 0; v < n_variants; ++v) {
+          const std::size_t k = c * n_variants + v;
+          ms[k].push_back(time_frames(*renderers[k], {cases[c].T_sensor_object}, frames[k], budget_s));
+        }
+      }
+    }
+    for (int v = 0; v < n_variants; ++v) {
+      out << "| " << kVariants[v].name << " |";
+      for (std::size_t c = 0; c < cases.size(); ++c) {
+        const double m = median(ms[c * n_variants + v]);
+        const double base = median(ms[c * n_variants]);
+        char cell[64];
+        std::snprintf(cell, sizeof(cell), " %.3f (%.2fx) |", m, m / base);
+        out << cell;
+      }
+      out << "\n";
+    }
+    out << "\n";
+    std::printf("%s", out.str().c_str());
+    std::fflush(stdout);
+    if (!args.markdown.empty()) {
+      std::ofstream file(args.markdown, preset == std::string("digit") ? std::ios::trunc : std::ios::app);
+      file << out.str();
+    }
+    out.str("");
+  }
+  return 0;
 }
 
 }  // namespace
@@ -141,19 +229,11 @@ int run_bench(const BenchArgs& in) {
                                                   args.threads);
   }
   const int threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-  const auto sphere = std::make_shared<ObjectShape>(make_uv_sphere(0.006f, 72, 144));     // ~20k tris
-  const auto dense = std::make_shared<ObjectShape>(make_uv_sphere(0.006f, 250, 400));     // 200k tris
-  const auto slab = std::make_shared<ObjectShape>(make_box({0.015f, 0.015f, 0.005f}));
-  const std::vector<Case> cases = {
-      {"(a) no contact: sphere r 6 mm, 5 mm above the gel", sphere, SE3::Translation({0, 0, 0.011})},
-      {"(b) sphere r 6 mm pressed 1 mm", sphere, SE3::Translation({0, 0, 0.005})},
-      {"(c) flat face pressed 1.5 mm (half the gel)", slab, SE3::Translation({0, 0, 0.0035})},
-      {"(d) 200k-triangle sphere pressed 1 mm", dense, SE3::Translation({0, 0, 0.005})},
-  };
+  const std::vector<Case> cases = bench_cases();
+  if (args.ablation) return run_ablation(cases, args, in);
   std::ostringstream head, table;
   head << "Command: `" << command(in) << "`  \n"
-       << "Machine: " << cpu_model() << ", " << std::thread::hardware_concurrency()
-       << " logical CPUs (nproc), load average " << load_average() << " at the start  \n"
+       << machine_line() << "  \n"
        << "Date: " << utc_now() << "  \n"
        << "Colour + normals, noise on; frames/s with " << threads
        << " threads rendering frames in parallel, ms/frame with one thread alone; median of "

@@ -8,6 +8,7 @@ struct BenchArgs {
   int repeats = 5;
   int threads = 0;
   bool quick = false;
+  bool ablation = false;  // each skip switched off in turn, instead of the speed table
   std::string markdown;
 };
 
