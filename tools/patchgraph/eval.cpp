@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "../common/plot_script.h"
 #include "pg/core/error.h"
 
 namespace pg {
@@ -124,15 +125,7 @@ int run_eval(const EvalArgs& args) {
   std::ofstream((fs::path(args.out) / "summary.md").string()) << md;
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
-  if (!args.no_plots) {
-    const fs::path script = fs::path(PG_SOURCE_DIR) / "tools" / "plot_eval.py";
-    // Debian's interpreter, where python3-matplotlib is installed (not a user's own python3).
-    const std::string cmd = "/usr/bin/python3 '" + script.string() + "' '" + args.out + "'";
-    if (std::system(cmd.c_str()) != 0) {
-      std::fprintf(stderr, "warning: plots not made (%s failed; is python3-matplotlib installed?)\n",
-                   cmd.c_str());
-    }
-  }
+  if (!args.no_plots) run_plot_script("plot_eval.py", args.out);
   return 0;
 }
 

@@ -1,11 +1,13 @@
 // patchgraph: the tracker's command line.
 //   patchgraph track DATASET --method M --normals gt --out OUT
 //   patchgraph eval --datasets DIR... --methods M... --out OUT
+//   patchgraph bench [--quick] --out OUT
 #include <cstdio>
 #include <filesystem>
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
+#include "bench.h"
 #include "eval.h"
 #include "track_args.h"
 
@@ -64,7 +66,23 @@ int main(int argc, char** argv) {
   cmd_eval->add_flag("--no-plots", eval.no_plots, "Skip the matplotlib plots");
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 
+  TrackBenchArgs bench;
+  CLI::App* cmd_bench =
+      app.add_subcommand("bench", "Run time against error over the tracker's knobs (docs/benchmarks.md)");
+  cmd_bench->add_option("--out,-o", bench.out, "Output folder (bench.csv, bench.md, bench.png)");
+  cmd_bench->add_option("--scenes", bench.scenes, "Scene files (default: benchmark 00-02 per object)");
+  cmd_bench->add_option("--cache", bench.cache, "Rendered datasets, reused (default: OUT/cache)");
+  cmd_bench->add_option("--normals", bench.normals, "Normals sources, one row each (default: gt)");
+  cmd_bench->add_option("--frames", bench.frames, "Frames per scene (default: all)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd_bench->add_flag("--quick", bench.quick, "2 scenes x 60 frames, 6 settings (smoke test)");
+  cmd_bench->add_flag("--no-plot", bench.no_plot, "Skip the matplotlib plot");
+  cmd_bench->add_flag("--quiet,-q", bench.quiet, "No progress lines");
+
   return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_bench->parsed()) return run_track_bench(bench);
     if (cmd_track->parsed()) return run_track(track);
     if (cmd_eval->parsed()) return run_eval(eval);
     return kExitUsage;

@@ -1,0 +1,74 @@
+// `patchgraph bench --quick`: the run-time-vs-error sweep's smoke test (docs/benchmarks.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "../common/test_support.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+using testing_support::TempDir;
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> cells;
+  std::stringstream ss(line);
+  for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+  return cells;
+}
+
+TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
+  TempDir tmp;
+  const auto r = testing_support::run_command(PATCHGRAPH_PATH, "bench --quick -q --out " + tmp.str("b"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("| setting | median update [ms]"), std::string::npos) << r.out;
+
+  std::ifstream csv(tmp.str("b/bench.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const std::vector<std::string> header = split(line);
+  std::map<std::string, std::size_t> column;
+  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
+                        "median_final_rotation_rad", "pareto_translation", "pareto_rotation"}) {
+    ASSERT_TRUE(column.count(c)) << c;
+  }
+  std::vector<std::string> settings;
+  int on_front = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> cells = split(line);
+    ASSERT_EQ(cells.size(), header.size()) << line;
+    settings.push_back(cells[column["setting"]]);
+    EXPECT_EQ(cells[column["runs"]], "2") << line;
+    for (const char* c : {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
+      const double v = std::stod(cells[column[c]]);
+      EXPECT_TRUE(std::isfinite(v) && v >= 0) << c << " in " << line;
+    }
+    EXPECT_GT(std::stod(cells[column["median_frame_ms"]]), 0.0) << line;
+    on_front += cells[column["pareto_translation"]] == "1";
+  }
+  const std::vector<std::string> expected = {"default", "resolution 240x320", "voxel 0.2 mm",
+                                             "window 3", "registration information off",
+                                             "method constvel"};
+  EXPECT_EQ(settings, expected);
+  EXPECT_GE(on_front, 1);
+  EXPECT_TRUE(fs::exists(tmp.str("b/bench.md")));
+  EXPECT_TRUE(fs::exists(tmp.str("b/runs.csv")));
+  EXPECT_TRUE(fs::exists(tmp.str("b/bench.png"))) << r.out;
+}
+
+TEST(PatchgraphBench, UnknownNormalsSourceFailsBeforeTracking) {
+  TempDir tmp;
+  const auto r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals gt no_such_model.pt --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace pg

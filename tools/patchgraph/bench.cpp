@@ -1,0 +1,333 @@
+#include "bench.h"
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "../common/machine_info.h"
+#include "../common/plot_script.h"
+#include "pg/core/error.h"
+#include "pg/graph/track_dataset.h"
+#include "pg/sim/scene_renderer.h"
+#include "track_args.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// One point of the sweep: the default configuration with one knob changed.
+struct Setting {
+  std::string knob = "default";  // which knob differs from the default
+  std::string value = "-";
+  int width = 120, height = 160;
+  std::string method = "patchgraph";
+  std::string normals = "gt";
+  int keyframe_interval = TrackArgs().keyframe_interval;
+  int window = TrackArgs().window;
+  bool registration_information = true;
+  int icp_iterations = IcpOptions().max_iterations;
+  double max_correspondence_m = IcpOptions().max_correspondence_m;
+  double voxel_m = IcpOptions().voxel_size_m;
+
+  std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
+};
+
+std::string fmt(const char* format, double v) {
+  char text[64];
+  std::snprintf(text, sizeof(text), format, v);
+  return text;
+}
+
+std::vector<Setting> sweep(const TrackBenchArgs& args) {
+  const Setting base;
+  std::vector<Setting> out = {base};
+  auto add = [&](const std::string& knob, const std::string& value, auto&& change) {
+    Setting s = base;
+    s.knob = knob;
+    s.value = value;
+    change(s);
+    out.push_back(s);
+  };
+  add("resolution", "240x320", [](Setting& s) { s.width = 240, s.height = 320; });
+  if (!args.quick) {
+    for (int k : {5, 20, 40}) {
+      add("keyframe interval", std::to_string(k), [&](Setting& s) { s.keyframe_interval = k; });
+    }
+    for (int n : {3, 5, 10}) {
+      add("ICP iterations", std::to_string(n), [&](Setting& s) { s.icp_iterations = n; });
+    }
+    for (double mm : {0.5, 2.0, 4.0}) {
+      add("correspondence", fmt("%g mm", mm), [&](Setting& s) { s.max_correspondence_m = mm * 1e-3; });
+    }
+  }
+  for (double mm : args.quick ? std::vector<double>{0.2} : std::vector<double>{0.1, 0.2, 0.4}) {
+    add("voxel", fmt("%g mm", mm), [&](Setting& s) { s.voxel_m = mm * 1e-3; });
+  }
+  for (int w : args.quick ? std::vector<int>{3} : std::vector<int>{2, 3, 10, 20}) {
+    add("window", std::to_string(w), [&](Setting& s) { s.window = w; });
+  }
+  add("registration information", "off", [](Setting& s) { s.registration_information = false; });
+  for (const char* m : args.quick ? std::vector<const char*>{"constvel"}
+                                  : std::vector<const char*>{"constvel", "imagetoimage"}) {
+    add("method", m, [&](Setting& s) { s.method = m; });
+  }
+  for (const auto& n : args.normals) {
+    if (n != base.normals) add("normals", n, [&](Setting& s) { s.normals = n; });
+  }
+  return out;
+}
+
+std::vector<std::string> default_scenes(bool quick) {
+  const std::string dir = std::string(PG_SOURCE_DIR) + "/scenes/benchmark/";
+  if (quick) return {dir + "cube_00.json", dir + "toy_brick_00.json"};
+  std::vector<std::string> out;
+  for (const char* object : {"cube", "sphere", "toy_brick", "toy_human"}) {
+    for (const char* seq : {"00", "01", "02"}) out.push_back(dir + object + "_" + seq + ".json");
+  }
+  return out;
+}
+
+// The scene rendered at the resolution into the cache (reused when it is there already).
+std::string cached_dataset(const std::string& scene_path, int width, int height, int frames,
+                           const std::vector<std::string>& outputs, const std::string& cache) {
+  const std::string name = fs::path(scene_path).stem().string() + "_" + std::to_string(width) +
+                           "x" + std::to_string(height) + "_" +
+                           (frames > 0 ? std::to_string(frames) : std::string("all"));
+  const std::string dir = (fs::path(cache) / name).string();
+  if (fs::is_regular_file(fs::path(dir) / "poses.csv")) {
+    try {
+      const Dataset d = Dataset::open(dir);
+      bool complete = true;
+      for (const auto& o : outputs) complete = complete && d.info().has_output(o);
+      if (complete) return dir;
+    } catch (const InputError&) {
+      // Incomplete or stale: render again.
+    }
+  }
+  Scene scene = load_scene(scene_path);
+  if (frames > 0) scene.frames = std::min(scene.frames, frames);
+  RenderOverrides overrides;
+  overrides.outputs = outputs;
+  overrides.width = width;
+  overrides.height = height;
+  fs::remove_all(dir);
+  render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir);
+  return dir;
+}
+
+struct RunResult {
+  std::string scene, object;
+  TrackSummary summary;
+};
+
+struct Row {
+  Setting setting;
+  std::vector<RunResult> runs;
+  double median_ms = 0, final_t_m = 0, final_r_rad = 0, rmse_t_m = 0, rmse_r_rad = 0;
+  bool front_t = false, front_r = false;  // on the time-vs-error Pareto front
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+void summarise(Row& row) {
+  std::vector<double> ms, t, r, rt, rr;
+  for (const auto& run : row.runs) {
+    ms.push_back(run.summary.median_frame_ms);
+    t.push_back(run.summary.final_translation_error_m);
+    r.push_back(run.summary.final_rotation_error_rad);
+    rt.push_back(run.summary.translation_rmse_m);
+    rr.push_back(run.summary.rotation_rmse_rad);
+  }
+  row.median_ms = median(ms);
+  row.final_t_m = median(t);
+  row.final_r_rad = median(r);
+  row.rmse_t_m = median(rt);
+  row.rmse_r_rad = median(rr);
+}
+
+// A row is on the front when no other row is at least as fast and at least as accurate, and
+// strictly better in one of the two.
+void mark_pareto(std::vector<Row>& rows) {
+  auto dominated = [&](const Row& a, double Row::*err) {
+    for (const Row& b : rows) {
+      if (&a == &b) continue;
+      if (b.median_ms <= a.median_ms && b.*err <= a.*err &&
+          (b.median_ms < a.median_ms || b.*err < a.*err)) {
+        return true;
+      }
+    }
+    return false;
+  };
+  for (Row& row : rows) {
+    row.front_t = !dominated(row, &Row::final_t_m);
+    row.front_r = !dominated(row, &Row::final_r_rad);
+  }
+}
+
+TrackOptions options_for(const Setting& s, const Dataset& dataset) {
+  TrackArgs a;
+  a.method = s.method;
+  a.normals = s.normals;  // the same path as `patchgraph track --normals`
+  a.window = s.window;
+  a.keyframe_interval = s.keyframe_interval;
+  a.no_registration_information = !s.registration_information;
+  TrackOptions o = make_track_options(a, dataset);
+  o.front_end.icp.max_iterations = s.icp_iterations;
+  o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
+  o.front_end.icp.voxel_size_m = s.voxel_m;
+  return o;
+}
+
+void write_csv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream out(path);
+  out.precision(9);
+  out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
+         "registration_information,icp_iterations,max_correspondence_m,voxel_m,runs,"
+         "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
+         "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
+  for (const Row& r : rows) {
+    const Setting& s = r.setting;
+    out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals
+        << "," << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window
+        << "," << s.registration_information << "," << s.icp_iterations << ","
+        << s.max_correspondence_m << "," << s.voxel_m << "," << r.runs.size() << ","
+        << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << ","
+        << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
+  }
+  if (!out) throw InputError(path + ": cannot write");
+}
+
+void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
+  std::ofstream out(path);
+  out.precision(9);
+  out << "setting,scene,object,frames,final_translation_error_m,final_rotation_error_rad,"
+         "translation_rmse_m,rotation_rmse_rad,median_frame_ms,rejected_registrations\n";
+  for (const Row& r : rows) {
+    for (const RunResult& run : r.runs) {
+      const TrackSummary& s = run.summary;
+      out << r.setting.name() << "," << run.scene << "," << run.object << "," << s.frames << ","
+          << s.final_translation_error_m << "," << s.final_rotation_error_rad << ","
+          << s.translation_rmse_m << "," << s.rotation_rmse_rad << "," << s.median_frame_ms
+          << "," << s.rejected_registrations << "\n";
+    }
+  }
+  if (!out) throw InputError(path + ": cannot write");
+}
+
+std::string markdown_table(const std::vector<Row>& rows) {
+  std::ostringstream md;
+  md << "| setting | median update [ms] | final translation [mm] | final rotation [rad] | "
+        "translation RMSE [mm] | rotation RMSE [rad] | Pareto front |\n"
+        "|---|---:|---:|---:|---:|---:|---|\n";
+  for (const Row& r : rows) {
+    char line[512];
+    const std::string front = r.front_t && r.front_r ? "translation, rotation"
+                              : r.front_t            ? "translation"
+                              : r.front_r            ? "rotation"
+                                                     : "";
+    std::snprintf(line, sizeof(line), "| %s | %.2f | %.3f | %.4f | %.3f | %.4f | %s |\n",
+                  r.setting.name().c_str(), r.median_ms, r.final_t_m * 1e3, r.final_r_rad,
+                  r.rmse_t_m * 1e3, r.rmse_r_rad, front.c_str());
+    md << line;
+  }
+  return md.str();
+}
+
+std::string command(const TrackBenchArgs& a, bool default_scenes_used) {
+  std::string cmd = "patchgraph bench --out " + a.out;
+  if (a.quick) cmd += " --quick";
+  if (a.frames > 0) cmd += " --frames " + std::to_string(a.frames);
+  if (a.threads > 0) cmd += " --threads " + std::to_string(a.threads);
+  if (a.normals.size() != 1 || a.normals[0] != "gt") {
+    cmd += " --normals";
+    for (const auto& n : a.normals) cmd += " " + n;
+  }
+  if (!default_scenes_used) cmd += " --scenes ...";
+  return cmd;
+}
+
+}  // namespace
+
+int run_track_bench(const TrackBenchArgs& in) {
+  TrackBenchArgs args = in;
+  const bool own_scenes = !args.scenes.empty();
+  if (!own_scenes) args.scenes = default_scenes(args.quick);
+  if (args.quick && args.frames == 0) args.frames = 60;
+  if (args.cache.empty()) args.cache = (fs::path(args.out) / "cache").string();
+  std::unique_ptr<tbb::global_control> limit;
+  if (args.threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  args.threads);
+  }
+  const std::vector<Setting> settings = sweep(args);
+  // Learned normals read the colour images; ground truth only the normal images.
+  std::vector<std::string> outputs = {"normal"};
+  for (const auto& s : settings) {
+    if (s.normals != "gt" && outputs.size() == 1) outputs.push_back("color");
+  }
+  fs::create_directories(args.out);
+  const std::string head = "Command: `" + command(in, !own_scenes) + "`  \n" + machine_line() +
+                           "  \nDate: " + utc_now() + "  \n" + std::to_string(args.scenes.size()) +
+                           " scenes x " + std::to_string(settings.size()) +
+                           " settings; per setting the median over the scenes of: each run's "
+                           "median per-frame update time, its final errors and its RMSE.\n\n";
+  // Every setting's options once, on the first scene, before any tracking: a bad normals source
+  // (or any other option) fails now rather than after the sweep's first scene.
+  {
+    const Dataset first = Dataset::open(
+        cached_dataset(args.scenes.front(), Setting().width, Setting().height, args.frames, outputs,
+                       args.cache));
+    for (const auto& s : settings) options_for(s, first);
+  }
+  std::vector<Row> rows(settings.size());
+  for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
+  const int total = int(args.scenes.size() * settings.size());
+  int done = 0;
+  for (const auto& scene : args.scenes) {
+    const std::string scene_name = fs::path(scene).stem().string();
+    for (Row& row : rows) {
+      const Setting& s = row.setting;
+      const std::string dir =
+          cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
+      const Dataset dataset = Dataset::open(dir);
+      const TrackRun run = track_dataset(dataset, options_for(s, dataset));
+      row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
+      ++done;
+      if (!args.quiet) {
+        std::fprintf(stderr, "[%d/%d] %s, %s: final %.3f mm %.4f rad, median %.2f ms\n", done,
+                     total, scene_name.c_str(), s.name().c_str(),
+                     run.summary.final_translation_error_m * 1e3,
+                     run.summary.final_rotation_error_rad, run.summary.median_frame_ms);
+      }
+    }
+  }
+  for (Row& row : rows) summarise(row);
+  mark_pareto(rows);
+  const std::string csv = (fs::path(args.out) / "bench.csv").string();
+  const std::string md_path = (fs::path(args.out) / "bench.md").string();
+  write_csv(csv, rows);
+  write_runs_csv((fs::path(args.out) / "runs.csv").string(), rows);
+  const std::string md = head + markdown_table(rows);
+  std::ofstream(md_path) << md;
+  std::printf("%s", md.c_str());
+  std::printf("wrote %s, %s and %s/runs.csv\n", csv.c_str(), md_path.c_str(), args.out.c_str());
+  if (!args.no_plot && run_plot_script("plot_bench.py", args.out)) {
+    std::printf("wrote %s/bench.png\n", args.out.c_str());
+  }
+  return 0;
+}
+
+}  // namespace pg
