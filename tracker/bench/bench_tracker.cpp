@@ -2,6 +2,8 @@
 //   normals -> cloud     120x160 < 0.3 ms, 240x320 < 1 ms per frame
 //   ICP                  5k points against a 50k-point patch, 10 iterations, tree reused: < 1 ms
 //   Poisson              cropped vs full-image integration of a small contact
+//   back-projection      contact pixels -> points with normals in S
+//   graph update         one PatchGraphTracker::add (registrations + fixed-lag solve), bench_graph
 // Data are analytic (a sphere pressed into the DIGIT gel; a smooth bumpy patch), so the benchmark
 // needs neither the renderer nor files.
 //
@@ -12,6 +14,7 @@
 #include <cmath>
 #include <random>
 
+#include "pg/graph/tracker.h"
 #include "pg/tracker/contact_cloud.h"
 #include "pg/tracker/icp.h"
 
@@ -88,6 +91,24 @@ void BM_PoissonSmallContact(benchmark::State& state, bool crop) {
 }
 BENCHMARK_CAPTURE(BM_PoissonSmallContact, cropped, true)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_PoissonSmallContact, full_image, false)->Unit(benchmark::kMicrosecond);
+
+// Back-projection alone: the contact pixels of a 6 mm sphere pressed 1 mm, into points with
+// normals in S (the cloud the registrations align).
+void BM_BackProjection(benchmark::State& state, const char* preset) {
+  const SphereFrame f = sphere_frame(preset, 0.006, 0.001);
+  ContactCloudBuilder builder(f.sensor, ContactCloudOptions());
+  const ContactFrame frame = builder.build(f.normals);
+  PointCloud cloud;
+  for (auto _ : state) {
+    back_project_contact(builder.rays(), frame.depth.depth, frame.mask.mask, frame.mask.box,
+                         f.normals, cloud);
+    benchmark::DoNotOptimize(cloud.points.data());
+  }
+  state.counters["points"] = double(cloud.size());
+}
+BENCHMARK_CAPTURE(BM_BackProjection, digit_120x160, "digit")->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_BackProjection, digit_240x320, "digit_240x320")
+    ->Unit(benchmark::kMicrosecond);
 
 // A smooth bumpy surface z = A sin(x / l) sin(y / l) with its normals: fully constrained.
 Eigen::Vector3f bumpy_point(float x, float y) {
@@ -209,6 +230,49 @@ void BM_BuildTree50k(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_BuildTree50k)->Arg(1)->Arg(0)->Unit(benchmark::kMillisecond);
+
+// One graph update (PatchGraphTracker::add: image-to-image and image-to-patch ICP, the fixed-lag
+// Levenberg-Marquardt solve, key frames) on a contact that rocks periodically: the bumpy patch
+// (3k points over 4 x 4 mm) seen through a sensor at rest while the object rotates +-3 deg and
+// slides +-0.3 mm with a period of 120 frames. The tracker has seen 60 frames before timing, so
+// its window and patch are full. Argument: the method (0 constvel, 1 imagetoimage, 2 patchgraph).
+void BM_GraphUpdate(benchmark::State& state) {
+  constexpr int kPeriod = 120;
+  PointCloud surface_object;
+  for (int a = 0; a < 55; ++a) {
+    for (int b = 0; b < 55; ++b) {
+      const float x = -0.002f + 0.004f * a / 54, y = -0.002f + 0.004f * b / 54;
+      surface_object.push_back(bumpy_point(x, y), bumpy_normal(x, y));
+    }
+  }
+  std::vector<TrackerInput> inputs(kPeriod);
+  for (int f = 0; f < kPeriod; ++f) {
+    const double phase = 2 * M_PI * f / kPeriod;
+    const SE3 T_world_object = SE3::exp(
+        (Vector6d() << 3e-4 * std::sin(phase), 0, 0, 0.05 * std::sin(phase), 0.03 * std::cos(phase), 0)
+            .finished());
+    TrackerInput& in = inputs[f];
+    in.T_world_sensor_measured = SE3();
+    in.T_world_object_prior = T_world_object;
+    const Eigen::Matrix3f R = T_world_object.rotation_matrix().cast<float>();
+    const Eigen::Vector3f t = T_world_object.translation().cast<float>();
+    for (std::size_t i = 0; i < surface_object.size(); ++i) {
+      in.cloud_sensor.push_back(R * surface_object.points[i] + t, R * surface_object.normals[i]);
+    }
+  }
+  GraphOptions options;
+  options.method = static_cast<Method>(state.range(0));
+  PatchGraphTracker tracker(options);
+  int frame = 0;
+  for (; frame < 60; ++frame) tracker.add(inputs[frame % kPeriod]);
+  for (auto _ : state) {
+    const TrackerEstimate est = tracker.add(inputs[frame++ % kPeriod]);
+    benchmark::DoNotOptimize(est.T_world_object);
+  }
+  state.counters["points"] = double(surface_object.size());
+}
+BENCHMARK(BM_GraphUpdate)->Arg(0)->Arg(1)->Arg(2)->ArgName("method")
+    ->Unit(benchmark::kMicrosecond)->UseRealTime();
 
 }  // namespace
 }  // namespace pg
