@@ -2,6 +2,7 @@
 
 #include <ceres/ceres.h>
 
+#include <array>
 #include <chrono>
 
 #include "pg/core/error.h"
@@ -104,47 +105,51 @@ bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
          rotation_distance(solved, fac.measured) > options_.max_registration_residual_rad;
 }
 
-bool PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(Frame& f,
+                                                                   TrackerEstimate& est) {
   const int t = int(frames_.size()) - 1;
-  if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return false;
+  if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return Outcome::kNotTried;
   const Frame& p = frames_[t - 1];
   // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
   const SE3 T_sp_o = pose_from_block(p.e).inverse() * pose_from_block(p.o);
   const SE3 T_sc_o = pose_from_block(f.e).inverse() * pose_from_block(f.o);
   const SE3 guess = T_sp_o * T_sc_o.inverse();
   const IcpResult r = icp_.align(current_cloud_, *previous_tree_, guess);
-  if (!r.converged) {
-    ++est.unconverged_registrations;
-    return false;
-  }
-  if (!plausible(r, guess)) {
-    ++est.rejected_registrations;
-    return false;
-  }
-  factors_.push_back({FactorKind::kImageToImage, {t - 1, t, -1}, r.T_target_source,
-                      registration_sqrt_info(r, options_.sigma_image_to_image)});
-  est.image_to_image = true;
-  return true;
+  return add_registration(FactorKind::kImageToImage, {t - 1, t, -1}, r, guess,
+                          options_.sigma_image_to_image, est);
 }
 
-bool PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
-  if (patch_.empty()) return false;
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
+  if (patch_.empty()) return Outcome::kNotTried;
   const int t = int(frames_.size()) - 1;
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
   const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
   est.unconstrained_directions = r.degeneracy.unconstrained;
+  return add_registration(FactorKind::kImageToPatch, {t, -1, -1}, r, guess,
+                          options_.sigma_image_to_patch, est);
+}
+
+PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
+                                                               std::array<int, 3> frames,
+                                                               const IcpResult& r,
+                                                               const SE3& guess, double sigma,
+                                                               TrackerEstimate& est) {
   if (!r.converged) {
     ++est.unconverged_registrations;
-    return false;
+    // At the iteration limit the clouds still matched (every point an inlier, as a registration
+    // that is nearly there oscillates below the tight convergence thresholds); with too few
+    // points or matches they did not.
+    return r.status == IcpStatus::kMaxIterations ? Outcome::kNotConverged : Outcome::kFailed;
   }
   if (!plausible(r, guess)) {
     ++est.rejected_registrations;
-    return false;
+    return Outcome::kFailed;
   }
-  factors_.push_back({FactorKind::kImageToPatch, {t, -1, -1}, r.T_target_source,
-                      registration_sqrt_info(r, options_.sigma_image_to_patch)});
-  est.image_to_patch = true;
-  return true;
+  Factor factor{kind, {frames[0], frames[1], frames[2]}, r.T_target_source,
+                registration_sqrt_info(r, sigma)};
+  factors_.push_back(factor);
+  (kind == FactorKind::kImageToPatch ? est.image_to_patch : est.image_to_image) = true;
+  return Outcome::kAccepted;
 }
 
 TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
@@ -200,34 +205,45 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
 
   // Registrations (eq. 5 and 6) at the predicted poses.
   const std::size_t first_registration = factors_.size();
+  // The anchor: image-to-patch where the method has it. Image-to-image alone follows the motion
+  // from a wrong pose as happily as from the right one (after a jump, say), so it cannot tell
+  // whether tracking holds.
+  Outcome anchor = Outcome::kNotTried;
   if (cur.contact) {
     const Method m = options_.method;
-    if (m == Method::kImageToImage || m == Method::kPatchGraph) register_to_previous(cur, est);
-    if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) register_to_patch(cur, est);
+    Outcome to_previous = Outcome::kNotTried, to_patch = Outcome::kNotTried;
+    if (m == Method::kImageToImage || m == Method::kPatchGraph) to_previous = register_to_previous(cur, est);
+    if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) to_patch = register_to_patch(cur, est);
+    anchor = m == Method::kImageToImage ? to_previous : to_patch;
   }
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
   solve(first, options_.solver_iterations);
 
-  // Lost: contact, but no registration constrains the solved pose (none was accepted, or the
-  // solution overrode every one of them: see registration_disagrees).
+  // Registrations the solution overrode (see registration_disagrees) do not hold the pose.
+  const FactorKind anchor_kind = options_.method == Method::kImageToImage
+                                     ? FactorKind::kImageToImage
+                                     : FactorKind::kImageToPatch;
+  for (std::size_t k = first_registration; k < factors_.size(); ++k) {
+    if (!registration_disagrees(factors_[k])) continue;
+    ++est.overridden_registrations;
+    if (factors_[k].kind == anchor_kind) anchor = Outcome::kFailed;
+  }
+  // Lost: contact, but for lost_after_frames frames the anchor failed to match, was rejected or
+  // was overridden.
+  const bool anchor_failed = anchor == Outcome::kFailed;
   if (cur.contact) {
-    int agreeing = 0;
-    for (std::size_t k = first_registration; k < factors_.size(); ++k) {
-      if (registration_disagrees(factors_[k])) {
-        ++est.overridden_registrations;
-      } else {
-        ++agreeing;
-      }
-    }
-    unregistered_frames_ = agreeing > 0 || est.new_episode ? 0 : unregistered_frames_ + 1;
+    unregistered_frames_ = anchor_failed && !est.new_episode ? unregistered_frames_ + 1 : 0;
     est.tracking_lost = options_.method != Method::kConstVel && options_.lost_after_frames > 0 &&
                         unregistered_frames_ >= options_.lost_after_frames;
   }
 
-  // Key frame: fuse the cloud into the patch with the solved pose.
+  // Key frame: fuse the cloud into the patch with the solved pose, unless the patch registration
+  // failed: after a jump, say, the cloud would be fused at a wrong pose, and every later
+  // registration would agree with the polluted patch instead of reporting the loss. The next
+  // frame whose registration holds takes its place.
   Frame& solved = frames_.back();
-  if (options_.method == Method::kPatchGraph && solved.contact &&
+  if (options_.method == Method::kPatchGraph && solved.contact && !anchor_failed &&
       (last_keyframe_ < 0 || t - last_keyframe_ >= options_.patch.keyframe_interval)) {
     patch_.add_keyframe(current_cloud_,
                         pose_from_block(solved.o).inverse() * pose_from_block(solved.e));

@@ -3,6 +3,7 @@
 // graph (paper eq. 3): object poses o_t and sensor poses e_t, with image-to-image (eq. 5),
 // image-to-patch (eq. 6), constant-velocity (eq. 7), end-effector (eq. 8) and vision (eq. 9)
 // factors, solved by Ceres over a sliding window.
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -50,11 +51,11 @@ struct GraphOptions {
   // (TrackerEstimate::overridden_registrations) and does not count as registered below.
   double max_registration_residual_m = 1e-3;
   double max_registration_residual_rad = 0.05;
-  // Tracking is reported lost (TrackerEstimate::tracking_lost) once this many consecutive
-  // contact frames of an episode got no registration that the solved pose agrees with (none
-  // converged, every one was rejected or overridden): the pose then rests on the priors alone.
-  // A new episode or an agreeing registration clears it. Methods without registrations
-  // (constvel) never report it; 0: never.
+  // Tracking is reported lost (TrackerEstimate::tracking_lost) once the anchoring registration
+  // (image-to-patch; image-to-image for that method) failed in this many consecutive contact
+  // frames: too few points or matches within max_correspondence_m, an implausible jump, or a
+  // solution that overrode it. While it fails no key frame is taken. A new episode or a
+  // registration that holds clears it. constvel never reports it; 0: never.
   int lost_after_frames = 3;
   int window = 5;               // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;   // Levenberg-Marquardt iterations per update
@@ -118,9 +119,18 @@ class PatchGraphTracker {
     SE3 measured;
     Matrix6d sqrt_info;
   };
+  // What became of one registration.
+  enum class Outcome {
+    kNotTried,      // nothing to register against (no previous cloud, empty patch)
+    kAccepted,      // a factor was added
+    kNotConverged,  // iteration limit, the clouds still matched: no factor, no alarm
+    kFailed,        // too few points or matches, an implausible jump, or overridden
+  };
   void solve(int first_frame, int iterations);
-  bool register_to_patch(Frame& f, TrackerEstimate& est);
-  bool register_to_previous(Frame& f, TrackerEstimate& est);
+  Outcome register_to_patch(Frame& f, TrackerEstimate& est);
+  Outcome register_to_previous(Frame& f, TrackerEstimate& est);
+  Outcome add_registration(FactorKind kind, std::array<int, 3> frames, const IcpResult& r,
+                           const SE3& guess, double sigma, TrackerEstimate& est);
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
   bool plausible(const IcpResult& r, const SE3& guess) const;
   bool registration_disagrees(const Factor& factor) const;
@@ -131,7 +141,7 @@ class PatchGraphTracker {
   std::vector<Frame> frames_;
   std::vector<Factor> factors_;
   bool in_episode_ = false;
-  int unregistered_frames_ = 0;  // consecutive contact frames without an agreeing registration
+  int unregistered_frames_ = 0;  // consecutive contact frames whose anchor failed
   int last_keyframe_ = -1;
   std::unique_ptr<PointCloudTree> previous_tree_;  // the previous frame's cloud, for eq. 5
   PointCloud current_cloud_;
