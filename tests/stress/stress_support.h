@@ -36,7 +36,7 @@ struct StressFrame {
   bool finite = false;  // the estimate's poses are finite
   int cloud_points = 0;
   int rejected_normals = 0;
-  double frame_ms = 0;  // front end + tracker update
+  double frame_ms = 0;  // front end + tracker update, this thread's CPU time
 };
 
 struct StressRun {

@@ -172,6 +172,12 @@ TEST(StressScale, PressesFromOneMicrometreToBeyondTheGel) {
       EXPECT_GT(frame.stats.clamped_pixels, 0) << "clamping is reported";
     }
     const ContactFrame contact = builder.build(frame.images.normal);
+    std::printf("[stress] press %.3f mm: %s, rendered contact %d px, clamped %d px, deepest %.3f "
+                "mm; front end %s, %zu points\n",
+                press * 1e3, frame.stats.contact ? "contact" : "no contact",
+                frame.stats.contact_pixels, frame.stats.clamped_pixels, deepest * 1e3,
+                contact.status == ContactStatus::kContact ? "contact" : "no contact",
+                contact.cloud_sensor.size());
     EXPECT_TRUE(all_finite(contact.depth.depth));
     EXPECT_TRUE(all_finite(contact.cloud_sensor));
     if (press <= 1e-5) {
@@ -200,6 +206,8 @@ TEST(StressScale, SteepContactEdges) {
   EXPECT_TRUE(all_finite(contact.depth.depth));
   EXPECT_TRUE(all_finite(contact.cloud_sensor));
   EXPECT_EQ(contact.status, ContactStatus::kContact);
+  std::printf("[stress] steep edges: min n.z %.3f, %d normals clamped by the eq. 4 guard, %zu "
+              "points\n", min_nz, contact.depth.clamped_normals, contact.cloud_sensor.size());
 
   ImageF bad = normals;
   const int w = bad.width, h = bad.height;
@@ -218,6 +226,8 @@ TEST(StressScale, SteepContactEdges) {
   float largest = 0;
   for (float u : contact.depth.depth.data) largest = std::max(largest, std::abs(u));
   EXPECT_LT(largest, 0.05f) << "indentation bounded";
+  std::printf("[stress] impossible normals: %d rejected, largest |indentation| %.3f mm\n",
+              contact.rejected_normals, largest * 1e3);
 }
 
 }  // namespace
