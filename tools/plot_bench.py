@@ -44,13 +44,18 @@ def main(out):
     for ax, (key, label, scale) in zip(axes, panels):
         pts = [(float(r["median_frame_ms"]), max(float(r[key]) * scale, 1e-6)) for r in rows]
         for r, (t, e) in zip(rows, pts):
-            ax.scatter(t, e, s=70 if r["knob"] == "default" else 30,
-                       marker="*" if r["knob"] == "default" else "o",
-                       color=KNOB_COLORS.get(r["knob"], "#333333"), zorder=3)
+            default = r["knob"] == "default"
+            ax.scatter(t, e, s=160 if default else 30, marker="*" if default else "o",
+                       color=KNOB_COLORS.get(r["knob"], "#333333"), zorder=5 if default else 3)
+            if default:
+                ax.annotate("default", (t, e), textcoords="offset points", xytext=(-8, -14),
+                            fontsize=8, fontweight="bold")
         idx = front(pts)
         ax.plot([pts[i][0] for i in idx], [pts[i][1] for i in idx], "--", color="#444444",
                 zorder=2, label="Pareto front")
         for i in idx:
+            if rows[i]["knob"] == "default":
+                continue
             ax.annotate(rows[i]["setting"], pts[i], textcoords="offset points", xytext=(5, 4),
                         fontsize=7)
         ax.set_xscale("log")
