@@ -43,7 +43,8 @@ struct Contact {
         const int i = gel.index(x, y);
         // First hit of origin + d t with the sphere; indentation where it is in front of the gel.
         const Eigen::Vector3f d = gel.dir_sensor[i], oc = gel.origin_sensor - c;
-        const float a = d.squaredNorm(), b = 2 * d.dot(oc), cc = oc.squaredNorm() - kRadius * kRadius;
+        const float a = d.squaredNorm(), b = 2 * d.dot(oc),
+                    cc = oc.squaredNorm() - kRadius * kRadius;
         const float disc = b * b - 4 * a * cc;
         if (disc <= 0) continue;
         const float t = (-b - std::sqrt(disc)) / (2 * a);
@@ -139,7 +140,8 @@ void BM_Shading(benchmark::State& state) {
       const int i = c.gel.index(x, y);
       const Eigen::Vector3f p = c.gel.point(i, c.rigid[i]);
       px.push_back(p.x()), py.push_back(p.y()), pz.push_back(p.z());
-      nx.push_back(normals[3 * i]), ny.push_back(normals[3 * i + 1]), nz.push_back(normals[3 * i + 2]);
+      nx.push_back(normals[3 * i]), ny.push_back(normals[3 * i + 1]),
+          nz.push_back(normals[3 * i + 2]);
     }
   }
   std::vector<float> rgb(std::size_t(n) * 3);

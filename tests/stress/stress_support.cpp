@@ -1,11 +1,11 @@
 #include "stress_support.h"
 
 #include <algorithm>
-#include <ctime>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 
 #include "pg/sim/scene.h"
 
@@ -21,7 +21,8 @@ bool long_cases_enabled() {
 }
 
 bool all_finite(const ImageF& image) {
-  return std::all_of(image.data.begin(), image.data.end(), [](float v) { return std::isfinite(v); });
+  return std::all_of(image.data.begin(), image.data.end(),
+                     [](float v) { return std::isfinite(v); });
 }
 
 bool all_finite(const PointCloud& cloud) {
@@ -93,13 +94,14 @@ double StressRun::max_translation_error_m() const {
 void StressRun::print(const std::string& name) const {
   double max_r = 0;
   for (const auto& f : frames) max_r = std::max(max_r, f.rotation_error_rad);
-  std::printf("[stress] %s: %zu frames, %d contact, %d episodes, lost %d, rejected %d, "
-              "unconverged %d, overridden %d; max error %.3f mm %.4f rad, final %.3f mm %.4f rad, "
-              "last episode max %.3f mm\n",
-              name.c_str(), frames.size(), contact_frames, episodes, lost_frames,
-              rejected_registrations, unconverged_registrations, overridden_registrations,
-              max_translation_error_m() * 1e3, max_r, last().translation_error_m * 1e3,
-              last().rotation_error_rad, last_episode_max_translation_m() * 1e3);
+  std::printf(
+      "[stress] %s: %zu frames, %d contact, %d episodes, lost %d, rejected %d, "
+      "unconverged %d, overridden %d; max error %.3f mm %.4f rad, final %.3f mm %.4f rad, "
+      "last episode max %.3f mm\n",
+      name.c_str(), frames.size(), contact_frames, episodes, lost_frames, rejected_registrations,
+      unconverged_registrations, overridden_registrations, max_translation_error_m() * 1e3, max_r,
+      last().translation_error_m * 1e3, last().rotation_error_rad,
+      last_episode_max_translation_m() * 1e3);
 }
 
 ClosedLoop::ClosedLoop(std::shared_ptr<const ObjectShape> shape, const std::string& preset)

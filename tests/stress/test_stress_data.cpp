@@ -175,7 +175,8 @@ TEST(StressDataInMemory, NonFiniteTrackerInputs) {
     if (frame >= 20 && frame < 23) in.T_world_sensor_measured = SE3::Translation({nan, 0, 0});
     if (frame == 60) in.T_world_object_prior = SE3::Translation({0, nan, 0});
     if (frame >= 30 && frame < 33 && !in.cloud_sensor.empty()) {
-      for (std::size_t i = 0; i < in.cloud_sensor.size(); i += 7) in.cloud_sensor.points[i].x() = NAN;
+      for (std::size_t i = 0; i < in.cloud_sensor.size(); i += 7)
+        in.cloud_sensor.points[i].x() = NAN;
       in.cloud_sensor.normals[1].y() = INFINITY;
     }
   };

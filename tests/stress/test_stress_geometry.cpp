@@ -21,7 +21,8 @@ std::shared_ptr<const ObjectShape> shape(TriangleMesh mesh) {
 
 // z error of the object's origin in S: the direction a pressed face always shows.
 double z_error_m(const StressFrame& f) {
-  return std::abs(f.estimate.T_world_object.translation().z() - f.T_world_object_gt.translation().z());
+  return std::abs(f.estimate.T_world_object.translation().z() -
+                  f.T_world_object_gt.translation().z());
 }
 
 int max_unconstrained(const StressRun& run) {
@@ -138,10 +139,11 @@ TEST(StressScale, ObjectsFrom1To50Millimetres) {
     ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
     int min_points = 1 << 30;
     for (const auto& f : run.frames) min_points = std::min(min_points, f.cloud_points);
-    std::printf("diameter %4.0f mm: contact %d/30 frames, episodes %d, >= %d points, lost %d, "
-                "unconverged %d, max error %.3f mm\n",
-                diameter_mm, run.contact_frames, run.episodes, min_points, run.lost_frames,
-                run.unconverged_registrations, run.max_translation_error_m() * 1e3);
+    std::printf(
+        "diameter %4.0f mm: contact %d/30 frames, episodes %d, >= %d points, lost %d, "
+        "unconverged %d, max error %.3f mm\n",
+        diameter_mm, run.contact_frames, run.episodes, min_points, run.lost_frames,
+        run.unconverged_registrations, run.max_translation_error_m() * 1e3);
     if (diameter_mm >= 2.0) {
       EXPECT_EQ(run.contact_frames, 30);
       EXPECT_LT(run.max_translation_error_m(), 5e-4);
@@ -172,12 +174,13 @@ TEST(StressScale, PressesFromOneMicrometreToBeyondTheGel) {
       EXPECT_GT(frame.stats.clamped_pixels, 0) << "clamping is reported";
     }
     const ContactFrame contact = builder.build(frame.images.normal);
-    std::printf("[stress] press %.3f mm: %s, rendered contact %d px, clamped %d px, deepest %.3f "
-                "mm; front end %s, %zu points\n",
-                press * 1e3, frame.stats.contact ? "contact" : "no contact",
-                frame.stats.contact_pixels, frame.stats.clamped_pixels, deepest * 1e3,
-                contact.status == ContactStatus::kContact ? "contact" : "no contact",
-                contact.cloud_sensor.size());
+    std::printf(
+        "[stress] press %.3f mm: %s, rendered contact %d px, clamped %d px, deepest %.3f "
+        "mm; front end %s, %zu points\n",
+        press * 1e3, frame.stats.contact ? "contact" : "no contact", frame.stats.contact_pixels,
+        frame.stats.clamped_pixels, deepest * 1e3,
+        contact.status == ContactStatus::kContact ? "contact" : "no contact",
+        contact.cloud_sensor.size());
     EXPECT_TRUE(all_finite(contact.depth.depth));
     EXPECT_TRUE(all_finite(contact.cloud_sensor));
     if (press <= 1e-5) {
@@ -194,11 +197,13 @@ TEST(StressScale, PressesFromOneMicrometreToBeyondTheGel) {
 // tangent (n.z = 0), pointing into the gel (n.z < 0), zero and non-finite normals.
 TEST(StressScale, SteepContactEdges) {
   const ClosedLoop loop(shape(make_box({0.004f, 0.003f, 0.005f})));
-  const ImageF normals = loop.normals(SE3(
-      Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())), {0, 0, 0.005 - 0.0015}));
+  const ImageF normals =
+      loop.normals(SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())),
+                       {0, 0, 0.005 - 0.0015}));
   ASSERT_TRUE(all_finite(normals));
   float min_nz = 1;
-  for (std::size_t i = 2; i < normals.data.size(); i += 3) min_nz = std::min(min_nz, normals.data[i]);
+  for (std::size_t i = 2; i < normals.data.size(); i += 3)
+    min_nz = std::min(min_nz, normals.data[i]);
   EXPECT_LT(min_nz, 0.3f) << "the case must reach steep normals";
   ContactCloudBuilder builder(loop.render_case().sensor, ContactCloudOptions());
   ContactFrame contact = builder.build(normals);
@@ -206,12 +211,14 @@ TEST(StressScale, SteepContactEdges) {
   EXPECT_TRUE(all_finite(contact.depth.depth));
   EXPECT_TRUE(all_finite(contact.cloud_sensor));
   EXPECT_EQ(contact.status, ContactStatus::kContact);
-  std::printf("[stress] steep edges: min n.z %.3f, %d normals clamped by the eq. 4 guard, %zu "
-              "points\n", min_nz, contact.depth.clamped_normals, contact.cloud_sensor.size());
+  std::printf(
+      "[stress] steep edges: min n.z %.3f, %d normals clamped by the eq. 4 guard, %zu "
+      "points\n",
+      min_nz, contact.depth.clamped_normals, contact.cloud_sensor.size());
 
   ImageF bad = normals;
   const int w = bad.width, h = bad.height;
-  const float values[][3] = {{1, 0, 0}, {0, -1, 0}, {0.3f, 0, -0.95f}, {0, 0, 0},
+  const float values[][3] = {{1, 0, 0},   {0, -1, 0},       {0.3f, 0, -0.95f}, {0, 0, 0},
                              {NAN, 0, 1}, {INFINITY, 0, 0}, {0, 0, -1}};
   for (int y = h / 2 - 20; y < h / 2 + 20; ++y) {
     for (int x = w / 2 - 20; x < w / 2 + 20; ++x) {

@@ -37,8 +37,10 @@ StressRun track_jump(const SE3& jump) {
 void expect_jump_reported_or_followed(const StressRun& run) {
   ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
   double worst_after_jump = 0;
-  for (int f = 30; f < 60; ++f) worst_after_jump = std::max(worst_after_jump, run.frames[f].translation_error_m);
-  const bool reported = run.lost_frames + run.rejected_registrations + run.overridden_registrations > 0;
+  for (int f = 30; f < 60; ++f)
+    worst_after_jump = std::max(worst_after_jump, run.frames[f].translation_error_m);
+  const bool reported =
+      run.lost_frames + run.rejected_registrations + run.overridden_registrations > 0;
   EXPECT_TRUE(worst_after_jump < 1e-3 || reported)
       << "silent divergence: " << worst_after_jump * 1e3 << " mm after the jump, nothing reported";
   EXPECT_EQ(run.episodes, 2);
@@ -107,7 +109,7 @@ TEST(StressMotion, DuplicatedAndMissingFrames) {
   const std::vector<SE3> loop = cube_rocking(120);
   std::vector<SE3> poses;
   for (int f = 0; f < 120; ++f) {
-    if (f >= 50 && f < 56) continue;            // dropped
+    if (f >= 50 && f < 56) continue;                // dropped
     const int copies = f == 20 || f == 80 ? 5 : 1;  // stalled
     for (int c = 0; c < copies; ++c) poses.push_back(loop[f]);
   }
@@ -120,7 +122,8 @@ TEST(StressMotion, DuplicatedAndMissingFrames) {
 
 // 10,000 frames of the rocking corner (long option): bounded error, per-frame time flat.
 TEST(StressMotion, TenThousandFrames) {
-  if (!long_cases_enabled()) GTEST_SKIP() << "long case: set PG_STRESS_LONG=1 or -DPG_STRESS_LONG=ON";
+  if (!long_cases_enabled())
+    GTEST_SKIP() << "long case: set PG_STRESS_LONG=1 or -DPG_STRESS_LONG=ON";
   const int n = 10000;
   // One thread, CPU time per frame: the comparison below must not depend on the machine's load.
   const tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
@@ -133,8 +136,10 @@ TEST(StressMotion, TenThousandFrames) {
   for (int f = 100; f < 1100; ++f) head.push_back(run.frames[f].frame_ms);
   for (int f = n - 1000; f < n; ++f) tail.push_back(run.frames[f].frame_ms);
   EXPECT_LT(median(tail), 1.5 * median(head)) << "per-frame cost must not grow with the sequence";
-  std::printf("[stress] TenThousandFrames: median update %.3f ms (frames 100-1099), %.3f ms (last "
-              "1000)\n", median(head), median(tail));
+  std::printf(
+      "[stress] TenThousandFrames: median update %.3f ms (frames 100-1099), %.3f ms (last "
+      "1000)\n",
+      median(head), median(tail));
 }
 
 }  // namespace

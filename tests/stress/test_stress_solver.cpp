@@ -43,12 +43,12 @@ TEST(StressSolver, BadlyScaledSigmasOneAtATime) {
           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
       EXPECT_LT(seconds, 20.0) << "no update may hang";
-      std::printf("sigma %-14s %7.0e: final %.3f mm %.4f rad, max %.3f mm, lost %d, rejected %d, "
-                  "overridden %d, %.1f s\n",
-                  c.name, sigma, run.last().translation_error_m * 1e3,
-                  run.last().rotation_error_rad, run.max_translation_error_m() * 1e3,
-                  run.lost_frames, run.rejected_registrations, run.overridden_registrations,
-                  seconds);
+      std::printf(
+          "sigma %-14s %7.0e: final %.3f mm %.4f rad, max %.3f mm, lost %d, rejected %d, "
+          "overridden %d, %.1f s\n",
+          c.name, sigma, run.last().translation_error_m * 1e3, run.last().rotation_error_rad,
+          run.max_translation_error_m() * 1e3, run.lost_frames, run.rejected_registrations,
+          run.overridden_registrations, seconds);
       // Divergence is never silent: an estimate that ends far off was reported on the way.
       if (run.max_translation_error_m() > 2e-3) {
         EXPECT_GT(run.lost_frames + run.rejected_registrations + run.overridden_registrations, 0);
@@ -77,8 +77,9 @@ TEST(StressSolver, AllSigmasScaledTogether) {
 TEST(StressSolver, VisionPriorFarFromTheTruth) {
   std::vector<SE3> poses = cube_rocking(120);
   for (int f = 60; f < 70; ++f) poses[f] = shifted(poses[f], {0, 0, 0.003});  // contact lost
-  const SE3 offset(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized())),
-                   Eigen::Vector3d(0.005, 0, 0));
+  const SE3 offset(
+      Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized())),
+      Eigen::Vector3d(0.005, 0, 0));
   StressHooks hooks;
   hooks.corrupt_input = [&](int frame, TrackerInput& in) {
     if (frame < 60) in.T_world_object_prior = in.T_world_object_prior * offset;

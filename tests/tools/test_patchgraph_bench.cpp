@@ -24,7 +24,8 @@ std::vector<std::string> split(const std::string& line) {
 
 TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   TempDir tmp;
-  const auto r = testing_support::run_command(PATCHGRAPH_PATH, "bench --quick -q --out " + tmp.str("b"));
+  const auto r =
+      testing_support::run_command(PATCHGRAPH_PATH, "bench --quick -q --out " + tmp.str("b"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("| setting | median update [ms]"), std::string::npos) << r.out;
 
@@ -45,16 +46,17 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     ASSERT_EQ(cells.size(), header.size()) << line;
     settings.push_back(cells[column["setting"]]);
     EXPECT_EQ(cells[column["runs"]], "2") << line;
-    for (const char* c : {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
+    for (const char* c :
+         {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
       const double v = std::stod(cells[column[c]]);
       EXPECT_TRUE(std::isfinite(v) && v >= 0) << c << " in " << line;
     }
     EXPECT_GT(std::stod(cells[column["median_frame_ms"]]), 0.0) << line;
     on_front += cells[column["pareto_translation"]] == "1";
   }
-  const std::vector<std::string> expected = {"default", "resolution 240x320", "voxel 0.2 mm",
-                                             "window 3", "registration information off",
-                                             "method constvel"};
+  const std::vector<std::string> expected = {
+      "default",  "resolution 240x320",           "voxel 0.2 mm",
+      "window 3", "registration information off", "method constvel"};
   EXPECT_EQ(settings, expected);
   EXPECT_GE(on_front, 1);
   EXPECT_TRUE(fs::exists(tmp.str("b/bench.md")));
@@ -65,7 +67,8 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
 TEST(PatchgraphBench, UnknownNormalsSourceFailsBeforeTracking) {
   TempDir tmp;
   const auto r = testing_support::run_command(
-      PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals gt no_such_model.pt --out " + tmp.str("b"));
+      PATCHGRAPH_PATH,
+      "bench --quick -q --no-plot --normals gt no_such_model.pt --out " + tmp.str("b"));
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
 }

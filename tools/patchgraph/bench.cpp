@@ -65,7 +65,8 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
       add("ICP iterations", std::to_string(n), [&](Setting& s) { s.icp_iterations = n; });
     }
     for (double mm : {0.5, 2.0, 4.0}) {
-      add("correspondence", fmt("%g mm", mm), [&](Setting& s) { s.max_correspondence_m = mm * 1e-3; });
+      add("correspondence", fmt("%g mm", mm),
+          [&](Setting& s) { s.max_correspondence_m = mm * 1e-3; });
     }
   }
   for (double mm : args.quick ? std::vector<double>{0.2} : std::vector<double>{0.1, 0.2, 0.4}) {
@@ -200,12 +201,12 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
     const Setting& s = r.setting;
-    out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals
-        << "," << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window
-        << "," << s.registration_information << "," << s.icp_iterations << ","
-        << s.max_correspondence_m << "," << s.voxel_m << "," << r.runs.size() << ","
-        << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << ","
-        << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
+    out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals << ","
+        << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
+        << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
+        << "," << s.voxel_m << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m
+        << "," << r.final_r_rad << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t
+        << "," << r.front_r << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
@@ -220,8 +221,8 @@ void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
       const TrackSummary& s = run.summary;
       out << r.setting.name() << "," << run.scene << "," << run.object << "," << s.frames << ","
           << s.final_translation_error_m << "," << s.final_rotation_error_rad << ","
-          << s.translation_rmse_m << "," << s.rotation_rmse_rad << "," << s.median_frame_ms
-          << "," << s.rejected_registrations << "\n";
+          << s.translation_rmse_m << "," << s.rotation_rmse_rad << "," << s.median_frame_ms << ","
+          << s.rejected_registrations << "\n";
     }
   }
   if (!out) throw InputError(path + ": cannot write");
@@ -287,9 +288,8 @@ int run_track_bench(const TrackBenchArgs& in) {
   // Every setting's options once, on the first scene, before any tracking: a bad normals source
   // (or any other option) fails now rather than after the sweep's first scene.
   {
-    const Dataset first = Dataset::open(
-        cached_dataset(args.scenes.front(), Setting().width, Setting().height, args.frames, outputs,
-                       args.cache));
+    const Dataset first = Dataset::open(cached_dataset(
+        args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
     for (const auto& s : settings) options_for(s, first);
   }
   std::vector<Row> rows(settings.size());

@@ -13,9 +13,9 @@ struct TrackBenchArgs {
   // Normals sources: each one besides "gt" adds a row at the default settings, tracked through
   // the same code path as `patchgraph track --normals SOURCE`.
   std::vector<std::string> normals = {"gt"};
-  int frames = 0;     // frames per scene (0: the scene's own, 300)
-  int threads = 0;    // oneTBB threads (0: all cores)
-  bool quick = false; // 2 scenes x 60 frames, 6 settings: a smoke test
+  int frames = 0;      // frames per scene (0: the scene's own, 300)
+  int threads = 0;     // oneTBB threads (0: all cores)
+  bool quick = false;  // 2 scenes x 60 frames, 6 settings: a smoke test
   bool no_plot = false;
   bool quiet = false;
 };

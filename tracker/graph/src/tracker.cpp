@@ -22,7 +22,9 @@ int copy_finite_points(const PointCloud& in, PointCloud& out) {
   out.clear();
   out.reserve(in.size());
   for (std::size_t i = 0; i < in.size(); ++i) {
-    if (in.points[i].allFinite() && in.normals[i].allFinite()) out.push_back(in.points[i], in.normals[i]);
+    if (in.points[i].allFinite() && in.normals[i].allFinite()) {
+      out.push_back(in.points[i], in.normals[i]);
+    }
   }
   return int(in.size() - out.size());
 }
@@ -212,8 +214,12 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   if (cur.contact) {
     const Method m = options_.method;
     Outcome to_previous = Outcome::kNotTried, to_patch = Outcome::kNotTried;
-    if (m == Method::kImageToImage || m == Method::kPatchGraph) to_previous = register_to_previous(cur, est);
-    if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) to_patch = register_to_patch(cur, est);
+    if (m == Method::kImageToImage || m == Method::kPatchGraph) {
+      to_previous = register_to_previous(cur, est);
+    }
+    if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) {
+      to_patch = register_to_patch(cur, est);
+    }
     anchor = m == Method::kImageToImage ? to_previous : to_patch;
   }
 
