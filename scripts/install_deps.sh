@@ -5,7 +5,7 @@ packages=(
   cmake g++ make pkg-config
   libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
-  libcli11-dev libgtest-dev libbenchmark-dev
+  libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev
   python3-matplotlib
 )
 missing=()

@@ -26,14 +26,14 @@ CliRun run(const std::string& binary, const std::string& args) {
 
 CliRun patchgraph(const std::string& args) { return run(PATCHGRAPH_PATH, args); }
 
-// One small dataset for the whole suite: the default cube scene, 60 frames, normals only.
+// One small dataset for the whole suite: the default cube scene, 60 frames.
 class PatchgraphCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = fs::temp_directory_path() / ("pg_pgcli_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                          "/scenes/default.json -q --outputs normal,mask --out " +
+                                          "/scenes/default.json -q --outputs color,normal,mask --out " +
                                           (dir_ / "data").string());
     ASSERT_EQ(r.code, 0) << r.out;
   }
@@ -58,7 +58,43 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_NE(r.out.find("unknown method 'icpgraph'"), std::string::npos) << r.out;
   r = patchgraph("track " + data() + " --normals unet.pt --out " + out("x"));
   EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("--normals"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("unet.pt: model file not found"), std::string::npos) << r.out;
+  r = patchgraph("eval-normals --model unet.pt --data " + data());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("unet.pt: model file not found"), std::string::npos) << r.out;
+  r = patchgraph("train-normals --data /no/such/data --out " + out("m.pt"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("/no/such/data"), std::string::npos) << r.out;
+  r = patchgraph("train-normals --data " + data() + " --arch vgg --out " + out("m.pt"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--arch"), std::string::npos) << r.out;
+}
+
+const std::string kDefaultModel = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
+
+TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
+  const CliRun r = patchgraph("track " + data() + " -q --normals " + kDefaultModel + " --out " +
+                              out("track_unet"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto summary = parse_json_file(out("track_unet") + "/summary.json");
+  EXPECT_EQ(summary["normals"], kDefaultModel);
+  EXPECT_GT(summary["median_normals_ms"].get<double>(), 0.0);
+  EXPECT_GT(summary["contact_frames"].get<int>(), 50);
+  EXPECT_LT(summary["final_translation_error_m"].get<double>(), 2e-3);
+  EXPECT_LT(summary["final_rotation_error_rad"].get<double>(), 0.05);
+}
+
+TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
+  const CliRun r = patchgraph("eval-normals -q --model " + kDefaultModel + " --data " + data() +
+                              " --json " + out("normals.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("MSE contact"), std::string::npos) << r.out;
+  const auto j = parse_json_file(out("normals.json"));
+  ASSERT_EQ(j["results"].size(), 1u);
+  EXPECT_EQ(j["results"][0]["frames"], 60);
+  const double angle = j["results"][0]["angle_contact_deg"].get<double>();
+  EXPECT_GT(angle, 0.0);
+  EXPECT_LT(angle, 30.0);
 }
 
 TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {

@@ -11,9 +11,10 @@ namespace pg {
 
 class Progress {
  public:
-  Progress(std::string label, int total, bool enabled = true)
-      : label_(std::move(label)), total_(total), enabled_(enabled), tty_(isatty(fileno(stderr))),
-        start_(std::chrono::steady_clock::now()) {}
+  // `unit` names what is counted ("frames" prints a rate in fps).
+  Progress(std::string label, int total, bool enabled = true, std::string unit = "frames")
+      : label_(std::move(label)), unit_(std::move(unit)), total_(total), enabled_(enabled),
+        tty_(isatty(fileno(stderr))), start_(std::chrono::steady_clock::now()) {}
 
   void update(int done) {
     if (!enabled_ || total_ <= 0) return;
@@ -30,13 +31,15 @@ class Progress {
     last_draw_ = now;
     const double rate = elapsed > 0 ? done / elapsed : 0.0;
     const double eta = rate > 0 ? (total_ - done) / rate : 0.0;
-    std::fprintf(stderr, "%s%s %d/%d frames  %.1f fps  ETA %.1f s%s", tty_ ? "\r" : "",
-                 label_.c_str(), done, total_, rate, eta, tty_ && !last ? "   " : "\n");
+    const std::string rate_unit = unit_ == "frames" ? "fps" : unit_ + "/s";
+    std::fprintf(stderr, "%s%s %d/%d %s  %.1f %s  ETA %.1f s%s", tty_ ? "\r" : "",
+                 label_.c_str(), done, total_, unit_.c_str(), rate, rate_unit.c_str(), eta,
+                 tty_ && !last ? "   " : "\n");
     std::fflush(stderr);
   }
 
  private:
-  std::string label_;
+  std::string label_, unit_;
   int total_;
   bool enabled_, tty_;
   int last_decile_ = -1;

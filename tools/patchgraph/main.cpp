@@ -1,6 +1,8 @@
 // patchgraph: the tracker's command line.
 //   patchgraph track DATASET --method M --normals gt --out OUT
 //   patchgraph eval --datasets DIR... --methods M... --out OUT
+//   patchgraph train-normals --data DIR... --arch unet|resnet|mlp --out MODEL
+//   patchgraph eval-normals --model MODEL --data DIR...
 //   patchgraph bench [--quick] --out OUT
 #include <cstdio>
 #include <filesystem>
@@ -9,6 +11,7 @@
 #include "../common/progress.h"
 #include "bench.h"
 #include "eval.h"
+#include "normals_cli.h"
 #include "track_args.h"
 
 namespace pg {
@@ -28,6 +31,10 @@ int run_track(const TrackArgs& a) {
     std::fprintf(stderr, "warning: %d registrations were rejected as implausible jumps\n",
                  s.rejected_registrations);
   }
+  if (s.lost_frames > 0) {
+    std::fprintf(stderr, "warning: tracking was reported lost in %d frame(s) (errors.csv)\n",
+                 s.lost_frames);
+  }
   std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
               s.final_rotation_error_rad);
   std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3, s.rotation_rmse_rad);
@@ -38,6 +45,9 @@ int run_track(const TrackArgs& a) {
   }
   std::printf("per-frame update median %.3f ms (%.0f Hz), mean %.3f ms -> %s\n", s.median_frame_ms,
               s.hz, s.mean_frame_ms, a.out.c_str());
+  if (s.normals != "gt") {
+    std::printf("of which normals from the model: median %.3f ms\n", s.median_normals_ms);
+  }
   return kExitOk;
 }
 
@@ -81,7 +91,14 @@ int main(int argc, char** argv) {
   cmd_bench->add_flag("--no-plot", bench.no_plot, "Skip the matplotlib plot");
   cmd_bench->add_flag("--quiet,-q", bench.quiet, "No progress lines");
 
+  TrainNormalsArgs train_normals_args;
+  CLI::App* cmd_train_normals = add_train_normals_command(app, train_normals_args);
+  EvalNormalsArgs eval_normals_args;
+  CLI::App* cmd_eval_normals = add_eval_normals_command(app, eval_normals_args);
+
   return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_train_normals->parsed()) return run_train_normals(train_normals_args);
+    if (cmd_eval_normals->parsed()) return run_eval_normals(eval_normals_args);
     if (cmd_bench->parsed()) return run_track_bench(bench);
     if (cmd_track->parsed()) return run_track(track);
     if (cmd_eval->parsed()) return run_eval(eval);

@@ -10,7 +10,8 @@ namespace pg {
 struct TrackArgs {
   std::string dataset, out;
   std::string method = "patchgraph";
-  std::string normals = "gt";
+  std::string normals = "gt";  // or a model file from train-normals
+  int normals_threads = 1;
   std::string config;  // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;

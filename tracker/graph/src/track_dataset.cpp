@@ -40,8 +40,13 @@ class Gaussian {
 
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress) {
-  if (!dataset.info().has_output("normal")) {
+  const bool learned = bool(options.normals);
+  if (!learned && !dataset.info().has_output("normal")) {
     throw InputError(dataset.dir() + ": dataset has no 'normal' output, needed for --normals gt");
+  }
+  if (learned && !dataset.info().has_output("color")) {
+    throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
+                     options.normals_name);
   }
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;
@@ -52,16 +57,29 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   ContactFrame contact;
   for (int i = 0; i < dataset.frames(); ++i) {
     const FramePose& gt = dataset.poses()[i];
-    const ImageF normals = dataset.normal(i);  // decoding is not part of the timed update
+    // Decoding the image files is not part of the timed update.
+    ImageF normals;
+    ImageU8 color;
+    if (learned) {
+      color = dataset.color(i);
+    } else {
+      normals = dataset.normal(i);
+    }
     TrackerInput input;
     input.T_world_sensor_measured = noise.perturb(gt.T_world_sensor, options.end_effector_noise);
     input.T_world_object_prior = noise.perturb(gt.T_world_object, options.vision_noise);
     const auto start = std::chrono::steady_clock::now();
+    double normals_ms = 0;
+    if (learned) {
+      normals = options.normals(color);
+      normals_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    }
     builder.build(normals, contact);
     if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
     const TrackerEstimate est = run.tracker->add(input);
     FrameResult r;
     r.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    r.normals_ms = normals_ms;
     r.frame = i;
     r.T_world_object = est.T_world_object;
     r.T_world_object_gt = gt.T_world_object;
@@ -71,10 +89,12 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
     r.rejected_registrations = est.rejected_registrations;
+    r.tracking_lost = est.tracking_lost;
     run.frames.push_back(r);
     if (progress) progress(i + 1, dataset.frames());
   }
   run.summary = summarize(run.frames, to_string(graph.method));
+  run.summary.normals = options.normals_name;
   if (options.compare_batch) {
     run.tracker->solve_batch();
     const std::vector<SE3> batch = run.tracker->object_trajectory();
@@ -102,8 +122,9 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
   s.frames = int(frames.size());
   if (frames.empty()) return s;
   double t_sq = 0, r_sq = 0, ms = 0;
-  std::vector<double> times;
+  std::vector<double> times, normals_times;
   for (const auto& f : frames) {
+    normals_times.push_back(f.normals_ms);
     t_sq += f.translation_error_m * f.translation_error_m;
     r_sq += f.rotation_error_rad * f.rotation_error_rad;
     ms += f.frame_ms;
@@ -111,6 +132,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.contact_frames += f.contact;
     s.episodes += f.new_episode;
     s.rejected_registrations += f.rejected_registrations;
+    s.lost_frames += f.tracking_lost;
   }
   s.translation_rmse_m = std::sqrt(t_sq / frames.size());
   s.rotation_rmse_rad = std::sqrt(r_sq / frames.size());
@@ -120,6 +142,9 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
   std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
   s.median_frame_ms = times[times.size() / 2];
   s.hz = s.median_frame_ms > 0 ? 1000.0 / s.median_frame_ms : 0.0;
+  std::nth_element(normals_times.begin(), normals_times.begin() + normals_times.size() / 2,
+                   normals_times.end());
+  s.median_normals_ms = normals_times[normals_times.size() / 2];
   return s;
 }
 
@@ -137,12 +162,12 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   std::ofstream errors(errors_path);
   errors.precision(9);
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
-            "rejected_registrations,frame_ms\n";
+            "rejected_registrations,tracking_lost,frame_ms,normals_ms\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
-           << f.rejected_registrations << "," << f.frame_ms
-           << "\n";
+           << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
+           << f.normals_ms << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
@@ -150,10 +175,12 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"dataset", dataset.dir()},
       {"object", dataset.info().object_name},
       {"method", s.method},
+      {"normals", s.normals},
       {"frames", s.frames},
       {"contact_frames", s.contact_frames},
       {"episodes", s.episodes},
       {"rejected_registrations", s.rejected_registrations},
+      {"lost_frames", s.lost_frames},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},
       {"final_translation_error_m", s.final_translation_error_m},
@@ -161,6 +188,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"mean_frame_ms", s.mean_frame_ms},
       {"median_frame_ms", s.median_frame_ms},
       {"hz", s.hz},
+      {"median_normals_ms", s.median_normals_ms},
       {"window", run.tracker->options().window},
       {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
       {"registration_information", run.tracker->options().registration_information},

@@ -24,6 +24,10 @@ struct TrackOptions {
   // After tracking, re-solve the whole sequence with every factor (the batch reference) and
   // report how far the fixed-lag estimates are from it.
   bool compare_batch = false;
+  // Where the normals come from: null = the dataset's ground-truth normal images ("gt"); else a
+  // function of the frame's colour image (a learned model), timed as part of the frame.
+  std::function<ImageF(const ImageU8& color)> normals;
+  std::string normals_name = "gt";  // for the summary
 };
 
 struct FrameResult {
@@ -36,7 +40,9 @@ struct FrameResult {
   bool new_episode = false;
   bool image_to_patch = false;
   int rejected_registrations = 0;
+  bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   double frame_ms = 0;       // normals -> cloud -> registrations -> graph update
+  double normals_ms = 0;     // of which estimating the normals (0 for ground-truth normals)
 };
 
 struct TrackSummary {
@@ -45,6 +51,7 @@ struct TrackSummary {
   int contact_frames = 0;
   int episodes = 0;
   int rejected_registrations = 0;  // implausible registrations dropped (a tracking warning)
+  int lost_frames = 0;             // frames the tracker reported tracking as lost
   double translation_rmse_m = 0;
   double rotation_rmse_rad = 0;
   double final_translation_error_m = 0;
@@ -52,6 +59,8 @@ struct TrackSummary {
   double mean_frame_ms = 0;
   double median_frame_ms = 0;
   double hz = 0;  // 1000 / median_frame_ms
+  std::string normals = "gt";
+  double median_normals_ms = 0;
   // With compare_batch: the batch solution's errors against ground truth, and the RMS distance
   // between the fixed-lag and the batch trajectories (-1 when not compared).
   double batch_translation_rmse_m = -1, batch_rotation_rmse_rad = -1;
@@ -64,8 +73,9 @@ struct TrackRun {
   std::unique_ptr<PatchGraphTracker> tracker;
 };
 
-// Reads the dataset's normal images ("gt" normals) frame by frame. Throws InputError when the
-// dataset has no normal output or a frame is unreadable.
+// Reads the dataset's normal images ("gt" normals), or its colour images through
+// options.normals, frame by frame. Throws InputError when the dataset lacks that output or a
+// frame is unreadable.
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 

@@ -1,0 +1,113 @@
+#pragma once
+// Learned surface normals (paper section IV-A): a network maps a tactile colour image to the gel's
+// surface-normal image in the sensor frame. Torch stays inside learn/src; this header does not
+// include it.
+//
+// Input encoding: the frame minus the sensor's no-contact reference image (DIR/background.png),
+// per channel, scaled to [-1, 1] and normalised by the training set's mean and standard
+// deviation (stored in the model file). Subtracting the reference is what real GelSight and DIGIT
+// pipelines do; it removes the sensor's own illumination pattern and most of the background, so a
+// model generalises across gels and backgrounds.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pg/core/image.h"
+
+namespace pg {
+
+// The network architectures of the paper's Table I.
+struct NetworkSpec {
+  std::string arch = "unet";  // unet (pix2pix U-Net), resnet (pix2pix ResNet), mlp (per pixel)
+  int depth = 5;              // unet: down-sampling levels; resnet: residual blocks
+  int base_width = 16;        // channels of the first layer (pix2pix: 64)
+  int mlp_hidden = 32;        // mlp: width of its two hidden layers (5-32-32-3 in the paper)
+};
+
+// What a model file holds besides the weights.
+struct NormalModelInfo {
+  NetworkSpec spec;
+  std::array<float, 3> input_mean{0, 0, 0}, input_std{1, 1, 1};  // of the difference image
+  int width = 0, height = 0;  // image size it was trained on (and accepts)
+  int epochs = 0;
+  std::vector<std::string> training_data;  // dataset folders
+  std::string history_json;                // per-epoch losses and validation metrics (JSON array)
+};
+
+// A trained model for inference. Not thread-safe: use one per thread.
+class NormalEstimator {
+ public:
+  // Loads MODEL; threads = the intra-op threads Torch may use (0 = all cores). Throws InputError
+  // naming the path when the file is missing, corrupt or not a normals model.
+  static NormalEstimator load(const std::string& path, int threads = 1);
+  NormalEstimator(NormalEstimator&&) noexcept;
+  NormalEstimator& operator=(NormalEstimator&&) noexcept;
+  ~NormalEstimator();
+
+  // Unit normals in the sensor frame (width x height x 3). `color` and `background` must be
+  // 8-bit RGB of the size the model was trained on; throws InputError otherwise.
+  ImageF predict(const ImageU8& color, const ImageU8& background) const;
+  const NormalModelInfo& info() const;
+  const std::string& path() const;
+
+ private:
+  struct Impl;
+  explicit NormalEstimator(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// The paper's metric: MSE of the normal image encoded as (n + 1) / 2, averaged over channels and
+// pixels, in the contact region (the dataset's mask) and over the whole image; and the mean
+// angle between predicted and true normals [deg].
+struct NormalMetrics {
+  int frames = 0;
+  double mse_contact = 0, mse_image = 0;
+  double angle_contact_deg = 0, angle_image_deg = 0;
+  double ms_per_frame = 0;  // median inference time
+};
+
+// Evaluates on every frame of each dataset (needs color, normal and mask outputs).
+NormalMetrics evaluate_normals(const NormalEstimator& model,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress = nullptr);
+
+struct TrainOptions {
+  std::vector<std::string> train_data;  // dataset folders with color, normal and mask outputs
+  std::vector<std::string> val_data;    // validation folders; empty: hold out val_fraction
+  double val_fraction = 0.1;
+  NetworkSpec spec;
+  std::string out;  // model file; OUT.ckpt holds the resumable checkpoint
+  int epochs = 150;
+  int batch = 4;
+  double learning_rate = 2e-4, beta1 = 0.5;  // Adam, as pix2pix
+  double l1_weight = 100.0;  // unet/resnet: L1 on the normals x this + the GAN loss x gan_weight
+  double gan_weight = 1.0;   // 0 trains without the PatchGAN discriminator; mlp: L2 only
+  // The L1 (mlp: L2) loss of a contact pixel counts 1 + contact_weight times a background
+  // pixel's (0: pix2pix's plain loss). Contact pixels are a few percent of the image, and they
+  // are the ones the tracker integrates.
+  double contact_weight = 0.0;
+  int shift_px = 8;          // augmentation: random image shifts up to this [px]
+  double gain_jitter = 0.3;  // augmentation: the difference image scaled by 1 +- this
+  std::uint64_t seed = 0;
+  int threads = 0;            // 0 = all cores
+  int checkpoint_every = 10;  // epochs
+  bool resume = false;        // continue from OUT.ckpt
+};
+
+struct EpochReport {
+  int epoch = 0, epochs = 0;
+  double loss_l1 = 0, loss_gan = 0, loss_d = 0;  // means over the epoch (mlp: loss_l1 = L2)
+  NormalMetrics val;
+  double seconds = 0;
+};
+
+// Trains and writes OUT (and OUT.ckpt every checkpoint_every epochs). Throws InputError for bad
+// data (naming the folder or file). `on_step(done, total)` reports batches within an epoch.
+void train_normals(const TrainOptions& options,
+                   const std::function<void(const EpochReport&)>& on_epoch = nullptr,
+                   const std::function<void(int, int)>& on_step = nullptr);
+
+}  // namespace pg

@@ -1,0 +1,65 @@
+#pragma once
+// The networks (Torch modules) and the tensors they consume. Internal to pg_learn.
+#include <torch/torch.h>
+
+#include <string>
+#include <vector>
+
+#include "pg/core/image.h"
+#include "pg/learn/normal_model.h"
+
+namespace pg::learn {
+
+// Any of the generators: 3 input channels (the encoded difference image) -> 3 (normals, tanh).
+// Accepts any image size: inputs are padded to what the architecture needs and the output is
+// cropped back.
+class GeneratorImpl : public torch::nn::Module {
+ public:
+  explicit GeneratorImpl(const NetworkSpec& spec);
+  torch::Tensor forward(torch::Tensor x);
+
+ private:
+  torch::Tensor unet(const torch::Tensor& x);
+  NetworkSpec spec_;
+  int multiple_ = 1;                              // input sizes must be multiples of this
+  std::vector<torch::nn::Sequential> down_, up_;  // unet
+  torch::nn::Sequential body_{nullptr};           // resnet and mlp
+};
+TORCH_MODULE(Generator);
+
+// pix2pix PatchGAN discriminator (two stride-2 layers: a ~34 px receptive field, which suits
+// 120x160 tactile images) on the concatenated input and normal images; outputs logits.
+class PatchDiscriminatorImpl : public torch::nn::Module {
+ public:
+  explicit PatchDiscriminatorImpl(int base_width);
+  torch::Tensor forward(const torch::Tensor& input, const torch::Tensor& normals);
+
+ private:
+  torch::nn::Sequential body_{nullptr};
+};
+TORCH_MODULE(PatchDiscriminator);
+
+// The input encoding (see normal_model.h): the raw difference (color - background) / 255,
+// 3 x H x W, before normalisation by the stored mean and std.
+torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background);
+// Image (H x W x C, float) <-> tensor (C x H x W).
+torch::Tensor image_to_tensor(const ImageF& image);
+ImageF tensor_to_image(const torch::Tensor& chw);
+// A 0/255 contact mask as a 1 x H x W tensor of 0/1.
+torch::Tensor mask_tensor(const ImageU8& mask);
+
+// Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
+void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info);
+// Throws InputError naming the path.
+Generator load_model(const std::string& path, NormalModelInfo& info);
+
+// The metrics of normal_model.h on a batch: predicted and true normals (N x 3 x H x W, unit or
+// near unit), mask (N x 1 x H x W, 0/1). Sums over the batch, for averaging by the caller.
+struct MetricSums {
+  double se_contact = 0, se_image = 0, angle_contact = 0, angle_image = 0;
+  double contact_px = 0, image_px = 0;
+  void add(const torch::Tensor& predicted, const torch::Tensor& truth, const torch::Tensor& mask);
+  NormalMetrics metrics(int frames) const;
+};
+
+}  // namespace pg::learn

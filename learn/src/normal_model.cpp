@@ -1,0 +1,281 @@
+// Model files, the input encoding, inference and evaluation.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "networks.h"
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace learn {
+
+namespace {
+
+constexpr const char* kFormat = "patchgraph-normals-1";
+
+nlohmann::json info_to_json(const NormalModelInfo& info) {
+  nlohmann::json j;
+  j["arch"] = info.spec.arch;
+  j["depth"] = info.spec.depth;
+  j["base_width"] = info.spec.base_width;
+  j["mlp_hidden"] = info.spec.mlp_hidden;
+  j["input_mean"] = info.input_mean;
+  j["input_std"] = info.input_std;
+  j["width"] = info.width;
+  j["height"] = info.height;
+  j["epochs"] = info.epochs;
+  j["training_data"] = info.training_data;
+  j["history"] = info.history_json.empty() ? nlohmann::json::array()
+                                           : nlohmann::json::parse(info.history_json);
+  return j;
+}
+
+NormalModelInfo info_from_json(const nlohmann::json& j) {
+  NormalModelInfo info;
+  info.spec.arch = j.at("arch").get<std::string>();
+  info.spec.depth = j.at("depth").get<int>();
+  info.spec.base_width = j.at("base_width").get<int>();
+  info.spec.mlp_hidden = j.at("mlp_hidden").get<int>();
+  info.input_mean = j.at("input_mean").get<std::array<float, 3>>();
+  info.input_std = j.at("input_std").get<std::array<float, 3>>();
+  info.width = j.at("width").get<int>();
+  info.height = j.at("height").get<int>();
+  info.epochs = j.at("epochs").get<int>();
+  info.training_data = j.at("training_data").get<std::vector<std::string>>();
+  info.history_json = j.at("history").dump();
+  return info;
+}
+
+}  // namespace
+
+torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background) {
+  const int w = color.width, h = color.height;
+  torch::Tensor t = torch::empty({3, h, w}, torch::kFloat32);
+  float* out = t.data_ptr<float>();
+  const std::size_t plane = std::size_t(w) * h;
+  for (std::size_t p = 0; p < plane; ++p) {
+    for (int c = 0; c < 3; ++c) {
+      out[c * plane + p] =
+          (float(color.data[p * 3 + c]) - float(background.data[p * 3 + c])) / 255.0f;
+    }
+  }
+  return t;
+}
+
+torch::Tensor image_to_tensor(const ImageF& image) {
+  const std::size_t plane = std::size_t(image.width) * image.height;
+  torch::Tensor t = torch::empty({image.channels, image.height, image.width}, torch::kFloat32);
+  float* out = t.data_ptr<float>();
+  for (std::size_t p = 0; p < plane; ++p) {
+    for (int c = 0; c < image.channels; ++c)
+      out[c * plane + p] = image.data[p * image.channels + c];
+  }
+  return t;
+}
+
+torch::Tensor mask_tensor(const ImageU8& mask) {
+  torch::Tensor t = torch::empty({1, mask.height, mask.width}, torch::kFloat32);
+  float* out = t.data_ptr<float>();
+  for (std::size_t k = 0; k < mask.data.size(); ++k) out[k] = mask.data[k] > 0 ? 1.0f : 0.0f;
+  return t;
+}
+
+ImageF tensor_to_image(const torch::Tensor& chw) {
+  const torch::Tensor t = chw.contiguous().to(torch::kFloat32);
+  const int c = int(t.size(0)), h = int(t.size(1)), w = int(t.size(2));
+  ImageF image(w, h, c);
+  const float* in = t.data_ptr<float>();
+  const std::size_t plane = std::size_t(w) * h;
+  for (std::size_t p = 0; p < plane; ++p) {
+    for (int k = 0; k < c; ++k) image.data[p * c + k] = in[k * plane + p];
+  }
+  return image;
+}
+
+void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info) {
+  torch::serialize::OutputArchive archive;
+  archive.write("format", c10::IValue(std::string(kFormat)));
+  archive.write("info", c10::IValue(info_to_json(info).dump()));
+  torch::serialize::OutputArchive weights;
+  generator->save(weights);
+  archive.write("generator", weights);
+  const std::string tmp = path + ".tmp";
+  try {
+    archive.save_to(tmp);
+  } catch (const c10::Error& e) {
+    throw InputError(path + ": cannot write the model file");
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw InputError(path + ": cannot write the model file: " + ec.message());
+}
+
+Generator load_model(const std::string& path, NormalModelInfo& info) {
+  if (!fs::is_regular_file(path)) throw InputError(path + ": model file not found");
+  torch::serialize::InputArchive archive;
+  try {
+    archive.load_from(path);
+  } catch (const c10::Error&) {
+    throw InputError(path + ": not a readable model file (corrupt or not a Torch archive)");
+  }
+  c10::IValue format, text;
+  if (!archive.try_read("format", format) || !format.isString() ||
+      format.toStringRef() != kFormat || !archive.try_read("info", text) || !text.isString()) {
+    throw InputError(path + ": not a patchgraph normals model (expected format '" +
+                     std::string(kFormat) + "')");
+  }
+  try {
+    info = info_from_json(nlohmann::json::parse(text.toStringRef()));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path + ": malformed model description: " + e.what());
+  }
+  Generator generator(nullptr);
+  try {
+    generator = Generator(info.spec);
+    torch::serialize::InputArchive weights;
+    if (!archive.try_read("generator", weights)) throw InputError(path + ": no generator weights");
+    generator->load(weights);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(path + ": " + e.what());
+  } catch (const c10::Error&) {
+    throw InputError(path + ": the weights do not match the network it describes (" +
+                     info.spec.arch + ")");
+  }
+  generator->eval();
+  return generator;
+}
+
+void MetricSums::add(const torch::Tensor& predicted, const torch::Tensor& truth,
+                     const torch::Tensor& mask) {
+  const torch::Tensor p = predicted / predicted.norm(2, 1, true).clamp_min(1e-6);
+  const torch::Tensor t = truth / truth.norm(2, 1, true).clamp_min(1e-6);
+  const torch::Tensor se = ((p - t) * 0.5).pow(2).mean(1, true);  // encoded as (n + 1) / 2
+  const torch::Tensor angle = torch::acos((p * t).sum(1, true).clamp(-1.0, 1.0)) * (180.0 / M_PI);
+  se_image += se.sum().item<double>();
+  angle_image += angle.sum().item<double>();
+  se_contact += (se * mask).sum().item<double>();
+  angle_contact += (angle * mask).sum().item<double>();
+  contact_px += mask.sum().item<double>();
+  image_px += double(se.numel());
+}
+
+NormalMetrics MetricSums::metrics(int frames) const {
+  NormalMetrics m;
+  m.frames = frames;
+  const double c = std::max(contact_px, 1.0), i = std::max(image_px, 1.0);
+  m.mse_contact = se_contact / c;
+  m.angle_contact_deg = angle_contact / c;
+  m.mse_image = se_image / i;
+  m.angle_image_deg = angle_image / i;
+  return m;
+}
+
+}  // namespace learn
+
+struct NormalEstimator::Impl {
+  std::string path;
+  NormalModelInfo info;
+  learn::Generator generator{nullptr};
+  torch::Tensor mean, std;
+};
+
+NormalEstimator::NormalEstimator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+NormalEstimator::NormalEstimator(NormalEstimator&&) noexcept = default;
+NormalEstimator& NormalEstimator::operator=(NormalEstimator&&) noexcept = default;
+NormalEstimator::~NormalEstimator() = default;
+
+NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
+  auto impl = std::make_unique<Impl>();
+  impl->path = path;
+  impl->generator = learn::load_model(path, impl->info);
+  impl->mean =
+      torch::tensor(std::vector<float>(impl->info.input_mean.begin(), impl->info.input_mean.end()))
+          .view({1, 3, 1, 1});
+  impl->std =
+      torch::tensor(std::vector<float>(impl->info.input_std.begin(), impl->info.input_std.end()))
+          .view({1, 3, 1, 1});
+  if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
+  torch::set_num_threads(threads);
+  return NormalEstimator(std::move(impl));
+}
+
+const NormalModelInfo& NormalEstimator::info() const { return impl_->info; }
+const std::string& NormalEstimator::path() const { return impl_->path; }
+
+ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background) const {
+  const NormalModelInfo& info = impl_->info;
+  auto check = [&](const ImageU8& image, const char* what) {
+    if (!image.same_shape(info.width, info.height, 3)) {
+      throw InputError(std::string(what) + " image is " + std::to_string(image.width) + "x" +
+                       std::to_string(image.height) + "x" + std::to_string(image.channels) +
+                       "; the model " + impl_->path + " takes " + std::to_string(info.width) + "x" +
+                       std::to_string(info.height) + "x3 (RGB)");
+    }
+  };
+  check(color, "colour");
+  check(background, "background");
+  torch::NoGradGuard no_grad;
+  const torch::Tensor x =
+      (learn::difference_tensor(color, background).unsqueeze(0) - impl_->mean) / impl_->std;
+  torch::Tensor n = impl_->generator->forward(x)[0];
+  // Unit length, facing the camera's side of the gel (z > 0) where the network is unsure.
+  n = n / n.norm(2, 0, true).clamp_min(1e-6);
+  ImageF normals = learn::tensor_to_image(n);
+  for (std::size_t p = 0; p < normals.data.size(); p += 3) {
+    if (!(normals.data[p + 2] > 0.05f)) {
+      normals.data[p] = normals.data[p + 1] = 0.0f;
+      normals.data[p + 2] = 1.0f;
+    }
+  }
+  return normals;
+}
+
+NormalMetrics evaluate_normals(const NormalEstimator& model,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress) {
+  std::vector<Dataset> sets;
+  int total = 0;
+  for (const auto& dir : datasets) {
+    sets.push_back(Dataset::open(dir));
+    for (const char* output : {"color", "normal", "mask"}) {
+      if (!sets.back().info().has_output(output)) {
+        throw InputError(dir + ": dataset has no '" + output +
+                         "' output, needed to evaluate normals");
+      }
+    }
+    total += sets.back().frames();
+  }
+  learn::MetricSums sums;
+  std::vector<double> times;
+  int done = 0;
+  for (const Dataset& d : sets) {
+    const ImageU8 background = d.background();
+    for (int i = 0; i < d.frames(); ++i) {
+      const ImageU8 color = d.color(i);
+      const auto start = std::chrono::steady_clock::now();
+      const ImageF predicted = model.predict(color, background);
+      times.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+              .count());
+      sums.add(learn::image_to_tensor(predicted).unsqueeze(0),
+               learn::image_to_tensor(d.normal(i)).unsqueeze(0),
+               learn::mask_tensor(d.mask(i)).unsqueeze(0));
+      ++done;
+      if (progress) progress(done, total);
+    }
+  }
+  NormalMetrics m = sums.metrics(done);
+  if (!times.empty()) {
+    std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
+    m.ms_per_frame = times[times.size() / 2];
+  }
+  return m;
+}
+
+}  // namespace pg

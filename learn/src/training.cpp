@@ -1,0 +1,335 @@
+// Training of the normals networks: pix2pix (L1 + PatchGAN) for the U-Net and ResNet generators,
+// L2 for the per-pixel MLP, as in the paper's Table I.
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+
+#include "networks.h"
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+namespace F = torch::nn::functional;
+
+namespace {
+
+constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
+
+// Frames as tensors: the raw difference input, the true normals and the contact mask.
+struct FrameSet {
+  std::vector<torch::Tensor> input, target, mask;
+  int width = 0, height = 0;
+  std::size_t size() const { return input.size(); }
+};
+
+void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background, int i) {
+  set.input.push_back(learn::difference_tensor(d.color(i), background));
+  set.target.push_back(learn::image_to_tensor(d.normal(i)));
+  set.mask.push_back(learn::mask_tensor(d.mask(i)));
+}
+
+// Reads the datasets; every `hold_out_every`-th frame (0: none) goes to `held_out`.
+void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* held_out,
+                 int hold_out_every) {
+  for (const std::string& dir : dirs) {
+    const Dataset d = Dataset::open(dir);
+    for (const char* output : {"color", "normal", "mask"}) {
+      if (!d.info().has_output(output)) {
+        throw InputError(dir + ": dataset has no '" + output + "' output, needed for training");
+      }
+    }
+    if (set.width == 0) set.width = d.info().width(), set.height = d.info().height();
+    if (d.info().width() != set.width || d.info().height() != set.height) {
+      throw InputError(dir + ": images are " + std::to_string(d.info().width()) + "x" +
+                       std::to_string(d.info().height()) + ", the other datasets " +
+                       std::to_string(set.width) + "x" + std::to_string(set.height));
+    }
+    const ImageU8 background = d.background();
+    for (int i = 0; i < d.frames(); ++i) {
+      const bool hold = held_out && hold_out_every > 0 && i % hold_out_every == hold_out_every - 1;
+      add_frame(hold ? *held_out : set, d, background, i);
+    }
+  }
+}
+
+// A batch of frames with the augmentation: the same random shift of input and target (replicated
+// edges), and the difference image scaled by a random gain. Neither changes the lights' geometry.
+struct Batch {
+  torch::Tensor input, target, mask;
+};
+
+Batch make_batch(const FrameSet& set, const std::vector<int>& index, int shift, double gain_jitter,
+                 std::mt19937_64& rng) {
+  std::vector<torch::Tensor> in, out, masks;
+  std::uniform_int_distribution<int> offset(-shift, shift);
+  std::uniform_real_distribution<double> gain(1.0 - gain_jitter, 1.0 + gain_jitter);
+  for (int i : index) {
+    torch::Tensor x = set.input[i] * gain(rng), y = set.target[i], m = set.mask[i];
+    if (shift > 0) {
+      const int dx = offset(rng), dy = offset(rng);
+      const auto pad = F::PadFuncOptions({shift, shift, shift, shift}).mode(torch::kReplicate);
+      const int h = set.height, w = set.width;
+      x = F::pad(x.unsqueeze(0), pad)[0]
+              .slice(1, shift + dy, shift + dy + h)
+              .slice(2, shift + dx, shift + dx + w);
+      y = F::pad(y.unsqueeze(0), pad)[0]
+              .slice(1, shift + dy, shift + dy + h)
+              .slice(2, shift + dx, shift + dx + w);
+      m = F::pad(m.unsqueeze(0), F::PadFuncOptions({shift, shift, shift, shift}))[0]
+              .slice(1, shift + dy, shift + dy + h)
+              .slice(2, shift + dx, shift + dx + w);
+    }
+    in.push_back(x);
+    out.push_back(y);
+    masks.push_back(m);
+  }
+  return {torch::stack(in), torch::stack(out), torch::stack(masks)};
+}
+
+NormalMetrics validate(learn::Generator& g, const FrameSet& set, const torch::Tensor& mean,
+                       const torch::Tensor& std) {
+  torch::NoGradGuard no_grad;
+  g->eval();
+  learn::MetricSums sums;
+  for (std::size_t i = 0; i < set.size(); i += 8) {
+    const std::size_t n = std::min<std::size_t>(8, set.size() - i);
+    std::vector<torch::Tensor> x(set.input.begin() + i, set.input.begin() + i + n);
+    std::vector<torch::Tensor> y(set.target.begin() + i, set.target.begin() + i + n);
+    std::vector<torch::Tensor> m(set.mask.begin() + i, set.mask.begin() + i + n);
+    sums.add(g->forward((torch::stack(x) - mean) / std), torch::stack(y), torch::stack(m));
+  }
+  g->train();
+  return sums.metrics(int(set.size()));
+}
+
+nlohmann::json epoch_json(const EpochReport& r) {
+  return {{"epoch", r.epoch},
+          {"loss_l1", r.loss_l1},
+          {"loss_gan", r.loss_gan},
+          {"loss_d", r.loss_d},
+          {"val_mse_contact", r.val.mse_contact},
+          {"val_mse_image", r.val.mse_image},
+          {"val_angle_contact_deg", r.val.angle_contact_deg},
+          {"seconds", r.seconds}};
+}
+
+}  // namespace
+
+void train_normals(const TrainOptions& o, const std::function<void(const EpochReport&)>& on_epoch,
+                   const std::function<void(int, int)>& on_step) {
+  if (o.train_data.empty()) throw InputError("--data: no training datasets given");
+  if (o.out.empty()) throw InputError("--out: no model file given");
+  if (o.epochs < 1 || o.batch < 1) throw InputError("--epochs and --batch must be at least 1");
+  // Fail now, not after the training, when the model cannot be written.
+  {
+    const fs::path folder = fs::absolute(o.out).parent_path();
+    std::error_code ec;
+    fs::create_directories(folder, ec);
+    if (ec || !fs::is_directory(folder)) {
+      throw InputError(o.out + ": cannot create the folder " + folder.string() + ": " +
+                       ec.message());
+    }
+    const fs::path probe = o.out + ".ckpt.tmp";
+    if (!std::ofstream(probe)) throw InputError(o.out + ": cannot write in " + folder.string());
+    fs::remove(probe);
+  }
+  const int threads =
+      o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
+  torch::set_num_threads(threads);
+  torch::manual_seed(o.seed);
+
+  FrameSet train, val;
+  const int hold_out_every = o.val_data.empty() && o.val_fraction > 0
+                                 ? std::max(2, int(std::lround(1.0 / o.val_fraction)))
+                                 : 0;
+  load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
+  if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
+  if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
+  if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
+    throw InputError("--val: images are " + std::to_string(val.width) + "x" +
+                     std::to_string(val.height) + ", the training images " +
+                     std::to_string(train.width) + "x" + std::to_string(train.height));
+  }
+
+  NormalModelInfo info;
+  info.spec = o.spec;
+  info.width = train.width;
+  info.height = train.height;
+  info.training_data = o.train_data;
+  {
+    const torch::Tensor all = torch::stack(train.input);
+    const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);
+    for (int c = 0; c < 3; ++c) {
+      info.input_mean[c] = mean[c].item<float>();
+      info.input_std[c] = std[c].item<float>();
+    }
+  }
+  learn::Generator g(o.spec);
+  const bool mlp = o.spec.arch == "mlp";
+  const bool gan = !mlp && o.gan_weight > 0;
+  learn::PatchDiscriminator d(nullptr);
+  if (gan) d = learn::PatchDiscriminator(o.spec.base_width);
+  const auto adam = torch::optim::AdamOptions(o.learning_rate).betas({o.beta1, 0.999});
+  torch::optim::Adam opt_g(g->parameters(), adam);
+  std::unique_ptr<torch::optim::Adam> opt_d;
+  if (gan) opt_d = std::make_unique<torch::optim::Adam>(d->parameters(), adam);
+
+  const std::string checkpoint = o.out + ".ckpt";
+  int first_epoch = 0;
+  nlohmann::json history = nlohmann::json::array();
+  if (o.resume) {
+    if (!fs::is_regular_file(checkpoint))
+      throw InputError(checkpoint + ": no checkpoint to resume");
+    torch::serialize::InputArchive a;
+    try {
+      a.load_from(checkpoint);
+      c10::IValue format, text, epoch;
+      if (!a.try_read("format", format) || format.toStringRef() != kCheckpointFormat ||
+          !a.try_read("info", text) || !a.try_read("epoch", epoch)) {
+        throw InputError(checkpoint + ": not a normals training checkpoint");
+      }
+      const nlohmann::json j = nlohmann::json::parse(text.toStringRef());
+      if (j.at("arch") != o.spec.arch || j.at("depth") != o.spec.depth ||
+          j.at("base_width") != o.spec.base_width || j.at("mlp_hidden") != o.spec.mlp_hidden ||
+          j.at("gan") != gan) {
+        throw InputError(checkpoint + ": was trained with another network or loss (" + j.dump() +
+                         "); pass the same --arch, --depth, --width, --gan-weight");
+      }
+      history = j.at("history");
+      first_epoch = int(epoch.toInt());
+      torch::serialize::InputArchive sub;
+      a.read("generator", sub);
+      g->load(sub);
+      a.read("opt_g", sub);
+      opt_g.load(sub);
+      if (gan) {
+        a.read("discriminator", sub);
+        d->load(sub);
+        a.read("opt_d", sub);
+        opt_d->load(sub);
+      }
+    } catch (const c10::Error&) {
+      throw InputError(checkpoint + ": corrupt checkpoint");
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
+    }
+  }
+
+  const torch::Tensor mean =
+      torch::tensor(std::vector<float>(info.input_mean.begin(), info.input_mean.end()))
+          .view({1, 3, 1, 1});
+  const torch::Tensor std =
+      torch::tensor(std::vector<float>(info.input_std.begin(), info.input_std.end()))
+          .view({1, 3, 1, 1});
+  auto save_checkpoint = [&](int epochs_done) {
+    torch::serialize::OutputArchive a;
+    a.write("format", c10::IValue(std::string(kCheckpointFormat)));
+    nlohmann::json j = {{"arch", o.spec.arch},
+                        {"depth", o.spec.depth},
+                        {"base_width", o.spec.base_width},
+                        {"mlp_hidden", o.spec.mlp_hidden},
+                        {"gan", gan},
+                        {"contact_weight", o.contact_weight},
+                        {"history", history}};
+    a.write("info", c10::IValue(j.dump()));
+    a.write("epoch", c10::IValue(int64_t(epochs_done)));
+    torch::serialize::OutputArchive gw, og;
+    g->save(gw);
+    opt_g.save(og);
+    a.write("generator", gw);
+    a.write("opt_g", og);
+    if (gan) {
+      torch::serialize::OutputArchive dw, od;
+      d->save(dw);
+      opt_d->save(od);
+      a.write("discriminator", dw);
+      a.write("opt_d", od);
+    }
+    try {
+      a.save_to(checkpoint + ".tmp");
+    } catch (const c10::Error&) {
+      throw InputError(checkpoint + ": cannot write the checkpoint");
+    }
+    fs::rename(checkpoint + ".tmp", checkpoint);
+  };
+
+  const int batches = int((train.size() + o.batch - 1) / o.batch);
+  std::vector<int> order(train.size());
+  for (int epoch = first_epoch; epoch < o.epochs; ++epoch) {
+    const auto start = std::chrono::steady_clock::now();
+    // Seeded per epoch, so that a resumed run continues exactly as an uninterrupted one would.
+    std::mt19937_64 rng(o.seed * 0x9E3779B97F4A7C15ull + std::uint64_t(epoch));
+    torch::manual_seed(o.seed + std::uint64_t(epoch));
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = int(i);
+    std::shuffle(order.begin(), order.end(), rng);
+    g->train();
+    if (gan) d->train();
+    EpochReport r;
+    r.epoch = epoch + 1;
+    r.epochs = o.epochs;
+    if (on_step) on_step(0, batches);
+    for (int b = 0; b < batches; ++b) {
+      const std::vector<int> index(
+          order.begin() + b * o.batch,
+          order.begin() + std::min<std::size_t>(order.size(), (b + 1) * o.batch));
+      const Batch batch = make_batch(train, index, o.shift_px, o.gain_jitter, rng);
+      const torch::Tensor x = (batch.input - mean) / std;
+      const torch::Tensor fake = g->forward(x);
+      if (gan) {
+        opt_d->zero_grad();
+        const torch::Tensor real_logits = d->forward(x, batch.target);
+        const torch::Tensor fake_logits = d->forward(x, fake.detach());
+        const torch::Tensor loss_d =
+            0.5 *
+            (F::binary_cross_entropy_with_logits(real_logits, torch::ones_like(real_logits)) +
+             F::binary_cross_entropy_with_logits(fake_logits, torch::zeros_like(fake_logits)));
+        loss_d.backward();
+        opt_d->step();
+        r.loss_d += loss_d.item<double>();
+      }
+      opt_g.zero_grad();
+      torch::Tensor loss;
+      const torch::Tensor weight = 1.0 + o.contact_weight * batch.mask;  // N x 1 x H x W
+      if (mlp) {
+        loss = ((fake - batch.target).pow(2) * weight).mean();
+        r.loss_l1 += loss.item<double>();
+      } else {
+        const torch::Tensor l1 = ((fake - batch.target).abs() * weight).mean();
+        loss = o.l1_weight * l1;
+        r.loss_l1 += l1.item<double>();
+        if (gan) {
+          const torch::Tensor logits = d->forward(x, fake);
+          const torch::Tensor g_gan =
+              F::binary_cross_entropy_with_logits(logits, torch::ones_like(logits));
+          loss = loss + o.gan_weight * g_gan;
+          r.loss_gan += g_gan.item<double>();
+        }
+      }
+      loss.backward();
+      opt_g.step();
+      if (on_step) on_step(b + 1, batches);
+    }
+    r.loss_l1 /= batches;
+    r.loss_gan /= batches;
+    r.loss_d /= batches;
+    if (val.size() > 0) r.val = validate(g, val, mean, std);
+    r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    history.push_back(epoch_json(r));
+    if (on_epoch) on_epoch(r);
+    if ((epoch + 1) % std::max(1, o.checkpoint_every) == 0 || epoch + 1 == o.epochs) {
+      save_checkpoint(epoch + 1);
+    }
+  }
+  g->eval();
+  info.epochs = o.epochs;
+  info.history_json = history.dump();
+  learn::save_model(o.out, g, info);
+}
+
+}  // namespace pg

@@ -1,0 +1,88 @@
+#!/usr/bin/env bash
+# Reproduces the learned-normals models (docs/learned_normals.md). Needs a build (scripts/build.sh).
+#
+#   scripts/train_normals.sh           the default model, models/normals_unet.pt: a U-Net trained
+#                                      on the repository's sphere and cube random-press scenes
+#                                      (scenes/normals/*_train.json, rendered as written: elastic
+#                                      gel, shadows, noise, the synthetic background; and again
+#                                      on the rigid gel)
+#   scripts/train_normals.sh --table   the paper's Table I: U-Net, ResNet and MLP trained on the
+#                                      same presses rendered with the real DIGIT background
+#                                      (../shared/data), evaluated on held-out sphere and cube
+#                                      presses and the unseen toy brick and toy human; writes
+#                                      out/normals_table/table.md
+#
+# Environment: THREADS (Torch threads, default 1: on a 2-core machine shared with anything else,
+# a second OpenMP thread makes training several times slower), EPOCHS (default 60 for the
+# default model, 100 for the table).
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+tacsim="$root/build/tools/tacsim"
+patchgraph="$root/build/tools/patchgraph"
+threads="${THREADS:-1}"
+out="$root/out/normals_data"
+background="$root/../shared/data/digit/bg_digit_240_320.jpg"
+
+# render NAME [tacsim args...]: scenes/normals/NAME.json -> $out/<variant>/NAME
+render() {
+  local name="$1" variant="$2"
+  shift 2
+  "$tacsim" render "$root/scenes/normals/$name.json" --out "$out/$variant/$name" \
+    --outputs color,normal,mask --quiet "$@" > /dev/null
+}
+
+if [[ "${1:-}" != "--table" ]]; then
+  # The repository's scenes render both gels: the benchmark and default scenes TACTO's rigid one,
+  # the rest the elastic one. The default model sees both (the same presses, twice).
+  for s in sphere_train cube_train sphere_val cube_val toy_brick_val toy_human_val; do
+    render "$s" synthetic
+    render "$s" synthetic_rigid --elastic off
+  done
+  d="$out/synthetic"
+  r="$out/synthetic_rigid"
+  "$patchgraph" train-normals --arch unet --depth 5 --width 16 --epochs "${EPOCHS:-60}" --seed 1 \
+    --contact-weight 4 --threads "$threads" \
+    --data "$d/sphere_train" "$d/cube_train" "$r/sphere_train" "$r/cube_train" \
+    --val "$d/sphere_val" "$d/cube_val" --out "$root/models/normals_unet.pt"
+  rm -f "$root/models/normals_unet.pt.ckpt"
+  "$patchgraph" eval-normals --model "$root/models/normals_unet.pt" --quiet \
+    --data "$d/sphere_val" "$d/cube_val" "$d/toy_brick_val" "$d/toy_human_val" \
+           "$r/sphere_val" "$r/cube_val" "$r/toy_brick_val" "$r/toy_human_val"
+  exit 0
+fi
+
+if [[ ! -f "$background" ]]; then
+  echo "error: $background not found (the real DIGIT background of the Table I renders)" >&2
+  exit 1
+fi
+for s in sphere_train cube_train sphere_val cube_val toy_brick_val toy_human_val; do
+  render "$s" real --background "$background"
+done
+d="$out/real"
+table="$root/out/normals_table"
+mkdir -p "$table"
+declare -A arch_args=([unet]="--depth 5 --width 16" [resnet]="--depth 4 --width 8"
+                      [mlp]="--hidden 32 --batch 16")
+for arch in unet resnet mlp; do
+  # shellcheck disable=SC2086
+  "$patchgraph" train-normals --arch "$arch" ${arch_args[$arch]} --epochs "${EPOCHS:-100}" --seed 1 \
+    --threads "$threads" --data "$d/sphere_train" "$d/cube_train" --val "$d/sphere_val" "$d/cube_val" \
+    --out "$table/$arch.pt" --quiet | tail -n 2
+  "$patchgraph" eval-normals --model "$table/$arch.pt" --threads 1 --quiet \
+    --data "$d/sphere_val" "$d/cube_val" "$d/toy_brick_val" "$d/toy_human_val" \
+    --json "$table/$arch.json"
+done
+/usr/bin/python3 - "$table" <<'PY'
+import json, sys, os
+table = sys.argv[1]
+names = ["sphere_val", "cube_val", "toy_brick_val", "toy_human_val"]
+lines = ["| model | " + " | ".join(n.replace("_val", "") for n in names) + " | ms/frame |",
+         "|---|" + "---|" * (len(names) + 1)]
+for arch in ["unet", "resnet", "mlp"]:
+    r = {os.path.basename(x["dataset"]): x for x in json.load(open(f"{table}/{arch}.json"))["results"]}
+    cells = [f'{r[n]["mse_image"]*1e3:.2f} / {r[n]["mse_contact"]*1e3:.1f} / {r[n]["angle_contact_deg"]:.1f}°' for n in names]
+    ms = sorted(r[n]["ms_per_frame"] for n in names)[len(names) // 2]
+    lines.append(f"| {arch} | " + " | ".join(cells) + f" | {ms:.2f} |")
+open(f"{table}/table.md", "w").write("\n".join(lines) + "\n")
+print("\n".join(lines))
+PY

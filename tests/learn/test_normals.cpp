@@ -1,0 +1,233 @@
+// Learned normals: training lowers the loss, model files round-trip exactly, resuming continues
+// exactly, bad inputs and bad model files are clear errors, and the repository's default model
+// recovers a rendered press's normals.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "../common/test_support.h"
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+#include "pg/learn/normal_model.h"
+#include "pg/sim/scene.h"
+#include "pg/sim/scene_renderer.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+using testing_support::TempDir;
+
+const std::string kSource = PG_SOURCE_DIR;
+
+// The suite's shared folder (TempDir is per test).
+struct SuiteDir {
+  fs::path path = fs::temp_directory_path() / ("pg_test_normals_" + std::to_string(::getpid()));
+  SuiteDir() { fs::create_directories(path); }
+  ~SuiteDir() { fs::remove_all(path); }
+  std::string str(const std::string& sub) const { return (path / sub).string(); }
+};
+
+// Renders a repository scene (random presses) at width x height.
+template <typename Dir>
+std::string render(const Dir& tmp, const std::string& scene, const std::string& name, int width,
+                   int height) {
+  RenderOverrides overrides;
+  overrides.width = width;
+  overrides.height = height;
+  overrides.outputs = {"color", "normal", "mask"};
+  const SceneRenderer renderer(load_scene(kSource + "/scenes/normals/" + scene + ".json"),
+                               overrides);
+  const std::string dir = tmp.str(name);
+  render_scene_to_dataset(renderer, dir);
+  return dir;
+}
+
+TrainOptions tiny_options(const std::string& train, const std::string& val,
+                          const std::string& out) {
+  TrainOptions o;
+  o.train_data = {train};
+  o.val_data = {val};
+  o.out = out;
+  o.spec.arch = "unet";
+  o.spec.depth = 3;
+  o.spec.base_width = 8;
+  o.epochs = 6;
+  o.batch = 4;
+  o.learning_rate = 2e-3;
+  o.threads = 1;
+  o.seed = 7;
+  return o;
+}
+
+template <typename F>
+std::string input_error_message(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+class NormalsTraining : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = new SuiteDir();
+    train_ = render(*tmp_, "sphere_train", "train", 40, 30);
+    val_ = render(*tmp_, "cube_val", "val", 40, 30);
+  }
+  static void TearDownTestSuite() { delete tmp_; }
+  static SuiteDir* tmp_;
+  static std::string train_, val_;
+};
+SuiteDir* NormalsTraining::tmp_ = nullptr;
+std::string NormalsTraining::train_, NormalsTraining::val_;
+
+TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
+  const std::string model_path = tmp_->str("tiny.pt");
+  std::vector<EpochReport> epochs;
+  train_normals(tiny_options(train_, val_, model_path),
+                [&](const EpochReport& r) { epochs.push_back(r); });
+  ASSERT_EQ(epochs.size(), 6u);
+  EXPECT_LT(epochs.back().loss_l1, 0.7 * epochs.front().loss_l1);
+  EXPECT_GT(epochs.front().loss_gan, 0.0);  // the discriminator took part
+  for (const auto& e : epochs) {
+    EXPECT_TRUE(std::isfinite(e.val.mse_contact) && std::isfinite(e.val.angle_contact_deg));
+  }
+  // The loaded model reproduces the last epoch's validation metrics (computed in memory during
+  // training), so the file holds exactly the trained network and its input normalisation.
+  const NormalEstimator model = NormalEstimator::load(model_path);
+  EXPECT_EQ(model.info().spec.depth, 3);
+  EXPECT_EQ(model.info().width, 40);
+  const NormalMetrics m = evaluate_normals(model, {val_});
+  EXPECT_EQ(m.frames, 20);
+  EXPECT_NEAR(m.mse_contact, epochs.back().val.mse_contact,
+              1e-6 * epochs.back().val.mse_contact + 1e-9);
+  EXPECT_NEAR(m.mse_image, epochs.back().val.mse_image, 1e-6 * epochs.back().val.mse_image + 1e-9);
+  const auto history = nlohmann::json::parse(model.info().history_json);
+  EXPECT_EQ(history.size(), 6u);
+
+  // Unit normals facing the camera side, of the image's size.
+  const Dataset d = Dataset::open(val_);
+  const ImageF n = model.predict(d.color(0), d.background());
+  ASSERT_TRUE(n.same_shape(40, 30, 3));
+  for (std::size_t p = 0; p < n.data.size(); p += 3) {
+    const double len = std::sqrt(n.data[p] * n.data[p] + n.data[p + 1] * n.data[p + 1] +
+                                 n.data[p + 2] * n.data[p + 2]);
+    ASSERT_NEAR(len, 1.0, 1e-4);
+    ASSERT_GT(n.data[p + 2], 0.0f);
+  }
+}
+
+TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
+  TrainOptions whole = tiny_options(train_, val_, tmp_->str("whole.pt"));
+  whole.epochs = 4;
+  train_normals(whole);
+  TrainOptions part = tiny_options(train_, val_, tmp_->str("part.pt"));
+  part.epochs = 2;
+  part.checkpoint_every = 2;
+  train_normals(part);
+  ASSERT_TRUE(fs::exists(part.out + ".ckpt"));
+  part.epochs = 4;
+  part.resume = true;
+  train_normals(part);
+  const Dataset d = Dataset::open(val_);
+  const ImageF a = NormalEstimator::load(whole.out).predict(d.color(3), d.background());
+  const ImageF b = NormalEstimator::load(part.out).predict(d.color(3), d.background());
+  ASSERT_EQ(a.data.size(), b.data.size());
+  for (std::size_t i = 0; i < a.data.size(); ++i) ASSERT_FLOAT_EQ(a.data[i], b.data[i]) << i;
+}
+
+TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
+  // 40x30 is not a multiple of 4, 8 or 32: the generators pad and crop.
+  for (const std::string arch : {"resnet", "mlp"}) {
+    TrainOptions o = tiny_options(train_, val_, tmp_->str(arch + ".pt"));
+    o.spec.arch = arch;
+    o.spec.depth = 2;
+    o.epochs = 2;
+    std::vector<EpochReport> epochs;
+    train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
+    EXPECT_LT(epochs.back().loss_l1, epochs.front().loss_l1) << arch;
+    const NormalEstimator model = NormalEstimator::load(o.out);
+    EXPECT_EQ(model.info().spec.arch, arch);
+    const Dataset d = Dataset::open(val_);
+    EXPECT_TRUE(model.predict(d.color(0), d.background()).same_shape(40, 30, 3)) << arch;
+  }
+}
+
+TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("m.pt"));
+  o.epochs = 1;
+  train_normals(o);
+  const NormalEstimator model = NormalEstimator::load(o.out);
+  const Dataset d = Dataset::open(val_);
+  const ImageU8 bg = d.background();
+  std::string msg = input_error_message([&] { model.predict(ImageU8(80, 60, 3), bg); });
+  EXPECT_NE(msg.find("80x60x3"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("40x30x3"), std::string::npos) << msg;
+  msg = input_error_message([&] { model.predict(ImageU8(40, 30, 1), bg); });
+  EXPECT_NE(msg.find("40x30x1"), std::string::npos) << msg;
+
+  msg = input_error_message([&] { NormalEstimator::load(tmp_->str("missing.pt")); });
+  EXPECT_NE(msg.find("missing.pt: model file not found"), std::string::npos) << msg;
+  const std::string corrupt = tmp_->str("corrupt.pt");
+  std::ofstream(corrupt) << "not a model";
+  msg = input_error_message([&] { NormalEstimator::load(corrupt); });
+  EXPECT_NE(msg.find("corrupt.pt"), std::string::npos) << msg;
+  // A truncated model file.
+  const std::string truncated = tmp_->str("truncated.pt");
+  fs::copy_file(o.out, truncated);
+  fs::resize_file(truncated, fs::file_size(truncated) / 2);
+  msg = input_error_message([&] { NormalEstimator::load(truncated); });
+  EXPECT_NE(msg.find("truncated.pt"), std::string::npos) << msg;
+
+  // Training data without the ground truth it needs.
+  TrainOptions bad = o;
+  bad.train_data = {tmp_->str("nowhere")};
+  msg = input_error_message([&] { train_normals(bad); });
+  EXPECT_NE(msg.find("nowhere"), std::string::npos) << msg;
+  // An output that cannot be written fails before any training.
+  bad = o;
+  bad.out = "/proc/no_such_folder/m.pt";
+  msg = input_error_message([&] { train_normals(bad); });
+  EXPECT_NE(msg.find("/proc/no_such_folder/m.pt"), std::string::npos) << msg;
+  bad = o;
+  bad.resume = true;
+  bad.out = tmp_->str("never_trained.pt");
+  msg = input_error_message([&] { train_normals(bad); });
+  EXPECT_NE(msg.find("never_trained.pt.ckpt"), std::string::npos) << msg;
+}
+
+// Bounds for the default model: measured 2.7 deg and 2.6e-4 (docs/learned_normals.md), about
+// the errors on its own validation presses (sphere 2.9 deg, cube 4.9 deg); twice that allows for
+// other CPUs' floating point and for retraining with another seed, and still fails a model that
+// has not learned the shading (an untrained one is off by tens of degrees).
+constexpr double kDefaultModelMaxAngleDeg = 5.5;
+constexpr double kDefaultModelMaxMse = 6e-4;
+
+// The committed default model on a rendered sphere press (the elastic gel, shadows and noise it
+// was trained with, but a scene it never saw): see docs/learned_normals.md for the bound.
+TEST(DefaultNormalsModel, RecoversASpherePress) {
+  const std::string model_path = kSource + "/models/normals_unet.pt";
+  ASSERT_TRUE(fs::exists(model_path)) << model_path;
+  TempDir tmp;
+  RenderOverrides overrides;
+  overrides.outputs = {"color", "normal", "mask"};
+  overrides.shadows = true;
+  const SceneRenderer renderer(load_scene(kSource + "/scenes/examples/sphere_press.json"),
+                               overrides);
+  render_scene_to_dataset(renderer, tmp.str("press"));
+  const NormalEstimator model = NormalEstimator::load(model_path);
+  const NormalMetrics m = evaluate_normals(model, {tmp.str("press")});
+  EXPECT_EQ(m.frames, 10);
+  EXPECT_LT(m.angle_contact_deg, kDefaultModelMaxAngleDeg);
+  EXPECT_LT(m.mse_contact, kDefaultModelMaxMse);
+}
+
+}  // namespace
+}  // namespace pg

@@ -1,0 +1,134 @@
+#include "normals_cli.h"
+
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "pg/core/error.h"
+
+namespace pg {
+
+CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
+  TrainOptions& o = a.options;
+  CLI::App* cmd = app.add_subcommand(
+      "train-normals", "Train a network that maps tactile colour images to surface normals");
+  cmd->add_option("--data", o.train_data, "Training dataset folders (color, normal, mask outputs)")
+      ->required();
+  cmd->add_option("--val", o.val_data,
+                  "Validation dataset folders (default: every 10th training frame held out)");
+  cmd->add_option("--out,-o", o.out, "Model file to write (OUT.ckpt: the checkpoint)")->required();
+  cmd->add_option("--arch", o.spec.arch, "unet (pix2pix, default), resnet or mlp")
+      ->check(CLI::IsMember({"unet", "resnet", "mlp"}));
+  cmd->add_option("--depth", o.spec.depth,
+                  "unet: down-sampling levels (default 5); resnet: residual blocks")
+      ->check(CLI::Range(1, 8));
+  cmd->add_option("--width", o.spec.base_width, "Channels of the first layer (default 16)")
+      ->check(CLI::Range(1, 256));
+  cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
+      ->check(CLI::Range(1, 1024));
+  cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(CLI::PositiveNumber);
+  cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(CLI::PositiveNumber);
+  cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--l1-weight", o.l1_weight, "Weight of the L1 loss (default 100)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--gan-weight", o.gan_weight, "Weight of the GAN loss; 0 = no discriminator")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--contact-weight", o.contact_weight,
+                  "Contact pixels' loss counts 1 + this times a background pixel's (default 0)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
+      ->check(CLI::Range(0.0, 0.9));
+  cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation");
+  cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
+      ->check(CLI::PositiveNumber);
+  cmd->add_flag("--resume", o.resume, "Continue from OUT.ckpt");
+  cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
+  return cmd;
+}
+
+CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
+  CLI::App* cmd = app.add_subcommand(
+      "eval-normals", "Measure a normals model: MSE of (n+1)/2 and angular error (Table I)");
+  cmd->add_option("--model,-m", a.model, "Model file (from train-normals)")->required();
+  cmd->add_option("--data", a.data, "Dataset folders (color, normal, mask outputs)")->required();
+  cmd->add_option("--json", a.json, "Also write the results to this JSON file");
+  cmd->add_option("--threads", a.threads, "Torch threads (default 1)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
+  return cmd;
+}
+
+int run_train_normals(const TrainNormalsArgs& a) {
+  const TrainOptions& o = a.options;
+  std::unique_ptr<Progress> progress;
+  int epoch = 0;
+  std::printf("training %s (depth %d, width %d) on %zu dataset(s) for %d epochs -> %s\n",
+              o.spec.arch.c_str(), o.spec.depth, o.spec.base_width, o.train_data.size(), o.epochs,
+              o.out.c_str());
+  std::fflush(stdout);
+  train_normals(
+      o,
+      [&](const EpochReport& r) {
+        progress.reset();
+        epoch = r.epoch;
+        std::printf(
+            "epoch %3d/%d  %5.1f s  L1 %.4f  GAN %.3f  D %.3f  |  val MSE contact %.2e "
+            "image %.2e  angle contact %.2f deg\n",
+            r.epoch, r.epochs, r.seconds, r.loss_l1, r.loss_gan, r.loss_d, r.val.mse_contact,
+            r.val.mse_image, r.val.angle_contact_deg);
+        std::fflush(stdout);
+      },
+      [&](int done, int total) {
+        if (a.quiet) return;
+        if (!progress) {
+          progress = std::make_unique<Progress>("epoch " + std::to_string(epoch + 1), total, true,
+                                                "batches");
+        }
+        progress->update(done);
+      });
+  std::printf("wrote %s\n", o.out.c_str());
+  return kExitOk;
+}
+
+int run_eval_normals(const EvalNormalsArgs& a) {
+  const NormalEstimator model = NormalEstimator::load(a.model, a.threads);
+  nlohmann::json results = nlohmann::json::array();
+  std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",
+              "MSE image", "angle contact", "angle image", "ms/frame");
+  for (const std::string& dir : a.data) {
+    std::unique_ptr<Progress> progress;
+    const NormalMetrics m = evaluate_normals(model, {dir}, [&](int done, int total) {
+      if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
+      progress->update(done);
+    });
+    std::printf("%-40s %7d %12.3e %12.3e %10.2f deg %8.2f deg %9.2f\n", dir.c_str(), m.frames,
+                m.mse_contact, m.mse_image, m.angle_contact_deg, m.angle_image_deg, m.ms_per_frame);
+    results.push_back({{"dataset", dir},
+                       {"frames", m.frames},
+                       {"mse_contact", m.mse_contact},
+                       {"mse_image", m.mse_image},
+                       {"angle_contact_deg", m.angle_contact_deg},
+                       {"angle_image_deg", m.angle_image_deg},
+                       {"ms_per_frame", m.ms_per_frame}});
+  }
+  if (!a.json.empty()) {
+    std::ofstream out(a.json);
+    out << nlohmann::json{{"model", a.model},
+                          {"arch", model.info().spec.arch},
+                          {"results", results}}
+               .dump(2)
+        << "\n";
+    if (!out) throw InputError(a.json + ": cannot write");
+  }
+  return kExitOk;
+}
+
+}  // namespace pg

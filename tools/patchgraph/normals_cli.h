@@ -1,0 +1,29 @@
+#pragma once
+// patchgraph train-normals and eval-normals: the learned-normals network (pg/learn).
+#include <CLI/CLI.hpp>
+#include <string>
+#include <vector>
+
+#include "pg/learn/normal_model.h"
+
+namespace pg {
+
+struct TrainNormalsArgs {
+  TrainOptions options;
+  bool quiet = false;
+};
+
+struct EvalNormalsArgs {
+  std::string model;
+  std::vector<std::string> data;
+  std::string json;  // output file
+  int threads = 1;
+  bool quiet = false;
+};
+
+CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& args);
+CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& args);
+int run_train_normals(const TrainNormalsArgs& args);
+int run_eval_normals(const EvalNormalsArgs& args);
+
+}  // namespace pg
