@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
 # Installs the build and run-time dependencies from Debian 12's packages.
+# libopenblas0-openmp: LibTorch's transposed convolutions are BLAS matrix products, and a minimal
+# install would otherwise get the unoptimised reference BLAS (ATLAS -> OpenBLAS alone made the
+# default U-Net's inference 1.2x faster here).
 set -euo pipefail
 packages=(
   cmake g++ make pkg-config
   libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
-  libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev
+  libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev libopenblas0-openmp
   python3-matplotlib
 )
 missing=()
