@@ -5,7 +5,8 @@
 #                                      on the repository's sphere and cube random-press scenes
 #                                      (scenes/normals/*_train.json, rendered as written: elastic
 #                                      gel, shadows, noise, the synthetic background; and again
-#                                      on the rigid gel)
+#                                      on the rigid gel); and models/normals_mlp.pt, the
+#                                      per-pixel MLP baseline on the same data
 #   scripts/train_normals.sh --table   the paper's Table I: U-Net, ResNet and MLP trained on the
 #                                      same presses rendered with the real DIGIT background
 #                                      (../shared/data), evaluated on held-out sphere and cube
@@ -45,6 +46,12 @@ if [[ "${1:-}" != "--table" ]]; then
     --data "$d/sphere_train" "$d/cube_train" "$r/sphere_train" "$r/cube_train" \
     --val "$d/sphere_val" "$d/cube_val" --out "$root/models/normals_unet.pt"
   rm -f "$root/models/normals_unet.pt.ckpt"
+  # The per-pixel MLP baseline on the same data, for the normals-source rows of the benchmark.
+  "$patchgraph" train-normals --arch mlp --hidden 32 --lr 1e-3 --epochs "${EPOCHS:-60}" --seed 1 \
+    --contact-weight 4 --threads "$threads" --quiet \
+    --data "$d/sphere_train" "$d/cube_train" "$r/sphere_train" "$r/cube_train" \
+    --val "$d/sphere_val" "$d/cube_val" --out "$root/models/normals_mlp.pt"
+  rm -f "$root/models/normals_mlp.pt.ckpt"
   "$patchgraph" eval-normals --model "$root/models/normals_unet.pt" --quiet \
     --data "$d/sphere_val" "$d/cube_val" "$d/toy_brick_val" "$d/toy_human_val" \
            "$r/sphere_val" "$r/cube_val" "$r/toy_brick_val" "$r/toy_human_val"
