@@ -84,6 +84,19 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   EXPECT_LT(summary["final_rotation_error_rad"].get<double>(), 0.05);
 }
 
+TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {
+  const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                                               "/scenes/examples/sphere_press.json -q --width 60 "
+                                               "--height 80 --outputs color --out " + out("small"));
+  ASSERT_EQ(rendered.code, 0) << rendered.out;
+  const CliRun r = patchgraph("track " + out("small") + " -q --normals " + kDefaultModel +
+                              " --out " + out("track_small"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("takes 120x160 images"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("has 60x80"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out("track_small") + "/summary.json"));
+}
+
 TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
   const CliRun r = patchgraph("eval-normals -q --model " + kDefaultModel + " --data " + data() +
                               " --json " + out("normals.json"));
