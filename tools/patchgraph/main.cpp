@@ -21,7 +21,8 @@ int run_track(const TrackArgs& a) {
   const Dataset dataset = Dataset::open(a.dataset);
   const TrackOptions options = make_track_options(a, dataset);
   Progress progress("tracking", dataset.frames(), !a.quiet);
-  const TrackRun run = track_dataset(dataset, options, [&](int done, int) { progress.update(done); });
+  const TrackRun run =
+      track_dataset(dataset, options, [&](int done, int) { progress.update(done); });
   write_track_outputs(run, dataset, a.out);
   const TrackSummary& s = run.summary;
   std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
@@ -37,7 +38,8 @@ int run_track(const TrackArgs& a) {
   }
   std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
               s.final_rotation_error_rad);
-  std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3, s.rotation_rmse_rad);
+  std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3,
+              s.rotation_rmse_rad);
   if (s.batch_translation_rmse_m >= 0) {
     std::printf("batch RMSE      %.3f mm  %.4f rad; fixed-lag vs batch RMS %.4f mm  %.5f rad\n",
                 s.batch_translation_rmse_m * 1e3, s.batch_rotation_rmse_rad,
@@ -61,13 +63,15 @@ int main(int argc, char** argv) {
 
   TrackArgs track;
   CLI::App* cmd_track = app.add_subcommand("track", "Track the object of one dataset");
-  cmd_track->add_option("dataset", track.dataset, "Dataset folder (from tacsim render)")->required();
+  cmd_track->add_option("dataset", track.dataset, "Dataset folder (from tacsim render)")
+      ->required();
   cmd_track->add_option("--out,-o", track.out, "Output folder")->required();
   add_track_options(*cmd_track, track);
   cmd_track->add_flag("--quiet,-q", track.quiet, "No progress line");
 
   EvalArgs eval;
-  CLI::App* cmd_eval = app.add_subcommand("eval", "Run methods x datasets and summarise the errors");
+  CLI::App* cmd_eval =
+      app.add_subcommand("eval", "Run methods x datasets and summarise the errors");
   cmd_eval->add_option("--datasets", eval.datasets, "Dataset folders, or folders of datasets")
       ->required();
   cmd_eval->add_option("--methods", eval.methods, "Methods (default: all four)");
@@ -77,10 +81,11 @@ int main(int argc, char** argv) {
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 
   TrackBenchArgs bench;
-  CLI::App* cmd_bench =
-      app.add_subcommand("bench", "Run time against error over the tracker's knobs (docs/benchmarks.md)");
+  CLI::App* cmd_bench = app.add_subcommand(
+      "bench", "Run time against error over the tracker's knobs (docs/benchmarks.md)");
   cmd_bench->add_option("--out,-o", bench.out, "Output folder (bench.csv, bench.md, bench.png)");
-  cmd_bench->add_option("--scenes", bench.scenes, "Scene files (default: benchmark 00-02 per object)");
+  cmd_bench->add_option("--scenes", bench.scenes,
+                        "Scene files (default: benchmark 00-02 per object)");
   cmd_bench->add_option("--cache", bench.cache, "Rendered datasets, reused (default: OUT/cache)");
   cmd_bench->add_option("--normals", bench.normals, "Normals sources, one row each (default: gt)");
   cmd_bench->add_option("--frames", bench.frames, "Frames per scene (default: all)")

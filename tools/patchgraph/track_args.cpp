@@ -11,7 +11,8 @@ namespace pg {
 
 void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   if (with_method) {
-    app.add_option("--method,-m", a.method, "constvel, imagetoimage, patchgraph (default), gtpatch");
+    app.add_option("--method,-m", a.method,
+                   "constvel, imagetoimage, patchgraph (default), gtpatch");
   }
   app.add_option("--normals", a.normals,
                  "Normals source: gt (the dataset's normal images) or a model file from "
@@ -39,7 +40,8 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   TrackOptions o;
   if (a.normals != "gt") {
-    auto model = std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
+    auto model =
+        std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
     if (!dataset.info().has_output("color")) {
       throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                        a.normals);
@@ -49,11 +51,14 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
       throw InputError(a.normals + ": the model takes " + std::to_string(m.width) + "x" +
                        std::to_string(m.height) + " images; " + dataset.dir() + " has " +
                        std::to_string(dataset.info().width()) + "x" +
-                       std::to_string(dataset.info().height()) + " (render at the model's size "
+                       std::to_string(dataset.info().height()) +
+                       " (render at the model's size "
                        "or train a model at the dataset's)");
     }
     const ImageU8 background = dataset.background();
-    o.normals = [model, background](const ImageU8& color) { return model->predict(color, background); };
+    o.normals = [model, background](const ImageU8& color) {
+      return model->predict(color, background);
+    };
     o.normals_name = a.normals;
   }
   o.graph.method = method_from_string(a.method);
@@ -76,7 +81,8 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (o.graph.method == Method::kGroundTruthPatch) {
     const auto& info = dataset.info();
     if (info.object_mesh.empty()) {
-      throw InputError(dataset.dir() + "/dataset.json: object.mesh is empty; gtpatch needs the mesh");
+      throw InputError(dataset.dir() +
+                       "/dataset.json: object.mesh is empty; gtpatch needs the mesh");
     }
     const SurfaceSamples s = sample_surface(load_mesh(info.object_mesh, info.object_scale), 1e-4);
     o.model_object.points = s.points;
