@@ -182,6 +182,7 @@ SensorRenderer::~SensorRenderer() = default;
 const SensorModel& SensorRenderer::sensor() const { return state_->sensor; }
 const RenderSettings& SensorRenderer::settings() const { return state_->settings; }
 const ImageF& SensorRenderer::background_color() const { return state_->background; }
+const ImageU8& SensorRenderer::background_color_u8() const { return state_->background_u8; }
 const ImageF& SensorRenderer::undeformed_normals() const { return state_->normals0; }
 
 RenderedFrame SensorRenderer::render(const std::vector<SE3>& T_sensor_objects,

@@ -103,14 +103,8 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
                                 ? out_dir
                                 : (fs::path(out_dir) / scene.sensors[i].name).string();
     writers.push_back(std::make_unique<DatasetWriter>(dir, info));
-    if (info.has_output("color")) {
-      const ImageF& bg = renderer.sensor(i).background_color();
-      ImageU8 bg8(bg.width, bg.height, bg.channels);
-      for (std::size_t k = 0; k < bg.data.size(); ++k) {
-        bg8.data[k] = std::uint8_t(std::clamp(bg.data[k], 0.0f, 1.0f) * 255.0f + 0.5f);
-      }
-      writers.back()->write_background(bg8);
-    }
+    if (info.has_output("color"))
+      writers.back()->write_background(renderer.sensor(i).background_color_u8());
     summary.dataset_dirs.push_back(dir);
   }
   std::atomic<int> done{0}, contact_frames{0}, clamped_frames{0};

@@ -104,6 +104,7 @@ class SensorRenderer {
   const RenderSettings& settings() const;
   // The no-contact images (before noise): what a frame without contact shows.
   const ImageF& background_color() const;
+  const ImageU8& background_color_u8() const;  // the same, quantised as colour frames are
   const ImageF& undeformed_normals() const;
 
  private:
