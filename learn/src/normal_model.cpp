@@ -8,6 +8,7 @@
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/statistics.h"
 
 namespace pg {
 
@@ -274,10 +275,7 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
     }
   }
   NormalMetrics m = sums.metrics(done);
-  if (!times.empty()) {
-    std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
-    m.ms_per_frame = times[times.size() / 2];
-  }
+  if (!times.empty()) m.ms_per_frame = upper_median(times);
   return m;
 }
 

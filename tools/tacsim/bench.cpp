@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "../common/machine_info.h"
+#include "pg/core/statistics.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
 
@@ -26,11 +27,6 @@ struct Case {
   std::shared_ptr<const ObjectShape> shape;
   SE3 T_sensor_object;
 };
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
 
 double seconds_since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -90,8 +86,8 @@ std::vector<Timing> time_cases(const std::vector<Case>& cases, const std::string
   for (int r = 0; r < args.repeats; ++r)
     for (Run& run : runs) time_once(run, args.frames);
   for (std::size_t c = 0; c < cases.size(); ++c) {
-    out[c].fps = median(runs[c].fps);
-    out[c].ms_one_thread = median(runs[c].ms);
+    out[c].fps = upper_median(runs[c].fps);
+    out[c].ms_one_thread = upper_median(runs[c].ms);
   }
   return out;
 }
@@ -195,8 +191,8 @@ int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const Be
     for (int v = 0; v < n_variants; ++v) {
       out << "| " << kVariants[v].name << " |";
       for (std::size_t c = 0; c < cases.size(); ++c) {
-        const double m = median(ms[c * n_variants + v]);
-        const double base = median(ms[c * n_variants]);
+        const double m = upper_median(ms[c * n_variants + v]);
+        const double base = upper_median(ms[c * n_variants]);
         char cell[64];
         std::snprintf(cell, sizeof(cell), " %.3f (%.2fx) |", m, m / base);
         out << cell;

@@ -9,6 +9,7 @@
 #include <random>
 
 #include "pg/core/error.h"
+#include "pg/core/statistics.h"
 #include "pg/tracker/contact_cloud.h"
 
 namespace pg {
@@ -139,12 +140,9 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
   s.final_translation_error_m = frames.back().translation_error_m;
   s.final_rotation_error_rad = frames.back().rotation_error_rad;
   s.mean_frame_ms = ms / frames.size();
-  std::nth_element(times.begin(), times.begin() + times.size() / 2, times.end());
-  s.median_frame_ms = times[times.size() / 2];
+  s.median_frame_ms = upper_median(times);
   s.hz = s.median_frame_ms > 0 ? 1000.0 / s.median_frame_ms : 0.0;
-  std::nth_element(normals_times.begin(), normals_times.begin() + normals_times.size() / 2,
-                   normals_times.end());
-  s.median_normals_ms = normals_times[normals_times.size() / 2];
+  s.median_normals_ms = upper_median(normals_times);
   return s;
 }
 
