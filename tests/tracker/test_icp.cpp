@@ -1,6 +1,7 @@
 // Point-to-plane ICP: Jacobians against numeric differentiation, the nearest-neighbour search
-// (voxel grid and k-d tree) against brute force, recovery of known transforms between renders (clean and with outliers), degeneracy on a
-// flat patch and a sphere, the information matrix's convention, and bad input.
+// (voxel grid and k-d tree) against brute force, recovery of known transforms between renders
+// (clean and with outliers), degeneracy on a flat patch and a sphere, the information matrix's
+// convention, and bad input.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -38,9 +39,11 @@ TEST(PointToPlane, JacobiansMatchNumericDifferentiation) {
     for (int k = 0; k < 6; ++k) {
       const Vector6d e = Vector6d::Unit(k) * h;
       const double left = (point_to_plane_residual(SE3::exp(e) * T, p, q, n) -
-                           point_to_plane_residual(SE3::exp(-e) * T, p, q, n)) / (2 * h);
+                           point_to_plane_residual(SE3::exp(-e) * T, p, q, n)) /
+                          (2 * h);
       const double right = (point_to_plane_residual(T * SE3::exp(e), p, q, n) -
-                            point_to_plane_residual(T * SE3::exp(-e), p, q, n)) / (2 * h);
+                            point_to_plane_residual(T * SE3::exp(-e), p, q, n)) /
+                           (2 * h);
       EXPECT_NEAR(J_left[k], left, 1e-7) << "trial " << trial << " column " << k;
       EXPECT_NEAR(J_right[k], right, 1e-7) << "trial " << trial << " column " << k;
     }
@@ -120,7 +123,8 @@ struct TwoRenders {
 
 TwoRenders two_renders(const RenderCase& rc, const SE3& T_sensor_object_a, const SE3& delta) {
   const SE3 T_sensor_object_b = delta * T_sensor_object_a;
-  ContactCloudBuilder builder(rc.sensor, test::all_contact_pixels(), rc.renderer->undeformed_normals());
+  ContactCloudBuilder builder(rc.sensor, test::all_contact_pixels(),
+                              rc.renderer->undeformed_normals());
   TwoRenders out;
   out.cloud_a = builder.build(render(rc, T_sensor_object_a).images.normal).cloud_sensor;
   out.cloud_b = builder.build(render(rc, T_sensor_object_b).images.normal).cloud_sensor;
@@ -152,7 +156,8 @@ void add_outliers(PointCloud& cloud, double fraction, std::mt19937& rng) {
   const std::size_t original = cloud.size();
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector3f& base = cloud.points[std::size_t(u(rng) * (original - 1))];
-    const Eigen::Vector3f dir = Eigen::Vector3f(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f).normalized();
+    const Eigen::Vector3f dir =
+        Eigen::Vector3f(u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f).normalized();
     cloud.push_back(base + dir * (0.0002f + 0.0008f * u(rng)), dir);
   }
 }
@@ -179,12 +184,13 @@ void check_registration(const std::string& name, const RenderCase& rc, const SE3
   const IcpResult r = icp.align(tr.cloud_b, target, SE3::Identity());
   const Error e = pose_error(r.T_target_source, tr.T_a_b);
   const Error start = pose_error(SE3::Identity(), tr.T_a_b);
-  std::printf("  %-34s %5zu/%5zu pts, %2d it, %s, inliers %d, rms %.4f mm: error %.4f mm %.4f deg "
-              "(from %.3f mm %.2f deg), %d unconstrained, %ld queries\n",
-              name.c_str(), tr.cloud_b.size(), tr.cloud_a.size(), r.iterations,
-              to_string(r.status), r.inliers, r.rms_m * 1e3, e.translation_m * 1e3,
-              deg(e.rotation_rad), start.translation_m * 1e3, deg(start.rotation_rad),
-              r.degeneracy.unconstrained, icp.last_queries());
+  std::printf(
+      "  %-34s %5zu/%5zu pts, %2d it, %s, inliers %d, rms %.4f mm: error %.4f mm %.4f deg "
+      "(from %.3f mm %.2f deg), %d unconstrained, %ld queries\n",
+      name.c_str(), tr.cloud_b.size(), tr.cloud_a.size(), r.iterations, to_string(r.status),
+      r.inliers, r.rms_m * 1e3, e.translation_m * 1e3, deg(e.rotation_rad),
+      start.translation_m * 1e3, deg(start.rotation_rad), r.degeneracy.unconstrained,
+      icp.last_queries());
   if (must_converge) {
     EXPECT_TRUE(r.converged) << name << ": " << to_string(r.status);
   }
@@ -326,7 +332,8 @@ TEST(IcpDegeneracy, FlatPatchLeavesInPlaneTranslationAndYawAtTheGuess) {
   const PointCloud target = flat_patch(0.0001);
   const PointCloudTree tree(target);
   // The source is the target moved by the inverse of a motion with all six components.
-  const SE3 truth = SE3::exp((Vector6d() << 0.0004, -0.0003, 0.0002, rad(1.5), rad(-1.0), rad(5.0)).finished());
+  const SE3 truth =
+      SE3::exp((Vector6d() << 0.0004, -0.0003, 0.0002, rad(1.5), rad(-1.0), rad(5.0)).finished());
   const PointCloud source = transform_cloud(truth.inverse(), target);
   PointToPlaneIcp icp;
   const IcpResult r = icp.align(source, tree, SE3::Identity());
@@ -396,7 +403,8 @@ TEST(IcpDegeneracy, RenderedSphereReportsThreeRotationsAndKeepsItsOrientation) {
   const SE3 pose_a = SE3::Translation({0.0005, -0.001, R - 0.001});
   // B: 0.3 mm along the gel and 8 deg about the sphere's centre.
   const Eigen::Quaterniond q(Eigen::AngleAxisd(rad(8), Eigen::Vector3d(0.2, 1, 0.3).normalized()));
-  const SE3 pose_b = SE3::Translation({0.0003, 0.0001, 0}) * pose_a * SE3(q, Eigen::Vector3d::Zero());
+  const SE3 pose_b =
+      SE3::Translation({0.0003, 0.0001, 0}) * pose_a * SE3(q, Eigen::Vector3d::Zero());
   const TwoRenders tr = two_renders(rc, pose_a, pose_b * pose_a.inverse());
   const PointCloudTree tree(tr.cloud_a);
   const IcpResult r = PointToPlaneIcp().align(tr.cloud_b, tree, SE3::Identity());
@@ -422,7 +430,8 @@ TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
     }
   }
   const PointCloudTree tree(target);
-  const SE3 truth = SE3::exp((Vector6d() << 0.0001, 0.0002, -0.0001, 0.01, -0.02, 0.015).finished());
+  const SE3 truth =
+      SE3::exp((Vector6d() << 0.0001, 0.0002, -0.0001, 0.01, -0.02, 0.015).finished());
   const PointCloud source = transform_cloud(truth.inverse(), target);
   IcpOptions options;
   options.kernel = RobustKernel::kNone;
@@ -485,6 +494,77 @@ TEST(IcpReuse, OneTreeServesManyCallsAndMostQueriesAreSkippedNearConvergence) {
   EXPECT_EQ(first.iterations, 10);
   EXPECT_LT(translation_distance(first.T_target_source, second.T_target_source), 1e-12);
   EXPECT_LT(icp.last_queries(), long(3 * source.size())) << "of " << 10 * source.size();
+}
+
+// A bumpy, fully constrained surface z = A sin(x / l) sin(y / l) over side x side metres.
+PointCloud bumpy_surface(double side_m, double spacing_m) {
+  const double A = 0.0005, l = 0.0015;
+  PointCloud c;
+  const int n = int(side_m / spacing_m) + 1;
+  for (int a = 0; a < n; ++a) {
+    for (int b = 0; b < n; ++b) {
+      const double x = -side_m / 2 + a * spacing_m, y = -side_m / 2 + b * spacing_m;
+      const double zx = A / l * std::cos(x / l) * std::sin(y / l);
+      const double zy = A / l * std::sin(x / l) * std::cos(y / l);
+      c.push_back(Eigen::Vector3f(float(x), float(y), float(A * std::sin(x / l) * std::sin(y / l))),
+                  Eigen::Vector3d(-zx, -zy, 1).normalized().cast<float>());
+    }
+  }
+  return c;
+}
+
+TEST(IcpCoarseToFine, SameAnswerAsTheFullCloudWithFewerQueries) {
+  const PointCloudTree target(bumpy_surface(0.012, 0.00005));
+  const SE3 truth = SE3::exp((Vector6d() << 2e-4, -1e-4, 1e-4, 0.01, -0.015, 0.02).finished());
+  const PointCloud source = transform_cloud(truth.inverse(), bumpy_surface(0.008, 0.00007));
+  IcpOptions options;
+  options.kernel = RobustKernel::kNone;
+  PointToPlaneIcp coarse(options);
+  options.coarse_points = 0;
+  PointToPlaneIcp full(options);
+  const IcpResult a = coarse.align(source, target, SE3::Identity());
+  const IcpResult b = full.align(source, target, SE3::Identity());
+  ASSERT_TRUE(a.converged) << to_string(a.status);
+  ASSERT_TRUE(b.converged) << to_string(b.status);
+  EXPECT_GT(a.coarse_iterations, 0);
+  EXPECT_EQ(b.coarse_iterations, 0);
+  // The fine iterations decide: the same fixed point, every point an inlier, the same Hessian.
+  EXPECT_LT(translation_distance(a.T_target_source, b.T_target_source), 1e-8);
+  EXPECT_LT(rotation_distance(a.T_target_source, b.T_target_source), 1e-7);
+  EXPECT_LT(translation_distance(a.T_target_source, truth), 1e-6);
+  EXPECT_EQ(a.inliers, int(source.size()));
+  EXPECT_EQ(a.inliers, b.inliers);
+  EXPECT_LT((a.hessian - b.hessian).norm(), 1e-6 * b.hessian.norm());
+  EXPECT_LT(coarse.last_queries(), full.last_queries() * 3 / 4)
+      << coarse.last_queries() << " vs " << full.last_queries();
+  std::printf("  coarse to fine: %d+%d iterations, %ld queries; full cloud: %d iterations, %ld\n",
+              a.coarse_iterations, a.iterations - a.coarse_iterations, coarse.last_queries(),
+              b.iterations, full.last_queries());
+}
+
+TEST(IcpCoarseToFine, TheLastIterationAndSmallCloudsUseEveryPoint) {
+  const PointCloudTree target(bumpy_surface(0.008, 0.00005));
+  const SE3 truth = SE3::exp((Vector6d() << 2e-4, -1e-4, 1e-4, 0.01, -0.015, 0.02).finished());
+  const PointCloud source = transform_cloud(truth.inverse(), bumpy_surface(0.004, 0.00007));
+  IcpOptions options;
+  options.max_iterations = 1;
+  PointToPlaneIcp one(options);
+  const IcpResult r = one.align(source, target, SE3::Identity());
+  EXPECT_EQ(r.iterations, 1);
+  EXPECT_EQ(r.coarse_iterations, 0);
+  EXPECT_EQ(r.inliers, int(source.size()));
+  // Under twice coarse_points there is nothing to gain.
+  options = IcpOptions();
+  options.coarse_points = int(source.size()) / 2 + 1;
+  PointToPlaneIcp small(options);
+  EXPECT_EQ(small.align(source, target, SE3::Identity()).coarse_iterations, 0);
+  // A subsample too sparse to find min_points partners hands over to the full cloud at once.
+  options = IcpOptions();
+  options.min_points = 600;
+  PointToPlaneIcp sparse(options);
+  const IcpResult s = sparse.align(source, target, SE3::Identity());
+  EXPECT_TRUE(s.converged) << to_string(s.status);
+  EXPECT_EQ(s.coarse_iterations, 1);
 }
 
 }  // namespace

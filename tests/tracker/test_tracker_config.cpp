@@ -28,18 +28,21 @@ TEST(TrackerConfig, EmptyObjectGivesTheDefaults) {
 }
 
 TEST(TrackerConfig, OverridesAndRoundTrips) {
-  const TrackerConfig c = tracker_config_from_json(
-      parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6},
+  const TrackerConfig c =
+      tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6},
                           "mask": {"min_depth_m": 5e-5},
-                          "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4}})",
-                      "cfg.json"),
-      "cfg.json");
+                          "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4,
+                                  "coarse_points": 0, "coarse_step_m": 2e-5}})",
+                                               "cfg.json"),
+                               "cfg.json");
   EXPECT_FALSE(c.depth.crop);
   EXPECT_EQ(c.depth.crop_margin_px, 6);
   EXPECT_DOUBLE_EQ(c.mask.min_depth_m, 5e-5);
   EXPECT_EQ(c.icp.kernel, RobustKernel::kTukey);
   EXPECT_DOUBLE_EQ(c.icp.kernel_scale_m, 2e-4);
   EXPECT_DOUBLE_EQ(c.icp.voxel_size_m, 1e-4);
+  EXPECT_EQ(c.icp.coarse_points, 0);
+  EXPECT_DOUBLE_EQ(c.icp.coarse_step_m, 2e-5);
   const TrackerConfig back = tracker_config_from_json(tracker_config_to_json(c), "round trip");
   EXPECT_EQ(tracker_config_to_json(back), tracker_config_to_json(c));
 }
@@ -55,6 +58,8 @@ TEST(TrackerConfig, ErrorsNameTheFileAndField) {
   EXPECT_NE(error_of(R"({"depth": {"crop_margin_px": 0}})").find("depth.crop_margin_px"),
             std::string::npos);
   EXPECT_NE(error_of(R"({"icp": {"max_correspondence_m": -1}})").find("max_correspondence_m"),
+            std::string::npos);
+  EXPECT_NE(error_of(R"({"icp": {"coarse_points": -1}})").find("icp.coarse_points"),
             std::string::npos);
   EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
 }

@@ -13,8 +13,7 @@ class CorrespondenceCache {
  public:
   void reset(std::size_t n) {
     queried_at_.resize(n);
-    d1_.resize(n);
-    d2_.resize(n);
+    slack_sq_.resize(n);
     second_.resize(n);
     nearest_.assign(n, kNeverQueried);
   }
@@ -24,15 +23,15 @@ class CorrespondenceCache {
   // nearest and second-nearest distances at the last query (every distance changes by at most
   // the displacement); nor can a point with no target point within `radius` have come within
   // `max_correspondence` of one before moving by the difference. Otherwise it queries the tree,
-  // seeded with the previous answer, and counts the query.
+  // seeded with the previous answers, and counts the query. (Seeding a first query with the
+  // answers of the previous source point, a neighbour in raster order, was slower.)
   int nearest(std::size_t i, const Eigen::Vector3f& p, const PointCloudTree& tree, float radius,
               float max_correspondence, long& queries) {
     const int previous = nearest_[i];
-    if (previous != kNeverQueried) {
-      const float moved = (p - queried_at_[i]).norm();
-      const bool same = previous >= 0 ? 2.0f * moved < d2_[i] - d1_[i]
-                                      : moved < radius - max_correspondence;
-      if (same) return previous;
+    // Compared squared: a square root per point per iteration cost more than the rest of the
+    // test.
+    if (previous != kNeverQueried && (p - queried_at_[i]).squaredNorm() < slack_sq_[i]) {
+      return previous;
     }
     const bool seen = previous != kNeverQueried;
     const PointCloudTree::TwoNearest nn =
@@ -40,8 +39,10 @@ class CorrespondenceCache {
     queried_at_[i] = p;
     nearest_[i] = nn.index[0];
     second_[i] = nn.index[1];
-    d1_[i] = std::sqrt(nn.distance_sq[0]);
-    d2_[i] = std::sqrt(nn.distance_sq[1]);
+    const float slack = nn.index[0] >= 0
+                            ? 0.5f * (std::sqrt(nn.distance_sq[1]) - std::sqrt(nn.distance_sq[0]))
+                            : radius - max_correspondence;
+    slack_sq_[i] = slack > 0.0f ? slack * slack : 0.0f;
     ++queries;
     return nn.index[0];
   }
@@ -49,8 +50,11 @@ class CorrespondenceCache {
  private:
   static constexpr int kNeverQueried = -2;
   std::vector<Eigen::Vector3f> queried_at_;  // where each point was at its last query
-  std::vector<float> d1_, d2_;               // nearest and second-nearest distances then [m]
-  std::vector<int> nearest_, second_;        // their indices (-1: none within the radius)
+  // The squared distance the point may move before its nearest neighbour could change:
+  // ((d2 - d1) / 2)^2 from the nearest and second-nearest distances d1, d2 at the last query, or
+  // (radius - max_correspondence)^2 when nothing was within the radius [m^2].
+  std::vector<float> slack_sq_;
+  std::vector<int> nearest_, second_;  // nearest and second nearest then (-1: none within radius)
 };
 
 }  // namespace pg

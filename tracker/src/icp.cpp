@@ -21,8 +21,8 @@ constexpr std::size_t kGrainSize = 256;
 // its latency chain made the accumulation cost more than the rest of the linearisation).
 constexpr int kLanes = 8;
 struct NormalEquations {
-  double H[21][kLanes] = {};  // upper triangle of sum w J J^T, row by row
-  double g[6][kLanes] = {};   // sum w r J
+  double H[21][kLanes] = {};        // upper triangle of sum w J J^T, row by row
+  double g[6][kLanes] = {};         // sum w r J
   double weighted_sq[kLanes] = {};  // sum w r^2 [m^2]
   double weight[kLanes] = {};       // sum w
   double sq[kLanes] = {};           // sum r^2 over inliers [m^2]
@@ -106,10 +106,11 @@ Centroid centroid_and_radius(const std::vector<Eigen::Vector3f>& points) {
 }
 
 // Eq. 5/6 linearised at T: correspondences, robust weights and the normal equations in scaled
-// coordinates about c, summed over the source points in parallel (oneTBB reduction).
-NormalEquations linearise(const PointCloud& source, const PointCloudTree& target, const SE3& T,
-                          const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
-                          CorrespondenceCache& cache, float radius) {
+// coordinates about c, summed over every stride-th source point in parallel (oneTBB reduction).
+NormalEquations linearise(const PointCloud& source, std::size_t stride,
+                          const PointCloudTree& target, const SE3& T, const Eigen::Vector3d& c,
+                          double inv_L, const IcpOptions& o, CorrespondenceCache& cache,
+                          float radius) {
   const Eigen::Matrix3f R = T.rotation_matrix().cast<float>();
   const Eigen::Vector3f t = T.translation().cast<float>();
   const Eigen::Vector3f cf = c.cast<float>();
@@ -118,12 +119,14 @@ NormalEquations linearise(const PointCloud& source, const PointCloudTree& target
   const std::vector<Eigen::Vector3f>& src = source.points;
   const PointCloud& tgt = target.cloud();
   return tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, src.size(), kGrainSize), NormalEquations(),
+      tbb::blocked_range<std::size_t>(0, (src.size() + stride - 1) / stride, kGrainSize),
+      NormalEquations(),
       [&](const tbb::blocked_range<std::size_t>& range, NormalEquations acc) {
         constexpr int kChunk = 64;  // terms gathered before they are summed
         double J[6][kChunk], wc[kChunk], rc[kChunk];
         int m = 0;
-        for (std::size_t i = range.begin(); i != range.end(); ++i) {
+        for (std::size_t k = range.begin(); k != range.end(); ++k) {
+          const std::size_t i = k * stride;
           const Eigen::Vector3f p = R * src[i] + t;
           const int j = cache.nearest(i, p, target, radius, max_corr, acc.queries);
           if (j < 0) continue;
@@ -161,10 +164,14 @@ NormalEquations linearise(const PointCloud& source, const PointCloudTree& target
 
 const char* to_string(IcpStatus status) {
   switch (status) {
-    case IcpStatus::kConverged: return "converged";
-    case IcpStatus::kMaxIterations: return "max iterations";
-    case IcpStatus::kTooFewPoints: return "too few points";
-    case IcpStatus::kTooFewCorrespondences: return "too few correspondences";
+    case IcpStatus::kConverged:
+      return "converged";
+    case IcpStatus::kMaxIterations:
+      return "max iterations";
+    case IcpStatus::kTooFewPoints:
+      return "too few points";
+    case IcpStatus::kTooFewCorrespondences:
+      return "too few correspondences";
   }
   return "?";
 }
@@ -203,40 +210,64 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   // later queries until it has moved by the difference.
   const float radius = 1.5f * float(o.max_correspondence_m);
 
+  // Coarse to fine: the large first steps on every stride-th point. Each step re-queries about
+  // every point it moves by more than a point spacing, so the subsample saves most of the
+  // queries of a distant guess; the full cloud then starts close to its answer and its points
+  // keep their nearest neighbours from one iteration to the next.
+  std::size_t stride = 1;
+  if (o.coarse_points > 0 && n >= 2 * std::size_t(o.coarse_points)) {
+    stride = n / std::size_t(o.coarse_points);
+  }
+  const int min_inliers = std::max(o.min_points, 6);
+
   SE3 T = T_target_source_guess;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
-    const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
+    const Eigen::Vector3d c = T * cs.centre;        // the source centroid in the target frame
+    if (iteration == o.max_iterations) stride = 1;  // the result is always the full cloud's
 
-    const NormalEquations eq = linearise(*source, target, T, c, inv_L, o, *cache_, radius);
+    const NormalEquations eq = linearise(*source, stride, target, T, c, inv_L, o, *cache_, radius);
     last_queries_ += eq.queries;
     result.iterations = iteration;
-    result.inliers = eq.inliers;
-    if (eq.inliers < std::max(o.min_points, 6)) {
+    const bool coarse = stride > 1;
+    result.coarse_iterations += coarse;
+    if (eq.inliers < min_inliers) {
+      if (coarse) {  // too sparse to register: the full cloud decides
+        stride = 1;
+        continue;
+      }
       result.status = IcpStatus::kTooFewCorrespondences;
       result.converged = false;
       result.T_target_source = T;
       return result;
     }
-    result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);
     const Matrix6d H_scaled = eq.hessian();
-    result.degeneracy = analyse_degeneracy(H_scaled, c, L, o.min_eigenvalue_ratio);
-
-    // Hessian and information in the right (source-frame) tangent at this linearisation point:
-    // J_c = J_scaled S with S = diag(1, 1, 1, L, L, L), and delta_c = Ad(T_c^-1 T) eps.
-    Vector6d s;
-    s << 1, 1, 1, L, L, L;
-    const Matrix6d H_c = s.asDiagonal() * H_scaled * s.asDiagonal();
-    const Matrix6d A = (SE3::Translation(-c) * T).adjoint();
-    result.hessian = A.transpose() * H_c * A;
-    const double sigma_sq = NormalEquations::total(eq.weighted_sq) /
-                            std::max(NormalEquations::total(eq.weight) - 6.0, 1.0);
-    result.residual_sigma_m = std::max(std::sqrt(sigma_sq), o.min_residual_sigma_m);
-    result.information = result.hessian / (result.residual_sigma_m * result.residual_sigma_m);
+    const DegeneracyReport degeneracy = analyse_degeneracy(H_scaled, c, L, o.min_eigenvalue_ratio);
+    if (!coarse) {
+      result.inliers = eq.inliers;
+      result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);
+      result.degeneracy = degeneracy;
+      // Hessian and information in the right (source-frame) tangent at this linearisation
+      // point: J_c = J_scaled S with S = diag(1, 1, 1, L, L, L), and delta_c = Ad(T_c^-1 T) eps.
+      Vector6d s;
+      s << 1, 1, 1, L, L, L;
+      const Matrix6d H_c = s.asDiagonal() * H_scaled * s.asDiagonal();
+      const Matrix6d A = (SE3::Translation(-c) * T).adjoint();
+      result.hessian = A.transpose() * H_c * A;
+      const double sigma_sq = NormalEquations::total(eq.weighted_sq) /
+                              std::max(NormalEquations::total(eq.weight) - 6.0, 1.0);
+      result.residual_sigma_m = std::max(std::sqrt(sigma_sq), o.min_residual_sigma_m);
+      result.information = result.hessian / (result.residual_sigma_m * result.residual_sigma_m);
+    }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
-    const Vector6d step_c = constrained_step(result.degeneracy, eq.gradient());
+    const Vector6d step_c = constrained_step(degeneracy, eq.gradient());
     const SE3 T_c = SE3::Translation(c);
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
+    if (coarse) {
+      // Fine from the next iteration once the subsample's points move less than coarse_step_m.
+      if (step_c.head<3>().norm() + step_c.tail<3>().norm() * L < o.coarse_step_m) stride = 1;
+      continue;
+    }
     result.T_target_source = T;
     if (step_c.head<3>().norm() < o.convergence_translation_m &&
         step_c.tail<3>().norm() < o.convergence_rotation_rad) {

@@ -64,6 +64,8 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
       f.number_in("convergence_rotation_rad", 0.0, 1.0, o.convergence_rotation_rad);
   o.min_points = int_in(f, "min_points", 6, 100000000, o.min_points);
   o.voxel_size_m = f.number_in("voxel_size_m", 0.0, 1.0, o.voxel_size_m);
+  o.coarse_points = int_in(f, "coarse_points", 0, 100000000, o.coarse_points);
+  o.coarse_step_m = f.number_in("coarse_step_m", 0.0, 1.0, o.coarse_step_m);
   o.min_eigenvalue_ratio = f.number_in("min_eigenvalue_ratio", 0.0, 1.0, o.min_eigenvalue_ratio);
   o.min_residual_sigma_m = f.number_in("min_residual_sigma_m", 1e-12, 1.0, o.min_residual_sigma_m);
   f.finish();
@@ -80,9 +82,12 @@ RobustKernel robust_kernel_from_string(const std::string& name) {
 
 const char* to_string(RobustKernel kernel) {
   switch (kernel) {
-    case RobustKernel::kNone: return "none";
-    case RobustKernel::kHuber: return "huber";
-    case RobustKernel::kTukey: return "tukey";
+    case RobustKernel::kNone:
+      return "none";
+    case RobustKernel::kHuber:
+      return "huber";
+    case RobustKernel::kTukey:
+      return "tukey";
   }
   return "?";
 }
@@ -123,6 +128,8 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"convergence_rotation_rad", c.icp.convergence_rotation_rad},
         {"min_points", c.icp.min_points},
         {"voxel_size_m", c.icp.voxel_size_m},
+        {"coarse_points", c.icp.coarse_points},
+        {"coarse_step_m", c.icp.coarse_step_m},
         {"min_eigenvalue_ratio", c.icp.min_eigenvalue_ratio},
         {"min_residual_sigma_m", c.icp.min_residual_sigma_m}}},
   };

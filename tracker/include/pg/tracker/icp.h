@@ -26,6 +26,12 @@ struct IcpOptions {
   double convergence_rotation_rad = 1e-6;
   int min_points = 20;      // fewer source points or correspondences: not converged [-]
   double voxel_size_m = 0;  // downsample the source to this voxel edge first; 0: off [m]
+  // Coarse to fine: while the steps are large, iterate on an evenly strided subsample of about
+  // coarse_points source points (0: off; clouds under twice this size are never subsampled),
+  // until a step moves the subsample by less than coarse_step_m; the iterations after that, and
+  // always the last allowed one, use every point, so the result is the full cloud's.
+  int coarse_points = 512;
+  double coarse_step_m = 1e-5;  // [m]
   // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
   // degeneracy.h) is below this fraction of the largest [-].
   double min_eigenvalue_ratio = 5e-3;
@@ -36,9 +42,9 @@ struct IcpOptions {
 
 enum class IcpStatus {
   kConverged,
-  kMaxIterations,           // the last update was still above the thresholds
-  kTooFewPoints,            // source (after downsampling) or target below min_points, or no normals
-  kTooFewCorrespondences,   // fewer than min_points pairs within max_correspondence_m
+  kMaxIterations,          // the last update was still above the thresholds
+  kTooFewPoints,           // source (after downsampling) or target below min_points, or no normals
+  kTooFewCorrespondences,  // fewer than min_points pairs within max_correspondence_m
 };
 const char* to_string(IcpStatus status);
 
@@ -55,13 +61,15 @@ struct IcpResult {
   double rms_m = 0;             // RMS point-to-plane residual of the inliers [m]
   bool converged = false;
   IcpStatus status = IcpStatus::kTooFewPoints;
-  int iterations = 0;           // Gauss-Newton linearisations
+  int iterations = 0;           // Gauss-Newton linearisations, coarse ones included
+  int coarse_iterations = 0;    // of which on the subsample (IcpOptions::coarse_points)
   int source_points = 0;        // after downsampling
   DegeneracyReport degeneracy;  // at the last linearisation
 };
 
 // Holds the options and the per-point scratch (downsampled source, correspondence cache), so
-// repeated calls with clouds of similar size allocate nothing. Not thread-safe (one per thread); parallel inside.
+// repeated calls with clouds of similar size allocate nothing. Not thread-safe (one per thread);
+// parallel inside.
 class PointToPlaneIcp {
  public:
   explicit PointToPlaneIcp(const IcpOptions& options = IcpOptions());
