@@ -176,6 +176,7 @@ void BM_Icp5kAgainst50k(benchmark::State& state) {
     benchmark::DoNotOptimize(r.T_target_source);
   }
   state.counters["iterations"] = r.iterations;
+  state.counters["coarse"] = r.coarse_iterations;
   state.counters["queries"] = double(icp.last_queries());
   state.counters["inliers"] = r.inliers;
 }
@@ -216,6 +217,7 @@ void BM_Icp5kAgainst50kConverging(benchmark::State& state) {
     benchmark::DoNotOptimize(r.T_target_source);
   }
   state.counters["iterations"] = r.iterations;
+  state.counters["coarse"] = r.coarse_iterations;
   state.counters["queries"] = double(icp.last_queries());
 }
 BENCHMARK(BM_Icp5kAgainst50kConverging)->Unit(benchmark::kMicrosecond)->UseRealTime();

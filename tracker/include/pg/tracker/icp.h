@@ -31,7 +31,7 @@ struct IcpOptions {
   // until a step moves the subsample by less than coarse_step_m; the iterations after that, and
   // always the last allowed one, use every point, so the result is the full cloud's.
   int coarse_points = 512;
-  double coarse_step_m = 1e-5;  // [m]
+  double coarse_step_m = 2e-6;  // [m]
   // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
   // degeneracy.h) is below this fraction of the largest [-].
   double min_eigenvalue_ratio = 5e-3;
