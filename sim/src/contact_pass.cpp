@@ -19,8 +19,8 @@ constexpr double kTrianglesPerRay = 16.0;
 
 // The image rectangle (plus a pixel) that the sensor-frame box [lo, hi] projects to, with z cut
 // to [z_lo, z_hi]; empty if the box lies outside that z range.
-PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3d hi,
-                      double z_lo, double z_hi, int width, int height) {
+PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3d hi, double z_lo,
+                      double z_hi, int width, int height) {
   lo.z() = std::max(lo.z(), z_lo);
   hi.z() = std::min(hi.z(), z_hi);
   if (lo.z() > hi.z()) return {};
@@ -40,10 +40,12 @@ PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3
 
 // record_hit for one row of an object's raster hits (+inf where none), as a vector loop; also
 // cleans the raster for the next object. Not inlined: GCC 12 drops restrict when inlining.
-__attribute__((noinline)) void record_raster_row(
-    int n, bool closed, float slab, std::int16_t obj, const float* __restrict t_gel,
-    float* __restrict raster_t, const std::uint8_t* __restrict back, float* __restrict rigid,
-    float* __restrict hit_t, std::int16_t* __restrict hit_object) {
+__attribute__((noinline)) void record_raster_row(int n, bool closed, float slab, std::int16_t obj,
+                                                 const float* __restrict t_gel,
+                                                 float* __restrict raster_t,
+                                                 const std::uint8_t* __restrict back,
+                                                 float* __restrict rigid, float* __restrict hit_t,
+                                                 std::int16_t* __restrict hit_object) {
   for (int i = 0; i < n; ++i) {
     const float t = raster_t[i];
     const bool inside = closed & (back[i] != 0);
@@ -103,8 +105,7 @@ PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object,
 
 // About how many pixels the object's triangles near the gel cover: the projected bounds of
 // their clusters, within the footprint.
-long SensorRenderer::State::near_gel_pixels(const SlabClusters& slab,
-                                            const PixelRect& fp) const {
+long SensorRenderer::State::near_gel_pixels(const SlabClusters& slab, const PixelRect& fp) const {
   if (slab.clusters.empty()) return 0;
   const PixelRect r = project_box(sensor.camera, slab.lo.cast<double>(), slab.hi.cast<double>(),
                                   -std::numeric_limits<double>::infinity(),
@@ -176,17 +177,17 @@ void SensorRenderer::State::coarse_pass(const std::vector<SE3>& poses, const Pix
   ws.corners.clear();
   for (int b = 0; b <= ny; ++b)
     for (int a = 0; a <= nx; ++a)
-      ws.corners.push_back(gel.index(std::min(r.x0 + a * tile, r.x1 - 1),
-                                     std::min(r.y0 + b * tile, r.y1 - 1)));
+      ws.corners.push_back(
+          gel.index(std::min(r.x0 + a * tile, r.x1 - 1), std::min(r.y0 + b * tile, r.y1 - 1)));
   ws.near.assign(ws.corners.size(), 0);
   cast(ws.corners, ws.coarse_objects, poses, true, ws, stats, &deep);
   for (int b = 0; b < ny; ++b) {
     for (int a = 0; a < nx; ++a) {
       const int c = b * (nx + 1) + a;
       if (!(ws.near[c] || ws.near[c + 1] || ws.near[c + nx + 1] || ws.near[c + nx + 2])) continue;
-      const PixelRect t = PixelRect{r.x0 + a * tile, r.y0 + b * tile, r.x0 + (a + 1) * tile,
-                                    r.y0 + (b + 1) * tile}
-                              .clipped(r.x1, r.y1);
+      const PixelRect t =
+          PixelRect{r.x0 + a * tile, r.y0 + b * tile, r.x0 + (a + 1) * tile, r.y0 + (b + 1) * tile}
+              .clipped(r.x1, r.y1);
       for (int by = t.y0; by < t.y1; by += 4)
         for (int bx = t.x0; bx < t.x1; bx += 4)
           for (int y = by; y < std::min(by + 4, t.y1); ++y)
@@ -213,9 +214,9 @@ void SensorRenderer::State::rasterize_object(int obj, const SE3& T_sensor_object
   const PixelRect& r = raster.touched;
   for (int y = r.y0; y < r.y1; ++y) {
     const int i = gel.index(r.x0, y);
-    record_raster_row(r.width(), objects[obj]->closed(), slab_m(), std::int16_t(obj),
-                      &gel.t_gel[i], &ws.raster_t[i], &ws.raster_back[i], &ws.rigid[i],
-                      &ws.hit_t[i], &ws.hit_object[i]);
+    record_raster_row(r.width(), objects[obj]->closed(), slab_m(), std::int16_t(obj), &gel.t_gel[i],
+                      &ws.raster_t[i], &ws.raster_back[i], &ws.rigid[i], &ws.hit_t[i],
+                      &ws.hit_object[i]);
   }
   touched = touched.united(r);
 }

@@ -156,8 +156,8 @@ PixelRect dilate(const ElasticKernel& k, int width, int height, const PixelRect&
     for (int x = 0; x < outer.width(); ++x) out[x] = std::max(out[x], 0.0f);
   }
   PixelRect positive;
-  by_column_blocks(rows, dil, width, height, outer.x0, outer.x1, contact.y0, contact.y1,
-                   outer.y0, outer.y1, [&](int x, float* in, float* out) {
+  by_column_blocks(rows, dil, width, height, outer.x0, outer.x1, contact.y0, contact.y1, outer.y0,
+                   outer.y1, [&](int x, float* in, float* out) {
                      const auto [a, b] = positive_span(in, contact.y0, contact.y1);
                      if (a >= b) {
                        std::fill(out + outer.y0, out + outer.y1, 0.0f);
@@ -199,8 +199,8 @@ void erode(const ElasticKernel& k, int width, int height, const PixelRect& rect,
     parabola_envelope(line, q0, q1, a, b, k.alpha, inv, s, s.out.data());
     for (int x = a; x < b; ++x) dst[x] = -s.out[x - a];
   }
-  by_column_blocks(rows, out, width, height, rect.x0, rect.x1, rect.y0, rect.y1, rect.y0,
-                   rect.y1, [&](int, float* in, float* col_out) {
+  by_column_blocks(rows, out, width, height, rect.x0, rect.x1, rect.y0, rect.y1, rect.y0, rect.y1,
+                   [&](int, float* in, float* col_out) {
                      std::fill(col_out + rect.y0, col_out + rect.y1, 0.0f);
                      int a = rect.y0, b = rect.y1;
                      while (a < b && !(in[a] > 0.0f)) ++a;
@@ -310,10 +310,10 @@ namespace {
 // product of the central differences of the displaced surface points
 // P = origin + dir (t_gel - u).
 inline void normal_from_neighbours(const float* __restrict dx, const float* __restrict dy,
-                                   const float* __restrict t, const float* __restrict u,
-                                   float oz, int im, int ip, int jm, int jp,
-                                   float* __restrict out) {
-  const float s_im = t[im] - u[im], s_ip = t[ip] - u[ip], s_jm = t[jm] - u[jm], s_jp = t[jp] - u[jp];
+                                   const float* __restrict t, const float* __restrict u, float oz,
+                                   int im, int ip, int jm, int jp, float* __restrict out) {
+  const float s_im = t[im] - u[im], s_ip = t[ip] - u[ip], s_jm = t[jm] - u[jm],
+              s_jp = t[jp] - u[jp];
   const float ax = dx[ip] * s_ip - dx[im] * s_im, ay = dy[ip] * s_ip - dy[im] * s_im;
   const float az = (oz + s_ip) - (oz + s_im);
   const float bx = dx[jp] * s_jp - dx[jm] * s_jm, by = dy[jp] * s_jp - dy[jm] * s_jm;
@@ -328,9 +328,10 @@ inline void normal_from_neighbours(const float* __restrict dx, const float* __re
 // The same for n pixels of a row whose x-neighbours are all in the image; the arrays start at
 // the row's first pixel, `up` and `down` are the offsets to the rows above and below. Not
 // inlined: GCC 12 drops the restrict qualifiers when it inlines, and then cannot vectorise.
-__attribute__((noinline)) void normals_row(int n, const float* __restrict dx, const float* __restrict dy,
-                 const float* __restrict t, const float* __restrict u, float oz, int up,
-                 int down, float* __restrict out) {
+__attribute__((noinline)) void normals_row(int n, const float* __restrict dx,
+                                           const float* __restrict dy, const float* __restrict t,
+                                           const float* __restrict u, float oz, int up, int down,
+                                           float* __restrict out) {
   for (int i = 0; i < n; ++i) {
     normal_from_neighbours(dx, dy, t, u, oz, i - 1, i + 1, i + up, i + down, out + 3 * i);
   }
@@ -355,7 +356,8 @@ void surface_normals(const GelGeometry& g, const float* u, const PixelRect& rect
     if (rect.x0 < x0) clamped(rect.x0);
     if (x1 > x0) {
       const int i = g.index(x0, y);
-      normals_row(x1 - x0, dx + i, dy + i, t + i, u + i, oz, up, down, normals + 3 * std::size_t(i));
+      normals_row(x1 - x0, dx + i, dy + i, t + i, u + i, oz, up, down,
+                  normals + 3 * std::size_t(i));
     }
     if (x1 >= x0 && rect.x1 > x1) clamped(rect.x1 - 1);
   }

@@ -12,16 +12,18 @@ namespace pg {
 // Per-sensor constants: one ray per pixel from the camera centre, and where it meets the gel.
 struct GelGeometry {
   int width = 0, height = 0;
-  Eigen::Vector3f origin_sensor;             // camera centre in S, (0, 0, -camera distance)
-  std::vector<Eigen::Vector3f> dir_sensor;   // per pixel, z = 1: t is the camera depth [m]
-  std::vector<float> dir_x, dir_y;           // the same x and y, as plain arrays for vector loops
-  std::vector<float> t_gel;                  // camera depth of the undeformed gel surface [m]
-  float px_per_m = 0;                        // image scale at the gel centre
-  float z_gel_min = 0;                       // lowest undeformed gel z in view [m]
+  Eigen::Vector3f origin_sensor;            // camera centre in S, (0, 0, -camera distance)
+  std::vector<Eigen::Vector3f> dir_sensor;  // per pixel, z = 1: t is the camera depth [m]
+  std::vector<float> dir_x, dir_y;          // the same x and y, as plain arrays for vector loops
+  std::vector<float> t_gel;                 // camera depth of the undeformed gel surface [m]
+  float px_per_m = 0;                       // image scale at the gel centre
+  float z_gel_min = 0;                      // lowest undeformed gel z in view [m]
 
   int index(int x, int y) const { return y * width + x; }
   // The gel surface point seen through pixel i when displaced by u toward the camera.
-  Eigen::Vector3f point(int i, float u) const { return origin_sensor + dir_sensor[i] * (t_gel[i] - u); }
+  Eigen::Vector3f point(int i, float u) const {
+    return origin_sensor + dir_sensor[i] * (t_gel[i] - u);
+  }
 };
 
 GelGeometry make_gel_geometry(const SensorModel& sensor);

@@ -28,7 +28,8 @@ std::vector<int> morton_order(const TriangleMesh& mesh) {
   for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
     const auto& t = mesh.triangles[i];
     const Eigen::Vector3f c = (mesh.vertices[t[0]] + mesh.vertices[t[1]] + mesh.vertices[t[2]]) / 3;
-    const Eigen::Vector3f q = ((c - b.min).cwiseQuotient(extent) * 1023.0f).cwiseMax(0).cwiseMin(1023);
+    const Eigen::Vector3f q =
+        ((c - b.min).cwiseQuotient(extent) * 1023.0f).cwiseMax(0).cwiseMin(1023);
     const std::uint32_t key = spread_bits(std::uint32_t(q.x())) |
                               (spread_bits(std::uint32_t(q.y())) << 1) |
                               (spread_bits(std::uint32_t(q.z())) << 2);
@@ -82,8 +83,8 @@ TriangleClusters make_clusters(const TriangleMesh& mesh, int per_cluster) {
   return out;
 }
 
-void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo,
-                      float z_hi, SlabClusters& out) {
+void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo, float z_hi,
+                      SlabClusters& out) {
   const Eigen::Matrix3f R = T_sensor_object.rotation_matrix().cast<float>();
   const Eigen::Matrix3f R_abs = R.cwiseAbs();
   const Eigen::Vector3f t = T_sensor_object.translation().cast<float>();
@@ -163,9 +164,8 @@ __attribute__((noinline)) void transform_vertices(int n, const float* __restrict
 __attribute__((noinline)) void triangle_boxes(
     int n, const std::uint8_t* __restrict ca, const std::uint8_t* __restrict cb,
     const std::uint8_t* __restrict cc, const float* __restrict pz, const float* __restrict u,
-    const float* __restrict w, float z_lo, float z_hi, const PixelRect& rect,
-    int* __restrict keep, int* __restrict bx0, int* __restrict by0, int* __restrict bx1,
-    int* __restrict by1) {
+    const float* __restrict w, float z_lo, float z_hi, const PixelRect& rect, int* __restrict keep,
+    int* __restrict bx0, int* __restrict by0, int* __restrict bx1, int* __restrict by1) {
   const int rx0 = rect.x0, ry0 = rect.y0, rx1 = rect.x1, ry1 = rect.y1;
   for (int k = 0; k < n; ++k) {
     const int a = ca[k], b = cb[k], d = cc[k];
@@ -198,13 +198,13 @@ __attribute__((noinline)) void triangle_boxes(
 // The cluster's triangles that reach into z in [z_lo, z_hi] and whose bounding box holds a
 // pixel centre of `rect`, listed without branches: for triangles smaller than a pixel that is
 // a coin toss, which a branch would mostly mispredict.
-void candidate_triangles(const TriangleClusters& c, const TriangleClusters::Cluster& cl,
-                         float z_lo, float z_hi, const PixelRect& rect, ClusterInView& v) {
+void candidate_triangles(const TriangleClusters& c, const TriangleClusters::Cluster& cl, float z_lo,
+                         float z_hi, const PixelRect& rect, ClusterInView& v) {
   constexpr int kMax = TriangleClusters::kMaxTriangles;
   int keep[kMax], x0[kMax], y0[kMax], x1[kMax], y1[kMax];
   const std::size_t f = std::size_t(cl.first_triangle);
-  triangle_boxes(cl.triangle_count, &c.corner_a[f], &c.corner_b[f], &c.corner_c[f], v.pz, v.u,
-                 v.w, z_lo, z_hi, rect, keep, x0, y0, x1, y1);
+  triangle_boxes(cl.triangle_count, &c.corner_a[f], &c.corner_b[f], &c.corner_c[f], v.pz, v.u, v.w,
+                 z_lo, z_hi, rect, keep, x0, y0, x1, y1);
   int count = 0;
   for (int k = 0; k < cl.triangle_count; ++k) {
     v.triangle[count] = k;
@@ -261,10 +261,12 @@ inline void rasterize_span(const TriangleSetup& t, int x0, int x1, float fy, flo
 }
 
 // The same as a vector loop, for long rows (not inlined: GCC 12 drops restrict when inlining).
-__attribute__((noinline)) void rasterize_long_span(
-    const TriangleSetup& t, int x0, int x1, float fy, float slab, const float* __restrict dir_x,
-    const float* __restrict dir_y, const float* __restrict t_gel, float* __restrict hit_t,
-    std::uint8_t* __restrict back) {
+__attribute__((noinline)) void rasterize_long_span(const TriangleSetup& t, int x0, int x1, float fy,
+                                                   float slab, const float* __restrict dir_x,
+                                                   const float* __restrict dir_y,
+                                                   const float* __restrict t_gel,
+                                                   float* __restrict hit_t,
+                                                   std::uint8_t* __restrict back) {
   rasterize_span(t, x0, x1, fy, slab, dir_x, dir_y, t_gel, hit_t, back);
 }
 
@@ -272,8 +274,8 @@ __attribute__((noinline)) void rasterize_long_span(
 // compiler vectorises: no loop bounds or branches to mispredict. Lanes beyond the box read the
 // box's last row or column and are written first (k descending), so the lane that owns the
 // pixel writes last.
-void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeometry& g,
-                     float slab, float* hit_t, std::uint8_t* back) {
+void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeometry& g, float slab,
+                     float* hit_t, std::uint8_t* back) {
   constexpr int kLanes = 16;
   alignas(64) float fx[kLanes], fy[kLanes], dir_x[kLanes], dir_y[kLanes], t_gel[kLanes];
   alignas(64) float old_t[kLanes], new_t[kLanes];
@@ -358,8 +360,8 @@ void rasterize_clusters(const TriangleClusters& c, const std::vector<int>& clust
   ClusterInView v;
   for (int ci : clusters) {
     const auto& cl = c.clusters[ci];
-    transform_vertices(cl.vertex_count, c.x.data() + cl.first_vertex,
-                       c.y.data() + cl.first_vertex, c.z.data() + cl.first_vertex, view, v);
+    transform_vertices(cl.vertex_count, c.x.data() + cl.first_vertex, c.y.data() + cl.first_vertex,
+                       c.z.data() + cl.first_vertex, view, v);
     candidate_triangles(c, cl, z_bottom, z_top, out.rect, v);
     for (int j = 0; j < v.count; ++j) {
       const int tri = cl.first_triangle + v.triangle[j];

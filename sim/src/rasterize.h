@@ -18,13 +18,13 @@ namespace pg {
 // vertex is shared by about six triangles) and reads them from one small block.
 struct TriangleClusters {
   struct Cluster {
-    Eigen::Vector3f centre;       // of its bounding box, object frame [m]
-    Eigen::Vector3f half_extent;  // of its bounding box [m]
+    Eigen::Vector3f centre;                      // of its bounding box, object frame [m]
+    Eigen::Vector3f half_extent;                 // of its bounding box [m]
     int first_triangle = 0, triangle_count = 0;  // into corner_a, b, c
     int first_vertex = 0, vertex_count = 0;      // into x, y, z
   };
   static constexpr int kMaxTriangles = 85;  // per cluster, so that 255 vertices index in a byte
-  std::vector<float> x, y, z;  // vertices in the object frame [m], grouped by cluster
+  std::vector<float> x, y, z;               // vertices in the object frame [m], grouped by cluster
   std::vector<std::uint8_t> corner_a, corner_b, corner_c;  // per triangle, into its cluster's
   std::vector<Cluster> clusters;
 };
@@ -38,8 +38,8 @@ struct SlabClusters {
   Eigen::Vector3f lo, hi;  // bounds of those clusters' boxes in the sensor frame [m]
   float lowest_z = 0;      // [m]
 };
-void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo,
-                      float z_hi, SlabClusters& out);
+void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo, float z_hi,
+                      SlabClusters& out);
 
 // Per-pixel first hit along each pixel's ray, for t >= tnear = t_gel - slab_m, over `rect`.
 // hit_t must hold +inf (or an earlier object's hit) on rect; back is set where the kept hit

@@ -57,7 +57,7 @@ struct SensorRenderer::State {
   ElasticKernel kernel;
   Shader shader;
   std::optional<NoiseTable> noise;  // when noise is on
-  int tile = 4;          // coarse-pass tile size [px], a multiple of the 4x4 ray packets
+  int tile = 4;                     // coarse-pass tile size [px], a multiple of the 4x4 ray packets
   float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
   int blend_radius = 0;  // box radius of the real-background blend blur, 0 without one
   ImageF normals0;       // undeformed gel normals
@@ -65,7 +65,7 @@ struct SensorRenderer::State {
   ImageF background;     // what a no-contact frame shows: sim0, or the real background
   ImageU8 background_u8;
   std::vector<std::int16_t> background_fixed;  // the same in the noise table's fixed point
-  std::uint64_t id = 0;  // unique in the process: RenderedFrame::filled.by
+  std::uint64_t id = 0;                        // unique in the process: RenderedFrame::filled.by
   mutable tbb::enumerable_thread_specific<Workspace> workspaces;
 
   State(SensorModel s, std::vector<std::shared_ptr<const ObjectShape>> objs, RenderSettings rs);
@@ -97,8 +97,8 @@ struct SensorRenderer::State {
   void cast(const std::vector<int>& pixels, const std::vector<int>& objs,
             const std::vector<SE3>& poses, bool coarse, Workspace& ws, RenderStats& stats,
             bool* deep = nullptr) const;
-  void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect,
-                        Workspace& ws, RenderStats& stats, PixelRect& touched) const;
+  void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect, Workspace& ws,
+                        RenderStats& stats, PixelRect& touched) const;
   long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;
   void record_hit(Workspace& ws, int i, int obj, float t, bool back_face) const;
   void write_color(std::uint64_t seed, const FrameRegions& frame, bool reuse, Workspace& ws,

@@ -201,8 +201,8 @@ void SensorRenderer::render(const std::vector<SE3>& T_sensor_objects, std::uint6
   Workspace& ws = s.workspaces.local();
   out.stats = RenderStats{};
   FrameRegions frame;
-  s.find_contact(T_sensor_objects, ws, out.stats, frame);       // 1-3
-  s.deform(ws, out.stats, frame);                                // 4
+  s.find_contact(T_sensor_objects, ws, out.stats, frame);         // 1-3
+  s.deform(ws, out.stats, frame);                                 // 4
   s.write_outputs(T_sensor_objects, noise_seed, frame, ws, out);  // 5-6
 
   // 7. Leave the workspace clean for the next frame.

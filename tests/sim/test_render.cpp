@@ -96,9 +96,11 @@ TEST(RenderSphere, RigidIndentationNormalsAndRadiusMatchTheAnalyticCap) {
 
 TEST(RenderSphere, ElasticGelConformsInsideAndFallsOffSmoothlyOutside) {
   const SE3 pose = pressed_sphere();
-  const RenderedFrame rigid = SensorRenderer(flat_digit(), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const RenderedFrame rigid =
+      SensorRenderer(flat_digit(), {sphere_shape()}, quiet_settings()).render({pose}, 0);
   const RenderedFrame soft =
-      SensorRenderer(flat_digit("digit_240x320", true), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+      SensorRenderer(flat_digit("digit_240x320", true), {sphere_shape()}, quiet_settings())
+          .render({pose}, 0);
   const ImageF& dr = rigid.images.depth;
   const ImageF& de = soft.images.depth;
   const int w = dr.width, h = dr.height;
@@ -142,13 +144,16 @@ TEST(RenderSphere, ElasticGelConformsInsideAndFallsOffSmoothlyOutside) {
 // the contact edge, indentation within 1 um, colour within 2 levels (rounding of the two paths).
 void expect_same_frame(const RenderedFrame& a, const RenderedFrame& b, const std::string& what) {
   std::size_t mask_diff = 0;
-  for (std::size_t i = 0; i < a.images.mask.data.size(); ++i) mask_diff += a.images.mask.data[i] != b.images.mask.data[i];
+  for (std::size_t i = 0; i < a.images.mask.data.size(); ++i)
+    mask_diff += a.images.mask.data[i] != b.images.mask.data[i];
   EXPECT_LE(mask_diff, a.images.mask.data.size() / 2000) << what;
   double depth_diff = 0, color_diff = 0;
   for (std::size_t i = 0; i < a.images.depth.data.size(); ++i)
-    depth_diff = std::max(depth_diff, double(std::abs(a.images.depth.data[i] - b.images.depth.data[i])));
+    depth_diff =
+        std::max(depth_diff, double(std::abs(a.images.depth.data[i] - b.images.depth.data[i])));
   for (std::size_t i = 0; i < a.images.color.data.size(); ++i)
-    color_diff = std::max(color_diff, std::abs(double(a.images.color.data[i]) - b.images.color.data[i]));
+    color_diff =
+        std::max(color_diff, std::abs(double(a.images.color.data[i]) - b.images.color.data[i]));
   EXPECT_LT(depth_diff, 1e-6) << what;
   EXPECT_LE(color_diff, 2.0) << what;
 }
@@ -156,11 +161,13 @@ void expect_same_frame(const RenderedFrame& a, const RenderedFrame& b, const std
 TEST(RenderSkip, EverySkipGivesTheSameImagesAsBruteForce) {
   const auto cube = std::make_shared<ObjectShape>(make_box({0.004f, 0.004f, 0.004f}));
   // A cube corner pressed in, and a second object far away (culled).
-  const SE3 corner = SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
+  const SE3 corner =
+      SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
   for (const char* preset : {"digit", "digit_240x320"}) {
     const SensorModel sensor = sensor_preset(preset);
-    for (const auto& poses : {std::vector<SE3>{corner, pressed_sphere(0.0, 0.0, -0.01)},
-                              std::vector<SE3>{SE3::Translation({0, 0, 0.01}), pressed_sphere(0.001, 0.0, 0.0012)}}) {
+    for (const auto& poses :
+         {std::vector<SE3>{corner, pressed_sphere(0.0, 0.0, -0.01)},
+          std::vector<SE3>{SE3::Translation({0, 0, 0.01}), pressed_sphere(0.001, 0.0, 0.0012)}}) {
       RenderSettings fast = quiet_settings();
       fast.noise = true;
       const RenderedFrame a = SensorRenderer(sensor, {cube, sphere_shape()}, fast).render(poses, 5);
@@ -169,9 +176,11 @@ TEST(RenderSkip, EverySkipGivesTheSameImagesAsBruteForce) {
       for (int k = 0; k < 5; ++k) {
         RenderSettings slow = fast;
         const char* names[] = {"cull", "footprint", "slab", "cache", "rasterize"};
-        bool* flags[] = {&slow.cull, &slow.footprint, &slow.slab_limited_rays, &slow.no_contact_cache, &slow.rasterize};
+        bool* flags[] = {&slow.cull, &slow.footprint, &slow.slab_limited_rays,
+                         &slow.no_contact_cache, &slow.rasterize};
         *flags[k] = false;
-        const RenderedFrame b = SensorRenderer(sensor, {cube, sphere_shape()}, slow).render(poses, 5);
+        const RenderedFrame b =
+            SensorRenderer(sensor, {cube, sphere_shape()}, slow).render(poses, 5);
         expect_same_frame(a, b, std::string(preset) + " without " + names[k]);
         if (k == 1) {
           EXPECT_GT(b.stats.rays_cast, 3 * a.stats.rays_cast);
@@ -183,16 +192,20 @@ TEST(RenderSkip, EverySkipGivesTheSameImagesAsBruteForce) {
 
 TEST(RenderSkip, RasterizationAgreesWithRaysOnThePapersObjects) {
   for (const char* name : {"toy_brick", "toy_human", "cube"}) {
-    const auto shape = std::make_shared<ObjectShape>(load_mesh(std::string(PG_SOURCE_DIR) + "/meshes/" + name + ".glb"));
+    const auto shape = std::make_shared<ObjectShape>(
+        load_mesh(std::string(PG_SOURCE_DIR) + "/meshes/" + name + ".glb"));
     // The object turned about z, its bottom 0.8 mm into the gel.
     const SE3 R(quaternion_from_rpy({0.0, 0.0, 0.3}), Eigen::Vector3d::Zero());
     double lowest = INFINITY;
-    for (const auto& v : shape->mesh().vertices) lowest = std::min(lowest, (R * v.cast<double>()).z());
+    for (const auto& v : shape->mesh().vertices)
+      lowest = std::min(lowest, (R * v.cast<double>()).z());
     const SE3 pose = SE3::Translation({0.0005, -0.001, -lowest - 0.0008}) * R;
     RenderSettings rs = quiet_settings();
-    const RenderedFrame a = SensorRenderer(sensor_preset("digit_240x320"), {shape}, rs).render({pose}, 1);
+    const RenderedFrame a =
+        SensorRenderer(sensor_preset("digit_240x320"), {shape}, rs).render({pose}, 1);
     rs.rasterize = false;
-    const RenderedFrame r = SensorRenderer(sensor_preset("digit_240x320"), {shape}, rs).render({pose}, 1);
+    const RenderedFrame r =
+        SensorRenderer(sensor_preset("digit_240x320"), {shape}, rs).render({pose}, 1);
     ASSERT_TRUE(a.stats.contact) << name;
     EXPECT_GT(a.stats.triangles_rasterized, 0) << name;
     EXPECT_EQ(r.stats.triangles_rasterized, 0) << name;
@@ -231,11 +244,14 @@ TEST(RenderColor, SlopeTowardALightBrightensItsChannel) {
   const auto& cam = sensor.camera;
   for (std::size_t k = 0; k < sensor.lights.size(); ++k) {
     const int c = sensor.lights[k].color.maxCoeff() == sensor.lights[k].color.x() ? 0
-                  : sensor.lights[k].color.y() > 0.5 ? 1 : 2;
+                  : sensor.lights[k].color.y() > 0.5                              ? 1
+                                                                                  : 2;
     const Eigen::Vector2d dir = sensor.lights[k].position_m.head<2>().normalized();
     // Points 2 mm from the contact centre, toward and away from the light.
-    const Eigen::Vector2d toward = Eigen::Vector2d(cam.cx, cam.cy) + dir * 0.002 * cam.fx / cam.distance_m;
-    const Eigen::Vector2d away = Eigen::Vector2d(cam.cx, cam.cy) - dir * 0.002 * cam.fx / cam.distance_m;
+    const Eigen::Vector2d toward =
+        Eigen::Vector2d(cam.cx, cam.cy) + dir * 0.002 * cam.fx / cam.distance_m;
+    const Eigen::Vector2d away =
+        Eigen::Vector2d(cam.cx, cam.cy) - dir * 0.002 * cam.fx / cam.distance_m;
     const int tx = int(std::lround(toward.x())), ty = int(std::lround(toward.y()));
     const int ax = int(std::lround(away.x())), ay = int(std::lround(away.y()));
     const double bg_t = r.background_color().at(tx, ty, c) * 255.0;
@@ -271,9 +287,13 @@ TEST(RenderColor, DeterministicWithASeedAndNoiseHasTheConfiguredSigma) {
 }
 
 TEST(RenderResolution, HalfResolutionAgreesWithDownsampledFullResolution) {
-  const SE3 pose = SE3(quaternion_from_rpy({0.1, 0.0, 0.0}), Eigen::Vector3d(0.001, 0.0015, kRadius - kPress));
-  const RenderedFrame lo = SensorRenderer(sensor_preset("digit"), {sphere_shape()}, quiet_settings()).render({pose}, 0);
-  const RenderedFrame hi = SensorRenderer(sensor_preset("digit_240x320"), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const SE3 pose =
+      SE3(quaternion_from_rpy({0.1, 0.0, 0.0}), Eigen::Vector3d(0.001, 0.0015, kRadius - kPress));
+  const RenderedFrame lo =
+      SensorRenderer(sensor_preset("digit"), {sphere_shape()}, quiet_settings()).render({pose}, 0);
+  const RenderedFrame hi =
+      SensorRenderer(sensor_preset("digit_240x320"), {sphere_shape()}, quiet_settings())
+          .render({pose}, 0);
   double color_err = 0, depth_err = 0;
   for (int y = 0; y < 160; ++y) {
     for (int x = 0; x < 120; ++x) {
@@ -294,12 +314,14 @@ TEST(RenderResolution, HalfResolutionAgreesWithDownsampledFullResolution) {
 TEST(RenderBadInput, OpenMeshRendersWhereItCrossesTheGel) {
   // A single open square sheet, tilted, crossing the gel surface.
   TriangleMesh sheet;
-  sheet.vertices = {{-0.005f, -0.005f, 0}, {0.005f, -0.005f, 0}, {0.005f, 0.005f, 0}, {-0.005f, 0.005f, 0}};
+  sheet.vertices = {
+      {-0.005f, -0.005f, 0}, {0.005f, -0.005f, 0}, {0.005f, 0.005f, 0}, {-0.005f, 0.005f, 0}};
   sheet.triangles = {{0, 1, 2}, {0, 2, 3}};
   const auto shape = std::make_shared<ObjectShape>(sheet);
   EXPECT_FALSE(shape->closed());
   const SensorRenderer r(flat_digit("digit"), {shape}, quiet_settings());
-  const RenderedFrame f = r.render({SE3(quaternion_from_rpy({0, 0.1, 0}), Eigen::Vector3d::Zero())}, 0);
+  const RenderedFrame f =
+      r.render({SE3(quaternion_from_rpy({0, 0.1, 0}), Eigen::Vector3d::Zero())}, 0);
   ASSERT_TRUE(f.stats.contact);
   // Contact on one side of the tilt only, never deeper than the sheet goes.
   int left = 0, right = 0;
@@ -345,7 +367,7 @@ TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {
   ASSERT_EQ(f.contact_points_object.size(), 1u);
   ASSERT_GT(f.contact_points_object[0].size(), 100u);
   for (const auto& p : f.contact_points_object[0]) {
-    EXPECT_NEAR(p.norm(), kRadius, 2e-6);  // on the (faceted) sphere
+    EXPECT_NEAR(p.norm(), kRadius, 2e-6);          // on the (faceted) sphere
     EXPECT_LT(p.z(), -(kRadius - kPress) + 1e-6);  // its lower cap
   }
 }
@@ -354,12 +376,15 @@ TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {
 // must equal a fresh render's whatever that frame was.
 TEST(RenderReuse, AReusedFrameHoldsTheSameImagesAsAFreshOne) {
   const auto cube = std::make_shared<ObjectShape>(make_box({0.004f, 0.004f, 0.004f}));
-  const SE3 corner = SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
+  const SE3 corner =
+      SE3(quaternion_from_rpy({0.6, 0.5, 0.3}), Eigen::Vector3d(0.001, -0.002, 0.0052));
   const SE3 away = SE3::Translation({0, 0, 0.02});
-  const std::vector<std::vector<SE3>> sequence = {
-      {pressed_sphere(0.002, 0.003), away}, {pressed_sphere(-0.003, -0.004, 0.0015), away},
-      {away, away},                         {away, corner},
-      {pressed_sphere(), corner},           {away, away}};
+  const std::vector<std::vector<SE3>> sequence = {{pressed_sphere(0.002, 0.003), away},
+                                                  {pressed_sphere(-0.003, -0.004, 0.0015), away},
+                                                  {away, away},
+                                                  {away, corner},
+                                                  {pressed_sphere(), corner},
+                                                  {away, away}};
   for (bool noise : {true, false}) {
     RenderSettings s;
     s.noise = noise;
@@ -369,7 +394,7 @@ TEST(RenderReuse, AReusedFrameHoldsTheSameImagesAsAFreshOne) {
     RenderedFrame reused;
     for (std::size_t k = 0; k < sequence.size(); ++k) {
       if (k == 3) other.render(sequence[0], 9, reused);  // last filled by another renderer
-      if (k == 4) reused.images.normal = ImageF();     // an image moved out
+      if (k == 4) reused.images.normal = ImageF();       // an image moved out
       r.render(sequence[k], 100 + k, reused);
       const RenderedFrame fresh = r.render(sequence[k], 100 + k);
       const std::string what = "frame " + std::to_string(k) + (noise ? " with noise" : "");
@@ -392,7 +417,8 @@ TEST(RenderShadows, ShadowsOnlyDarkenAndFallBesideADeepPress) {
   const SensorRenderer a(sensor_preset("digit_240x320"), {sphere_shape()}, lit);
   const SensorRenderer b(sensor_preset("digit_240x320"), {sphere_shape()}, shadowed);
   const RenderedFrame no_contact = b.render({pressed_sphere(0, 0, -0.01)}, 0);
-  EXPECT_EQ(no_contact.images.color.data, a.render({pressed_sphere(0, 0, -0.01)}, 0).images.color.data);
+  EXPECT_EQ(no_contact.images.color.data,
+            a.render({pressed_sphere(0, 0, -0.01)}, 0).images.color.data);
   // Pressed beyond the gel's 2 mm: the steep wall of the dent hides the rim beyond it from the
   // lights.
   const SE3 deep = pressed_sphere(0, 0, 0.004);
