@@ -39,20 +39,19 @@ PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3
 }
 
 // record_hit for one row of an object's raster hits (+inf where none), as a vector loop; also
-// cleans the raster for the next object. Not inlined: GCC 12 drops restrict when inlining.
-__attribute__((noinline)) void record_raster_row(int n, bool closed, float slab, std::int16_t obj,
+// cleans the raster for the next object. The rasterizer is used only where no ray starts inside
+// the object, so a hit is never inside. Not inlined: GCC 12 drops restrict when inlining.
+__attribute__((noinline)) void record_raster_row(int n, std::int16_t obj,
                                                  const float* __restrict t_gel,
                                                  float* __restrict raster_t,
-                                                 const std::uint8_t* __restrict back,
                                                  float* __restrict rigid, float* __restrict hit_t,
                                                  std::int16_t* __restrict hit_object) {
   for (int i = 0; i < n; ++i) {
     const float t = raster_t[i];
-    const bool inside = closed & (back[i] != 0);
-    const float pen = inside ? INFINITY : t_gel[i] - t;
+    const float pen = t_gel[i] - t;
     const bool keep = (t < INFINITY) & (pen > 0.0f) & (pen > rigid[i]);
     rigid[i] = keep ? pen : rigid[i];
-    hit_t[i] = keep ? (inside ? t_gel[i] - slab : t) : hit_t[i];
+    hit_t[i] = keep ? t : hit_t[i];
     hit_object[i] = keep ? obj : hit_object[i];
     raster_t[i] = INFINITY;
   }
@@ -204,9 +203,9 @@ void SensorRenderer::State::rasterize_object(int obj, const SE3& T_sensor_object
   SlabRaster raster;
   raster.gel = &gel;
   raster.slab_m = slab_m();
+  raster.front_faces_only = objects[obj]->closed();
   raster.rect = rect;
   raster.hit_t = ws.raster_t.data();
-  raster.back = ws.raster_back.data();
   const auto& c = sensor.camera;
   rasterize_clusters(triangle_clusters(*objects[obj]), slab.clusters, T_sensor_object,
                      Eigen::Vector4d(c.fx, c.fy, c.cx, c.cy), raster);
@@ -214,9 +213,8 @@ void SensorRenderer::State::rasterize_object(int obj, const SE3& T_sensor_object
   const PixelRect& r = raster.touched;
   for (int y = r.y0; y < r.y1; ++y) {
     const int i = gel.index(r.x0, y);
-    record_raster_row(r.width(), objects[obj]->closed(), slab_m(), std::int16_t(obj), &gel.t_gel[i],
-                      &ws.raster_t[i], &ws.raster_back[i], &ws.rigid[i], &ws.hit_t[i],
-                      &ws.hit_object[i]);
+    record_raster_row(r.width(), std::int16_t(obj), &gel.t_gel[i], &ws.raster_t[i], &ws.rigid[i],
+                      &ws.hit_t[i], &ws.hit_object[i]);
   }
   touched = touched.united(r);
 }

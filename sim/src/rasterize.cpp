@@ -241,8 +241,7 @@ inline float select(bool c, float a, float b) {
 // row's first pixel.
 inline void rasterize_span(const TriangleSetup& t, int x0, int x1, float fy, float slab,
                            const float* __restrict dir_x, const float* __restrict dir_y,
-                           const float* __restrict t_gel, float* __restrict hit_t,
-                           std::uint8_t* __restrict back) {
+                           const float* __restrict t_gel, float* __restrict hit_t) {
   const float u0 = t.u[0], u1 = t.u[1], u2 = t.u[2], w0 = t.w[0], w1 = t.w[1], w2 = t.w[2];
   const float s = t.s, eps = t.eps, nx = t.nx, ny = t.ny, nz = t.nz, n_dot_p0 = t.n_dot_p0;
   for (int x = x0; x < x1; ++x) {
@@ -255,7 +254,6 @@ inline void rasterize_span(const TriangleSetup& t, int x0, int x1, float fy, flo
     const float t_hit = n_dot_p0 / n_dot_d;
     const bool covers = (e0 >= eps) & (e1 >= eps) & (e2 >= eps) & (t_hit >= t_gel[x] - slab);
     const bool hit = covers & (t_hit < hit_t[x]);
-    back[x] = std::uint8_t(hit ? (n_dot_d > 0.0f) : back[x]);
     hit_t[x] = select(hit, t_hit, hit_t[x]);
   }
 }
@@ -265,9 +263,8 @@ __attribute__((noinline)) void rasterize_long_span(const TriangleSetup& t, int x
                                                    float slab, const float* __restrict dir_x,
                                                    const float* __restrict dir_y,
                                                    const float* __restrict t_gel,
-                                                   float* __restrict hit_t,
-                                                   std::uint8_t* __restrict back) {
-  rasterize_span(t, x0, x1, fy, slab, dir_x, dir_y, t_gel, hit_t, back);
+                                                   float* __restrict hit_t) {
+  rasterize_span(t, x0, x1, fy, slab, dir_x, dir_y, t_gel, hit_t);
 }
 
 // A triangle whose box holds at most 4 x 4 pixel centres, as one 16-lane computation that the
@@ -275,11 +272,11 @@ __attribute__((noinline)) void rasterize_long_span(const TriangleSetup& t, int x
 // box's last row or column and are written first (k descending), so the lane that owns the
 // pixel writes last.
 void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeometry& g, float slab,
-                     float* hit_t, std::uint8_t* back) {
+                     float* hit_t) {
   constexpr int kLanes = 16;
   alignas(64) float fx[kLanes], fy[kLanes], dir_x[kLanes], dir_y[kLanes], t_gel[kLanes];
   alignas(64) float old_t[kLanes], new_t[kLanes];
-  alignas(64) int index[kLanes], hit[kLanes];
+  alignas(64) int index[kLanes];
   for (int k = 0; k < kLanes; ++k) {
     const int x = box.x0 + (k & 3), y = box.y0 + (k >> 2);
     const int i = g.index(std::min(x, box.x1 - 1), std::min(y, box.y1 - 1));
@@ -303,13 +300,9 @@ void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeom
     const bool inside = (fx[k] < float(x1)) & (fy[k] < float(y1));
     const bool h = inside & (e0 >= t.eps) & (e1 >= t.eps) & (e2 >= t.eps) &
                    (t_hit >= t_gel[k] - slab) & (t_hit < old_t[k]);
-    hit[k] = h ? (n_dot_d > 0.0f ? 2 : 1) : 0;  // 0: no hit, else 1 + back face
     new_t[k] = h ? t_hit : old_t[k];
   }
-  for (int k = kLanes - 1; k >= 0; --k) {
-    hit_t[index[k]] = new_t[k];
-    back[index[k]] = hit[k] ? std::uint8_t(hit[k] - 1) : back[index[k]];
-  }
+  for (int k = kLanes - 1; k >= 0; --k) hit_t[index[k]] = new_t[k];
 }
 
 // One triangle (corners a, b, d of the cluster) into the raster, over the pixel centres of box.
@@ -318,17 +311,19 @@ void rasterize_triangle(const ClusterInView& v, int a, int b, int d, const Pixel
   TriangleSetup t = {{v.u[a], v.u[b], v.u[d]}, {v.w[a], v.w[b], v.w[d]}, 0, 0, 0, 0, 0, 0};
   const float area = (t.u[1] - t.u[0]) * (t.w[2] - t.w[0]) - (t.u[2] - t.u[0]) * (t.w[1] - t.w[0]);
   if (std::abs(area) < 1e-12f) return;  // seen edge-on: no pixel's ray meets it
-  out.touched = out.touched.united(box);
   const Eigen::Vector3f p0(v.px[a], v.py[a], v.pz[a]), p1(v.px[b], v.py[b], v.pz[b]),
       p2(v.px[d], v.py[d], v.pz[d]);
   const Eigen::Vector3f n = (p1 - p0).cross(p2 - p0);
+  t.n_dot_p0 = n.dot(p0 - o);
+  // A hit at t > 0 has n . d of the sign of n . (p0 - o): positive for a face turned away.
+  if (out.front_faces_only && !(t.n_dot_p0 < 0.0f)) return;
+  out.touched = out.touched.united(box);
   t.s = area > 0 ? 1.0f : -1.0f;
   t.eps = -1e-4f * std::abs(area);
   t.nx = n.x(), t.ny = n.y(), t.nz = n.z();
-  t.n_dot_p0 = n.dot(p0 - o);
   const GelGeometry& g = *out.gel;
   if (box.width() <= 4 && box.height() <= 4 && box.area() > 2) {
-    rasterize_small(t, box, g, out.slab_m, out.hit_t, out.back);
+    rasterize_small(t, box, g, out.slab_m, out.hit_t);
     return;
   }
   const bool long_rows = box.width() >= 16;
@@ -336,11 +331,9 @@ void rasterize_triangle(const ClusterInView& v, int a, int b, int d, const Pixel
     const int row = g.index(0, y);
     const float *dx = g.dir_x.data() + row, *dy = g.dir_y.data() + row, *tg = g.t_gel.data() + row;
     if (long_rows) {
-      rasterize_long_span(t, box.x0, box.x1, float(y), out.slab_m, dx, dy, tg, out.hit_t + row,
-                          out.back + row);
+      rasterize_long_span(t, box.x0, box.x1, float(y), out.slab_m, dx, dy, tg, out.hit_t + row);
     } else {
-      rasterize_span(t, box.x0, box.x1, float(y), out.slab_m, dx, dy, tg, out.hit_t + row,
-                     out.back + row);
+      rasterize_span(t, box.x0, box.x1, float(y), out.slab_m, dx, dy, tg, out.hit_t + row);
     }
   }
 }

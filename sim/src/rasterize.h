@@ -42,14 +42,17 @@ void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, flo
                       SlabClusters& out);
 
 // Per-pixel first hit along each pixel's ray, for t >= tnear = t_gel - slab_m, over `rect`.
-// hit_t must hold +inf (or an earlier object's hit) on rect; back is set where the kept hit
-// faces away from the ray. `touched` grows to cover every pixel written.
+// hit_t must hold +inf (or an earlier object's hit) on rect. `touched` grows to cover every pixel
+// written. Used only where no pixel's ray starts inside the object: so on a closed mesh
+// (`front_faces_only`) the first face a ray meets faces the camera, and the faces turned away
+// are skipped (one can come first only by a rounding error where a ray grazes the object's
+// outline, and it would count as the ray starting inside).
 struct SlabRaster {
   const GelGeometry* gel = nullptr;
   float slab_m = 0;
+  bool front_faces_only = false;
   PixelRect rect;
   float* hit_t = nullptr;
-  std::uint8_t* back = nullptr;
   PixelRect touched;
 };
 void rasterize_clusters(const TriangleClusters& c, const std::vector<int>& clusters,

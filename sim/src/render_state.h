@@ -26,8 +26,7 @@ using RowRuns = std::vector<std::pair<int, int>>;
 struct Workspace {
   std::vector<float> rigid, hit_t, u, scratch_a, scratch_b, normals, color;
   std::vector<std::int16_t> hit_object;
-  std::vector<float> raster_t;  // first hit per pixel while rasterizing one object
-  std::vector<std::uint8_t> raster_back;
+  std::vector<float> raster_t;    // first hit per pixel while rasterizing one object
   std::vector<std::int16_t> row;  // one row of fixed-point colour, for the noise pass
   // Per-frame lists, kept from frame to frame to save their allocations.
   std::vector<int> coarse_objects, ray_objects, pixels, corners;

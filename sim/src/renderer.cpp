@@ -112,7 +112,6 @@ Workspace::Workspace(int w, int h, int objects, const ShadowCaster& caster)
       color(std::size_t(w) * h * 3, 0.0f),
       hit_object(std::size_t(w) * h, -1),
       raster_t(std::size_t(w) * h, INFINITY),
-      raster_back(std::size_t(w) * h, 0),
       row(std::size_t(w) * 3, 0),
       slab(std::size_t(objects)),
       shadows(caster) {}
