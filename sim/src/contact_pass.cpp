@@ -236,8 +236,7 @@ void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspac
     }
     if (opt.rasterize && opt.footprint) {
       SlabClusters& slab = ws.slab[i];
-      clusters_in_slab(triangle_clusters(*objects[i]), poses[i], gel.z_gel_min - slab_m(), 0.0f,
-                       slab);
+      clusters_in_slab(triangle_clusters(*objects[i]), poses[i], gel, slab_m(), slab);
       const bool shallow = slab.lowest_z > -slab_m();
       const long corners = long(fp.width() / tile + 2) * (fp.height() / tile + 2);
       const long rays = corners + near_gel_pixels(slab, fp);

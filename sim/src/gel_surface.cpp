@@ -1,6 +1,8 @@
 #include "gel_surface.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace pg {
 
@@ -37,6 +39,24 @@ GelGeometry make_gel_geometry(const SensorModel& sensor) {
       g.z_gel_min = std::min(g.z_gel_min, float(z));
     }
   }
+  // The radial bound: each pixel's gel point into the bin of its squared distance from the
+  // axis, then the maximum over each bin and all bins beyond it.
+  constexpr int kBins = 256;
+  std::vector<float> rho_sq(g.t_gel.size());
+  float rho_sq_max = 0;
+  for (std::size_t i = 0; i < rho_sq.size(); ++i) {
+    const Eigen::Vector3f p = g.point(int(i), 0.0f);
+    rho_sq[i] = p.x() * p.x() + p.y() * p.y();
+    rho_sq_max = std::max(rho_sq_max, rho_sq[i]);
+  }
+  g.rho_sq_step = std::max(rho_sq_max, 1e-12f) / float(kBins - 1);
+  g.highest_z.assign(kBins, -std::numeric_limits<float>::infinity());
+  for (std::size_t i = 0; i < rho_sq.size(); ++i) {
+    const int b = std::min(int(rho_sq[i] / g.rho_sq_step), kBins - 1);
+    g.highest_z[b] = std::max(g.highest_z[b], g.t_gel[i] + g.origin_sensor.z());
+  }
+  for (int b = kBins - 2; b >= 0; --b)
+    g.highest_z[b] = std::max(g.highest_z[b], g.highest_z[b + 1]);
   return g;
 }
 

@@ -18,8 +18,21 @@ struct GelGeometry {
   std::vector<float> t_gel;                 // camera depth of the undeformed gel surface [m]
   float px_per_m = 0;                       // image scale at the gel centre
   float z_gel_min = 0;                      // lowest undeformed gel z in view [m]
+  // highest_z[b]: the highest undeformed gel point seen by any pixel whose gel point lies at
+  // least sqrt(b * rho_sq_step) from the z axis [m] (-inf where there is none).
+  std::vector<float> highest_z;
+  float rho_sq_step = 0;  // [m^2]
 
   int index(int x, int y) const { return y * width + x; }
+  // An upper bound of z_gel over the pixels whose undeformed gel point lies at least
+  // sqrt(rho_sq) from the z axis. A point p in front of the camera that a pixel's ray meets
+  // before the undeformed gel lies below this bound at p's own rho_sq: the ray moves away from
+  // the axis as z grows, so its gel point is farther out than p, and higher than p.
+  float highest_gel_z_beyond(float rho_sq) const {
+    const float b = rho_sq / rho_sq_step;
+    const int n = int(highest_z.size());
+    return highest_z[b < float(n - 1) ? int(b) : n - 1];
+  }
   // The gel surface point seen through pixel i when displaced by u toward the camera.
   Eigen::Vector3f point(int i, float u) const {
     return origin_sensor + dir_sensor[i] * (t_gel[i] - u);

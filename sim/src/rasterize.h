@@ -13,33 +13,46 @@
 
 namespace pg {
 
-// Triangles grouped by Morton order of their centroids, each group bounded by a sphere. Each
-// group keeps its own copy of its vertices, so that a frame transforms each vertex once (a
-// vertex is shared by about six triangles) and reads them from one small block.
+// Triangles grouped by Morton order of their centroids, each group (cluster) bounded by a box.
+// Each cluster keeps its own copy of its vertices, so that a frame transforms each vertex once
+// (a vertex is shared by about six triangles) and reads them from one small block. Consecutive
+// clusters are grouped again, kGroupClusters at a time, so that a frame skips most of a big
+// mesh's clusters a group at a time.
 struct TriangleClusters {
   struct Cluster {
     Eigen::Vector3f centre;                      // of its bounding box, object frame [m]
     Eigen::Vector3f half_extent;                 // of its bounding box [m]
     int first_triangle = 0, triangle_count = 0;  // into corner_a, b, c
     int first_vertex = 0, vertex_count = 0;      // into x, y, z
+    float longest_edge = 0;                      // of its triangles [m]
+  };
+  struct Group {
+    Eigen::Vector3f centre, half_extent;  // a box around its clusters' boxes [m]
+    int first_cluster = 0, cluster_count = 0;
   };
   static constexpr int kMaxTriangles = 85;  // per cluster, so that 255 vertices index in a byte
-  std::vector<float> x, y, z;               // vertices in the object frame [m], grouped by cluster
+  static constexpr int kGroupClusters = 16;
+  static constexpr int kVertexBlock = 16;  // x, y, z end with this many zeros of padding
+  std::vector<float> x, y, z;              // vertices in the object frame [m], grouped by cluster
   std::vector<std::uint8_t> corner_a, corner_b, corner_c;  // per triangle, into its cluster's
   std::vector<Cluster> clusters;
+  std::vector<Group> groups;
 };
 TriangleClusters make_clusters(const TriangleMesh& mesh, int per_cluster = 32);
 
-// The clusters that may reach into z in [z_lo, z_hi] of the sensor frame at this pose, their
-// triangle count and bounds, and the lowest z any cluster of the mesh may reach.
+// The clusters whose triangles a pixel's ray may meet in front of the undeformed gel at this
+// pose, within slab_m of it (from the gel down to slab_m below its lowest point); their
+// triangle count and bounds; and how low the mesh may reach.
 struct SlabClusters {
   std::vector<int> clusters;
   long triangles = 0;
   Eigen::Vector3f lo, hi;  // bounds of those clusters' boxes in the sensor frame [m]
-  float lowest_z = 0;      // [m]
+  // The lowest z of the clusters' boxes [m]; where that lies above the gel's top (z = 0) or
+  // below the slab, possibly a lower value on the same side.
+  float lowest_z = 0;
 };
-void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, float z_lo, float z_hi,
-                      SlabClusters& out);
+void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, const GelGeometry& gel,
+                      float slab_m, SlabClusters& out);
 
 // Per-pixel first hit along each pixel's ray, for t >= tnear = t_gel - slab_m, over `rect`.
 // hit_t must hold +inf (or an earlier object's hit) on rect. `touched` grows to cover every pixel
@@ -51,6 +64,9 @@ struct SlabRaster {
   const GelGeometry* gel = nullptr;
   float slab_m = 0;
   bool front_faces_only = false;
+  // Clusters whose triangles are all shorter than this (at the gel's centre) [px] are culled
+  // by vertex keys, in batches (rasterize.cpp); the same result, cheaper for tiny triangles.
+  float small_triangle_px = 1.0f;
   PixelRect rect;
   float* hit_t = nullptr;
   PixelRect touched;
