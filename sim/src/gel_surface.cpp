@@ -7,37 +7,15 @@
 namespace pg {
 
 GelGeometry make_gel_geometry(const SensorModel& sensor) {
-  const CameraModel& cam = sensor.camera;
   GelGeometry g;
-  g.width = cam.width;
-  g.height = cam.height;
-  g.origin_sensor = Eigen::Vector3f(0, 0, float(-cam.distance_m));
-  g.dir_sensor.resize(std::size_t(cam.width) * cam.height);
+  static_cast<GelRays&>(g) = make_gel_rays(sensor.camera, sensor.gel);
   g.dir_x.resize(g.dir_sensor.size());
   g.dir_y.resize(g.dir_sensor.size());
-  g.t_gel.resize(g.dir_sensor.size());
-  g.px_per_m = float(cam.fy / cam.distance_m);
   g.z_gel_min = 0.0f;
-  for (int y = 0; y < cam.height; ++y) {
-    for (int x = 0; x < cam.width; ++x) {
-      const Eigen::Vector3d d = cam.ray(x, y);
-      // Where the ray meets the convex gel: z = surface_z(x(z), y(z)); a fixed-point iteration
-      // converges fast because the gel's slope is small.
-      double z = 0.0;
-      for (int it = 0; it < 20; ++it) {
-        const double t = z + cam.distance_m;
-        const double z_next = sensor.gel.surface_z(d.x() * t, d.y() * t);
-        const bool done = std::abs(z_next - z) < 1e-12;
-        z = z_next;
-        if (done) break;
-      }
-      const int i = g.index(x, y);
-      g.dir_sensor[i] = d.cast<float>();
-      g.dir_x[i] = g.dir_sensor[i].x();
-      g.dir_y[i] = g.dir_sensor[i].y();
-      g.t_gel[i] = float(z + cam.distance_m);
-      g.z_gel_min = std::min(g.z_gel_min, float(z));
-    }
+  for (std::size_t i = 0; i < g.dir_sensor.size(); ++i) {
+    g.dir_x[i] = g.dir_sensor[i].x();
+    g.dir_y[i] = g.dir_sensor[i].y();
+    g.z_gel_min = std::min(g.z_gel_min, g.point(int(i), 0.0f).z());
   }
   // The radial bound: each pixel's gel point into the bin of its squared distance from the
   // axis, then the maximum over each bin and all bins beyond it.

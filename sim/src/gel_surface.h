@@ -4,26 +4,22 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "pg/core/gel_rays.h"
+#include "pg/core/pixel_rect.h"
 #include "pg/core/sensor.h"
-#include "pixel_rect.h"
 
 namespace pg {
 
-// Per-sensor constants: one ray per pixel from the camera centre, and where it meets the gel.
-struct GelGeometry {
-  int width = 0, height = 0;
-  Eigen::Vector3f origin_sensor;            // camera centre in S, (0, 0, -camera distance)
-  std::vector<Eigen::Vector3f> dir_sensor;  // per pixel, z = 1: t is the camera depth [m]
-  std::vector<float> dir_x, dir_y;          // the same x and y, as plain arrays for vector loops
-  std::vector<float> t_gel;                 // camera depth of the undeformed gel surface [m]
-  float px_per_m = 0;                       // image scale at the gel centre
-  float z_gel_min = 0;                      // lowest undeformed gel z in view [m]
+// Per-sensor constants: one ray per pixel from the camera centre and where it meets the gel
+// (GelRays, shared with the tracker), plus the bounds the renderer culls with.
+struct GelGeometry : GelRays {
+  std::vector<float> dir_x, dir_y;  // the rays' x and y, as plain arrays for vector loops
+  float z_gel_min = 0;              // lowest undeformed gel z in view [m]
   // highest_z[b]: the highest undeformed gel point seen by any pixel whose gel point lies at
   // least sqrt(b * rho_sq_step) from the z axis [m] (-inf where there is none).
   std::vector<float> highest_z;
   float rho_sq_step = 0;  // [m^2]
 
-  int index(int x, int y) const { return y * width + x; }
   // An upper bound of z_gel over the pixels whose undeformed gel point lies at least
   // sqrt(rho_sq) from the z axis. A point p in front of the camera that a pixel's ray meets
   // before the undeformed gel lies below this bound at p's own rho_sq: the ray moves away from
@@ -32,10 +28,6 @@ struct GelGeometry {
     const float b = rho_sq / rho_sq_step;
     const int n = int(highest_z.size());
     return highest_z[b < float(n - 1) ? int(b) : n - 1];
-  }
-  // The gel surface point seen through pixel i when displaced by u toward the camera.
-  Eigen::Vector3f point(int i, float u) const {
-    return origin_sensor + dir_sensor[i] * (t_gel[i] - u);
   }
 };
 

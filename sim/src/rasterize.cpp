@@ -514,7 +514,7 @@ void rasterize_clusters(const TriangleClusters& c, const std::vector<int>& clust
   const float z_top = 0.0f, z_bottom = g.z_gel_min - out.slab_m;
   // Clusters of triangles shorter than a pixel go in batches through the vertex keys; the others
   // one by one through triangle_boxes.
-  const float small_m = out.small_triangle_px / g.px_per_m;
+  const float small_m = out.small_triangle_px / float(g.px_per_m);
   const auto small = [&](int ci) { return c.clusters[ci].longest_edge < small_m; };
   ClusterInView v;
   for (std::size_t i = 0; i < clusters.size();) {

@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "gel_surface.h"
+#include "pg/core/pixel_rect.h"
 #include "pg/core/se3.h"
 #include "pg/sim/mesh.h"
-#include "pixel_rect.h"
 
 namespace pg {
 

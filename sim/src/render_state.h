@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "gel_surface.h"
+#include "pg/core/pixel_rect.h"
 #include "pg/sim/renderer.h"
-#include "pixel_rect.h"
 #include "rasterize.h"
 #include "shading.h"
 #include "shadows.h"

@@ -130,13 +130,13 @@ SensorRenderer::State::State(SensorModel s, std::vector<std::shared_ptr<const Ob
 void SensorRenderer::State::prepare() {
   gel = make_gel_geometry(sensor);
   const int w = width(), h = height();
-  kernel = make_elastic_kernel(sensor.gel.elastic, gel.px_per_m, std::max(w, h) + 2);
+  kernel = make_elastic_kernel(sensor.gel.elastic, float(gel.px_per_m), std::max(w, h) + 2);
   shader = make_shader(sensor);
   if (settings.noise && sensor.noise.sigma > 0) noise.emplace(float(sensor.noise.sigma));
   // Tiles of about 0.3 mm; a coarse ray counts as near when the object is within two tile widths
   // of the gel, which catches any contact whose surface rises slower than about 63 degrees.
-  tile = std::max(4, 4 * int(std::lround(0.0003 * gel.px_per_m / 4.0)));
-  margin_m = 2.0f * float(tile) / gel.px_per_m;
+  tile = std::max(4, 4 * int(std::lround(0.0003 * float(gel.px_per_m) / 4.0)));
+  margin_m = 2.0f * float(tile) / float(gel.px_per_m);
   const PixelRect all{0, 0, w, h};
   std::vector<float> zero(std::size_t(w) * h, 0.0f);
   normals0 = ImageF(w, h, 3);
@@ -158,7 +158,7 @@ void SensorRenderer::State::prepare() {
       for (int x = 0; x < real.width; ++x)
         for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
     background = resample_bilinear(rgb, w, h);
-    blend_radius = gaussian_box_radius(sensor.shading.background_blur_m * gel.px_per_m);
+    blend_radius = gaussian_box_radius(sensor.shading.background_blur_m * float(gel.px_per_m));
   }
   background_u8 = ImageU8(w, h, 3);
   if (noise) background_fixed.resize(background.data.size());

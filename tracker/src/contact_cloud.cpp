@@ -5,9 +5,9 @@
 namespace pg {
 
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
-                         const PixelBox& box, const ImageF& normals, PointCloud& cloud_sensor) {
+                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor) {
   cloud_sensor.clear();
-  const PixelBox b = box.clip(rays.width, rays.height);
+  const PixelRect b = box.clipped(rays.width, rays.height);
   int rejected = 0;
   for (int y = b.y0; y < b.y1; ++y) {
     const std::uint8_t* m = &mask.at(0, y);

@@ -6,17 +6,17 @@
 
 namespace pg {
 
-void contact_mask(const ImageF& depth, const PixelBox& window, const MaskOptions& options,
+void contact_mask(const ImageF& depth, const PixelRect& window, const MaskOptions& options,
                   double pixel_area_m2, ContactMask& out) {
   assert(depth.channels == 1);
   const int W = depth.width, H = depth.height;
   if (!out.mask.same_shape(W, H, 1)) {
     out.mask = ImageU8(W, H, 1, 0);
   } else {
-    const PixelBox old = out.box.clip(W, H);
+    const PixelRect old = out.box.clipped(W, H);
     for (int y = old.y0; y < old.y1; ++y) std::fill_n(&out.mask.at(old.x0, y), old.width(), 0);
   }
-  const PixelBox win = window.clip(W, H);
+  const PixelRect win = window.clipped(W, H);
   // The relative threshold refers to a high percentile of the indented pixels rather than the
   // single deepest one, so that one outlier pixel cannot empty the mask.
   thread_local std::vector<float> indented;
@@ -51,7 +51,7 @@ void contact_mask(const ImageF& depth, const PixelBox& window, const MaskOptions
     }
   }
   out.pixels = pixels;
-  out.box = pixels > 0 ? PixelBox{x0, y0, x1 + 1, y1 + 1} : PixelBox{};
+  out.box = pixels > 0 ? PixelRect{x0, y0, x1 + 1, y1 + 1} : PixelRect{};
   out.area_m2 = pixels * pixel_area_m2;
   out.contact = pixels > 0 && out.area_m2 >= options.min_area_m2;
 }

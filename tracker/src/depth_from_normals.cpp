@@ -1,8 +1,8 @@
 #include "pg/tracker/depth_from_normals.h"
 
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "pg/core/error.h"
@@ -133,7 +133,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   if (!out.depth.same_shape(W, H, 1)) {
     out.depth = ImageF(W, H, 1, 0.0f);
   } else {
-    const PixelBox old = out.window.clip(W, H);
+    const PixelRect old = out.window.clipped(W, H);
     for (int y = old.y0; y < old.y1; ++y) {
       std::fill_n(&out.depth.at(old.x0, y), old.width(), 0.0f);
     }
@@ -149,9 +149,9 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   for (int y = 0; y < H; ++y) {
     const std::size_t row = 3 * std::size_t(y) * W;
     int disturbed = 0;
-    out.invalid_normals += classify_row(normals.data.data() + row,
-                                        reference_normals_.data.data() + row, W, cos_threshold,
-                                        flags_.data(), disturbed);
+    out.invalid_normals +=
+        classify_row(normals.data.data() + row, reference_normals_.data.data() + row, W,
+                     cos_threshold, flags_.data(), disturbed);
     if (disturbed == 0) continue;
     out.disturbed_pixels += disturbed;
     int first = 0, last = W - 1;
@@ -166,9 +166,9 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   out.disturbed_box = {bx0, by0, bx1 + 1, by1 + 1};
 
   // 2. The Poisson grid: the disturbed box plus margin, or the whole image, at fast DST sizes.
-  const PixelBox need = options_.crop ? out.disturbed_box : PixelBox{0, 0, W, H};
+  const PixelRect need = options_.crop ? out.disturbed_box : PixelRect{0, 0, W, H};
   const int margin = options_.crop ? options_.crop_margin_px : 0;
-  PixelBox& win = out.window;
+  PixelRect& win = out.window;
   fast_window(need.x0, need.x1, margin, win.x0, win.x1);
   fast_window(need.y0, need.y1, margin, win.y0, win.y1);
   const int nx = win.width(), ny = win.height();
@@ -179,7 +179,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   gx_.assign(std::size_t(gw) * gh, 0.0f);
   gy_.assign(std::size_t(gw) * gh, 0.0f);
   std::vector<std::size_t> holes;  // grid indices; allocated only for a frame that has some
-  const PixelBox ring = PixelBox{win.x0 - 1, win.y0 - 1, win.x1 + 1, win.y1 + 1}.clip(W, H);
+  const PixelRect ring = PixelRect{win.x0 - 1, win.y0 - 1, win.x1 + 1, win.y1 + 1}.clipped(W, H);
   const float* nimg = normals.data.data();
   const float fx = float(rays_.fx), fy = float(rays_.fy);
   const float min_dot = float(options_.min_normal_dot_ray);
@@ -219,7 +219,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   solver_.solve();
 
   // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
-  const PixelBox inside = win.clip(W, H);
+  const PixelRect inside = win.clipped(W, H);
   for (int y = inside.y0; y < inside.y1; ++y) {
     const float* wr = f + std::size_t(y - win.y0) * nx - win.x0;
     float* ur = &out.depth.at(0, y);

@@ -21,8 +21,8 @@ enum class ContactStatus {
 
 struct ContactFrame {
   ContactStatus status = ContactStatus::kNoContact;
-  DepthResult depth;      // indentation [m] and the Poisson grid
-  ContactMask mask;       // contact pixels
+  DepthResult depth;  // indentation [m] and the Poisson grid
+  ContactMask mask;   // contact pixels
   // Back-projected contact pixels in S [m]: p_S = o + d (t_gel - u). Normals are the object's
   // outward surface normals, i.e. minus the gel normals of the normal image (not re-estimated).
   PointCloud cloud_sensor;
@@ -36,7 +36,7 @@ struct ContactFrame {
 // ContactFrame::cloud_sensor). Pixels whose normal is not finite, roughly unit and +z are skipped
 // and counted in the return value. `cloud_sensor` is cleared first; its capacity is reused.
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
-                         const PixelBox& box, const ImageF& normals, PointCloud& cloud_sensor);
+                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor);
 
 // Coordinates the steps for one sensor; keeps the per-sensor constants, FFTW plans and scratch
 // buffers, so frames allocate nothing once the sizes have been seen. Not thread-safe: one per

@@ -2,7 +2,7 @@
 // Contact mask from the indentation: pixels pressed deeper than a threshold; a contact smaller
 // than a minimum area counts as no contact (noise, a grazing touch).
 #include "pg/core/image.h"
-#include "pg/tracker/pixel_box.h"
+#include "pg/core/pixel_rect.h"
 
 namespace pg {
 
@@ -10,22 +10,23 @@ struct MaskOptions {
   double min_depth_m = 1e-4;    // a pixel is in contact when its indentation exceeds this [m]
   double min_area_m2 = 0.5e-6;  // less contact than this is no contact [m^2] (0.5 mm^2)
   // A pixel is in contact only where its indentation also exceeds this fraction of the frame's
-  // deepest (its 98th percentile, robust to a stray pixel). An elastic gel sinks in around a contact without touching the object there; that
-  // ring is shallow, and its points would pull the registrations off the object's surface.
+  // deepest (its 98th percentile, robust to a stray pixel). An elastic gel sinks in around a
+  // contact without touching the object there; that ring is shallow, and its points would pull the
+  // registrations off the object's surface.
   double relative_depth = 0.0;
 };
 
 struct ContactMask {
-  ImageU8 mask;        // width x height x 1, 255 in contact, else 0
-  PixelBox box;        // bounding box of the contact pixels (empty: none)
-  int pixels = 0;      // contact pixels [px]
-  double area_m2 = 0;  // pixels times the pixel area at the gel centre [m^2]
+  ImageU8 mask;          // width x height x 1, 255 in contact, else 0
+  PixelRect box;         // bounding box of the contact pixels (empty: none)
+  int pixels = 0;        // contact pixels [px]
+  double area_m2 = 0;    // pixels times the pixel area at the gel centre [m^2]
   bool contact = false;  // area_m2 >= min_area_m2
 };
 
 // Thresholds `depth` over `window` (the only region where it can be non-zero; pass the whole
 // image when unsure). `out`'s buffers are reused; what it marked last time is cleared.
-void contact_mask(const ImageF& depth, const PixelBox& window, const MaskOptions& options,
+void contact_mask(const ImageF& depth, const PixelRect& window, const MaskOptions& options,
                   double pixel_area_m2, ContactMask& out);
 
 }  // namespace pg

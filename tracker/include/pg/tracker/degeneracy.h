@@ -20,7 +20,7 @@ using Matrix6Xd = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, 6
 struct DegeneracyReport {
   Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();  // c [m]
   double length_scale_m = 1.0;                              // L [m]
-  Vector6d eigenvalues = Vector6d::Zero();    // of the scaled Hessian, ascending [-]
+  Vector6d eigenvalues = Vector6d::Zero();                  // of the scaled Hessian, ascending [-]
   Matrix6d eigenvectors = Matrix6d::Identity();  // columns, in scaled coordinates [rho_c; L phi]
   int unconstrained = 6;  // how many of the first eigenvalues fall below the ratio
 

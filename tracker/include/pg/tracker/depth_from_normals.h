@@ -14,10 +14,10 @@
 #include <cstdint>
 #include <vector>
 
+#include "pg/core/gel_rays.h"
 #include "pg/core/image.h"
+#include "pg/core/pixel_rect.h"
 #include "pg/core/sensor.h"
-#include "pg/tracker/gel_rays.h"
-#include "pg/tracker/pixel_box.h"
 #include "pg/tracker/poisson_dst.h"
 
 namespace pg {
@@ -32,15 +32,15 @@ struct DepthOptions {
   // Integrate only over the disturbed pixels' bounding box plus a margin (false: the whole
   // image). Either way the grid is padded so its DST sizes factor into small primes.
   bool crop = true;
-  int crop_margin_px = 4;  // [px], at least 1
+  int crop_margin_px = 4;                         // [px], at least 1
   DstBackend dst_backend = DstBackend::kRealFft;  // see poisson_dst.h
   bool measure_fft_plans = false;  // FFTW_MEASURE plans: 0.1-0.6 s on the first frame of a size
 };
 
 struct DepthResult {
-  ImageF depth;            // indentation u [m] along the camera z axis, width x height x 1
-  PixelBox window;         // the Poisson grid in image coordinates (may reach past the image)
-  PixelBox disturbed_box;  // bounding box of the disturbed pixels (empty: none)
+  ImageF depth;             // indentation u [m] along the camera z axis, width x height x 1
+  PixelRect window;         // the Poisson grid in image coordinates (may reach past the image)
+  PixelRect disturbed_box;  // bounding box of the disturbed pixels (empty: none)
   int disturbed_pixels = 0;
   // NaN, inf, far from unit length or n.z <= 0: their gradient is interpolated from the valid
   // pixels beside them in the row (a dead pixel inside a contact leaves no dent).

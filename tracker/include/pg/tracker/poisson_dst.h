@@ -13,7 +13,8 @@ namespace pg {
 // about 5x longer than 319 x 239).
 int dst_fast_size(int n);
 
-// How the DST-I is computed. Both give FFTW's RODFT00, Y_k = 2 sum_j x_j sin(pi (j+1)(k+1) / (n+1)).
+// How the DST-I is computed. Both give FFTW's RODFT00, Y_k = 2 sum_j x_j sin(pi (j+1)(k+1) /
+// (n+1)).
 enum class DstBackend {
   // The odd extension [0, x, 0, -reverse(x)] through FFTW's SIMD real-to-complex FFT of size
   // 2 (n + 1), Y_k = -Im(FFT_{k+1}), rows then (transposed) columns: 2-4x faster than r2r here.

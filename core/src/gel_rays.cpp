@@ -1,4 +1,4 @@
-#include "pg/tracker/gel_rays.h"
+#include "pg/core/gel_rays.h"
 
 #include <algorithm>
 #include <cmath>
@@ -43,8 +43,10 @@ ImageF undeformed_gel_normals(const GelRays& rays) {
     const int ym = std::max(y - 1, 0), yp = std::min(y + 1, rays.height - 1);
     for (int x = 0; x < rays.width; ++x) {
       const int xm = std::max(x - 1, 0), xp = std::min(x + 1, rays.width - 1);
-      const Eigen::Vector3f dx = rays.point(rays.index(xp, y), 0) - rays.point(rays.index(xm, y), 0);
-      const Eigen::Vector3f dy = rays.point(rays.index(x, yp), 0) - rays.point(rays.index(x, ym), 0);
+      const Eigen::Vector3f dx =
+          rays.point(rays.index(xp, y), 0) - rays.point(rays.index(xm, y), 0);
+      const Eigen::Vector3f dy =
+          rays.point(rays.index(x, yp), 0) - rays.point(rays.index(x, ym), 0);
       const Eigen::Vector3f n = dx.cross(dy).normalized();
       for (int c = 0; c < 3; ++c) normals.at(x, y, c) = n[c];
     }

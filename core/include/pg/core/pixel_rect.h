@@ -1,5 +1,7 @@
 #pragma once
-// Half-open pixel rectangles [x0, x1) x [y0, y1): the regions the renderer works on.
+// Half-open pixel rectangles [x0, x1) x [y0, y1): the regions the renderer and the tracker work
+// on. May reach past the image (the tracker's Poisson window does); clipped() keeps the part
+// inside.
 #include <algorithm>
 
 namespace pg {

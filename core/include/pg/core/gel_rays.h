@@ -1,7 +1,8 @@
 #pragma once
 // Per-pixel camera rays of a sensor and where they meet the undeformed gel: the geometry that
 // turns an indentation image into points in the sensor frame S, computed from the sensor model
-// alone (CameraModel + GelModel::surface_z), so it works for a real sensor too.
+// alone (CameraModel + GelModel::surface_z), so it works for a real sensor too. The renderer
+// (its GelGeometry adds per-frame culling bounds) and the tracker both start from these rays.
 #include <Eigen/Core>
 #include <vector>
 
@@ -11,10 +12,10 @@
 namespace pg {
 
 struct GelRays {
-  int width = 0, height = 0;             // [px]
-  double fx = 0, fy = 0;                 // focal lengths [px]
-  double px_per_m = 0;                   // image scale at the gel centre [px / m]
-  Eigen::Vector3f origin_sensor;         // camera centre in S [m]
+  int width = 0, height = 0;                // [px]
+  double fx = 0, fy = 0;                    // focal lengths [px]
+  double px_per_m = 0;                      // image scale at the gel centre [px / m]
+  Eigen::Vector3f origin_sensor;            // camera centre in S [m]
   std::vector<Eigen::Vector3f> dir_sensor;  // per pixel ray, z = 1 (t is the camera depth) [-]
   std::vector<float> t_gel;                 // camera depth of the undeformed gel surface [m]
 
