@@ -15,13 +15,14 @@ namespace {
 namespace fs = std::filesystem;
 using testing_support::TempDir;
 
-
 const std::string kRepo = PG_SOURCE_DIR;
 
-// Renders a scene (JSON) with normals only into dir and opens it.
-Dataset render(nlohmann::json scene, const fs::path& dir) {
+// Renders a scene (JSON; mesh paths relative to scene_dir) with normals only into dir and opens
+// it.
+Dataset render(nlohmann::json scene, const fs::path& dir,
+               const std::string& scene_dir = kRepo + "/scenes") {
   scene["render"]["outputs"] = {"normal"};
-  const Scene s = scene_from_json(scene, "test scene", kRepo + "/scenes");
+  const Scene s = scene_from_json(scene, "test scene", scene_dir);
   const SceneRenderer renderer(s);
   render_scene_to_dataset(renderer, dir.string());
   return Dataset::open(dir.string());
@@ -44,6 +45,24 @@ TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
   EXPECT_LT(pg.translation_rmse_m, cv.translation_rmse_m);
   EXPECT_LT(pg.rotation_rmse_rad, cv.rotation_rmse_rad);
   EXPECT_LT(pg.final_rotation_error_rad, cv.final_rotation_error_rad);
+}
+
+// What the touch cannot tell is reported, not hidden: a sphere's patch leaves its three
+// rotations unconstrained in (nearly) every frame, the cube's corner none.
+TEST(Tracking, UnobservableDirectionsAreReported) {
+  TempDir tmp;
+  nlohmann::json sphere = parse_json_file(kRepo + "/scenes/benchmark/sphere_00.json");
+  sphere["frames"] = 40;
+  const Dataset ds = render(sphere, tmp.path / "sphere", kRepo + "/scenes/benchmark");
+  const TrackRun s = track_dataset(ds, TrackOptions());
+  int three = 0;
+  for (const auto& f : s.frames) three += f.unconstrained_directions == 3;
+  EXPECT_GE(s.summary.degenerate_frames, s.summary.contact_frames - 2);
+  EXPECT_GE(three, s.summary.contact_frames - 2);
+  const Dataset dc = render(parse_json_file(kRepo + "/scenes/default.json"), tmp.path / "cube");
+  const TrackRun c = track_dataset(dc, TrackOptions());
+  EXPECT_GT(c.summary.contact_frames, 50);
+  EXPECT_LT(c.summary.degenerate_frames, c.summary.contact_frames / 10);
 }
 
 TEST(Tracking, ResumesAfterANoContactGap) {

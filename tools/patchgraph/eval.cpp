@@ -27,7 +27,8 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
     if (!fs::is_directory(root)) throw InputError(root + ": not a dataset or a folder of datasets");
     std::vector<std::string> found;
     for (const auto& entry : fs::directory_iterator(root)) {
-      if (fs::is_regular_file(entry.path() / "dataset.json")) found.push_back(entry.path().string());
+      if (fs::is_regular_file(entry.path() / "dataset.json"))
+        found.push_back(entry.path().string());
     }
     if (found.empty()) throw InputError(root + ": holds no dataset (no */dataset.json)");
     std::sort(found.begin(), found.end());
@@ -54,17 +55,20 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream out(path);
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
-         "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz\n";
+         "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
+         "lost_frames,degenerate_frames\n";
   for (const auto& r : rows) {
     out << r.dataset << "," << r.object << "," << r.method << "," << r.s.frames << ","
         << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
-        << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << "\n";
+        << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
+        << r.s.lost_frames << "," << r.s.degenerate_frames << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
 
-std::string summary_markdown(const std::vector<Row>& rows, const std::vector<std::string>& methods) {
+std::string summary_markdown(const std::vector<Row>& rows,
+                             const std::vector<std::string>& methods) {
   std::map<std::string, std::map<std::string, std::vector<const Row*>>> by;
   for (const auto& r : rows) by[r.object][r.method].push_back(&r);
   std::ostringstream md;
@@ -81,7 +85,8 @@ std::string summary_markdown(const std::vector<Row>& rows, const std::vector<std
         rot.push_back(r->s.final_rotation_error_rad);
         ms.push_back(r->s.median_frame_ms);
       }
-      std::snprintf(line, sizeof(line), "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
+      std::snprintf(line, sizeof(line),
+                    "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
                     object.c_str(), m.c_str(), t.size(), quantile(t, 0.5), quantile(t, 0.25),
                     quantile(t, 0.75), quantile(rot, 0.5), quantile(rot, 0.25), quantile(rot, 0.75),
                     quantile(ms, 0.5));

@@ -36,6 +36,13 @@ int run_track(const TrackArgs& a) {
     std::fprintf(stderr, "warning: tracking was reported lost in %d frame(s) (errors.csv)\n",
                  s.lost_frames);
   }
+  if (s.degenerate_frames > 0) {
+    std::printf(
+        "note: in %d of %d contact frames the contact did not constrain every direction "
+        "of the pose (a flat, cylindrical or spherical patch); the estimate follows the "
+        "motion prior along those (errors.csv: unconstrained_directions)\n",
+        s.degenerate_frames, s.contact_frames);
+  }
   std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
               s.final_rotation_error_rad);
   std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3,

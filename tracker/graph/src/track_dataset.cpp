@@ -73,13 +73,16 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     double normals_ms = 0;
     if (learned) {
       normals = options.normals(color);
-      normals_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+      normals_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+              .count();
     }
     builder.build(normals, contact);
     if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
     const TrackerEstimate est = run.tracker->add(input);
     FrameResult r;
-    r.frame_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    r.frame_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     r.normals_ms = normals_ms;
     r.frame = i;
     r.T_world_object = est.T_world_object;
@@ -91,6 +94,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.image_to_patch = est.image_to_patch;
     r.rejected_registrations = est.rejected_registrations;
     r.tracking_lost = est.tracking_lost;
+    r.unconstrained_directions = est.contact ? est.unconstrained_directions : 0;
     run.frames.push_back(r);
     if (progress) progress(i + 1, dataset.frames());
   }
@@ -134,6 +138,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.episodes += f.new_episode;
     s.rejected_registrations += f.rejected_registrations;
     s.lost_frames += f.tracking_lost;
+    s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
   }
   s.translation_rmse_m = std::sqrt(t_sq / frames.size());
   s.rotation_rmse_rad = std::sqrt(r_sq / frames.size());
@@ -160,12 +165,12 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   std::ofstream errors(errors_path);
   errors.precision(9);
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
-            "rejected_registrations,tracking_lost,frame_ms,normals_ms\n";
+            "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
            << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
-           << f.normals_ms << "\n";
+           << f.normals_ms << "," << f.unconstrained_directions << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
@@ -179,6 +184,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"episodes", s.episodes},
       {"rejected_registrations", s.rejected_registrations},
       {"lost_frames", s.lost_frames},
+      {"degenerate_frames", s.degenerate_frames},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},
       {"final_translation_error_m", s.final_translation_error_m},

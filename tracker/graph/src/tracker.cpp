@@ -40,9 +40,7 @@ const std::vector<std::string>& method_names() {
   return names;
 }
 
-const char* to_string(Method method) {
-  return method_names()[static_cast<int>(method)].c_str();
-}
+const char* to_string(Method method) { return method_names()[static_cast<int>(method)].c_str(); }
 
 Method method_from_string(const std::string& name) {
   const auto& names = method_names();
@@ -82,8 +80,7 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   // of velocity), the free directions could drift linearly without bound. A weak pull toward the
   // registration's answer there (its initial guess, the prediction) keeps them still.
   // P and I - P are orthogonal projectors: S^T S = P / s^2 + (I - P) / s_free^2.
-  return projector / sigma +
-         (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
+  return projector / sigma + (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
 }
 
 bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
@@ -107,8 +104,7 @@ bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
          rotation_distance(solved, fac.measured) > options_.max_registration_residual_rad;
 }
 
-PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(Frame& f,
-                                                                   TrackerEstimate& est) {
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
   const int t = int(frames_.size()) - 1;
   if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return Outcome::kNotTried;
   const Frame& p = frames_[t - 1];
@@ -126,16 +122,19 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(Frame& f, Tracke
   const int t = int(frames_.size()) - 1;
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
   const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
-  est.unconstrained_directions = r.degeneracy.unconstrained;
+  // What the contact let the registration see, whether or not its answer is used (a failed
+  // one, with too few points or matches, never analysed its Hessian).
+  if (r.status == IcpStatus::kConverged || r.status == IcpStatus::kMaxIterations) {
+    est.unconstrained_directions = r.degeneracy.unconstrained;
+  }
   return add_registration(FactorKind::kImageToPatch, {t, -1, -1}, r, guess,
                           options_.sigma_image_to_patch, est);
 }
 
 PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
                                                                std::array<int, 3> frames,
-                                                               const IcpResult& r,
-                                                               const SE3& guess, double sigma,
-                                                               TrackerEstimate& est) {
+                                                               const IcpResult& r, const SE3& guess,
+                                                               double sigma, TrackerEstimate& est) {
   if (!r.converged) {
     ++est.unconverged_registrations;
     // At the iteration limit the clouds still matched (every point an inlier, as a registration
@@ -147,8 +146,8 @@ PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
     ++est.rejected_registrations;
     return Outcome::kFailed;
   }
-  Factor factor{kind, {frames[0], frames[1], frames[2]}, r.T_target_source,
-                registration_sqrt_info(r, sigma)};
+  Factor factor{
+      kind, {frames[0], frames[1], frames[2]}, r.T_target_source, registration_sqrt_info(r, sigma)};
   factors_.push_back(factor);
   (kind == FactorKind::kImageToPatch ? est.image_to_patch : est.image_to_image) = true;
   return Outcome::kAccepted;
@@ -169,10 +168,11 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
                 : t >= 1  ? pose_from_block(frames_[t - 1].e)
                           : SE3(),
                 f.e);
-  const SE3 o_init = t >= 2 ? predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o))
-                     : t == 1 ? pose_from_block(frames_[0].o)
-                     : prior_ok ? input.T_world_object_prior
-                                : SE3();
+  const SE3 o_init =
+      t >= 2     ? predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o))
+      : t == 1   ? pose_from_block(frames_[0].o)
+      : prior_ok ? input.T_world_object_prior
+                 : SE3();
   pose_to_block(o_init, f.o);
   f.contact = !current_cloud_.empty();
   frames_.push_back(f);
@@ -181,22 +181,28 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   // Priors: the end-effector measurement every frame (eq. 8), the velocity prior (eq. 7), and
   // the vision prior on the first pose of each contact episode (eq. 9) and of the sequence.
   if (sensor_ok) {
-    factors_.push_back({FactorKind::kEndEffector, {t, -1, -1}, input.T_world_sensor_measured,
+    factors_.push_back({FactorKind::kEndEffector,
+                        {t, -1, -1},
+                        input.T_world_sensor_measured,
                         isotropic_sqrt_info(options_.sigma_end_effector)});
   }
   if (t >= 2) {
-    factors_.push_back({FactorKind::kVelocity, {t - 2, t - 1, t}, SE3(),
+    factors_.push_back({FactorKind::kVelocity,
+                        {t - 2, t - 1, t},
+                        SE3(),
                         isotropic_sqrt_info(options_.sigma_velocity)});
   }
   if (t >= 1 && options_.sigma_damping > 0) {
-    factors_.push_back({FactorKind::kDamping, {t - 1, t, -1}, SE3(),
-                        isotropic_sqrt_info(options_.sigma_damping)});
+    factors_.push_back(
+        {FactorKind::kDamping, {t - 1, t, -1}, SE3(), isotropic_sqrt_info(options_.sigma_damping)});
   }
   est.contact = cur.contact;
   est.new_episode = cur.contact && !in_episode_;
   if ((t == 0 || est.new_episode) && prior_ok) {
     pose_to_block(input.T_world_object_prior, cur.o);
-    factors_.push_back({FactorKind::kVision, {t, -1, -1}, input.T_world_object_prior,
+    factors_.push_back({FactorKind::kVision,
+                        {t, -1, -1},
+                        input.T_world_object_prior,
                         isotropic_sqrt_info(options_.sigma_vision)});
   }
   if (est.new_episode && options_.method == Method::kPatchGraph) {
@@ -257,8 +263,8 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     est.keyframe = true;
   }
   // This frame's cloud becomes the next frame's image-to-image target.
-  if (solved.contact && (options_.method == Method::kImageToImage ||
-                         options_.method == Method::kPatchGraph)) {
+  if (solved.contact &&
+      (options_.method == Method::kImageToImage || options_.method == Method::kPatchGraph)) {
     previous_tree_ = std::make_unique<PointCloudTree>(current_cloud_);
   } else {
     previous_tree_.reset();
@@ -266,7 +272,8 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
 
   est.T_world_object = pose_from_block(solved.o);
   est.T_world_sensor = pose_from_block(solved.e);
-  est.solve_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  est.solve_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return est;
 }
 
@@ -290,11 +297,13 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
     switch (fac.kind) {
       case FactorKind::kEndEffector:
         add_block(a.e, fac.frames[0]);
-        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr, a.e);
+        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr,
+                                 a.e);
         break;
       case FactorKind::kVision:
         add_block(a.o, fac.frames[0]);
-        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr, a.o);
+        problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr,
+                                 a.o);
         break;
       case FactorKind::kImageToPatch:
         add_block(a.o, fac.frames[0]);
@@ -333,9 +342,9 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
   }
   ceres::Solver::Options solver_options;
   solver_options.max_num_iterations = iterations;
-  solver_options.linear_solver_type =
-      options_.window > 0 && options_.window <= 40 ? ceres::DENSE_NORMAL_CHOLESKY
-                                                     : ceres::SPARSE_NORMAL_CHOLESKY;
+  solver_options.linear_solver_type = options_.window > 0 && options_.window <= 40
+                                          ? ceres::DENSE_NORMAL_CHOLESKY
+                                          : ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.num_threads = 1;
   solver_options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;

@@ -109,9 +109,7 @@ struct PosePriorFactor {
 };
 
 // S for an isotropic sigma on all six axes ([m] and [rad] alike, as in the paper).
-inline Matrix6d isotropic_sqrt_info(double sigma) {
-  return Matrix6d::Identity() / sigma;
-}
+inline Matrix6d isotropic_sqrt_info(double sigma) { return Matrix6d::Identity() / sigma; }
 
 // S with S^T S = information, for a symmetric positive semi-definite information matrix
 // (directions with zero information get zero rows).

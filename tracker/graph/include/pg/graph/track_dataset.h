@@ -36,13 +36,16 @@ struct FrameResult {
   SE3 T_world_object_gt;  // ground truth
   double translation_error_m = 0;
   double rotation_error_rad = 0;
-  bool contact = false;      // the frame's cloud was used
+  bool contact = false;  // the frame's cloud was used
   bool new_episode = false;
   bool image_to_patch = false;
   int rejected_registrations = 0;
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
-  double frame_ms = 0;       // normals -> cloud -> registrations -> graph update
-  double normals_ms = 0;     // of which estimating the normals (0 for ground-truth normals)
+  // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
+  // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
+  int unconstrained_directions = 0;
+  double frame_ms = 0;    // normals -> cloud -> registrations -> graph update
+  double normals_ms = 0;  // of which estimating the normals (0 for ground-truth normals)
 };
 
 struct TrackSummary {
@@ -52,6 +55,9 @@ struct TrackSummary {
   int episodes = 0;
   int rejected_registrations = 0;  // implausible registrations dropped (a tracking warning)
   int lost_frames = 0;             // frames the tracker reported tracking as lost
+  // Contact frames whose image-to-patch registration left a direction unconstrained: where the
+  // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
+  int degenerate_frames = 0;
   double translation_rmse_m = 0;
   double rotation_rmse_rad = 0;
   double final_translation_error_m = 0;

@@ -57,35 +57,35 @@ struct GraphOptions {
   // solution that overrode it. While it fails no key frame is taken. A new episode or a
   // registration that holds clears it. constvel never reports it; 0: never.
   int lost_after_frames = 3;
-  int window = 5;               // frames optimised at each update; 0 keeps every frame (batch)
-  int solver_iterations = 10;   // Levenberg-Marquardt iterations per update
+  int window = 5;              // frames optimised at each update; 0 keeps every frame (batch)
+  int solver_iterations = 10;  // Levenberg-Marquardt iterations per update
   PatchMapOptions patch;
   IcpOptions icp;
 };
 
 struct TrackerInput {
-  PointCloud cloud_sensor;        // the contact's points in the sensor frame; empty: no contact
-  SE3 T_world_sensor_measured;    // e~_t: the end-effector pose measurement
-  SE3 T_world_object_prior;       // o~_t: the vision prior, used at the start of a contact episode
+  PointCloud cloud_sensor;      // the contact's points in the sensor frame; empty: no contact
+  SE3 T_world_sensor_measured;  // e~_t: the end-effector pose measurement
+  SE3 T_world_object_prior;     // o~_t: the vision prior, used at the start of a contact episode
 };
 
 struct TrackerEstimate {
   SE3 T_world_object;
   SE3 T_world_sensor;
   bool contact = false;
-  bool new_episode = false;        // a contact episode started at this frame
-  bool image_to_image = false;     // an image-to-image factor was added
-  bool image_to_patch = false;     // an image-to-patch factor was added
-  bool keyframe = false;           // the cloud was fused into the patch
-  int unconstrained_directions = 0;  // of the image-to-patch registration
-  int rejected_registrations = 0;    // converged, but too far from the prediction
+  bool new_episode = false;           // a contact episode started at this frame
+  bool image_to_image = false;        // an image-to-image factor was added
+  bool image_to_patch = false;        // an image-to-patch factor was added
+  bool keyframe = false;              // the cloud was fused into the patch
+  int unconstrained_directions = 0;   // of the image-to-patch registration (if it got that far)
+  int rejected_registrations = 0;     // converged, but too far from the prediction
   int unconverged_registrations = 0;  // ICP failed (too few points or matches, iteration limit)
   int overridden_registrations = 0;   // accepted, but the solution disagrees (see GraphOptions)
-  bool tracking_lost = false;      // see GraphOptions::lost_after_frames
+  bool tracking_lost = false;         // see GraphOptions::lost_after_frames
   // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
   // pose then holds the previous frame's, the object pose the prediction).
   bool invalid_input = false;
-  double solve_ms = 0;             // graph update time
+  double solve_ms = 0;  // graph update time
 };
 
 class PatchGraphTracker {
@@ -112,7 +112,13 @@ class PatchGraphTracker {
     bool contact = false;
   };
   enum class FactorKind {
-    kImageToImage, kImageToPatch, kVelocity, kDamping, kEndEffector, kVision };
+    kImageToImage,
+    kImageToPatch,
+    kVelocity,
+    kDamping,
+    kEndEffector,
+    kVision
+  };
   struct Factor {
     FactorKind kind;
     int frames[3] = {-1, -1, -1};  // absolute frame indices, oldest first; the last is the newest
