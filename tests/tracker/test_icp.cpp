@@ -542,7 +542,7 @@ TEST(IcpCoarseToFine, SameAnswerAsTheFullCloudWithFewerQueries) {
               b.iterations, full.last_queries());
 }
 
-TEST(IcpCoarseToFine, TheLastIterationAndSmallCloudsUseEveryPoint) {
+TEST(IcpCoarseToFine, TheLastIterationsAndSmallCloudsUseEveryPoint) {
   const PointCloudTree target(bumpy_surface(0.008, 0.00005));
   const SE3 truth = SE3::exp((Vector6d() << 2e-4, -1e-4, 1e-4, 0.01, -0.015, 0.02).finished());
   const PointCloud source = transform_cloud(truth.inverse(), bumpy_surface(0.004, 0.00007));
@@ -553,6 +553,15 @@ TEST(IcpCoarseToFine, TheLastIterationAndSmallCloudsUseEveryPoint) {
   EXPECT_EQ(r.iterations, 1);
   EXPECT_EQ(r.coarse_iterations, 0);
   EXPECT_EQ(r.inliers, int(source.size()));
+  // A coarse phase that never settles (threshold 0) gets at most half of the iterations.
+  options = IcpOptions();
+  options.max_iterations = 10;
+  options.coarse_step_m = 0;
+  PointToPlaneIcp unsettled(options);
+  const IcpResult u = unsettled.align(source, target, SE3::Identity());
+  EXPECT_EQ(u.coarse_iterations, 5);
+  EXPECT_TRUE(u.converged) << to_string(u.status);
+  EXPECT_EQ(u.inliers, int(source.size()));
   // Under twice coarse_points there is nothing to gain.
   options = IcpOptions();
   options.coarse_points = int(source.size()) / 2 + 1;

@@ -222,8 +222,10 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
 
   SE3 T = T_target_source_guess;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
-    const Eigen::Vector3d c = T * cs.centre;        // the source centroid in the target frame
-    if (iteration == o.max_iterations) stride = 1;  // the result is always the full cloud's
+    const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
+    // At most the first half of the iterations are coarse: the full cloud always gets the rest
+    // (and a subsample whose correspondences keep flipping cannot use them all up).
+    if (iteration > o.max_iterations / 2) stride = 1;
 
     const NormalEquations eq = linearise(*source, stride, target, T, c, inv_L, o, *cache_, radius);
     last_queries_ += eq.queries;

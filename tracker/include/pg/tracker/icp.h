@@ -28,8 +28,8 @@ struct IcpOptions {
   double voxel_size_m = 0;  // downsample the source to this voxel edge first; 0: off [m]
   // Coarse to fine: while the steps are large, iterate on an evenly strided subsample of about
   // coarse_points source points (0: off; clouds under twice this size are never subsampled),
-  // until a step moves the subsample by less than coarse_step_m; the iterations after that, and
-  // always the last allowed one, use every point, so the result is the full cloud's.
+  // until a step moves the subsample by less than coarse_step_m (or half of max_iterations have
+  // run); the iterations after that use every point, so the result is the full cloud's.
   int coarse_points = 512;
   double coarse_step_m = 2e-6;  // [m]
   // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
