@@ -3,6 +3,10 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__AVX2__) || defined(__AVX512BW__)
+#include <immintrin.h>
+#endif
+
 namespace pg {
 
 std::uint64_t splitmix64(std::uint64_t x) {
@@ -47,10 +51,9 @@ void view_directions(int n, const float* __restrict px, const float* __restrict 
 
 // One light at points p with outward normals n, seen along v: the Lambert term, the Blinn-Phong
 // base (n.h, zero where the light is behind the surface) and the fall-off (d0 / d)^2.
-void light_terms(int n, const ShadeSpan& in, const float* __restrict vx,
-                 const float* __restrict vy, const float* __restrict vz,
-                 const ShadingLight& light, float* __restrict lambert, float* __restrict base,
-                 float* __restrict falloff) {
+void light_terms(int n, const ShadeSpan& in, const float* __restrict vx, const float* __restrict vy,
+                 const float* __restrict vz, const ShadingLight& light, float* __restrict lambert,
+                 float* __restrict base, float* __restrict falloff) {
   const float* __restrict px = in.px;
   const float* __restrict py = in.py;
   const float* __restrict pz = in.pz;
@@ -157,15 +160,65 @@ NoiseTable::NoiseTable(float sigma) {
   const std::vector<float>& unit = unit_normal_samples();
   float largest = 0.0f;
   for (float v : unit) largest = std::max(largest, std::abs(v));
-  // As many fractional bits as 16 bits hold for both the values (up to 255) and the samples.
+  // As many fractional bits as 16 bits hold for the values (up to 255) and the largest sample
+  // (127 steps); the step odd, so that value + noise takes every fraction of a level alike.
+  auto step_for = [&](int bits) {
+    return int(std::ceil(sigma * largest * float(1 << bits) / 127.0f)) | 1;
+  };
   bits_ = 7;
-  while (bits_ > 0 && sigma * largest * float(1 << bits_) > 32767.0f) --bits_;
-  const float scale = sigma * float(1 << bits_);
+  while (bits_ > 0 && 127 * step_for(bits_) > 32767) --bits_;
+  step_ = step_for(bits_);
+  const float scale = sigma * float(1 << bits_) / float(step_);
   samples_.resize(unit.size());
   for (std::size_t i = 0; i < unit.size(); ++i) {
-    samples_[i] = std::int16_t(std::clamp(std::lround(scale * unit[i]), -32767l, 32767l));
+    samples_[i] = std::int8_t(std::clamp(std::lround(scale * unit[i]), -127l, 127l));
   }
 }
+
+namespace {
+
+// out = clamp((value + sample * step + half) >> bits, 0, 255): floor, so it rounds to nearest.
+// value + half and sample * step fit 16 bits (NoiseTable's constructor chose bits and step so),
+// and a sum beyond them clamps to the same end as a 16-bit saturating add does: the vector loops
+// add with saturation in 16-bit lanes and give exactly the scalar loop's result.
+void add_noise(const std::int16_t* __restrict in, const std::int8_t* __restrict noise,
+               std::uint8_t* __restrict out, std::size_t n, int step, int bits) {
+  const int half = (1 << bits) >> 1;
+  std::size_t k = 0;
+#if defined(__AVX512BW__)
+  const __m512i v_half = _mm512_set1_epi16(std::int16_t(half));
+  const __m512i v_step = _mm512_set1_epi16(std::int16_t(step));
+  const __m128i shift = _mm_cvtsi32_si128(bits);
+  const __m512i zero = _mm512_setzero_si512();
+  for (; k + 32 <= n; k += 32) {
+    const __m512i v = _mm512_add_epi16(_mm512_loadu_si512(in + k), v_half);
+    const __m256i s8 = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(noise + k));
+    const __m512i s = _mm512_mullo_epi16(_mm512_cvtepi8_epi16(s8), v_step);
+    const __m512i sum = _mm512_max_epi16(_mm512_sra_epi16(_mm512_adds_epi16(v, s), shift), zero);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + k), _mm512_cvtusepi16_epi8(sum));
+  }
+#elif defined(__AVX2__)
+  const __m256i v_half = _mm256_set1_epi16(std::int16_t(half));
+  const __m256i v_step = _mm256_set1_epi16(std::int16_t(step));
+  const __m128i shift = _mm_cvtsi32_si128(bits);
+  for (; k + 16 <= n; k += 16) {
+    const __m256i v =
+        _mm256_add_epi16(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(in + k)), v_half);
+    const __m128i s8 = _mm_loadu_si128(reinterpret_cast<const __m128i*>(noise + k));
+    const __m256i s = _mm256_mullo_epi16(_mm256_cvtepi8_epi16(s8), v_step);
+    const __m256i sum = _mm256_sra_epi16(_mm256_adds_epi16(v, s), shift);
+    // Pack with unsigned saturation (within 128-bit lanes), then gather the two lanes' halves.
+    const __m256i packed = _mm256_permute4x64_epi64(_mm256_packus_epi16(sum, sum), 0x08);
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + k), _mm256_castsi256_si128(packed));
+  }
+#endif
+  for (; k < n; ++k) {
+    const int v = (int(in[k]) + int(noise[k]) * step + half) >> bits;
+    out[k] = std::uint8_t(std::clamp(v, 0, 255));
+  }
+}
+
+}  // namespace
 
 void NoiseTable::apply(const std::int16_t* values, std::uint8_t* out, std::size_t n,
                        std::uint64_t seed, std::size_t position) const {
@@ -173,16 +226,9 @@ void NoiseTable::apply(const std::int16_t* values, std::uint8_t* out, std::size_
   // pixel's noise is independent from frame to frame, and the reads stay cache-friendly.
   const std::size_t size = samples_.size();
   std::size_t offset = (std::size_t(splitmix64(seed)) + position) & (size - 1);
-  const int bits = bits_, half = (1 << bits) >> 1;
   for (std::size_t i = 0; i < n;) {
     const std::size_t run = std::min(n - i, size - offset);
-    const std::int16_t* noise = samples_.data() + offset;
-    const std::int16_t* in = values + i;
-    std::uint8_t* dst = out + i;
-    for (std::size_t k = 0; k < run; ++k) {
-      const int v = (int(in[k]) + int(noise[k]) + half) >> bits;  // floor: rounds to nearest
-      dst[k] = std::uint8_t(std::clamp(v, 0, 255));
-    }
+    add_noise(values + i, samples_.data() + offset, out + i, run, step_, bits_);
     i += run;
     offset = 0;
   }

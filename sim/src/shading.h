@@ -35,8 +35,10 @@ struct ShadeSpan {
 void shade_span(const Shader& shader, const ShadeSpan& span, float* rgb);
 
 // Gaussian pixel noise: a fixed table of normal samples read from an offset chosen per frame
-// from the seed. Cheap enough to add to every pixel of every frame: values and samples are
-// 16-bit fixed point (value * 2^frac_bits), so that a frame reads little memory.
+// from the seed. Cheap enough to add to every pixel of every frame: the values are 16-bit fixed
+// point (value * 2^frac_bits) and the samples 8-bit, in steps of an odd number of fixed-point
+// units chosen so that the table's largest sample just fits (about sigma / 24 for any sigma),
+// so that a frame reads little memory and the sum is done in 16-bit vector lanes.
 class NoiseTable {
  public:
   explicit NoiseTable(float sigma);
@@ -49,10 +51,14 @@ class NoiseTable {
   // bits. `position` is the index of values[0] in the frame, so a frame may be done in pieces.
   void apply(const std::int16_t* values, std::uint8_t* out, std::size_t n, std::uint64_t seed,
              std::size_t position = 0) const;
+  // The table: sample i adds samples()[i] * step() fixed-point units (1/2^frac_bits levels).
+  const std::vector<std::int8_t>& samples() const { return samples_; }
+  int step() const { return step_; }
 
  private:
-  std::vector<std::int16_t> samples_;
+  std::vector<std::int8_t> samples_;
   int bits_ = 0;
+  int step_ = 1;
 };
 
 std::uint64_t splitmix64(std::uint64_t x);
