@@ -169,11 +169,13 @@ void BM_Noise(benchmark::State& state) {
 }
 BENCHMARK(BM_Noise)->Unit(benchmark::kMicrosecond);
 
-// The whole frame through the public API, for scale: colour + normals, noise on.
+// The whole frame through the public API, for scale: colour + normals, noise on; shadows off
+// (argument 0) or on (1).
 void BM_RenderFrame(benchmark::State& state) {
   const auto shape = std::make_shared<const ObjectShape>(make_uv_sphere(kRadius, 72, 144));
   RenderSettings settings;
   settings.depth = settings.mask = false;
+  settings.shadows = state.range(0) != 0;
   const SensorRenderer renderer(contact().sensor, {shape}, settings);
   const std::vector<SE3> poses = {SE3::Translation(sphere_centre().cast<double>())};
   RenderedFrame frame;
@@ -183,7 +185,7 @@ void BM_RenderFrame(benchmark::State& state) {
     benchmark::DoNotOptimize(frame.images.color.data.data());
   }
 }
-BENCHMARK(BM_RenderFrame)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RenderFrame)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace pg

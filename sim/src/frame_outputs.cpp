@@ -2,6 +2,8 @@
 // pixels that moved, the real background's blend, the colour with its noise, and the
 // ground-truth images. Rendering into a frame this renderer filled before rewrites only the
 // pixels that differ from the no-contact images, then or now (and the colour's noise).
+#include <algorithm>
+
 #include "render_state.h"
 
 namespace pg {
@@ -85,8 +87,8 @@ void SensorRenderer::State::shade_row(const PixelRect& rect, const float* u, con
 }
 
 void SensorRenderer::State::write_outputs(const std::vector<SE3>& T_sensor_objects,
-                                          std::uint64_t seed, const FrameRegions& frame,
-                                          Workspace& ws, RenderedFrame& out) const {
+                                          std::uint64_t seed, FrameRegions& frame, Workspace& ws,
+                                          RenderedFrame& out) const {
   const RenderSettings& opt = settings;
   const int w = width(), h = height();
   const FrameImages& im = out.images;
@@ -101,26 +103,139 @@ void SensorRenderer::State::write_outputs(const std::vector<SE3>& T_sensor_objec
   }
   if (opt.color) write_color(seed, frame, reuse, ws, out);
   write_ground_truth(T_sensor_objects, frame, reuse, ws, out);
-  const PixelRect changed = frame.color.united(frame.region).united(frame.contact);
+  const PixelRect changed = frame.color.united(frame.shaded).united(frame.contact);
   out.filled = {id, changed.x0, changed.y0, changed.x1, changed.y1};
 }
 
-void SensorRenderer::State::write_color(std::uint64_t seed, const FrameRegions& frame,
-                                        bool reuse, Workspace& ws, RenderedFrame& out) const {
+// The undeformed pixels beside the dent (outside the runs) that it shadows from a light: each
+// light's reach is marched for that light only, and the pixels it blocks are shaded again into
+// ws.color. ws.color_runs become the runs of frame.shaded, which grows over them, with the
+// undeformed gel's shading copied into ws.color where a run grew over pixels in between.
+// Returns the number of pixels shaded.
+int SensorRenderer::State::shade_cast_shadows(FrameRegions& frame, Workspace& ws) const {
+  const ShadowCaster& caster = ws.shadows;
+  const std::size_t lights = caster.lights();
+  const PixelRect& region = frame.region;
+  auto moved_run = [&](int y) {
+    return region.contains(region.x0, y) ? ws.runs[std::size_t(y - region.y0)]
+                                         : std::pair<int, int>{0, 0};
+  };
+  PixelRect reach;
+  for (std::size_t k = 0; k < lights; ++k) reach = reach.united(caster.reach(k));
+  ws.shadowed.clear();
+  ws.visibility.clear();
+  std::vector<float>& vis = ws.shadowed_rgb;  // per pixel and light, until shaded
+  vis.clear();
+  thread_local std::vector<float> one_buffer;
+  one_buffer.resize(lights);
+  float* one = one_buffer.data();
+  const float oz = gel.origin_sensor.z();
+  PixelRect shadowed;
+  for (int y = reach.y0; y < reach.y1; ++y) {
+    const auto run = moved_run(y);
+    for (int x = reach.x0; x < reach.x1; ++x) {
+      if (x >= run.first && x < run.second) {
+        x = run.second - 1;  // shaded already, with its shadows
+        continue;
+      }
+      unsigned mask = 0;  // the lights whose reach holds the pixel (all, past the 32nd)
+      for (std::size_t k = 0; k < lights; ++k) {
+        if (caster.reach(k).contains(x, y)) mask |= k < 32 ? 1u << k : ~0u;
+      }
+      if (mask == 0) continue;
+      const int i = gel.index(x, y);
+      const float t = gel.t_gel[i];
+      const Eigen::Vector3f p(gel.dir_x[i] * t, gel.dir_y[i] * t, oz + t);
+      const Eigen::Vector3f n(normals0.data[3 * i], normals0.data[3 * i + 1],
+                              normals0.data[3 * i + 2]);
+      caster.visibility(x, y, p, n, one, mask);
+      if (std::all_of(one, one + lights, [](float v) { return v >= 1.0f; })) continue;
+      ws.shadowed.push_back(i);
+      vis.insert(vis.end(), one, one + lights);
+      shadowed.include(x, y);
+    }
+  }
+  frame.shaded = region.united(shadowed);
+  const PixelRect& rect = frame.shaded;
+  // The colour's runs: the moved runs, grown over the shadowed pixels.
+  ws.color_runs.assign(std::size_t(rect.height()), {rect.x1, rect.x0});
+  for (int y = rect.y0; y < rect.y1; ++y) {
+    const auto run = moved_run(y);
+    if (run.first < run.second) ws.color_runs[std::size_t(y - rect.y0)] = run;
+  }
+  const int count = int(ws.shadowed.size());
+  for (int i : ws.shadowed) {
+    auto& run = ws.color_runs[std::size_t(i / width() - rect.y0)];
+    run = {std::min(run.first, i % width()), std::max(run.second, i % width() + 1)};
+  }
+  if (count == 0) return 0;
+  float* rgb = ws.color.data();
+  for (int y = rect.y0; y < rect.y1; ++y) {
+    const auto run = ws.color_runs[std::size_t(y - rect.y0)], moved = moved_run(y);
+    auto copy = [&](int x0, int x1) {
+      if (x0 < x1) std::copy_n(&sim0.at(x0, y), 3 * (x1 - x0), rgb + 3 * gel.index(x0, y));
+    };
+    if (moved.first < moved.second) {
+      copy(run.first, moved.first);
+      copy(moved.second, run.second);
+    } else {
+      copy(run.first, run.second);
+    }
+  }
+  // Shade the shadowed pixels together, then put them in place.
+  ws.soa.resize(std::size_t(count) * 6);
+  float* px = ws.soa.data();
+  float *py = px + count, *pz = py + count, *nx = pz + count, *ny = nx + count, *nz = ny + count;
+  ws.visibility.resize(lights * std::size_t(count));
+  for (int k = 0; k < count; ++k) {
+    const int i = ws.shadowed[std::size_t(k)];
+    const float t = gel.t_gel[i];
+    px[k] = gel.dir_x[i] * t;
+    py[k] = gel.dir_y[i] * t;
+    pz[k] = oz + t;
+    nx[k] = normals0.data[3 * i];
+    ny[k] = normals0.data[3 * i + 1];
+    nz[k] = normals0.data[3 * i + 2];
+    for (std::size_t l = 0; l < lights; ++l)
+      ws.visibility[l * count + k] = vis[std::size_t(k) * lights + l];
+  }
+  ShadeSpan span;
+  span.count = count;
+  span.px = px, span.py = py, span.pz = pz, span.nx = nx, span.ny = ny, span.nz = nz;
+  span.visibility = ws.visibility.data();
+  vis.resize(3 * std::size_t(count));
+  shade_span(shader, span, vis.data());
+  for (int k = 0; k < count; ++k) {
+    std::copy_n(&vis[3 * std::size_t(k)], 3, rgb + 3 * std::size_t(ws.shadowed[std::size_t(k)]));
+  }
+  return count;
+}
+
+void SensorRenderer::State::write_color(std::uint64_t seed, FrameRegions& frame, bool reuse,
+                                        Workspace& ws, RenderedFrame& out) const {
   const int w = width(), h = height();
   const float* u = ws.u.data();
   float* rgb = ws.color.data();
   // Shade the moved pixels; the rest of the region keeps the undeformed gel's shading.
-  if (settings.shadows && !frame.region.empty()) ws.shadows.set_surface(u, frame.region);
+  const bool shadows = settings.shadows && !frame.region.empty();
+  if (shadows) ws.shadows.set_surface(u, frame.region);
   for_each_run(ws.runs, frame.region, [&](int y, int x0, int x1) {
     shade_row({x0, y, x1, y + 1}, u, ws.normals.data(), rgb, ws, settings.shadows);
   });
+  // And the undeformed gel the dent shadows.
+  const RowRuns* shaded_runs = &ws.runs;
+  if (shadows) {
+    out.stats.shaded_pixels += shade_cast_shadows(frame, ws);
+    shaded_runs = &ws.color_runs;
+    frame.color = frame.shaded;
+    if (blend_radius > 0) frame.color = frame.shaded.dilated(3 * blend_radius).clipped(w, h);
+  }
   // Where `rgb` holds this frame's colour: the runs, or with a real background (blended with a
   // blur) all of frame.color. Everywhere else the frame shows the background.
-  const RowRuns* runs = &ws.runs;
-  PixelRect runs_rect = frame.region;
+  const RowRuns* runs = shaded_runs;
+  PixelRect runs_rect = frame.shaded;
   thread_local RowRuns full_rows;
-  if (blend_radius > 0 && !frame.region.empty()) {
+  if (blend_radius > 0 && !frame.shaded.empty()) {
     // TACTO's blend: real background + blur(sim - sim_bg) * gain, channel by channel.
     const PixelRect& cr = frame.color;
     const float gain = float(sensor.shading.background_gain);
@@ -128,7 +243,7 @@ void SensorRenderer::State::write_color(std::uint64_t seed, const FrameRegions& 
     float* blurred = ws.scratch_b.data();
     for (int c = 0; c < 3; ++c) {
       for (int y = cr.y0; y < cr.y1; ++y) std::fill_n(diff + gel.index(cr.x0, y), cr.width(), 0.0f);
-      for_each_run(ws.runs, frame.region, [&](int y, int x0, int x1) {
+      for_each_run(*shaded_runs, frame.shaded, [&](int y, int x0, int x1) {
         for (int i = gel.index(x0, y); i < gel.index(x1, y); ++i)
           diff[i] = rgb[3 * i + c] - sim0.data[3 * i + c];
       });

@@ -33,7 +33,9 @@ struct Workspace {
   std::vector<char> near;
   std::vector<SlabClusters> slab;  // per object
   RowRuns runs;
-  std::vector<float> soa, visibility;
+  RowRuns color_runs;         // runs, extended over the undeformed pixels the dent shadows
+  std::vector<int> shadowed;  // those pixels
+  std::vector<float> soa, visibility, shadowed_rgb;
   ShadowCaster shadows;
   Workspace(int w, int h, int objects, const ShadowCaster& caster);
 };
@@ -45,7 +47,8 @@ struct FrameRegions {
   float deepest = 0;   // the deepest rigid indentation [m]
   PixelRect deformed;  // u is zero outside
   PixelRect region;    // normals and shading may differ here (deformed, plus a pixel)
-  PixelRect color;     // colour may differ here (region, plus the background blend's blur)
+  PixelRect shaded;    // colour is shaded here: region, and undeformed gel the dent shadows
+  PixelRect color;     // colour may differ here (shaded, plus the background blend's blur)
 };
 
 struct SensorRenderer::State {
@@ -88,7 +91,7 @@ struct SensorRenderer::State {
   void shade_row(const PixelRect& rect, const float* u, const float* normals, float* rgb,
                  Workspace& ws, bool shadows) const;
   void write_outputs(const std::vector<SE3>& T_sensor_objects, std::uint64_t seed,
-                     const FrameRegions& frame, Workspace& ws, RenderedFrame& out) const;
+                     FrameRegions& frame, Workspace& ws, RenderedFrame& out) const;
 
  private:
   void coarse_pass(const std::vector<SE3>& poses, const PixelRect& rect, Workspace& ws,
@@ -100,8 +103,9 @@ struct SensorRenderer::State {
                         RenderStats& stats, PixelRect& touched) const;
   long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;
   void record_hit(Workspace& ws, int i, int obj, float t, bool back_face) const;
-  void write_color(std::uint64_t seed, const FrameRegions& frame, bool reuse, Workspace& ws,
+  void write_color(std::uint64_t seed, FrameRegions& frame, bool reuse, Workspace& ws,
                    RenderedFrame& out) const;
+  int shade_cast_shadows(FrameRegions& frame, Workspace& ws) const;
   void write_ground_truth(const std::vector<SE3>& T_sensor_objects, const FrameRegions& frame,
                           bool reuse, const Workspace& ws, RenderedFrame& out) const;
 };

@@ -95,6 +95,7 @@ void SensorRenderer::State::deform(Workspace& ws, RenderStats& stats, FrameRegio
     frame.region = PixelRect{0, 0, w, h};  // measuring the cache: shade the undeformed gel again
     ws.runs.assign(std::size_t(h), {0, w});
   }
+  frame.shaded = frame.region;
   frame.color = frame.region;
   if (s.blend_radius > 0 && !frame.region.empty()) {
     frame.color = frame.region.dilated(3 * s.blend_radius).clipped(w, h);

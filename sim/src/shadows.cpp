@@ -19,6 +19,7 @@ ShadowCaster::ShadowCaster(const Shader& shader, const GelGeometry& g, const Cam
     }
     lights_.push_back(light);
   }
+  for (float t : g.t_gel) far_depth_ = std::max(far_depth_, t);
 }
 
 // Per tile x tile tile of rect_, the smallest depth_ within its 3 x 3 neighbourhood of tiles:
@@ -50,22 +51,69 @@ ShadowCaster::Tiles ShadowCaster::tile_minima(int tile) const {
   return t;
 }
 
-void ShadowCaster::set_surface(const float* u, const PixelRect& rect) {
-  rect_ = rect;
-  const int w = rect.width();
-  depth_.resize(std::size_t(rect.area()));
+// Where the dent can shadow the undeformed gel from `light`. The path from an undeformed point
+// at camera depth d to the light runs straight in the image, over image length len, its inverse
+// depth growing linearly from 1/d to the light's 1/d_L; it can only be blocked while it is
+// farther from the camera than the dent's shallowest point D, so within
+//   len * (1/D - 1/d) / (1/d_L - 1/d)
+// of its start, which grows with d and len: at most the farthest image corner's len at the
+// gel's largest depth. The point lies that far at most beyond a dent pixel q, away from the
+// light's image position l, along (q - l) / |q - l|: the rectangle grows on each side by that
+// length times the largest component of this direction toward the side, plus a pixel for the
+// interpolation between pixels.
+PixelRect ShadowCaster::light_reach(const Light& light, const PixelRect& dent,
+                                    float shallowest) const {
+  const float inv_near = 1.0f / shallowest, inv_far = 1.0f / far_depth_;
+  if (!light.in_front || dent.empty() || inv_near <= inv_far || light.inv_depth <= inv_near) {
+    return {};
+  }
+  const GelGeometry& g = *gel_;
+  float len = 0.0f;
+  for (float cx : {-0.5f, float(g.width) - 0.5f})
+    for (float cy : {-0.5f, float(g.height) - 0.5f})
+      len = std::max(len, std::hypot(cx - light.x, cy - light.y));
+  const float reach = len * (inv_near - inv_far) / (light.inv_depth - inv_far);
+  // How far the rectangle grows toward +a (or -a): the reach times the largest component that
+  // way of (q - l) / |q - l| over q in the dent, found at the dent's last (first) pixel along a,
+  // `edge` = that pixel minus l, and at the least distance `gap` from l to the dent's pixels
+  // across a (the component grows with |edge| and falls with the gap).
+  auto grow = [&](float edge, float gap, bool toward_plus) {
+    if (toward_plus ? !(edge > 0.0f) : !(edge < 0.0f)) return 0;
+    return int(std::ceil(reach * std::abs(edge) / std::hypot(edge, gap))) + 1;
+  };
+  auto gap = [](float l, int lo, int hi) {  // distance from l to [lo, hi - 1]
+    return std::max({0.0f, float(lo) - l, l - float(hi - 1)});
+  };
+  const float gap_y = gap(light.y, dent.y0, dent.y1), gap_x = gap(light.x, dent.x0, dent.x1);
+  const PixelRect r{dent.x0 - grow(float(dent.x0) - light.x, gap_y, false),
+                    dent.y0 - grow(float(dent.y0) - light.y, gap_x, false),
+                    dent.x1 + grow(float(dent.x1 - 1) - light.x, gap_y, true),
+                    dent.y1 + grow(float(dent.y1 - 1) - light.y, gap_x, true)};
+  return r.clipped(g.width, g.height);
+}
+
+void ShadowCaster::set_surface(const float* u, const PixelRect& dent) {
+  rect_ = dent;
+  const int w = dent.width();
+  depth_.resize(std::size_t(dent.area()));
   float shallowest = INFINITY;
   const GelGeometry& g = *gel_;
-  for (int y = rect.y0; y < rect.y1; ++y) {
-    float* out = &depth_[std::size_t(y - rect.y0) * w];
-    for (int x = rect.x0; x < rect.x1; ++x) {
+  for (int y = dent.y0; y < dent.y1; ++y) {
+    float* out = &depth_[std::size_t(y - dent.y0) * w];
+    for (int x = dent.x0; x < dent.x1; ++x) {
       const int i = g.index(x, y);
-      out[x - rect.x0] = u[i] > 0.0f ? g.t_gel[i] - u[i] + 1e-6f : INFINITY;
-      shallowest = std::min(shallowest, out[x - rect.x0]);
+      out[x - dent.x0] = u[i] > 0.0f ? g.t_gel[i] - u[i] + 1e-6f : INFINITY;
+      shallowest = std::min(shallowest, out[x - dent.x0]);
     }
   }
   inv_depth_max_ = 1.0f / shallowest;
   tiles_ = tile_minima(kTile);
+  reach_.assign(lights_.size(), PixelRect{});
+  if (std::isfinite(shallowest)) {
+    for (std::size_t k = 0; k < lights_.size(); ++k) {
+      reach_[k] = light_reach(lights_[k], dent, shallowest);
+    }
+  }
 }
 
 // The path from pixel (x, y)'s surface point (camera depth `depth`) to a light nearer to the
@@ -88,22 +136,33 @@ bool ShadowCaster::blocked_in_image(const Light& light, int x, int y, float dept
   const int stride_a = along_x ? 1 : w, stride_m = along_x ? w : 1;
   const int step = (along_x ? dx : dy) > 0.0f ? 1 : -1;
   const float m0 = float(along_x ? y : x), m_step = (along_x ? dy : dx) / length;
-  // The last step inside the rectangle: the path is a straight line in the image, so once out
-  // it stays out.
-  int steps = std::min(int(length), step > 0 ? a_hi - 1 - a0 : a0 - a_lo);
+  // The steps inside the rectangle, where the surface can be dented (pixel (x, y) itself may lie
+  // outside it): the path is a straight line in the image, so it enters and leaves once. Along
+  // the minor axis the rectangle spans (m_lo - 0.5, m_hi - 0.5).
+  int first = std::max(1, step > 0 ? a_lo - a0 : a0 - (a_hi - 1));
+  int last = std::min(int(length), step > 0 ? a_hi - 1 - a0 : a0 - a_lo);
+  const float m_in = float(m_lo) - 0.5f, m_out = float(m_hi) - 0.5f;
   if (m_step != 0.0f) {
-    const float m_edge = m_step > 0.0f ? float(m_hi) - 0.5f : float(m_lo) - 0.5f;
-    steps = std::min(steps, int(std::ceil((m_edge - m0) / m_step)) - 1);
+    // (Clamped before they become integers: a nearly axis-aligned path divides by almost 0.)
+    const float k_lo = std::clamp(((m_step > 0.0f ? m_in : m_out) - m0) / m_step, -1e6f, 1e6f);
+    const float k_hi = std::clamp(((m_step > 0.0f ? m_out : m_in) - m0) / m_step, -1e6f, 1e6f);
+    first = std::max(first, int(std::floor(k_lo)) + 1);
+    last = std::min(last, int(std::ceil(k_hi)) - 1);
+  } else if (!(m0 > m_in && m0 < m_out)) {
+    return false;
   }
-  for (int k = 1; k <= steps; ++k) {
+  const int tiles_x = tiles_.nx, tiles_y = int(tiles_.depth.size()) / tiles_.nx;
+  for (int k = first; k <= last; ++k) {
     const float inv = inv0 + float(k) * inv_step;
     if (inv >= inv_depth_max_) return false;  // nearer than any surface point: it stays inside
     const int a = a0 + k * step;
     const float m = m0 + float(k) * m_step;
     // The next kTile steps are nearer to the camera than this one: skip them if this one is
     // already nearer than every surface point within their reach.
-    if ((k - 1) % kTile == 0) {
-      const int ta = (a - a_lo) / kTile, tm = (int(m + 0.5f) - m_lo) / kTile;
+    if ((k - first) % kTile == 0) {
+      const int ta = (a - a_lo) / kTile;
+      const int tm =
+          std::clamp((int(m + 0.5f) - m_lo) / kTile, 0, (along_x ? tiles_y : tiles_x) - 1);
       const int i = along_x ? tm * tiles_.nx + ta : ta * tiles_.nx + tm;
       if (inv * tiles_.depth[std::size_t(i)] >= 1.0f) {
         k += kTile - 1;
@@ -113,7 +172,8 @@ bool ShadowCaster::blocked_in_image(const Light& light, int x, int y, float dept
     const float m_floor = std::floor(m);
     const float f = m - m_floor;
     const int i_a = (a - a_lo) * stride_a;
-    const int mi0 = std::max(int(m_floor), m_lo) - m_lo, mi1 = std::min(int(m_floor) + 1, m_hi - 1) - m_lo;
+    const int mi0 = std::max(int(m_floor), m_lo) - m_lo,
+              mi1 = std::min(int(m_floor) + 1, m_hi - 1) - m_lo;
     const float d0 = depth_[std::size_t(i_a + mi0 * stride_m)];
     const float d1 = depth_[std::size_t(i_a + mi1 * stride_m)];
     // Next to the undented gel (+inf) the dented neighbour alone.
@@ -143,7 +203,7 @@ bool ShadowCaster::blocked_in_space(const Light& light, const Eigen::Vector3f& p
 }
 
 void ShadowCaster::visibility(int x, int y, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
-                              float* visibility) const {
+                              float* visibility, unsigned light_mask) const {
   const float depth = p.z() - gel_->origin_sensor.z();
   // A point at the dent's shallowest depth (its flat bottom, say) sees every light nearer to
   // the camera: nothing on the way can be farther from the camera than the surface.
@@ -151,6 +211,10 @@ void ShadowCaster::visibility(int x, int y, const Eigen::Vector3f& p, const Eige
   for (std::size_t k = 0; k < lights_.size(); ++k) {
     const Light& light = lights_[k];
     bool blocked = false;
+    if (k < 32 && !((light_mask >> k) & 1u)) {
+      visibility[k] = 1.0f;
+      continue;
+    }
     if (n.dot(light.position - p) < 0.0f && inv_depth_max_ > 0.0f) {  // lit side, and a dent
       if (light.in_front && 1.0f / depth < light.inv_depth) {
         blocked = !shallowest && blocked_in_image(light, x, y, depth);

@@ -18,15 +18,25 @@ namespace pg {
 // passes, and only as far as it can still be blocked: it stops when it leaves the dent's
 // rectangle or comes nearer to the camera than the dent's shallowest point, and skips stretches
 // of 8 steps that are nearer to the camera than every surface point around them.
+//
+// The dent also shadows undeformed gel beside it, on its side away from a light: reach(k) bounds
+// the pixels it can shadow from light k, so that only those need a march.
 class ShadowCaster {
  public:
   ShadowCaster(const Shader& shader, const GelGeometry& g, const CameraModel& camera);
-  // Per frame: the deformed surface u, valid on rect and zero outside it.
-  void set_surface(const float* u, const PixelRect& rect);
+  // Per frame: the deformed surface u, zero outside `dent`. Also finds each light's reach.
+  void set_surface(const float* u, const PixelRect& dent);
+  // The pixels (clipped to the image, the dent's own included) whose path to light k can cross
+  // the dent: empty when there is no dent, or for a light the march in the image does not
+  // handle (one behind the camera's centre, or farther from the camera than the dent).
+  const PixelRect& reach(std::size_t k) const { return reach_[k]; }
+  std::size_t lights() const { return lights_.size(); }
   // Fraction in [0, 1] of each light that reaches pixel (x, y)'s surface point p with outward
   // normal n; a light the point faces away from gets 1 (it adds nothing to the shading anyway).
+  // Only the lights whose bit is set in `light_mask` are marched (all from the 33rd on); the
+  // others get 1.
   void visibility(int x, int y, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
-                  float* visibility) const;
+                  float* visibility, unsigned light_mask = ~0u) const;
 
  private:
   static constexpr int kTile = 8;  // [px], also the length of a skipped stretch [steps]
@@ -41,6 +51,7 @@ class ShadowCaster {
     float x = 0, y = 0;     // its image position [px]
     float inv_depth = 0;    // 1 / its camera depth [1/m]
   };
+  PixelRect light_reach(const Light& light, const PixelRect& dent, float shallowest) const;
   bool blocked_in_image(const Light& light, int x, int y, float depth) const;
   bool blocked_in_space(const Light& light, const Eigen::Vector3f& p) const;
   float depth_at(int x, int y) const {
@@ -50,7 +61,9 @@ class ShadowCaster {
   const GelGeometry* gel_;
   CameraModel camera_;
   std::vector<Light> lights_;
-  PixelRect rect_;
+  PixelRect rect_;                // the dent and every light's reach
+  std::vector<PixelRect> reach_;  // per light
+  float far_depth_ = 0;           // the largest camera depth of the undeformed gel [m]
   // Per pixel of rect_: camera depth of the dented surface + 1 um (+inf where u = 0). A path
   // point farther than that from the camera is outside the gel.
   std::vector<float> depth_;
