@@ -138,10 +138,7 @@ int SensorRenderer::State::shade_cast_shadows(FrameRegions& frame, Workspace& ws
         x = run.second - 1;  // shaded already, with its shadows
         continue;
       }
-      unsigned mask = 0;  // the lights whose reach holds the pixel (all, past the 32nd)
-      for (std::size_t k = 0; k < lights; ++k) {
-        if (caster.reach(k).contains(x, y)) mask |= k < 32 ? 1u << k : ~0u;
-      }
+      const unsigned mask = caster.reaching(x, y);
       if (mask == 0) continue;
       const int i = gel.index(x, y);
       const float t = gel.t_gel[i];

@@ -31,7 +31,8 @@ ShadowCaster::Tiles ShadowCaster::tile_minima(int tile) const {
   t.size = tile;
   t.nx = (w + tile - 1) / tile;
   const int ny = (h + tile - 1) / tile;
-  std::vector<float> own(std::size_t(t.nx) * ny, INFINITY);
+  std::vector<float>& own = t.own;
+  own.assign(std::size_t(t.nx) * ny, INFINITY);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       float& m = own[std::size_t(y / tile) * t.nx + x / tile];
@@ -51,32 +52,26 @@ ShadowCaster::Tiles ShadowCaster::tile_minima(int tile) const {
   return t;
 }
 
-// Where the dent can shadow the undeformed gel from `light`. The path from an undeformed point
-// at camera depth d to the light runs straight in the image, over image length len, its inverse
-// depth growing linearly from 1/d to the light's 1/d_L; it can only be blocked while it is
-// farther from the camera than the dent's shallowest point D, so within
+// Where the dent can shadow the undeformed gel from `light`, one tile of the dent at a time.
+// The path from an undeformed point at camera depth d to the light runs straight in the image,
+// over image length len, its inverse depth growing linearly from 1/d to the light's 1/d_L; it
+// can only be blocked over a tile while it is farther from the camera than the tile's
+// shallowest point D, so within
 //   len * (1/D - 1/d) / (1/d_L - 1/d)
 // of its start, which grows with d and len: at most the farthest image corner's len at the
-// gel's largest depth. The point lies that far at most beyond a dent pixel q, away from the
-// light's image position l, along (q - l) / |q - l|: the rectangle grows on each side by that
-// length times the largest component of this direction toward the side, plus a pixel for the
-// interpolation between pixels.
-PixelRect ShadowCaster::light_reach(const Light& light, const PixelRect& dent,
-                                    float shallowest) const {
+// gel's largest depth. The point lies that far at most beyond a pixel q of the tile, away from
+// the light's image position l, along (q - l) / |q - l|: the tile's rectangle grows on each side
+// by that length times the largest component of this direction toward the side, plus a pixel
+// for the interpolation between pixels. Empty when no undeformed point can be farther than D.
+PixelRect ShadowCaster::tile_reach(const Light& light, float len, const PixelRect& tile,
+                                   float shallowest) const {
   const float inv_near = 1.0f / shallowest, inv_far = 1.0f / far_depth_;
-  if (!light.in_front || dent.empty() || inv_near <= inv_far || light.inv_depth <= inv_near) {
-    return {};
-  }
-  const GelGeometry& g = *gel_;
-  float len = 0.0f;
-  for (float cx : {-0.5f, float(g.width) - 0.5f})
-    for (float cy : {-0.5f, float(g.height) - 0.5f})
-      len = std::max(len, std::hypot(cx - light.x, cy - light.y));
+  if (!(inv_near > inv_far)) return {};
   const float reach = len * (inv_near - inv_far) / (light.inv_depth - inv_far);
   // How far the rectangle grows toward +a (or -a): the reach times the largest component that
-  // way of (q - l) / |q - l| over q in the dent, found at the dent's last (first) pixel along a,
-  // `edge` = that pixel minus l, and at the least distance `gap` from l to the dent's pixels
-  // across a (the component grows with |edge| and falls with the gap).
+  // way of (q - l) / |q - l| over q in the tile, found at its last (first) pixel along a,
+  // `edge` = that pixel minus l, and at the least distance `gap` from l to its pixels across a
+  // (the component grows with |edge| and falls with the gap).
   auto grow = [&](float edge, float gap, bool toward_plus) {
     if (toward_plus ? !(edge > 0.0f) : !(edge < 0.0f)) return 0;
     return int(std::ceil(reach * std::abs(edge) / std::hypot(edge, gap))) + 1;
@@ -84,12 +79,62 @@ PixelRect ShadowCaster::light_reach(const Light& light, const PixelRect& dent,
   auto gap = [](float l, int lo, int hi) {  // distance from l to [lo, hi - 1]
     return std::max({0.0f, float(lo) - l, l - float(hi - 1)});
   };
-  const float gap_y = gap(light.y, dent.y0, dent.y1), gap_x = gap(light.x, dent.x0, dent.x1);
-  const PixelRect r{dent.x0 - grow(float(dent.x0) - light.x, gap_y, false),
-                    dent.y0 - grow(float(dent.y0) - light.y, gap_x, false),
-                    dent.x1 + grow(float(dent.x1 - 1) - light.x, gap_y, true),
-                    dent.y1 + grow(float(dent.y1 - 1) - light.y, gap_x, true)};
-  return r.clipped(g.width, g.height);
+  const float gap_y = gap(light.y, tile.y0, tile.y1), gap_x = gap(light.x, tile.x0, tile.x1);
+  const PixelRect r{tile.x0 - grow(float(tile.x0) - light.x, gap_y, false),
+                    tile.y0 - grow(float(tile.y0) - light.y, gap_x, false),
+                    tile.x1 + grow(float(tile.x1 - 1) - light.x, gap_y, true),
+                    tile.y1 + grow(float(tile.y1 - 1) - light.y, gap_x, true)};
+  return r.clipped(gel_->width, gel_->height);
+}
+
+// Per light and dented tile, the pixels the tile can shadow (tile_reach); their union per light
+// is reach_, and reach_mask_ flags each pixel of their union with the lights that reach it.
+void ShadowCaster::find_reach() {
+  const GelGeometry& g = *gel_;
+  reach_.assign(lights_.size(), PixelRect{});
+  reach_rect_ = {};
+  thread_local std::vector<std::pair<PixelRect, std::uint8_t>> marks;
+  marks.clear();
+  const int ny = tiles_.nx > 0 ? int(tiles_.own.size()) / tiles_.nx : 0;
+  for (std::size_t k = 0; k < lights_.size(); ++k) {
+    const Light& light = lights_[k];
+    // Lights the march in the image handles, nearer to the camera than the dent.
+    if (!light.in_front || !(light.inv_depth > inv_depth_max_)) continue;
+    float len = 0.0f;
+    for (float cx : {-0.5f, float(g.width) - 0.5f})
+      for (float cy : {-0.5f, float(g.height) - 0.5f})
+        len = std::max(len, std::hypot(cx - light.x, cy - light.y));
+    const std::uint8_t bit = std::uint8_t(1u << std::min<std::size_t>(k, 7));
+    for (int ty = 0; ty < ny; ++ty) {
+      for (int tx = 0; tx < tiles_.nx; ++tx) {
+        const float shallowest = tiles_.own[std::size_t(ty) * tiles_.nx + tx];
+        if (!std::isfinite(shallowest)) continue;
+        const PixelRect tile = PixelRect{rect_.x0 + tx * kTile, rect_.y0 + ty * kTile,
+                                         rect_.x0 + (tx + 1) * kTile, rect_.y0 + (ty + 1) * kTile}
+                                   .intersected(rect_);
+        const PixelRect r = tile_reach(light, len, tile, shallowest);
+        if (r.empty()) continue;
+        reach_[k] = reach_[k].united(r);
+        marks.push_back({r, bit});
+      }
+    }
+    reach_rect_ = reach_rect_.united(reach_[k]);
+  }
+  const int w = reach_rect_.width();
+  reach_mask_.assign(std::size_t(reach_rect_.area()), 0);
+  for (const auto& [r, bit] : marks) {
+    for (int y = r.y0; y < r.y1; ++y) {
+      std::uint8_t* row = &reach_mask_[std::size_t(y - reach_rect_.y0) * w];
+      for (int x = r.x0; x < r.x1; ++x) row[x - reach_rect_.x0] |= bit;
+    }
+  }
+}
+
+unsigned ShadowCaster::reaching(int x, int y) const {
+  if (!reach_rect_.contains(x, y)) return 0;
+  const unsigned m = reach_mask_[std::size_t(y - reach_rect_.y0) * reach_rect_.width() +
+                                 std::size_t(x - reach_rect_.x0)];
+  return m & 0x80u ? m | ~0x7fu : m;  // bit 7 stands for the 8th light and those after it
 }
 
 void ShadowCaster::set_surface(const float* u, const PixelRect& dent) {
@@ -108,12 +153,7 @@ void ShadowCaster::set_surface(const float* u, const PixelRect& dent) {
   }
   inv_depth_max_ = 1.0f / shallowest;
   tiles_ = tile_minima(kTile);
-  reach_.assign(lights_.size(), PixelRect{});
-  if (std::isfinite(shallowest)) {
-    for (std::size_t k = 0; k < lights_.size(); ++k) {
-      reach_[k] = light_reach(lights_[k], dent, shallowest);
-    }
-  }
+  find_reach();
 }
 
 // The path from pixel (x, y)'s surface point (camera depth `depth`) to a light nearer to the

@@ -2,6 +2,7 @@
 // Shadows the deformed gel casts on itself: whether the straight path from a surface point to
 // a light leaves the gel on the way.
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "gel_surface.h"
@@ -26,10 +27,14 @@ class ShadowCaster {
   ShadowCaster(const Shader& shader, const GelGeometry& g, const CameraModel& camera);
   // Per frame: the deformed surface u, zero outside `dent`. Also finds each light's reach.
   void set_surface(const float* u, const PixelRect& dent);
-  // The pixels (clipped to the image, the dent's own included) whose path to light k can cross
-  // the dent: empty when there is no dent, or for a light the march in the image does not
-  // handle (one behind the camera's centre, or farther from the camera than the dent).
+  // The rectangle of the pixels (the dent's own included) whose path to light k can cross the
+  // dent: empty when there is no dent, or for a light the march in the image does not handle
+  // (one behind the camera's centre, or farther from the camera than the dent).
   const PixelRect& reach(std::size_t k) const { return reach_[k]; }
+  // The lights (a bit each, from bit 0) whose path from pixel (x, y) can cross the dent: a
+  // finer mask than the rectangles, from the dent's 8 x 8 tiles; bit 7 stands for the 8th light
+  // and every light after it.
+  unsigned reaching(int x, int y) const;
   std::size_t lights() const { return lights_.size(); }
   // Fraction in [0, 1] of each light that reaches pixel (x, y)'s surface point p with outward
   // normal n; a light the point faces away from gets 1 (it adds nothing to the shading anyway).
@@ -43,6 +48,7 @@ class ShadowCaster {
   struct Tiles {
     int size = 0, nx = 0;
     std::vector<float> depth;  // per tile, the smallest depth_ around it
+    std::vector<float> own;    // per tile, its own smallest depth_
   };
   Tiles tile_minima(int tile) const;
   struct Light {
@@ -51,7 +57,9 @@ class ShadowCaster {
     float x = 0, y = 0;     // its image position [px]
     float inv_depth = 0;    // 1 / its camera depth [1/m]
   };
-  PixelRect light_reach(const Light& light, const PixelRect& dent, float shallowest) const;
+  PixelRect tile_reach(const Light& light, float len, const PixelRect& tile,
+                       float shallowest) const;
+  void find_reach();
   bool blocked_in_image(const Light& light, int x, int y, float depth) const;
   bool blocked_in_space(const Light& light, const Eigen::Vector3f& p) const;
   float depth_at(int x, int y) const {
@@ -61,9 +69,11 @@ class ShadowCaster {
   const GelGeometry* gel_;
   CameraModel camera_;
   std::vector<Light> lights_;
-  PixelRect rect_;                // the dent and every light's reach
-  std::vector<PixelRect> reach_;  // per light
-  float far_depth_ = 0;           // the largest camera depth of the undeformed gel [m]
+  PixelRect rect_;                        // the dent and every light's reach
+  std::vector<PixelRect> reach_;          // per light
+  PixelRect reach_rect_;                  // their union
+  std::vector<std::uint8_t> reach_mask_;  // per pixel of reach_rect_, the lights reaching it
+  float far_depth_ = 0;                   // the largest camera depth of the undeformed gel [m]
   // Per pixel of rect_: camera depth of the dented surface + 1 um (+inf where u = 0). A path
   // point farther than that from the camera is outside the gel.
   std::vector<float> depth_;
