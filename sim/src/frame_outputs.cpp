@@ -120,8 +120,7 @@ int SensorRenderer::State::shade_cast_shadows(FrameRegions& frame, Workspace& ws
     return region.contains(region.x0, y) ? ws.runs[std::size_t(y - region.y0)]
                                          : std::pair<int, int>{0, 0};
   };
-  PixelRect reach;
-  for (std::size_t k = 0; k < lights; ++k) reach = reach.united(caster.reach(k));
+  const PixelRect& reach = caster.reach();
   ws.shadowed.clear();
   ws.visibility.clear();
   std::vector<float>& vis = ws.shadowed_rgb;  // per pixel and light, until shaded

@@ -16,6 +16,11 @@ ShadowCaster::ShadowCaster(const Shader& shader, const GelGeometry& g, const Cam
       light.x = float(camera.fx) * l.position.x() / depth + float(camera.cx);
       light.y = float(camera.fy) * l.position.y() / depth + float(camera.cy);
       light.inv_depth = 1.0f / depth;
+      for (float cx : {-0.5f, float(g.width) - 0.5f}) {
+        for (float cy : {-0.5f, float(g.height) - 0.5f}) {
+          light.farthest_px = std::max(light.farthest_px, std::hypot(cx - light.x, cy - light.y));
+        }
+      }
     }
     lights_.push_back(light);
   }
@@ -58,16 +63,17 @@ ShadowCaster::Tiles ShadowCaster::tile_minima(int tile) const {
 // can only be blocked over a tile while it is farther from the camera than the tile's
 // shallowest point D, so within
 //   len * (1/D - 1/d) / (1/d_L - 1/d)
-// of its start, which grows with d and len: at most the farthest image corner's len at the
-// gel's largest depth. The point lies that far at most beyond a pixel q of the tile, away from
-// the light's image position l, along (q - l) / |q - l|: the tile's rectangle grows on each side
-// by that length times the largest component of this direction toward the side, plus a pixel
-// for the interpolation between pixels. Empty when no undeformed point can be farther than D.
-PixelRect ShadowCaster::tile_reach(const Light& light, float len, const PixelRect& tile,
+// of its start, which grows with d and len: at most with len = Light::farthest_px (to the
+// farthest image corner) at the gel's largest depth. The point lies that far at most beyond a
+// pixel q of the tile, away from the light's image position l, along (q - l) / |q - l|: the
+// tile's rectangle grows on each side by that length times the largest component of this
+// direction toward the side, plus a pixel for the interpolation between pixels. Empty when no
+// undeformed point can be farther than D.
+PixelRect ShadowCaster::tile_reach(const Light& light, const PixelRect& tile,
                                    float shallowest) const {
   const float inv_near = 1.0f / shallowest, inv_far = 1.0f / far_depth_;
   if (!(inv_near > inv_far)) return {};
-  const float reach = len * (inv_near - inv_far) / (light.inv_depth - inv_far);
+  const float reach = light.farthest_px * (inv_near - inv_far) / (light.inv_depth - inv_far);
   // How far the rectangle grows toward +a (or -a): the reach times the largest component that
   // way of (q - l) / |q - l| over q in the tile, found at its last (first) pixel along a,
   // `edge` = that pixel minus l, and at the least distance `gap` from l to its pixels across a
@@ -87,11 +93,9 @@ PixelRect ShadowCaster::tile_reach(const Light& light, float len, const PixelRec
   return r.clipped(gel_->width, gel_->height);
 }
 
-// Per light and dented tile, the pixels the tile can shadow (tile_reach); their union per light
-// is reach_, and reach_mask_ flags each pixel of their union with the lights that reach it.
+// Per light and dented tile, the pixels the tile can shadow (tile_reach); reach_rect_ is their
+// union, and reach_mask_ flags each of its pixels with the lights that reach it.
 void ShadowCaster::find_reach() {
-  const GelGeometry& g = *gel_;
-  reach_.assign(lights_.size(), PixelRect{});
   reach_rect_ = {};
   thread_local std::vector<std::pair<PixelRect, std::uint8_t>> marks;
   marks.clear();
@@ -100,10 +104,6 @@ void ShadowCaster::find_reach() {
     const Light& light = lights_[k];
     // Lights the march in the image handles, nearer to the camera than the dent.
     if (!light.in_front || !(light.inv_depth > inv_depth_max_)) continue;
-    float len = 0.0f;
-    for (float cx : {-0.5f, float(g.width) - 0.5f})
-      for (float cy : {-0.5f, float(g.height) - 0.5f})
-        len = std::max(len, std::hypot(cx - light.x, cy - light.y));
     const std::uint8_t bit = std::uint8_t(1u << std::min<std::size_t>(k, 7));
     for (int ty = 0; ty < ny; ++ty) {
       for (int tx = 0; tx < tiles_.nx; ++tx) {
@@ -112,13 +112,12 @@ void ShadowCaster::find_reach() {
         const PixelRect tile = PixelRect{rect_.x0 + tx * kTile, rect_.y0 + ty * kTile,
                                          rect_.x0 + (tx + 1) * kTile, rect_.y0 + (ty + 1) * kTile}
                                    .intersected(rect_);
-        const PixelRect r = tile_reach(light, len, tile, shallowest);
+        const PixelRect r = tile_reach(light, tile, shallowest);
         if (r.empty()) continue;
-        reach_[k] = reach_[k].united(r);
+        reach_rect_ = reach_rect_.united(r);
         marks.push_back({r, bit});
       }
     }
-    reach_rect_ = reach_rect_.united(reach_[k]);
   }
   const int w = reach_rect_.width();
   reach_mask_.assign(std::size_t(reach_rect_.area()), 0);

@@ -20,17 +20,17 @@ namespace pg {
 // rectangle or comes nearer to the camera than the dent's shallowest point, and skips stretches
 // of 8 steps that are nearer to the camera than every surface point around them.
 //
-// The dent also shadows undeformed gel beside it, on its side away from a light: reach(k) bounds
-// the pixels it can shadow from light k, so that only those need a march.
+// The dent also shadows undeformed gel beside it, on its side away from a light: reach() bounds
+// the pixels it can shadow, so that only those need a march.
 class ShadowCaster {
  public:
   ShadowCaster(const Shader& shader, const GelGeometry& g, const CameraModel& camera);
   // Per frame: the deformed surface u, zero outside `dent`. Also finds each light's reach.
   void set_surface(const float* u, const PixelRect& dent);
-  // The rectangle of the pixels (the dent's own included) whose path to light k can cross the
-  // dent: empty when there is no dent, or for a light the march in the image does not handle
-  // (one behind the camera's centre, or farther from the camera than the dent).
-  const PixelRect& reach(std::size_t k) const { return reach_[k]; }
+  // The rectangle of the pixels (the dent's own included) whose path to some light can cross the
+  // dent: empty when there is no dent. Lights the march in the image does not handle (behind
+  // the camera's centre, or farther from the camera than the dent) add nothing.
+  const PixelRect& reach() const { return reach_rect_; }
   // The lights (a bit each, from bit 0) whose path from pixel (x, y) can cross the dent: a
   // finer mask than the rectangles, from the dent's 8 x 8 tiles; bit 7 stands for the 8th light
   // and every light after it.
@@ -56,9 +56,9 @@ class ShadowCaster {
     bool in_front = false;  // in front of the camera: its image position is finite
     float x = 0, y = 0;     // its image position [px]
     float inv_depth = 0;    // 1 / its camera depth [1/m]
+    float farthest_px = 0;  // from its image position to the farthest image corner [px]
   };
-  PixelRect tile_reach(const Light& light, float len, const PixelRect& tile,
-                       float shallowest) const;
+  PixelRect tile_reach(const Light& light, const PixelRect& tile, float shallowest) const;
   void find_reach();
   bool blocked_in_image(const Light& light, int x, int y, float depth) const;
   bool blocked_in_space(const Light& light, const Eigen::Vector3f& p) const;
@@ -69,9 +69,8 @@ class ShadowCaster {
   const GelGeometry* gel_;
   CameraModel camera_;
   std::vector<Light> lights_;
-  PixelRect rect_;                        // the dent and every light's reach
-  std::vector<PixelRect> reach_;          // per light
-  PixelRect reach_rect_;                  // their union
+  PixelRect rect_;                        // the dent
+  PixelRect reach_rect_;                  // the pixels whose path to a light can cross the dent
   std::vector<std::uint8_t> reach_mask_;  // per pixel of reach_rect_, the lights reaching it
   float far_depth_ = 0;                   // the largest camera depth of the undeformed gel [m]
   // Per pixel of rect_: camera depth of the dented surface + 1 um (+inf where u = 0). A path
