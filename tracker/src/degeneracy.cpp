@@ -1,5 +1,6 @@
 #include "pg/tracker/degeneracy.h"
 
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 
@@ -10,6 +11,10 @@ namespace {
 // In choosing among equally good steps, one radian of rotation costs as much as this much
 // translation: large, so the step removes rotation first.
 constexpr double kRotationCostLengthM = 1.0;
+
+// Unconstrained twists drop rotation directions their span holds with a scaled singular value
+// below this times sqrt(min_eigenvalue_ratio) (see DegeneracyReport::unconstrained_twists).
+constexpr double kUnresolvedRotation = 0.5;
 
 // Scaled coordinates [rho_c; L phi] -> twist [rho_c; phi].
 Vector6d unscale(const Vector6d& x, double L) {
@@ -71,6 +76,7 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
   report.length_scale_m = length_scale_m;
   symmetric_eigen(H_scaled, report.eigenvalues, report.eigenvectors);
   const double largest = report.eigenvalues[5];
+  report.min_eigenvalue_ratio = min_eigenvalue_ratio;
   report.unconstrained = 0;
   for (int i = 0; i < 6; ++i) {
     if (largest <= 0.0 || report.eigenvalues[i] <= min_eigenvalue_ratio * largest) {
@@ -81,8 +87,28 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
 }
 
 Matrix6Xd DegeneracyReport::unconstrained_twists() const {
-  Matrix6Xd N(6, unconstrained);
-  for (int i = 0; i < unconstrained; ++i) N.col(i) = unscale(eigenvectors.col(i), length_scale_m);
+  const int k = unconstrained;
+  Matrix6Xd N(6, k);
+  if (k == 0) return N;
+  // The eigenvectors of a cluster of small eigenvalues are fixed by the data only up to mixing
+  // with the others: an edge's slide (eigenvalue 0.01) comes out with a 1e-3 rotation part that
+  // changes its cost by 1e-4. Rotation directions the span holds with a singular value below tol
+  // are such slivers: taking them out of a unit direction adds at most about
+  // lambda_max tol^2 = lambda_max ratio / 4 to its cost, so it stays unconstrained.
+  const double tol = kUnresolvedRotation * std::sqrt(min_eigenvalue_ratio);
+  const Eigen::Matrix3Xd rotations = eigenvectors.block(3, 0, 3, k);
+  const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(rotations, Eigen::ComputeFullU);
+  Eigen::Matrix3d resolved = Eigen::Matrix3d::Zero();  // projector onto the rotations kept
+  for (int j = 0; j < int(svd.singularValues().size()); ++j) {
+    if (svd.singularValues()[j] > tol) {
+      resolved += svd.matrixU().col(j) * svd.matrixU().col(j).transpose();
+    }
+  }
+  for (int i = 0; i < k; ++i) {
+    Vector6d x = eigenvectors.col(i);
+    x.tail<3>() = resolved * x.tail<3>();
+    N.col(i) = unscale(x, length_scale_m);
+  }
   return N;
 }
 

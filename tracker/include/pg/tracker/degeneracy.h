@@ -22,10 +22,16 @@ struct DegeneracyReport {
   double length_scale_m = 1.0;                              // L [m]
   Vector6d eigenvalues = Vector6d::Zero();                  // of the scaled Hessian, ascending [-]
   Matrix6d eigenvectors = Matrix6d::Identity();  // columns, in scaled coordinates [rho_c; L phi]
-  int unconstrained = 6;  // how many of the first eigenvalues fall below the ratio
+  int unconstrained = 6;            // how many of the first eigenvalues fall below the ratio
+  double min_eigenvalue_ratio = 0;  // the ratio they were compared with [-]
 
   bool degenerate() const { return unconstrained > 0; }
-  // The unconstrained directions as twists [rho_c; phi] about c ([m; rad]), one per column.
+  // The unconstrained directions as twists [rho_c; phi] about c ([m; rad]), one per column: a
+  // basis of the span of the first `unconstrained` eigenvectors, less the rotations the span holds
+  // only to a degree the data cannot resolve (a scaled singular value at most half of
+  // sqrt(min_eigenvalue_ratio)). Divided by L to become a twist, such a sliver grows hundreds of
+  // times: an edge's slide would carry 0.3 mrad of rotation per mm, which a consumer pinning every
+  // other direction holds fixed, reading the slide from that rotation's noise.
   Matrix6Xd unconstrained_twists() const;
   // The same directions as twists [rho; phi] about the target frame's origin.
   Matrix6Xd unconstrained_twists_at_origin() const;
