@@ -1,5 +1,6 @@
 // make_meshes OUT_DIR: writes the paper's objects (sim: spheres, cube, toy brick, toy human;
-// real: 1/2 inch ball bearing, pyramid) as GLB files into OUT_DIR. Deterministic: the same build
+// real: 1/2 inch ball bearing, pyramid) and the extra training shapes of the default normals model
+// (a stud-like cylinder, a torus, an ellipsoid, a rounded plate) as GLB files into OUT_DIR. Deterministic: the same build
 // writes the same bytes. Units metres; origin at the centre of each object's bounding box; +z up.
 //
 // Every part is a closed, outward-oriented (counter-clockwise seen from outside) triangle mesh;
@@ -307,6 +308,14 @@ Part toy_human() {
   return human;
 }
 
+// Ellipsoid with semi-axes `semi_axes`: an icosphere scaled per axis (a diagonal scaling with
+// positive factors keeps the triangles' orientation).
+Part ellipsoid(const Vector3d& semi_axes, int levels) {
+  Part part = icosphere(1.0, levels);
+  for (Vector3d& v : part.vertices) v = v.cwiseProduct(semi_axes);
+  return part;
+}
+
 // Moves the bounding-box centre to the origin and converts to the float mesh.
 pg::TriangleMesh centred(const Part& part) {
   Vector3d lo = Vector3d::Constant(INFINITY), hi = Vector3d::Constant(-INFINITY);
@@ -340,6 +349,16 @@ int main(int argc, char** argv) {
       {"toy_brick.glb", toy_brick},
       {"toy_human.glb", toy_human},
       {"pyramid.glb", [] { return square_pyramid(1.75 * kInch, 0.5 * kInch); }},
+      // Training shapes for the default normals model: the local features of the unseen toy brick
+      // and toy human (flat tops with sharp or slightly rounded rims, tubes, varied curvature,
+      // flat faces with narrow rounded edges) without being either object.
+      {"stud_r3mm.glb",
+       [] { return cylinder(3.0 * kMm, 0.0, 4.0 * kMm, 0.0, 0.2 * kMm, 128); }},
+      {"torus_r5mm.glb", [] { return torus(5.0 * kMm, 2.0 * kMm, 128, 48); }},
+      {"ellipsoid.glb",
+       [&] { return ellipsoid(Vector3d(7.0, 4.5, 3.0) * kMm, sphere_levels); }},
+      {"rounded_plate.glb",
+       [] { return rounded_box(Vector3d(7.0, 5.0, 2.0) * kMm, 0.3 * kMm, 4, 0.5 * kMm); }},
   };
   try {
     std::filesystem::create_directories(out_dir);

@@ -501,11 +501,11 @@ ordered_json two_digits_pinch_json() {
 
 // ------------------------------------------------------------------------- learned-normals data
 
-// The learned-normals training and validation sets (the paper's Table I): every frame an
-// independent press of the object in a random orientation, its lowest point at a random place
-// of the visible gel, 0.3-1.5 mm deep. Rendered on the elastic DIGIT gel with shadows and noise
-// (scripts/train_normals.sh adds the real background), so the network sees the non-ideal
-// effects of a real sensor.
+// The learned-normals training and validation sets (the paper's Table I, and the default
+// model's extra training shapes): every frame an independent press of the object in a random
+// orientation, its lowest point at a random place of the visible gel, 0.3-1.5 mm deep. Rendered
+// on the elastic DIGIT gel with shadows and noise (scripts/train_normals.sh adds the real
+// background for Table I), so the network sees the non-ideal effects of a real sensor.
 ordered_json random_presses_json(const fs::path& root, const std::string& object,
                                  const std::string& mesh, const std::string& file, int frames) {
   const Shape& s = shape(root / "meshes", mesh);
@@ -675,7 +675,13 @@ std::vector<Output> make_all(const fs::path& root) {
                               NormalsSet{"sphere", "sphere_r6mm.glb", "val", 20},
                               NormalsSet{"cube", "cube.glb", "val", 20},
                               NormalsSet{"toy_brick", "toy_brick.glb", "val", 20},
-                              NormalsSet{"toy_human", "toy_human.glb", "val", 20}}) {
+                              NormalsSet{"toy_human", "toy_human.glb", "val", 20},
+                              // The default model's extra training shapes (never the toy brick or
+                              // the toy human, the benchmark's unseen objects).
+                              NormalsSet{"stud", "stud_r3mm.glb", "train", 50},
+                              NormalsSet{"torus", "torus_r5mm.glb", "train", 50},
+                              NormalsSet{"ellipsoid", "ellipsoid.glb", "train", 50},
+                              NormalsSet{"plate", "rounded_plate.glb", "train", 50}}) {
     const std::string file = std::string("scenes/normals/") + n.object + "_" + n.split + ".json";
     outputs.push_back(checked(file, random_presses_json(root, n.object, n.mesh, file, n.frames),
                               root, "random presses", 0.0));

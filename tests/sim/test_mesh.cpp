@@ -528,7 +528,12 @@ INSTANTIATE_TEST_SUITE_P(
                       GeneratedObject{"cube.glb", {20, 20, 20}},
                       GeneratedObject{"toy_brick.glb", {31.8, 15.8, 11.3}, 9},   // body + 8 studs
                       GeneratedObject{"toy_human.glb", {22.03, 9.6, 39.3}, 13},  // see README
-                      GeneratedObject{"pyramid.glb", {44.45, 44.45, 12.7}}),
+                      GeneratedObject{"pyramid.glb", {44.45, 44.45, 12.7}},
+                      // The default normals model's extra training shapes.
+                      GeneratedObject{"stud_r3mm.glb", {6, 6, 4}},
+                      GeneratedObject{"torus_r5mm.glb", {14, 14, 4}},
+                      GeneratedObject{"ellipsoid.glb", {14, 9, 6}},
+                      GeneratedObject{"rounded_plate.glb", {14, 10, 4}}),
     [](const ::testing::TestParamInfo<GeneratedObject>& info) {
       std::string name = info.param.file;
       return name.substr(0, name.find('.'));
