@@ -455,6 +455,59 @@ TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
   EXPECT_LT((r.information - H / (1e-5 * 1e-5)).norm(), 1e-6 * r.information.norm());
 }
 
+TEST(IcpInformation, RobustWeightsAndDistantPairsMatchADirectSum) {
+  // Three planes as above, their grids shifted by half a spacing so that no two points coincide
+  // (a tie would leave the normal of a pair to chance); every 7th source point pushed 0.4 mm off
+  // its plane (Huber's linear zone: weight 1/4) and every 11th 2 mm (beyond the correspondence
+  // distance: no pair).
+  PointCloud target;
+  for (int a = 0; a < 30; ++a) {
+    for (int b = 0; b < 30; ++b) {
+      const float u = 0.0001f * a, v = 0.0001f * b, h = 0.00005f;
+      target.push_back({u, v, 0}, {0, 0, -1});
+      target.push_back({u + h, 0, v + h}, {0, -1, 0});
+      target.push_back({0, u + h, v + h}, {-1, 0, 0});
+    }
+  }
+  const PointCloudTree tree(target);
+  const SE3 truth =
+      SE3::exp((Vector6d() << 0.0001, -0.0002, 0.0001, -0.01, 0.02, 0.01).finished());
+  PointCloud source = transform_cloud(truth.inverse(), target);
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    if (i % 11 == 0) {
+      source.points[i] += 2e-3f * source.normals[i];
+    } else if (i % 7 == 0) {
+      source.points[i] += 4e-4f * source.normals[i];
+    }
+  }
+  const IcpOptions options;  // Huber, scale 0.1 mm, pairs within 1 mm
+  ASSERT_EQ(options.kernel, RobustKernel::kHuber);
+  const IcpResult r = PointToPlaneIcp(options).align(source, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged) << to_string(r.status);
+  // Sum of w J_right^T J_right over the pairs within the correspondence distance.
+  Matrix6d H = Matrix6d::Zero();
+  int pairs = 0, down_weighted = 0;
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const Eigen::Vector3d p_source = source.points[i].cast<double>();
+    const Eigen::Vector3f p = (r.T_target_source * p_source).cast<float>();
+    const int j = tree.nearest(p, float(options.max_correspondence_m));
+    if (j < 0) continue;
+    const double res = point_to_plane_residual(r.T_target_source, p_source,
+                                               target.points[j].cast<double>(),
+                                               target.normals[j].cast<double>());
+    const double w = robust_weight(options.kernel, options.kernel_scale_m, res);
+    const Matrix16d J =
+        point_to_plane_jacobian_right(r.T_target_source, p_source, target.normals[j].cast<double>());
+    H += w * J.transpose() * J;
+    ++pairs;
+    down_weighted += w < 0.5;
+  }
+  EXPECT_EQ(r.inliers, pairs);
+  EXPECT_LT(pairs, int(source.size()) * 10 / 11 + 2);  // the 2 mm ones found no partner
+  EXPECT_GT(down_weighted, int(source.size()) / 10);   // the 0.4 mm ones weigh about 1/4
+  EXPECT_LT((r.hessian - H).norm(), 1e-5 * H.norm()) << r.hessian << "\n\n" << H;
+}
+
 TEST(IcpBadInput, TooFewPointsOrNoOverlapIsNotConverged) {
   const PointCloud target = flat_patch(0.0001);
   const PointCloudTree tree(target);

@@ -1,8 +1,12 @@
 #include "pg/tracker/icp.h"
 
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "correspondence_cache.h"
@@ -29,10 +33,11 @@ struct NormalEquations {
   int inliers = 0;
   long queries = 0;
 
-  // Adds m terms stored by column (J[a][i], w[i], r[i]); the columns m..(m rounded up to
-  // kLanes) are overwritten with zero-weight terms.
+  // Adds m terms stored by column (J[a][i], w[i], r[i]), of which `kept` have a weight (the
+  // others have w = r = 0); the columns m..(m rounded up to kLanes) are overwritten with
+  // zero-weight terms.
   template <int kCapacity>
-  void add_terms(double (&J)[6][kCapacity], double* w, double* r, int m) {
+  void add_terms(double (&J)[6][kCapacity], double* w, double* r, int m, int kept) {
     static_assert(kCapacity % kLanes == 0);
     const int padded = (m + kLanes - 1) / kLanes * kLanes;
     for (int i = m; i < padded; ++i) {
@@ -58,7 +63,7 @@ struct NormalEquations {
         sq[l] += r[i0 + l] * r[i0 + l];
       }
     }
-    inliers += m;
+    inliers += kept;
   }
   void add(const NormalEquations& o) {
     for (int l = 0; l < kLanes; ++l) {
@@ -106,58 +111,199 @@ Centroid centroid_and_radius(const std::vector<Eigen::Vector3f>& points) {
 }
 
 // Eq. 5/6 linearised at T: correspondences, robust weights and the normal equations in scaled
-// coordinates about c, summed over every stride-th source point in parallel (oneTBB reduction).
+// coordinates about c, summed over every stride-th source point in parallel. A oneTBB reduction
+// body (the imperative form): a range adds its terms to the body's own sums, and a body is split
+// off only when another thread steals a range, so the 2 KB of sums are neither copied per task
+// nor zeroed for ranges a thread runs itself.
+class Linearisation {
+ public:
+  Linearisation(const PointCloud& source, std::size_t stride, const PointCloudTree& target,
+                const SE3& T, const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
+                CorrespondenceCache& cache, float radius)
+      : src_(source.points),
+        tgt_(target.cloud()),
+        target_(target),
+        stride_(stride),
+        R_(T.rotation_matrix().cast<float>()),
+        t_(T.translation().cast<float>()),
+        c_(c.cast<float>()),
+        inv_L_(float(inv_L)),
+        max_corr_(float(o.max_correspondence_m)),
+        radius_(radius),
+        options_(o),
+        cache_(cache) {}
+  Linearisation(Linearisation& other, tbb::split) : Linearisation(other) { eq = {}; }
+
+  void operator()(const tbb::blocked_range<std::size_t>& range) {
+    switch (options_.kernel) {
+      case RobustKernel::kHuber:
+        return run<RobustKernel::kHuber>(range);
+      case RobustKernel::kTukey:
+        return run<RobustKernel::kTukey>(range);
+      case RobustKernel::kNone:
+        break;
+    }
+    run<RobustKernel::kNone>(range);
+  }
+  void join(const Linearisation& other) { eq.add(other.eq); }
+
+  NormalEquations eq;
+
+ private:
+  static constexpr int kChunk = 64;  // correspondences gathered before they are linearised
+  // A chunk's moved source points and their nearest target points, by column.
+  struct Chunk {
+    float x[kChunk], y[kChunk], z[kChunk];
+    int j[kChunk];
+  };
+
+  Linearisation(const Linearisation&) = default;
+
+  // Finding the correspondences branches per point (the cache, the odd query); linearising them
+  // needs no branch, so it runs over whole chunks, vectorised where AVX-512 is available.
+  template <RobustKernel kKernel>
+  void run(const tbb::blocked_range<std::size_t>& range) {
+    Chunk chunk;
+    int m = 0;
+    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+      const std::size_t i = k * stride_;
+      const Eigen::Vector3f p = R_ * src_[i] + t_;
+      const int j = cache_.nearest(i, p, target_, radius_, max_corr_, eq.queries);
+      if (j < 0) continue;
+      chunk.x[m] = p.x();
+      chunk.y[m] = p.y();
+      chunk.z[m] = p.z();
+      chunk.j[m] = j;
+      if (++m == kChunk) {
+        linearise_chunk<kKernel>(chunk, m);
+        m = 0;
+      }
+    }
+    linearise_chunk<kKernel>(chunk, m);
+  }
+
+  // robust_weight's values without branches (the scalar path; the AVX-512 path computes the
+  // same in vector lanes).
+  template <RobustKernel kKernel>
+  static float weight(float r, float scale) {
+    if constexpr (kKernel == RobustKernel::kHuber) {
+      return scale / std::max(std::abs(r), scale);
+    } else if constexpr (kKernel == RobustKernel::kTukey) {
+      const float s = std::max(1.0f - (r / scale) * (r / scale), 0.0f);
+      return s * s;
+    } else {
+      return 1.0f;
+    }
+  }
+
+  // Eq. 5/6 for the chunk's m correspondences: a pair farther apart than the correspondence
+  // distance, or of zero weight, becomes a zero term (w = r = 0).
+  template <RobustKernel kKernel>
+  void linearise_chunk(const Chunk& c, int m) {
+    double J[6][kChunk], w[kChunk], r[kChunk];
+    const float* tp = tgt_.points.data()->data();
+    const float* tn = tgt_.normals.data()->data();
+    const float max_corr_sq = max_corr_ * max_corr_;
+    const float scale = float(options_.kernel_scale_m);
+    int kept = 0;
+#if defined(__AVX512F__)
+    // Sixteen correspondences at a time (GCC does not vectorise the gathers by itself).
+    const __m512i three = _mm512_set1_epi32(3);
+    const __m512 scale_v = _mm512_set1_ps(scale), max_corr_sq_v = _mm512_set1_ps(max_corr_sq);
+    const __m512 inv_L_v = _mm512_set1_ps(inv_L_);
+    const __m512 cx = _mm512_set1_ps(c_.x()), cy = _mm512_set1_ps(c_.y()),
+                 cz = _mm512_set1_ps(c_.z());
+    const auto store = [](double* out, __m512 v) {
+      _mm512_storeu_pd(out, _mm512_cvtps_pd(_mm512_castps512_ps256(v)));
+      _mm512_storeu_pd(out + 8, _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(
+                                    _mm512_castps_pd(v), 1))));
+    };
+    for (int e = 0; e < m; e += 16) {
+      const __mmask16 valid = m - e >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << (m - e)) - 1);
+      const __m512i j3 = _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(valid, c.j + e), three);
+      const __m512 zero = _mm512_setzero_ps();
+      const auto gather = [&](const float* base) {
+        return _mm512_mask_i32gather_ps(zero, valid, j3, base, 4);
+      };
+      const __m512 px = _mm512_maskz_loadu_ps(valid, c.x + e);
+      const __m512 py = _mm512_maskz_loadu_ps(valid, c.y + e);
+      const __m512 pz = _mm512_maskz_loadu_ps(valid, c.z + e);
+      const __m512 dx = _mm512_sub_ps(px, gather(tp)), dy = _mm512_sub_ps(py, gather(tp + 1)),
+                   dz = _mm512_sub_ps(pz, gather(tp + 2));
+      const __m512 nx = gather(tn), ny = gather(tn + 1), nz = gather(tn + 2);
+      const __m512 re =
+          _mm512_fmadd_ps(nx, dx, _mm512_fmadd_ps(ny, dy, _mm512_mul_ps(nz, dz)));
+      __m512 we;
+      if constexpr (kKernel == RobustKernel::kHuber) {
+        we = _mm512_div_ps(scale_v, _mm512_max_ps(_mm512_abs_ps(re), scale_v));
+      } else if constexpr (kKernel == RobustKernel::kTukey) {
+        const __m512 u = _mm512_div_ps(re, scale_v);
+        const __m512 s = _mm512_max_ps(_mm512_fnmadd_ps(u, u, _mm512_set1_ps(1.0f)), zero);
+        we = _mm512_mul_ps(s, s);
+      } else {
+        we = _mm512_set1_ps(1.0f);
+      }
+      const __m512 d_sq = _mm512_fmadd_ps(dx, dx, _mm512_fmadd_ps(dy, dy, _mm512_mul_ps(dz, dz)));
+      const __mmask16 keep = _mm512_mask_cmp_ps_mask(valid, d_sq, max_corr_sq_v, _CMP_LE_OQ) &
+                             _mm512_cmp_ps_mask(we, zero, _CMP_GT_OQ);
+      kept += __builtin_popcount(unsigned(keep));
+      const __m512 ux = _mm512_sub_ps(px, cx), uy = _mm512_sub_ps(py, cy),
+                   uz = _mm512_sub_ps(pz, cz);
+      store(w + e, _mm512_maskz_mov_ps(keep, we));
+      store(r + e, _mm512_maskz_mov_ps(keep, re));
+      store(J[0] + e, nx);
+      store(J[1] + e, ny);
+      store(J[2] + e, nz);
+      store(J[3] + e, _mm512_mul_ps(_mm512_fmsub_ps(uy, nz, _mm512_mul_ps(uz, ny)), inv_L_v));
+      store(J[4] + e, _mm512_mul_ps(_mm512_fmsub_ps(uz, nx, _mm512_mul_ps(ux, nz)), inv_L_v));
+      store(J[5] + e, _mm512_mul_ps(_mm512_fmsub_ps(ux, ny, _mm512_mul_ps(uy, nx)), inv_L_v));
+    }
+#else
+    for (int e = 0; e < m; ++e) {
+      const int j3 = 3 * c.j[e];
+      const float dx = c.x[e] - tp[j3], dy = c.y[e] - tp[j3 + 1], dz = c.z[e] - tp[j3 + 2];
+      const float nx = tn[j3], ny = tn[j3 + 1], nz = tn[j3 + 2];
+      const float re = nx * dx + ny * dy + nz * dz;  // point-to-plane residual [m]
+      const float we = weight<kKernel>(re, scale);
+      const bool keep = (dx * dx + dy * dy + dz * dz <= max_corr_sq) & (we > 0.0f);
+      kept += keep;
+      w[e] = keep ? we : 0.0f;
+      r[e] = keep ? re : 0.0f;
+      // Jacobian about the centroid, rotation scaled by L: [n; ((p - c) x n) / L].
+      const float ux = c.x[e] - c_.x(), uy = c.y[e] - c_.y(), uz = c.z[e] - c_.z();
+      J[0][e] = nx;
+      J[1][e] = ny;
+      J[2][e] = nz;
+      J[3][e] = (uy * nz - uz * ny) * inv_L_;
+      J[4][e] = (uz * nx - ux * nz) * inv_L_;
+      J[5][e] = (ux * ny - uy * nx) * inv_L_;
+    }
+#endif
+    eq.add_terms(J, w, r, m, kept);
+  }
+
+  const std::vector<Eigen::Vector3f>& src_;
+  const PointCloud& tgt_;
+  const PointCloudTree& target_;
+  std::size_t stride_;
+  Eigen::Matrix3f R_;
+  Eigen::Vector3f t_, c_;
+  float inv_L_, max_corr_, radius_;
+  const IcpOptions& options_;
+  CorrespondenceCache& cache_;
+};
+
 NormalEquations linearise(const PointCloud& source, std::size_t stride,
                           const PointCloudTree& target, const SE3& T, const Eigen::Vector3d& c,
                           double inv_L, const IcpOptions& o, CorrespondenceCache& cache,
                           float radius) {
-  const Eigen::Matrix3f R = T.rotation_matrix().cast<float>();
-  const Eigen::Vector3f t = T.translation().cast<float>();
-  const Eigen::Vector3f cf = c.cast<float>();
-  const float max_corr = float(o.max_correspondence_m);
-  const float max_corr_sq = max_corr * max_corr;
-  const std::vector<Eigen::Vector3f>& src = source.points;
-  const PointCloud& tgt = target.cloud();
-  return tbb::parallel_reduce(
-      tbb::blocked_range<std::size_t>(0, (src.size() + stride - 1) / stride, kGrainSize),
-      NormalEquations(),
-      [&](const tbb::blocked_range<std::size_t>& range, NormalEquations acc) {
-        constexpr int kChunk = 64;  // terms gathered before they are summed
-        double J[6][kChunk], wc[kChunk], rc[kChunk];
-        int m = 0;
-        for (std::size_t k = range.begin(); k != range.end(); ++k) {
-          const std::size_t i = k * stride;
-          const Eigen::Vector3f p = R * src[i] + t;
-          const int j = cache.nearest(i, p, target, radius, max_corr, acc.queries);
-          if (j < 0) continue;
-          const Eigen::Vector3f diff = p - tgt.points[j];
-          if (diff.squaredNorm() > max_corr_sq) continue;
-          const Eigen::Vector3f& n = tgt.normals[j];
-          const double r = double(n.dot(diff));  // point-to-plane residual [m]
-          const double w = robust_weight(o.kernel, o.kernel_scale_m, r);
-          if (w <= 0.0) continue;
-          // Jacobian about the centroid, rotation scaled by L: [n; ((p - c) x n) / L].
-          const Eigen::Vector3f arm = (p - cf).cross(n);
-          J[0][m] = n.x();
-          J[1][m] = n.y();
-          J[2][m] = n.z();
-          J[3][m] = arm.x() * inv_L;
-          J[4][m] = arm.y() * inv_L;
-          J[5][m] = arm.z() * inv_L;
-          wc[m] = w;
-          rc[m] = r;
-          if (++m == kChunk) {
-            acc.add_terms(J, wc, rc, m);
-            m = 0;
-          }
-        }
-        acc.add_terms(J, wc, rc, m);
-        return acc;
-      },
-      [](NormalEquations a, const NormalEquations& b) {
-        a.add(b);
-        return a;
-      });
+  const std::size_t count = (source.points.size() + stride - 1) / stride;
+  // A subsample of a few hundred points is still split in a few ranges: its first queries, far
+  // from the target, cost several times a near one.
+  const std::size_t grain = std::clamp<std::size_t>(count / 4, 32, kGrainSize);
+  Linearisation body(source, stride, target, T, c, inv_L, o, cache, radius);
+  tbb::parallel_reduce(tbb::blocked_range<std::size_t>(0, count, grain), body);
+  return body.eq;
 }
 
 }  // namespace
