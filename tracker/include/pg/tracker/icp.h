@@ -30,7 +30,7 @@ struct IcpOptions {
   // coarse_points source points (0: off; clouds under twice this size are never subsampled),
   // until a step moves the subsample by less than coarse_step_m (or half of max_iterations have
   // run); the iterations after that use every point, so the result is the full cloud's.
-  int coarse_points = 512;
+  int coarse_points = 128;
   double coarse_step_m = 2e-6;  // [m]
   // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
   // degeneracy.h) is below this fraction of the largest [-].
