@@ -2,6 +2,9 @@
 // Per-source-point nearest neighbours that survive between ICP iterations: a query is repeated
 // only when the point has moved far enough that its nearest target point could have changed.
 #include <Eigen/Core>
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 #include <cmath>
 #include <vector>
 
@@ -12,7 +15,9 @@ namespace pg {
 class CorrespondenceCache {
  public:
   void reset(std::size_t n) {
-    queried_at_.resize(n);
+    qx_.resize(n);
+    qy_.resize(n);
+    qz_.resize(n);
     slack_sq_.resize(n);
     second_.resize(n);
     nearest_.assign(n, kNeverQueried);
@@ -22,21 +27,32 @@ class CorrespondenceCache {
   // nearest point cannot have changed while p moved by less than half the gap between its
   // nearest and second-nearest distances at the last query (every distance changes by at most
   // the displacement); nor can a point with no target point within `radius` have come within
-  // `max_correspondence` of one before moving by the difference. Otherwise it queries the tree,
-  // seeded with the previous answers, and counts the query. (Seeding a first query with the
-  // answers of the previous source point, a neighbour in raster order, was slower.)
+  // `max_correspondence` of one before moving by the difference. Otherwise it queries the tree
+  // (query()).
   int nearest(std::size_t i, const Eigen::Vector3f& p, const PointCloudTree& tree, float radius,
               float max_correspondence, long& queries) {
-    const int previous = nearest_[i];
     // Compared squared: a square root per point per iteration cost more than the rest of the
     // test.
-    if (previous != kNeverQueried && (p - queried_at_[i]).squaredNorm() < slack_sq_[i]) {
-      return previous;
+    const float dx = p.x() - qx_[i], dy = p.y() - qy_[i], dz = p.z() - qz_[i];
+    if (nearest_[i] != kNeverQueried && dx * dx + dy * dy + dz * dz < slack_sq_[i]) {
+      return nearest_[i];
     }
+    return query(i, p, tree, radius, max_correspondence, queries);
+  }
+
+  // Queries the tree for point i at p, seeded with the previous answers (they only prune: the
+  // result is exact), remembers the answer and its slack, and counts the query. (Seeding a first
+  // query with the answers of the previous source point, a neighbour in raster order, was
+  // slower.)
+  int query(std::size_t i, const Eigen::Vector3f& p, const PointCloudTree& tree, float radius,
+            float max_correspondence, long& queries) {
+    const int previous = nearest_[i];
     const bool seen = previous != kNeverQueried;
     const PointCloudTree::TwoNearest nn =
         tree.nearest_two(p, radius, seen ? previous : -1, seen ? second_[i] : -1);
-    queried_at_[i] = p;
+    qx_[i] = p.x();
+    qy_[i] = p.y();
+    qz_[i] = p.z();
     nearest_[i] = nn.index[0];
     second_[i] = nn.index[1];
     const float slack = nn.index[0] >= 0
@@ -47,9 +63,27 @@ class CorrespondenceCache {
     return nn.index[0];
   }
 
+#if defined(__AVX512F__)
+  // nearest()'s test for the 16 points with indices `index` (the lanes in `lanes`), now at
+  // (x, y, z): the lanes whose cached answer still holds; those answers in `answer`.
+  __mmask16 still_valid(__m512i index, __mmask16 lanes, __m512 x, __m512 y, __m512 z,
+                        __m512i& answer) const {
+    const __m512 dx = _mm512_sub_ps(x, _mm512_mask_i32gather_ps(x, lanes, index, qx_.data(), 4));
+    const __m512 dy = _mm512_sub_ps(y, _mm512_mask_i32gather_ps(y, lanes, index, qy_.data(), 4));
+    const __m512 dz = _mm512_sub_ps(z, _mm512_mask_i32gather_ps(z, lanes, index, qz_.data(), 4));
+    const __m512 d_sq = _mm512_fmadd_ps(dx, dx, _mm512_fmadd_ps(dy, dy, _mm512_mul_ps(dz, dz)));
+    const __m512 slack_sq =
+        _mm512_mask_i32gather_ps(_mm512_setzero_ps(), lanes, index, slack_sq_.data(), 4);
+    answer = _mm512_mask_i32gather_epi32(_mm512_set1_epi32(kNeverQueried), lanes, index,
+                                         nearest_.data(), 4);
+    return _mm512_mask_cmp_ps_mask(lanes, d_sq, slack_sq, _CMP_LT_OQ) &
+           _mm512_cmpneq_epi32_mask(answer, _mm512_set1_epi32(kNeverQueried));
+  }
+#endif
+
  private:
   static constexpr int kNeverQueried = -2;
-  std::vector<Eigen::Vector3f> queried_at_;  // where each point was at its last query
+  std::vector<float> qx_, qy_, qz_;  // where each point was at its last query
   // The squared distance the point may move before its nearest neighbour could change:
   // ((d2 - d1) / 2)^2 from the nearest and second-nearest distances d1, d2 at the last query, or
   // (radius - max_correspondence)^2 when nothing was within the radius [m^2].

@@ -159,13 +159,74 @@ class Linearisation {
 
   Linearisation(const Linearisation&) = default;
 
-  // Finding the correspondences branches per point (the cache, the odd query); linearising them
-  // needs no branch, so it runs over whole chunks, vectorised where AVX-512 is available.
+  // The correspondences of a range, gathered in chunks and linearised chunk by chunk (that needs
+  // no branch, so it is vectorised where AVX-512 is available). Finding them branches only for
+  // the points whose cached neighbour no longer holds: with AVX-512, 16 points are moved and
+  // tested against the cache at a time, and only those are handled one by one.
   template <RobustKernel kKernel>
   void run(const tbb::blocked_range<std::size_t>& range) {
     Chunk chunk;
     int m = 0;
-    for (std::size_t k = range.begin(); k != range.end(); ++k) {
+    std::size_t k = range.begin();
+#if defined(__AVX512F__)
+    const float* src = src_.data()->data();
+    const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+    const __m512i stride = _mm512_set1_epi32(int(stride_)), three = _mm512_set1_epi32(3);
+    struct Row {  // one row of [R t], broadcast
+      __m512 r0, r1, r2, t;
+      __m512 apply(__m512 x, __m512 y, __m512 z) const {
+        return _mm512_fmadd_ps(r0, x, _mm512_fmadd_ps(r1, y, _mm512_fmadd_ps(r2, z, t)));
+      }
+    };
+    Row rows[3];
+    for (int a = 0; a < 3; ++a) {
+      rows[a] = {_mm512_set1_ps(R_(a, 0)), _mm512_set1_ps(R_(a, 1)), _mm512_set1_ps(R_(a, 2)),
+                 _mm512_set1_ps(t_[a])};
+    }
+    for (; k < range.end(); k += 16) {
+      const std::size_t count = std::min<std::size_t>(16, range.end() - k);
+      const __mmask16 lanes = __mmask16((1u << count) - 1);
+      const __m512i index = _mm512_mullo_epi32(_mm512_add_epi32(_mm512_set1_epi32(int(k)), iota),
+                                               stride);
+      const __m512i index3 = _mm512_mullo_epi32(index, three);
+      const __m512 zero = _mm512_setzero_ps();
+      const __m512 sx = _mm512_mask_i32gather_ps(zero, lanes, index3, src, 4);
+      const __m512 sy = _mm512_mask_i32gather_ps(zero, lanes, index3, src + 1, 4);
+      const __m512 sz = _mm512_mask_i32gather_ps(zero, lanes, index3, src + 2, 4);
+      const __m512 x = rows[0].apply(sx, sy, sz), y = rows[1].apply(sx, sy, sz),
+                   z = rows[2].apply(sx, sy, sz);
+      __m512i answer;
+      const __mmask16 valid = cache_.still_valid(index, lanes, x, y, z, answer);
+      const __mmask16 found = valid & _mm512_cmpge_epi32_mask(answer, _mm512_setzero_si512());
+      _mm512_mask_compressstoreu_ps(chunk.x + m, found, x);
+      _mm512_mask_compressstoreu_ps(chunk.y + m, found, y);
+      _mm512_mask_compressstoreu_ps(chunk.z + m, found, z);
+      _mm512_mask_compressstoreu_epi32(chunk.j + m, found, answer);
+      m += __builtin_popcount(unsigned(found));
+      if (const unsigned stale = lanes & ~valid) {
+        alignas(64) float xs[16], ys[16], zs[16];
+        _mm512_store_ps(xs, x);
+        _mm512_store_ps(ys, y);
+        _mm512_store_ps(zs, z);
+        for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
+          const int l = __builtin_ctz(bits);
+          const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
+          const int j =
+              cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
+          if (j < 0) continue;
+          chunk.x[m] = p.x();
+          chunk.y[m] = p.y();
+          chunk.z[m] = p.z();
+          chunk.j[m++] = j;
+        }
+      }
+      if (m > kChunk - 16) {  // the next 16 might not fit
+        linearise_chunk<kKernel>(chunk, m);
+        m = 0;
+      }
+    }
+#endif
+    for (; k < range.end(); ++k) {
       const std::size_t i = k * stride_;
       const Eigen::Vector3f p = R_ * src_[i] + t_;
       const int j = cache_.nearest(i, p, target_, radius_, max_corr_, eq.queries);
