@@ -28,6 +28,13 @@ Dataset render(nlohmann::json scene, const fs::path& dir,
   return Dataset::open(dir.string());
 }
 
+// The first `frames` frames of the benchmark scene `name` (e.g. "cube_01"), rendered into dir.
+Dataset render_benchmark(const std::string& name, int frames, const fs::path& dir) {
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/" + name + ".json");
+  scene["frames"] = frames;
+  return render(scene, dir, kRepo + "/scenes/benchmark");
+}
+
 TrackSummary track(const Dataset& d, Method method) {
   TrackOptions o;
   o.graph.method = method;
@@ -51,9 +58,7 @@ TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
 // rotations unconstrained in (nearly) every frame, the cube's corner none.
 TEST(Tracking, UnobservableDirectionsAreReported) {
   TempDir tmp;
-  nlohmann::json sphere = parse_json_file(kRepo + "/scenes/benchmark/sphere_00.json");
-  sphere["frames"] = 40;
-  const Dataset ds = render(sphere, tmp.path / "sphere", kRepo + "/scenes/benchmark");
+  const Dataset ds = render_benchmark("sphere_00", 40, tmp.path / "sphere");
   const TrackRun s = track_dataset(ds, TrackOptions());
   int three = 0;
   for (const auto& f : s.frames) three += f.unconstrained_directions == 3;
@@ -73,9 +78,7 @@ TEST(Tracking, UnobservableDirectionsAreReported) {
 // the noise of that rotation.)
 TEST(Tracking, EdgeDoesNotSlideAlongItself) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_01.json");
-  scene["frames"] = 60;
-  const Dataset d = render(scene, tmp.path / "edge", kRepo + "/scenes/benchmark");
+  const Dataset d = render_benchmark("cube_01", 60, tmp.path / "edge");
   const TrackRun run = track_dataset(d, TrackOptions());
   ASSERT_EQ(run.summary.contact_frames, 60);
   EXPECT_GE(run.summary.degenerate_frames, 55);
