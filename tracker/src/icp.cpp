@@ -183,8 +183,10 @@ class Linearisation {
       rows[a] = {_mm512_set1_ps(R_(a, 0)), _mm512_set1_ps(R_(a, 1)), _mm512_set1_ps(R_(a, 2)),
                  _mm512_set1_ps(t_[a])};
     }
-    for (; k < range.end(); k += 16) {
-      const std::size_t count = std::min<std::size_t>(16, range.end() - k);
+    // (32-bit lane indices: clouds of half a billion points and more take the scalar loop.)
+    const std::size_t vector_end = src_.size() < (std::size_t(1) << 29) ? range.end() : k;
+    for (; k < vector_end; k += 16) {
+      const std::size_t count = std::min<std::size_t>(16, vector_end - k);
       const __mmask16 lanes = __mmask16((1u << count) - 1);
       const __m512i index = _mm512_mullo_epi32(_mm512_add_epi32(_mm512_set1_epi32(int(k)), iota),
                                                stride);
