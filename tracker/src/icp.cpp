@@ -155,6 +155,12 @@ class Linearisation {
   struct Chunk {
     float x[kChunk], y[kChunk], z[kChunk];
     int j[kChunk];
+    void set(int m, const Eigen::Vector3f& p, int nearest) {
+      x[m] = p.x();
+      y[m] = p.y();
+      z[m] = p.z();
+      j[m] = nearest;
+    }
   };
 
   Linearisation(const Linearisation&) = default;
@@ -215,11 +221,7 @@ class Linearisation {
           const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
           const int j =
               cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
-          if (j < 0) continue;
-          chunk.x[m] = p.x();
-          chunk.y[m] = p.y();
-          chunk.z[m] = p.z();
-          chunk.j[m++] = j;
+          if (j >= 0) chunk.set(m++, p, j);
         }
       }
       if (m > kChunk - 16) {  // the next 16 might not fit
@@ -233,30 +235,13 @@ class Linearisation {
       const Eigen::Vector3f p = R_ * src_[i] + t_;
       const int j = cache_.nearest(i, p, target_, radius_, max_corr_, eq.queries);
       if (j < 0) continue;
-      chunk.x[m] = p.x();
-      chunk.y[m] = p.y();
-      chunk.z[m] = p.z();
-      chunk.j[m] = j;
+      chunk.set(m, p, j);
       if (++m == kChunk) {
         linearise_chunk<kKernel>(chunk, m);
         m = 0;
       }
     }
     linearise_chunk<kKernel>(chunk, m);
-  }
-
-  // robust_weight's values without branches (the scalar path; the AVX-512 path computes the
-  // same in vector lanes).
-  template <RobustKernel kKernel>
-  static float weight(float r, float scale) {
-    if constexpr (kKernel == RobustKernel::kHuber) {
-      return scale / std::max(std::abs(r), scale);
-    } else if constexpr (kKernel == RobustKernel::kTukey) {
-      const float s = std::max(1.0f - (r / scale) * (r / scale), 0.0f);
-      return s * s;
-    } else {
-      return 1.0f;
-    }
   }
 
   // Eq. 5/6 for the chunk's m correspondences: a pair farther apart than the correspondence
@@ -267,12 +252,12 @@ class Linearisation {
     const float* tp = tgt_.points.data()->data();
     const float* tn = tgt_.normals.data()->data();
     const float max_corr_sq = max_corr_ * max_corr_;
-    const float scale = float(options_.kernel_scale_m);
     int kept = 0;
 #if defined(__AVX512F__)
     // Sixteen correspondences at a time (GCC does not vectorise the gathers by itself).
     const __m512i three = _mm512_set1_epi32(3);
-    const __m512 scale_v = _mm512_set1_ps(scale), max_corr_sq_v = _mm512_set1_ps(max_corr_sq);
+    const __m512 scale_v = _mm512_set1_ps(float(options_.kernel_scale_m));
+    const __m512 max_corr_sq_v = _mm512_set1_ps(max_corr_sq);
     const __m512 inv_L_v = _mm512_set1_ps(inv_L_);
     const __m512 cx = _mm512_set1_ps(c_.x()), cy = _mm512_set1_ps(c_.y()),
                  cz = _mm512_set1_ps(c_.z());
@@ -296,7 +281,7 @@ class Linearisation {
       const __m512 nx = gather(tn), ny = gather(tn + 1), nz = gather(tn + 2);
       const __m512 re =
           _mm512_fmadd_ps(nx, dx, _mm512_fmadd_ps(ny, dy, _mm512_mul_ps(nz, dz)));
-      __m512 we;
+      __m512 we;  // robust_weight's values, without branches
       if constexpr (kKernel == RobustKernel::kHuber) {
         we = _mm512_div_ps(scale_v, _mm512_max_ps(_mm512_abs_ps(re), scale_v));
       } else if constexpr (kKernel == RobustKernel::kTukey) {
@@ -327,7 +312,7 @@ class Linearisation {
       const float dx = c.x[e] - tp[j3], dy = c.y[e] - tp[j3 + 1], dz = c.z[e] - tp[j3 + 2];
       const float nx = tn[j3], ny = tn[j3 + 1], nz = tn[j3 + 2];
       const float re = nx * dx + ny * dy + nz * dz;  // point-to-plane residual [m]
-      const float we = weight<kKernel>(re, scale);
+      const float we = float(robust_weight(kKernel, options_.kernel_scale_m, re));
       const bool keep = (dx * dx + dy * dy + dz * dz <= max_corr_sq) & (we > 0.0f);
       kept += keep;
       w[e] = keep ? we : 0.0f;
