@@ -17,6 +17,9 @@ class GeneratorImpl : public torch::nn::Module {
  public:
   explicit GeneratorImpl(const NetworkSpec& spec);
   torch::Tensor forward(torch::Tensor x);
+  // forward() pads each side up to a multiple of this (replicating the edge; the extra split
+  // evenly, the odd pixel after) and crops the output back.
+  int multiple() const { return multiple_; }
 
  private:
   torch::Tensor unet(const torch::Tensor& x);

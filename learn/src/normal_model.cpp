@@ -183,7 +183,6 @@ struct NormalEstimator::Impl {
   std::string path;
   NormalModelInfo info;
   learn::Generator generator{nullptr};
-  torch::Tensor mean, std;
 };
 
 NormalEstimator::NormalEstimator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -195,12 +194,6 @@ NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->generator = learn::load_model(path, impl->info);
-  impl->mean =
-      torch::tensor(std::vector<float>(impl->info.input_mean.begin(), impl->info.input_mean.end()))
-          .view({1, 3, 1, 1});
-  impl->std =
-      torch::tensor(std::vector<float>(impl->info.input_std.begin(), impl->info.input_std.end()))
-          .view({1, 3, 1, 1});
   if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
   torch::set_num_threads(threads);
   // Trained weights leave some activations denormal; flushing them to zero keeps the CPU's
@@ -224,17 +217,48 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
   };
   check(color, "colour");
   check(background, "background");
+  // The input encoding, normalisation and forward()'s edge padding in one pass: the network then
+  // runs on an image whose sides are already multiples of what it needs.
+  const int w = info.width, h = info.height, m = impl_->generator->multiple();
+  const int pw = (m - w % m) % m, ph = (m - h % m) % m;
+  const int wp = w + pw, hp = h + ph, left = pw / 2, top = ph / 2;
+  torch::Tensor x = torch::empty({1, 3, hp, wp}, torch::kFloat32);
+  {
+    float* in = x.data_ptr<float>();
+    const std::size_t plane = std::size_t(wp) * hp;
+    float scale[3], offset[3];
+    for (int c = 0; c < 3; ++c) {
+      scale[c] = 1.0f / (255.0f * info.input_std[c]);
+      offset[c] = -info.input_mean[c] / info.input_std[c];
+    }
+    for (int yp = 0; yp < hp; ++yp) {
+      const int y = std::clamp(yp - top, 0, h - 1);
+      for (int xp = 0; xp < wp; ++xp) {
+        const std::size_t p = (std::size_t(y) * w + std::clamp(xp - left, 0, w - 1)) * 3;
+        for (int c = 0; c < 3; ++c) {
+          const float d = float(color.data[p + c]) - float(background.data[p + c]);
+          in[c * plane + std::size_t(yp) * wp + xp] = d * scale[c] + offset[c];
+        }
+      }
+    }
+  }
   torch::NoGradGuard no_grad;
-  const torch::Tensor x =
-      (learn::difference_tensor(color, background).unsqueeze(0) - impl_->mean) / impl_->std;
-  torch::Tensor n = impl_->generator->forward(x)[0];
+  const torch::Tensor n = impl_->generator->forward(x)[0].contiguous();
   // Unit length, facing the camera's side of the gel (z > 0) where the network is unsure.
-  n = n / n.norm(2, 0, true).clamp_min(1e-6);
-  ImageF normals = learn::tensor_to_image(n);
-  for (std::size_t p = 0; p < normals.data.size(); p += 3) {
-    if (!(normals.data[p + 2] > 0.05f)) {
-      normals.data[p] = normals.data[p + 1] = 0.0f;
-      normals.data[p + 2] = 1.0f;
+  ImageF normals(w, h, 3);
+  const float* out = n.data_ptr<float>();
+  const std::size_t plane = std::size_t(wp) * hp;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const std::size_t q = std::size_t(y + top) * wp + x + left;
+      const float nx = out[q], ny = out[plane + q], nz = out[2 * plane + q];
+      const float inv = 1.0f / std::max(std::sqrt(nx * nx + ny * ny + nz * nz), 1e-6f);
+      float* o = &normals.data[(std::size_t(y) * w + x) * 3];
+      if (nz * inv > 0.05f) {
+        o[0] = nx * inv, o[1] = ny * inv, o[2] = nz * inv;
+      } else {
+        o[0] = 0.0f, o[1] = 0.0f, o[2] = 1.0f;
+      }
     }
   }
   return normals;
