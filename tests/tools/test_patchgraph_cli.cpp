@@ -68,6 +68,21 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   r = patchgraph("train-normals --data " + data() + " --arch vgg --out " + out("m.pt"));
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("--arch"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " --registration-sigma 0 --out " + out("x"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--registration-sigma"), std::string::npos) << r.out;
+}
+
+// A registration sigma a thousand times the paper's leaves the registrations almost no weight
+// against the motion prior: the same run then tracks differently (the option reaches the graph).
+TEST_F(PatchgraphCli, RegistrationSigmaWeighsTheRegistrations) {
+  ASSERT_EQ(patchgraph("track " + data() + " -q --out " + out("sigma_default")).code, 0);
+  const CliRun r =
+      patchgraph("track " + data() + " -q --registration-sigma 1 --out " + out("sigma_1"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto a = parse_json_file(out("sigma_default") + "/summary.json");
+  const auto b = parse_json_file(out("sigma_1") + "/summary.json");
+  EXPECT_GT(b["rotation_rmse_rad"].get<double>(), 1.5 * a["rotation_rmse_rad"].get<double>());
 }
 
 const std::string kDefaultModel = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";

@@ -28,6 +28,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(CLI::PositiveNumber);
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
+  app.add_option("--registration-sigma", a.registration_sigma,
+                 "Sigma of the image-to-image and image-to-patch factors [m, rad]")
+      ->check(CLI::PositiveNumber);
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
@@ -65,6 +68,9 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   o.graph.window = a.window;
   o.graph.patch.keyframe_interval = a.keyframe_interval;
   o.graph.registration_information = !a.no_registration_information;
+  if (a.registration_sigma > 0) {
+    o.graph.sigma_image_to_image = o.graph.sigma_image_to_patch = a.registration_sigma;
+  }
   if (!a.config.empty()) {
     o.front_end = load_tracker_config(a.config);
   } else if (o.normals) {
