@@ -29,7 +29,16 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
   app.add_option("--registration-sigma", a.registration_sigma,
-                 "Sigma of the image-to-image and image-to-patch factors [m, rad]")
+                 "Sigma of the image-to-image and image-to-patch factors [m, rad] (default 1e-3)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--velocity-sigma", a.velocity_sigma,
+                 "Sigma of the constant-velocity factor [m, rad] (default 1e-2)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--ee-sigma", a.end_effector_sigma,
+                 "Sigma of the end-effector prior [m, rad] (default 1e-5)")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--vision-sigma", a.vision_sigma,
+                 "Sigma of the vision prior on each episode's first pose [m, rad] (default 1e-4)")
       ->check(CLI::PositiveNumber);
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(CLI::NonNegativeNumber);
@@ -71,6 +80,9 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (a.registration_sigma > 0) {
     o.graph.sigma_image_to_image = o.graph.sigma_image_to_patch = a.registration_sigma;
   }
+  if (a.velocity_sigma > 0) o.graph.sigma_velocity = a.velocity_sigma;
+  if (a.end_effector_sigma > 0) o.graph.sigma_end_effector = a.end_effector_sigma;
+  if (a.vision_sigma > 0) o.graph.sigma_vision = a.vision_sigma;
   if (!a.config.empty()) {
     o.front_end = load_tracker_config(a.config);
   } else if (o.normals) {

@@ -16,7 +16,8 @@ struct TrackArgs {
   int window = 5;
   int keyframe_interval = 10;
   bool no_registration_information = false;
-  double registration_sigma = 0;  // 0: GraphOptions' own (the paper's 1e-3)
+  // Factor sigmas; 0 keeps GraphOptions' own (the paper's values).
+  double registration_sigma = 0, velocity_sigma = 0, end_effector_sigma = 0, vision_sigma = 0;
   double end_effector_noise = 1e-5, vision_noise = 1e-4;
   std::uint64_t seed = 0;
   bool quiet = false;
