@@ -45,6 +45,11 @@ TORCH_MODULE(PatchDiscriminator);
 // The input encoding (see normal_model.h): the raw difference (color - background) / 255,
 // 3 x H x W, before normalisation by the stored mean and std.
 torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background);
+// The undeformed gel's normals of a sensor (W x H x 3), and the rotation of one normal n between
+// S and the gel frame at a pixel whose gel normal is g (the minimal rotation from +z to g):
+// to_gel maps S -> gel frame, else gel frame -> S. In place.
+ImageF gel_normals(const SensorModel& sensor);
+void rotate_gel_frame(const float* g, float* n, bool to_gel);
 // Image (H x W x C, float) <-> tensor (C x H x W).
 torch::Tensor image_to_tensor(const ImageF& image);
 ImageF tensor_to_image(const torch::Tensor& chw);

@@ -8,6 +8,7 @@
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/gel_rays.h"
 #include "pg/core/statistics.h"
 
 namespace pg {
@@ -32,6 +33,10 @@ nlohmann::json info_to_json(const NormalModelInfo& info) {
   j["height"] = info.height;
   j["epochs"] = info.epochs;
   j["training_data"] = info.training_data;
+  if (info.gel_relative) {
+    j["labels"] = "gel";
+    j["sensor"] = sensor_to_json(info.sensor);
+  }
   j["history"] = info.history_json.empty() ? nlohmann::json::array()
                                            : nlohmann::json::parse(info.history_json);
   return j;
@@ -50,10 +55,33 @@ NormalModelInfo info_from_json(const nlohmann::json& j) {
   info.epochs = j.at("epochs").get<int>();
   info.training_data = j.at("training_data").get<std::vector<std::string>>();
   info.history_json = j.at("history").dump();
+  const std::string labels = j.value("labels", std::string("sensor"));
+  if (labels != "sensor" && labels != "gel") {
+    throw nlohmann::json::other_error::create(501, "unknown labels '" + labels + "'", &j);
+  }
+  info.gel_relative = labels == "gel";
+  if (info.gel_relative) info.sensor = sensor_from_json(j.at("sensor"), "model sensor");
   return info;
 }
 
 }  // namespace
+
+ImageF gel_normals(const SensorModel& sensor) {
+  return undeformed_gel_normals(make_gel_rays(sensor.camera, sensor.gel));
+}
+
+void rotate_gel_frame(const float* g, float* n, bool to_gel) {
+  // R: the minimal rotation taking +z to g, I + [v]x + [v]x^2 / (1 + c) with v = z x g, c = g.z.
+  const float vx = -g[1], vy = g[0], s = vx * vx + vy * vy, k = 1.0f / (1.0f + g[2]);
+  const float r[3][3] = {{1.0f + k * (vx * vx - s), k * vx * vy, vy},
+                         {k * vx * vy, 1.0f + k * (vy * vy - s), -vx},
+                         {-vy, vx, g[2]}};
+  const float a = n[0], b = n[1], c = n[2];
+  for (int i = 0; i < 3; ++i) {
+    n[i] =
+        to_gel ? r[0][i] * a + r[1][i] * b + r[2][i] * c : r[i][0] * a + r[i][1] * b + r[i][2] * c;
+  }
+}
 
 torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background) {
   const int w = color.width, h = color.height;
@@ -183,6 +211,7 @@ struct NormalEstimator::Impl {
   std::string path;
   NormalModelInfo info;
   learn::Generator generator{nullptr};
+  ImageF gel;  // the undeformed gel's normals, for a gel-relative model
 };
 
 NormalEstimator::NormalEstimator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -194,6 +223,12 @@ NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->generator = learn::load_model(path, impl->info);
+  if (impl->info.gel_relative) {
+    impl->gel = learn::gel_normals(impl->info.sensor);
+    if (!impl->gel.same_shape(impl->info.width, impl->info.height, 3)) {
+      throw InputError(path + ": its sensor's image size does not match the model's");
+    }
+  }
   if (threads <= 0) threads = int(std::max(1u, std::thread::hardware_concurrency()));
   torch::set_num_threads(threads);
   // Trained weights leave some activations denormal; flushing them to zero keeps the CPU's
@@ -258,6 +293,9 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
         o[0] = nx * inv, o[1] = ny * inv, o[2] = nz * inv;
       } else {
         o[0] = 0.0f, o[1] = 0.0f, o[2] = 1.0f;
+      }
+      if (!impl_->gel.empty()) {
+        learn::rotate_gel_frame(&impl_->gel.data[(std::size_t(y) * w + x) * 3], o, false);
       }
     }
   }

@@ -2,6 +2,7 @@
 // L2 for the per-pixel MLP, as in the paper's Table I.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -25,12 +26,21 @@ constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
 struct FrameSet {
   std::vector<torch::Tensor> input, target, mask;
   int width = 0, height = 0;
+  bool gel_relative = false;  // targets in each pixel's gel frame
+  std::string sensor_json;    // the datasets' sensor model (gel_relative: must be one)
   std::size_t size() const { return input.size(); }
 };
 
-void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background, int i) {
+void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background, const ImageF& gel,
+               int i) {
   set.input.push_back(learn::difference_tensor(d.color(i), background));
-  set.target.push_back(learn::image_to_tensor(d.normal(i)));
+  ImageF normals = d.normal(i);
+  if (!gel.empty()) {
+    for (std::size_t p = 0; p < gel.data.size(); p += 3) {
+      learn::rotate_gel_frame(&gel.data[p], &normals.data[p], true);
+    }
+  }
+  set.target.push_back(learn::image_to_tensor(normals));
   set.mask.push_back(learn::mask_tensor(d.mask(i)));
 }
 
@@ -51,9 +61,27 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
                        std::to_string(set.width) + "x" + std::to_string(set.height));
     }
     const ImageU8 background = d.background();
+    ImageF gel;
+    if (set.gel_relative) {
+      // One undeformed gel (camera and gel shape) for all; elasticity, lights and noise may vary.
+      gel = learn::gel_normals(d.info().sensor);
+      if (set.sensor_json.empty()) {
+        set.sensor_json = sensor_to_json(d.info().sensor).dump();
+      } else {
+        const ImageF first =
+            learn::gel_normals(sensor_from_json(nlohmann::json::parse(set.sensor_json), "sensor"));
+        for (std::size_t k = 0; k < gel.data.size(); ++k) {
+          if (std::abs(gel.data[k] - first.data[k]) > 1e-6f) {
+            throw InputError(dir +
+                             ": another camera or gel shape than the other datasets' "
+                             "(gel-relative labels need one)");
+          }
+        }
+      }
+    }
     for (int i = 0; i < d.frames(); ++i) {
       const bool hold = held_out && hold_out_every > 0 && i % hold_out_every == hold_out_every - 1;
-      add_frame(hold ? *held_out : set, d, background, i);
+      add_frame(hold ? *held_out : set, d, background, gel, i);
     }
   }
 }
@@ -145,10 +173,12 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   torch::manual_seed(o.seed);
 
   FrameSet train, val;
+  train.gel_relative = val.gel_relative = o.gel_relative;
   const int hold_out_every = o.val_data.empty() && o.val_fraction > 0
                                  ? std::max(2, int(std::lround(1.0 / o.val_fraction)))
                                  : 0;
   load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
+  val.sensor_json = train.sensor_json;
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
@@ -162,6 +192,8 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   info.width = train.width;
   info.height = train.height;
   info.training_data = o.train_data;
+  info.gel_relative = o.gel_relative;
+  if (o.gel_relative) info.sensor = sensor_from_json(nlohmann::json::parse(train.sensor_json), "");
   {
     const torch::Tensor all = torch::stack(train.input);
     const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);
@@ -197,9 +229,9 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
       const nlohmann::json j = nlohmann::json::parse(text.toStringRef());
       if (j.at("arch") != o.spec.arch || j.at("depth") != o.spec.depth ||
           j.at("base_width") != o.spec.base_width || j.at("mlp_hidden") != o.spec.mlp_hidden ||
-          j.at("gan") != gan) {
+          j.at("gan") != gan || j.value("gel_relative", false) != o.gel_relative) {
         throw InputError(checkpoint + ": was trained with another network or loss (" + j.dump() +
-                         "); pass the same --arch, --depth, --width, --gan-weight");
+                         "); pass the same --arch, --depth, --width, --gan-weight, --labels");
       }
       history = j.at("history");
       first_epoch = int(epoch.toInt());
@@ -235,6 +267,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
                         {"base_width", o.spec.base_width},
                         {"mlp_hidden", o.spec.mlp_hidden},
                         {"gan", gan},
+                        {"gel_relative", o.gel_relative},
                         {"contact_weight", o.contact_weight},
                         {"history", history}};
     a.write("info", c10::IValue(j.dump()));

@@ -160,6 +160,41 @@ TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
   }
 }
 
+// Gel-relative labels: the network learns normals in each pixel's undeformed-gel frame and the
+// estimator turns them back into S. The metrics do not depend on the frame (a rotation keeps
+// angles and distances), so the loaded model must reproduce the training's in-memory validation
+// metrics, which compare the gel-frame outputs with gel-frame labels: a wrong rotation either way
+// breaks that.
+TEST_F(NormalsTraining, GelRelativeLabelsRoundTripToTheSensorFrame) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("gel.pt"));
+  o.gel_relative = true;
+  std::vector<EpochReport> epochs;
+  train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
+  ASSERT_EQ(epochs.size(), 6u);
+  const NormalEstimator model = NormalEstimator::load(o.out);
+  EXPECT_TRUE(model.info().gel_relative);
+  const Dataset d = Dataset::open(val_);
+  EXPECT_DOUBLE_EQ(model.info().sensor.gel.sag_m, d.info().sensor.gel.sag_m);
+  const NormalMetrics m = evaluate_normals(model, {val_});
+  const NormalMetrics& v = epochs.back().val;
+  EXPECT_NEAR(m.mse_contact, v.mse_contact, 1e-5 * v.mse_contact + 1e-9);
+  EXPECT_NEAR(m.mse_image, v.mse_image, 1e-5 * v.mse_image + 1e-9);
+  EXPECT_NEAR(m.angle_contact_deg, v.angle_contact_deg, 1e-3);
+  // Datasets of differently shaped gels cannot share gel-relative labels.
+  RenderOverrides flat;
+  flat.width = 40;
+  flat.height = 30;
+  flat.outputs = {"color", "normal", "mask"};
+  Scene scene = load_scene(kSource + "/scenes/normals/cube_val.json");
+  scene.sensors.at(0).model.gel.sag_m = 0.002;
+  const std::string other = tmp_->str("other_gel");
+  render_scene_to_dataset(SceneRenderer(scene, flat), other);
+  TrainOptions bad = o;
+  bad.val_data = {other};
+  const std::string msg = input_error_message([&] { train_normals(bad); });
+  EXPECT_NE(msg.find("other_gel: another camera or gel shape"), std::string::npos) << msg;
+}
+
 TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   TrainOptions o = tiny_options(train_, val_, tmp_->str("m.pt"));
   o.epochs = 1;

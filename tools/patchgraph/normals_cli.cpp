@@ -40,6 +40,10 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
   cmd->add_option("--contact-weight", o.contact_weight,
                   "Contact pixels' loss counts 1 + this times a background pixel's (default 0)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--labels", a.labels,
+                  "Frame of the network's normals: sensor (default) or gel (relative to each "
+                  "pixel's undeformed gel; the datasets must share one sensor)")
+      ->check(CLI::IsMember({"sensor", "gel"}));
   cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
@@ -67,7 +71,8 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
 }
 
 int run_train_normals(const TrainNormalsArgs& a) {
-  const TrainOptions& o = a.options;
+  TrainOptions o = a.options;
+  o.gel_relative = a.labels == "gel";
   std::unique_ptr<Progress> progress;
   int epoch = 0;
   std::printf("training %s (depth %d, width %d) on %zu dataset(s) for %d epochs -> %s\n",

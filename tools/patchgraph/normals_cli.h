@@ -10,6 +10,7 @@ namespace pg {
 
 struct TrainNormalsArgs {
   TrainOptions options;
+  std::string labels = "sensor";  // --labels: sensor or gel (TrainOptions::gel_relative)
   bool quiet = false;
 };
 

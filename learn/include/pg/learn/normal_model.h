@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "pg/core/image.h"
+#include "pg/core/sensor.h"
 
 namespace pg {
 
@@ -35,6 +36,11 @@ struct NormalModelInfo {
   int epochs = 0;
   std::vector<std::string> training_data;  // dataset folders
   std::string history_json;                // per-epoch losses and validation metrics (JSON array)
+  // The network's output frame: false = the sensor frame S; true = each pixel's undeformed gel
+  // (+z along the gel's normal there, the minimal rotation from S), composed with the gel of
+  // `sensor` at inference.
+  bool gel_relative = false;
+  SensorModel sensor;  // the sensor the model was trained on (used when gel_relative)
 };
 
 // A trained model for inference. Not thread-safe: use one per thread.
@@ -89,6 +95,9 @@ struct TrainOptions {
   // pixel's (0: pix2pix's plain loss). Contact pixels are a few percent of the image, and they
   // are the ones the tracker integrates.
   double contact_weight = 0.0;
+  // Train on normals relative to the undeformed gel (NormalModelInfo::gel_relative); the
+  // datasets must share one sensor model.
+  bool gel_relative = false;
   int shift_px = 8;          // augmentation: random image shifts up to this [px]
   double gain_jitter = 0.3;  // augmentation: the difference image scaled by 1 +- this
   std::uint64_t seed = 0;
