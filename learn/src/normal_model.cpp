@@ -240,6 +240,27 @@ NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
 const NormalModelInfo& NormalEstimator::info() const { return impl_->info; }
 const std::string& NormalEstimator::path() const { return impl_->path; }
 
+void NormalEstimator::check_sensor(const SensorModel& sensor, const std::string& where) const {
+  const NormalModelInfo& m = impl_->info;
+  const int w = sensor.camera.width, h = sensor.camera.height;
+  if (w != m.width || h != m.height) {
+    throw InputError(impl_->path + ": the model takes " + std::to_string(m.width) + "x" +
+                     std::to_string(m.height) + " images; " + where + " has " + std::to_string(w) +
+                     "x" + std::to_string(h) +
+                     " (render at the model's size or train a model at the dataset's)");
+  }
+  if (!m.gel_relative) return;
+  const ImageF gel = learn::gel_normals(sensor);
+  for (std::size_t k = 0; k < gel.data.size(); ++k) {
+    if (std::abs(gel.data[k] - impl_->gel.data[k]) > 1e-6f) {
+      throw InputError(impl_->path +
+                       ": a gel-relative model of another camera or gel shape "
+                       "than " +
+                       where + "'s sensor");
+    }
+  }
+}
+
 ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background) const {
   const NormalModelInfo& info = impl_->info;
   auto check = [&](const ImageU8& image, const char* what) {
@@ -315,6 +336,7 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
                          "' output, needed to evaluate normals");
       }
     }
+    model.check_sensor(sets.back().info().sensor, dir);
     total += sets.back().frames();
   }
   learn::MetricSums sums;

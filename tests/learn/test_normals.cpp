@@ -191,8 +191,15 @@ TEST_F(NormalsTraining, GelRelativeLabelsRoundTripToTheSensorFrame) {
   render_scene_to_dataset(SceneRenderer(scene, flat), other);
   TrainOptions bad = o;
   bad.val_data = {other};
-  const std::string msg = input_error_message([&] { train_normals(bad); });
+  std::string msg = input_error_message([&] { train_normals(bad); });
   EXPECT_NE(msg.find("other_gel: another camera or gel shape"), std::string::npos) << msg;
+  // Nor does the model take images of another gel, while a sensor-frame model only checks sizes.
+  EXPECT_NO_THROW(model.check_sensor(d.info().sensor, "val"));
+  msg = input_error_message(
+      [&] { model.check_sensor(Dataset::open(other).info().sensor, "other_gel"); });
+  EXPECT_NE(msg.find("gel.pt: a gel-relative model of another camera or gel shape than other_gel"),
+            std::string::npos)
+      << msg;
 }
 
 TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
@@ -207,6 +214,12 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   EXPECT_NE(msg.find("40x30x3"), std::string::npos) << msg;
   msg = input_error_message([&] { model.predict(ImageU8(40, 30, 1), bg); });
   EXPECT_NE(msg.find("40x30x1"), std::string::npos) << msg;
+  SensorModel sensor = d.info().sensor;
+  sensor.gel.sag_m *= 0.5;  // a sensor-frame model checks only the size
+  EXPECT_NO_THROW(model.check_sensor(sensor, "half_sag"));
+  sensor.camera.width = 80;
+  msg = input_error_message([&] { model.check_sensor(sensor, "wide"); });
+  EXPECT_NE(msg.find("takes 40x30 images; wide has 80x30"), std::string::npos) << msg;
 
   msg = input_error_message([&] { NormalEstimator::load(tmp_->str("missing.pt")); });
   EXPECT_NE(msg.find("missing.pt: model file not found"), std::string::npos) << msg;

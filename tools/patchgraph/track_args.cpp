@@ -58,15 +58,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
       throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                        a.normals);
     }
-    const NormalModelInfo& m = model->info();
-    if (m.width != dataset.info().width() || m.height != dataset.info().height()) {
-      throw InputError(a.normals + ": the model takes " + std::to_string(m.width) + "x" +
-                       std::to_string(m.height) + " images; " + dataset.dir() + " has " +
-                       std::to_string(dataset.info().width()) + "x" +
-                       std::to_string(dataset.info().height()) +
-                       " (render at the model's size "
-                       "or train a model at the dataset's)");
-    }
+    model->check_sensor(dataset.info().sensor, dataset.dir());
     const ImageU8 background = dataset.background();
     o.normals = [model, background](const ImageU8& color) {
       return model->predict(color, background);

@@ -58,6 +58,10 @@ class NormalEstimator {
   ImageF predict(const ImageU8& color, const ImageU8& background) const;
   const NormalModelInfo& info() const;
   const std::string& path() const;
+  // Throws InputError (naming `where` and the model) when images of `sensor` do not suit the
+  // model: another image size, or, for a gel-relative model, another undeformed gel (camera or
+  // gel shape) than the one it composes its output with.
+  void check_sensor(const SensorModel& sensor, const std::string& where) const;
 
  private:
   struct Impl;
