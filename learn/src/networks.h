@@ -50,6 +50,8 @@ torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background)
 // to_gel maps S -> gel frame, else gel frame -> S. In place.
 ImageF gel_normals(const SensorModel& sensor);
 void rotate_gel_frame(const float* g, float* n, bool to_gel);
+// Whether two gel_normals images are the same gel (to 1e-6 per component).
+bool same_gel(const ImageF& a, const ImageF& b);
 // Image (H x W x C, float) <-> tensor (C x H x W).
 torch::Tensor image_to_tensor(const ImageF& image);
 ImageF tensor_to_image(const torch::Tensor& chw);

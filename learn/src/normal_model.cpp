@@ -70,6 +70,14 @@ ImageF gel_normals(const SensorModel& sensor) {
   return undeformed_gel_normals(make_gel_rays(sensor.camera, sensor.gel));
 }
 
+bool same_gel(const ImageF& a, const ImageF& b) {
+  if (a.data.size() != b.data.size()) return false;
+  for (std::size_t k = 0; k < a.data.size(); ++k) {
+    if (std::abs(a.data[k] - b.data[k]) > 1e-6f) return false;
+  }
+  return true;
+}
+
 void rotate_gel_frame(const float* g, float* n, bool to_gel) {
   // R: the minimal rotation taking +z to g, I + [v]x + [v]x^2 / (1 + c) with v = z x g, c = g.z.
   const float vx = -g[1], vy = g[0], s = vx * vx + vy * vy, k = 1.0f / (1.0f + g[2]);
@@ -249,15 +257,9 @@ void NormalEstimator::check_sensor(const SensorModel& sensor, const std::string&
                      "x" + std::to_string(h) +
                      " (render at the model's size or train a model at the dataset's)");
   }
-  if (!m.gel_relative) return;
-  const ImageF gel = learn::gel_normals(sensor);
-  for (std::size_t k = 0; k < gel.data.size(); ++k) {
-    if (std::abs(gel.data[k] - impl_->gel.data[k]) > 1e-6f) {
-      throw InputError(impl_->path +
-                       ": a gel-relative model of another camera or gel shape "
-                       "than " +
-                       where + "'s sensor");
-    }
+  if (m.gel_relative && !learn::same_gel(learn::gel_normals(sensor), impl_->gel)) {
+    throw InputError(impl_->path + ": a gel-relative model of another camera or gel shape than " +
+                     where + "'s sensor");
   }
 }
 

@@ -2,7 +2,6 @@
 // L2 for the per-pixel MLP, as in the paper's Table I.
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -26,8 +25,11 @@ constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
 struct FrameSet {
   std::vector<torch::Tensor> input, target, mask;
   int width = 0, height = 0;
-  bool gel_relative = false;  // targets in each pixel's gel frame
-  std::string sensor_json;    // the datasets' sensor model (gel_relative: must be one)
+  // gel_relative: targets in each pixel's gel frame, that of the first dataset's sensor (the
+  // others must have the same gel).
+  bool gel_relative = false;
+  SensorModel sensor;
+  ImageF gel;  // gel_normals(sensor); empty until the first dataset
   std::size_t size() const { return input.size(); }
 };
 
@@ -65,18 +67,13 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
     if (set.gel_relative) {
       // One undeformed gel (camera and gel shape) for all; elasticity, lights and noise may vary.
       gel = learn::gel_normals(d.info().sensor);
-      if (set.sensor_json.empty()) {
-        set.sensor_json = sensor_to_json(d.info().sensor).dump();
-      } else {
-        const ImageF first =
-            learn::gel_normals(sensor_from_json(nlohmann::json::parse(set.sensor_json), "sensor"));
-        for (std::size_t k = 0; k < gel.data.size(); ++k) {
-          if (std::abs(gel.data[k] - first.data[k]) > 1e-6f) {
-            throw InputError(dir +
-                             ": another camera or gel shape than the other datasets' "
-                             "(gel-relative labels need one)");
-          }
-        }
+      if (set.gel.empty()) {
+        set.sensor = d.info().sensor;
+        set.gel = gel;
+      } else if (!learn::same_gel(gel, set.gel)) {
+        throw InputError(dir +
+                         ": another camera or gel shape than the other datasets' "
+                         "(gel-relative labels need one)");
       }
     }
     for (int i = 0; i < d.frames(); ++i) {
@@ -178,7 +175,8 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
                                  ? std::max(2, int(std::lround(1.0 / o.val_fraction)))
                                  : 0;
   load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
-  val.sensor_json = train.sensor_json;
+  val.sensor = train.sensor;
+  val.gel = train.gel;
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
@@ -193,7 +191,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   info.height = train.height;
   info.training_data = o.train_data;
   info.gel_relative = o.gel_relative;
-  if (o.gel_relative) info.sensor = sensor_from_json(nlohmann::json::parse(train.sensor_json), "");
+  info.sensor = train.sensor;
   {
     const torch::Tensor all = torch::stack(train.input);
     const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);

@@ -100,7 +100,7 @@ struct TrainOptions {
   // are the ones the tracker integrates.
   double contact_weight = 0.0;
   // Train on normals relative to the undeformed gel (NormalModelInfo::gel_relative); the
-  // datasets must share one sensor model.
+  // datasets must share one undeformed gel (camera and gel shape).
   bool gel_relative = false;
   int shift_px = 8;          // augmentation: random image shifts up to this [px]
   double gain_jitter = 0.3;  // augmentation: the difference image scaled by 1 +- this
