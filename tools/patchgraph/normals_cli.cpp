@@ -42,7 +42,7 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--labels", a.labels,
                   "Frame of the network's normals: sensor (default) or gel (relative to each "
-                  "pixel's undeformed gel; the datasets must share one sensor)")
+                  "pixel's undeformed gel; the datasets must share one gel shape and camera)")
       ->check(CLI::IsMember({"sensor", "gel"}));
   cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
       ->check(CLI::NonNegativeNumber);

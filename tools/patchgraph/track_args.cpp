@@ -1,5 +1,6 @@
 #include "track_args.h"
 
+#include <cstdio>
 #include <memory>
 
 #include "pg/core/error.h"
@@ -28,18 +29,28 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(CLI::PositiveNumber);
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
-  app.add_option("--registration-sigma", a.registration_sigma,
-                 "Sigma of the image-to-image and image-to-patch factors [m, rad] (default 1e-3)")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--velocity-sigma", a.velocity_sigma,
-                 "Sigma of the constant-velocity factor [m, rad] (default 1e-2)")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--ee-sigma", a.end_effector_sigma,
-                 "Sigma of the end-effector prior [m, rad] (default 1e-5)")
-      ->check(CLI::PositiveNumber);
-  app.add_option("--vision-sigma", a.vision_sigma,
-                 "Sigma of the vision prior on each episode's first pose [m, rad] (default 1e-4)")
-      ->check(CLI::PositiveNumber);
+  // The factor sigmas; help shows GraphOptions' defaults (the paper's values), kept when unset.
+  const GraphOptions graph;
+  const struct {
+    const char* name;
+    double* value;
+    const char* factor;
+    double fallback;
+  } sigmas[] = {
+      {"--registration-sigma", &a.registration_sigma,
+       "the image-to-image and image-to-patch factors", graph.sigma_image_to_image},
+      {"--velocity-sigma", &a.velocity_sigma, "the constant-velocity factor", graph.sigma_velocity},
+      {"--ee-sigma", &a.end_effector_sigma, "the end-effector prior", graph.sigma_end_effector},
+      {"--vision-sigma", &a.vision_sigma, "the vision prior on each episode's first pose",
+       graph.sigma_vision},
+  };
+  for (const auto& s : sigmas) {
+    char fallback[32];
+    std::snprintf(fallback, sizeof fallback, "%g", s.fallback);
+    app.add_option(s.name, *s.value,
+                   std::string("Sigma of ") + s.factor + " [m, rad] (default " + fallback + ")")
+        ->check(CLI::PositiveNumber);
+  }
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
