@@ -7,6 +7,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "correspondence_cache.h"
@@ -121,6 +122,9 @@ class Linearisation {
                 const SE3& T, const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
                 CorrespondenceCache& cache, float radius)
       : src_(source.points),
+        src_normals_(o.symmetric && source.normals.size() == source.points.size()
+                         ? source.normals.data()->data()
+                         : nullptr),
         tgt_(target.cloud()),
         target_(target),
         stride_(stride),
@@ -151,19 +155,38 @@ class Linearisation {
 
  private:
   static constexpr int kChunk = 64;  // correspondences gathered before they are linearised
-  // A chunk's moved source points and their nearest target points, by column.
+  // A chunk's moved source points, their indices and their nearest target points, by column.
   struct Chunk {
     float x[kChunk], y[kChunk], z[kChunk];
-    int j[kChunk];
-    void set(int m, const Eigen::Vector3f& p, int nearest) {
+    int i[kChunk], j[kChunk];
+    void set(int m, const Eigen::Vector3f& p, std::size_t source, int nearest) {
       x[m] = p.x();
       y[m] = p.y();
       z[m] = p.z();
+      i[m] = int(source);
       j[m] = nearest;
     }
   };
 
   Linearisation(const Linearisation&) = default;
+
+#if defined(__AVX512F__)
+  struct Row {  // one row of [R t], broadcast
+    __m512 r0, r1, r2, t;
+    __m512 apply(__m512 x, __m512 y, __m512 z) const {
+      return _mm512_fmadd_ps(r0, x, _mm512_fmadd_ps(r1, y, _mm512_fmadd_ps(r2, z, t)));
+    }
+  };
+  // [R t] (points), or [R 0] (directions: normals).
+  std::array<Row, 3> broadcast_rows(bool translation) const {
+    std::array<Row, 3> rows;
+    for (int a = 0; a < 3; ++a) {
+      rows[a] = {_mm512_set1_ps(R_(a, 0)), _mm512_set1_ps(R_(a, 1)), _mm512_set1_ps(R_(a, 2)),
+                 _mm512_set1_ps(translation ? t_[a] : 0.0f)};
+    }
+    return rows;
+  }
+#endif
 
   // The correspondences of a range, gathered in chunks and linearised chunk by chunk (that needs
   // no branch, so it is vectorised where AVX-512 is available). Finding them branches only for
@@ -178,24 +201,14 @@ class Linearisation {
     const float* src = src_.data()->data();
     const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     const __m512i stride = _mm512_set1_epi32(int(stride_)), three = _mm512_set1_epi32(3);
-    struct Row {  // one row of [R t], broadcast
-      __m512 r0, r1, r2, t;
-      __m512 apply(__m512 x, __m512 y, __m512 z) const {
-        return _mm512_fmadd_ps(r0, x, _mm512_fmadd_ps(r1, y, _mm512_fmadd_ps(r2, z, t)));
-      }
-    };
-    Row rows[3];
-    for (int a = 0; a < 3; ++a) {
-      rows[a] = {_mm512_set1_ps(R_(a, 0)), _mm512_set1_ps(R_(a, 1)), _mm512_set1_ps(R_(a, 2)),
-                 _mm512_set1_ps(t_[a])};
-    }
+    const std::array<Row, 3> rows = broadcast_rows(true);
     // (32-bit lane indices: clouds of half a billion points and more take the scalar loop.)
     const std::size_t vector_end = src_.size() < (std::size_t(1) << 29) ? range.end() : k;
     for (; k < vector_end; k += 16) {
       const std::size_t count = std::min<std::size_t>(16, vector_end - k);
       const __mmask16 lanes = __mmask16((1u << count) - 1);
-      const __m512i index = _mm512_mullo_epi32(_mm512_add_epi32(_mm512_set1_epi32(int(k)), iota),
-                                               stride);
+      const __m512i index =
+          _mm512_mullo_epi32(_mm512_add_epi32(_mm512_set1_epi32(int(k)), iota), stride);
       const __m512i index3 = _mm512_mullo_epi32(index, three);
       const __m512 zero = _mm512_setzero_ps();
       const __m512 sx = _mm512_mask_i32gather_ps(zero, lanes, index3, src, 4);
@@ -209,6 +222,7 @@ class Linearisation {
       _mm512_mask_compressstoreu_ps(chunk.x + m, found, x);
       _mm512_mask_compressstoreu_ps(chunk.y + m, found, y);
       _mm512_mask_compressstoreu_ps(chunk.z + m, found, z);
+      _mm512_mask_compressstoreu_epi32(chunk.i + m, found, index);
       _mm512_mask_compressstoreu_epi32(chunk.j + m, found, answer);
       m += __builtin_popcount(unsigned(found));
       if (const unsigned stale = lanes & ~valid) {
@@ -219,9 +233,8 @@ class Linearisation {
         for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
           const int l = __builtin_ctz(bits);
           const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
-          const int j =
-              cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
-          if (j >= 0) chunk.set(m++, p, j);
+          const int j = cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
+          if (j >= 0) chunk.set(m++, p, (k + l) * stride_, j);
         }
       }
       if (m > kChunk - 16) {  // the next 16 might not fit
@@ -235,7 +248,7 @@ class Linearisation {
       const Eigen::Vector3f p = R_ * src_[i] + t_;
       const int j = cache_.nearest(i, p, target_, radius_, max_corr_, eq.queries);
       if (j < 0) continue;
-      chunk.set(m, p, j);
+      chunk.set(m, p, i, j);
       if (++m == kChunk) {
         linearise_chunk<kKernel>(chunk, m);
         m = 0;
@@ -261,10 +274,12 @@ class Linearisation {
     const __m512 inv_L_v = _mm512_set1_ps(inv_L_);
     const __m512 cx = _mm512_set1_ps(c_.x()), cy = _mm512_set1_ps(c_.y()),
                  cz = _mm512_set1_ps(c_.z());
+    const std::array<Row, 3> rotation = broadcast_rows(false);
     const auto store = [](double* out, __m512 v) {
       _mm512_storeu_pd(out, _mm512_cvtps_pd(_mm512_castps512_ps256(v)));
-      _mm512_storeu_pd(out + 8, _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(
-                                    _mm512_castps_pd(v), 1))));
+      _mm512_storeu_pd(
+          out + 8,
+          _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(v), 1))));
     };
     for (int e = 0; e < m; e += 16) {
       const __mmask16 valid = m - e >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << (m - e)) - 1);
@@ -278,9 +293,29 @@ class Linearisation {
       const __m512 pz = _mm512_maskz_loadu_ps(valid, c.z + e);
       const __m512 dx = _mm512_sub_ps(px, gather(tp)), dy = _mm512_sub_ps(py, gather(tp + 1)),
                    dz = _mm512_sub_ps(pz, gather(tp + 2));
-      const __m512 nx = gather(tn), ny = gather(tn + 1), nz = gather(tn + 2);
-      const __m512 re =
-          _mm512_fmadd_ps(nx, dx, _mm512_fmadd_ps(ny, dy, _mm512_mul_ps(nz, dz)));
+      __m512 nx = gather(tn), ny = gather(tn + 1), nz = gather(tn + 2);
+      if (src_normals_) {  // symmetric_pair_normal, sixteen at a time
+        const __m512i i3 = _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(valid, c.i + e), three);
+        const auto gather_source = [&](const float* base) {
+          return _mm512_mask_i32gather_ps(zero, valid, i3, base, 4);
+        };
+        const __m512 ax = gather_source(src_normals_), ay = gather_source(src_normals_ + 1),
+                     az = gather_source(src_normals_ + 2);
+        const __m512 sx = rotation[0].apply(ax, ay, az), sy = rotation[1].apply(ax, ay, az),
+                     sz = rotation[2].apply(ax, ay, az);
+        const __m512 mx = _mm512_add_ps(nx, sx), my = _mm512_add_ps(ny, sy),
+                     mz = _mm512_add_ps(nz, sz);
+        const __m512 inv_norm = _mm512_div_ps(
+            _mm512_set1_ps(1.0f), _mm512_sqrt_ps(_mm512_fmadd_ps(
+                                      mx, mx, _mm512_fmadd_ps(my, my, _mm512_mul_ps(mz, mz)))));
+        const __mmask16 agree = _mm512_cmp_ps_mask(
+            _mm512_fmadd_ps(nx, sx, _mm512_fmadd_ps(ny, sy, _mm512_mul_ps(nz, sz))), zero,
+            _CMP_GT_OQ);
+        nx = _mm512_mask_mul_ps(nx, agree, mx, inv_norm);
+        ny = _mm512_mask_mul_ps(ny, agree, my, inv_norm);
+        nz = _mm512_mask_mul_ps(nz, agree, mz, inv_norm);
+      }
+      const __m512 re = _mm512_fmadd_ps(nx, dx, _mm512_fmadd_ps(ny, dy, _mm512_mul_ps(nz, dz)));
       __m512 we;  // robust_weight's values, without branches
       if constexpr (kKernel == RobustKernel::kHuber) {
         we = _mm512_div_ps(scale_v, _mm512_max_ps(_mm512_abs_ps(re), scale_v));
@@ -310,7 +345,16 @@ class Linearisation {
     for (int e = 0; e < m; ++e) {
       const int j3 = 3 * c.j[e];
       const float dx = c.x[e] - tp[j3], dy = c.y[e] - tp[j3 + 1], dz = c.z[e] - tp[j3 + 2];
-      const float nx = tn[j3], ny = tn[j3 + 1], nz = tn[j3 + 2];
+      float nx = tn[j3], ny = tn[j3 + 1], nz = tn[j3 + 2];
+      if (src_normals_) {
+        const int i3 = 3 * c.i[e];
+        const Eigen::Vector3f n = symmetric_pair_normal<float>(
+            {nx, ny, nz},
+            R_ * Eigen::Vector3f(src_normals_[i3], src_normals_[i3 + 1], src_normals_[i3 + 2]));
+        nx = n.x();
+        ny = n.y();
+        nz = n.z();
+      }
       const float re = nx * dx + ny * dy + nz * dz;  // point-to-plane residual [m]
       const float we = float(robust_weight(kKernel, options_.kernel_scale_m, re));
       const bool keep = (dx * dx + dy * dy + dz * dz <= max_corr_sq) & (we > 0.0f);
@@ -331,6 +375,7 @@ class Linearisation {
   }
 
   const std::vector<Eigen::Vector3f>& src_;
+  const float* src_normals_;  // null: the residuals are along the target's normals alone
   const PointCloud& tgt_;
   const PointCloudTree& target_;
   std::size_t stride_;
@@ -415,6 +460,8 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   const int min_inliers = std::max(o.min_points, 6);
 
   SE3 T = T_target_source_guess;
+  Vector6d previous_step = Vector6d::Zero();  // the last fine step, in [rho_c; L phi]
+  double damping = 1.0;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
     // At most the first half of the iterations are coarse: the full cloud always gets the rest
@@ -456,7 +503,19 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
-    const Vector6d step_c = constrained_step(degeneracy, eq.gradient());
+    Vector6d step_c = constrained_step(degeneracy, eq.gradient());
+    if (!coarse) {
+      // A step that undoes most of the previous one is a pair switching in and out (a
+      // correspondence or a robust weight across its threshold) between states that each send the
+      // pose back (a Gauss-Newton overshoot is corrected by a much smaller step): from then on
+      // the steps are damped, halved again at each such reversal, so the pose settles at the
+      // switch instead of cycling to the iteration limit.
+      Vector6d scaled = step_c;
+      scaled.tail<3>() *= L;
+      if (scaled.dot(previous_step) < -0.5 * previous_step.squaredNorm()) damping *= 0.5;
+      step_c *= damping;
+      previous_step = damping * scaled;
+    }
     const SE3 T_c = SE3::Translation(c);
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
     if (coarse) {

@@ -58,6 +58,7 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
     }
   }
   o.kernel_scale_m = f.number_in("kernel_scale_m", 1e-9, 1.0, o.kernel_scale_m);
+  o.symmetric = f.optional<bool>("symmetric", o.symmetric);
   o.convergence_translation_m =
       f.number_in("convergence_translation_m", 0.0, 1.0, o.convergence_translation_m);
   o.convergence_rotation_rad =
@@ -124,6 +125,7 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"max_correspondence_m", c.icp.max_correspondence_m},
         {"kernel", to_string(c.icp.kernel)},
         {"kernel_scale_m", c.icp.kernel_scale_m},
+        {"symmetric", c.icp.symmetric},
         {"convergence_translation_m", c.icp.convergence_translation_m},
         {"convergence_rotation_rad", c.icp.convergence_rotation_rad},
         {"min_points", c.icp.min_points},

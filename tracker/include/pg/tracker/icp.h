@@ -20,6 +20,13 @@ struct IcpOptions {
   double max_correspondence_m = 1e-3;  // pairs farther apart are not used [m]
   RobustKernel kernel = RobustKernel::kHuber;
   double kernel_scale_m = 1e-4;  // Huber: quadratic within; Tukey: zero weight beyond [m]
+  // The residual's direction: the mean of the target point's normal and the moved source point's
+  // (a symmetric point-to-plane objective), or the target's alone (false; also for a source
+  // without normals, or a pair whose normals face apart). Two exact samples of a sphere or a
+  // cylinder give zero along their mean normal, but the distance curvature x spacing^2 / 2 from
+  // the target's tangent plane: on a 1 mm rounding sampled every 0.16 mm that is ~3 um, as much
+  // as a frame's motion, and it biases the weakly seen rotations of small curved contacts.
+  bool symmetric = true;
   // Converged when an update moves the source centroid by less than this [m] and rotates by
   // less than convergence_rotation_rad [rad].
   double convergence_translation_m = 1e-7;

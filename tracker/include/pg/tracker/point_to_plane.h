@@ -18,6 +18,18 @@ inline double point_to_plane_residual(const SE3& T_target_source, const Eigen::V
   return n_target.dot(T_target_source * p_source - q_target);
 }
 
+// The plane normal of a pair in the symmetric objective (IcpOptions::symmetric): the mean of the
+// target point's normal and the moved source point's (R n_s), normalised; the target's alone when
+// the two face apart (a mismatched pair, whose mean says nothing). With it, the residual and the
+// Jacobians below are those of the plane through q_t with this normal, held fixed while
+// linearising (the normal turns with T only to second order in the residual).
+template <typename T>
+Eigen::Matrix<T, 3, 1> symmetric_pair_normal(const Eigen::Matrix<T, 3, 1>& n_target,
+                                             const Eigen::Matrix<T, 3, 1>& n_source_moved) {
+  if (n_target.dot(n_source_moved) <= T(0)) return n_target;
+  return (n_target + n_source_moved).normalized();
+}
+
 // Left perturbation T <- exp(delta) T, delta = [rho; phi] in the target frame about its origin:
 //   exp(delta) p' ~= p' + rho + phi x p'  (p' = T p_s)
 //   dr / d delta = [n^T, (p' x n)^T]      (n . (phi x p') = phi . (p' x n))
