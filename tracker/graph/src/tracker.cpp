@@ -52,7 +52,11 @@ Method method_from_string(const std::string& name) {
 }
 
 PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& model_object)
-    : options_(std::move(options)), patch_(options_.patch), icp_(options_.icp) {
+    : options_(std::move(options)),
+      patch_(options_.patch),
+      icp_(options_.icp),
+      model_icp_(options_.icp) {
+  model_icp_.options().symmetric = false;
   if (options_.method == Method::kGroundTruthPatch) {
     if (model_object.empty()) {
       throw std::invalid_argument("PatchGraphTracker: gtpatch needs the object model's points");
@@ -121,7 +125,8 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(Frame& f, Tracke
   if (patch_.empty()) return Outcome::kNotTried;
   const int t = int(frames_.size()) - 1;
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
-  const IcpResult r = icp_.align(current_cloud_, patch_.tree(), guess);
+  PointToPlaneIcp& icp = options_.method == Method::kGroundTruthPatch ? model_icp_ : icp_;
+  const IcpResult r = icp.align(current_cloud_, patch_.tree(), guess);
   // What the contact let the registration see, whether or not its answer is used (a failed
   // one, with too few points or matches, never analysed its Hessian).
   if (r.status == IcpStatus::kConverged || r.status == IcpStatus::kMaxIterations) {

@@ -144,6 +144,11 @@ class PatchGraphTracker {
   GraphOptions options_;
   PatchMap patch_;
   PointToPlaneIcp icp_;
+  // gtpatch's registrations against the object model: with the model's normals alone. The
+  // model's normals are its faces' (sharp at every edge), the clouds' the sensor's (smoothed over
+  // neighbouring pixels), and the symmetric objective, which mixes the two, tracked worse with
+  // them (docs/tracker.md).
+  PointToPlaneIcp model_icp_;
   std::vector<Frame> frames_;
   std::vector<Factor> factors_;
   bool in_episode_ = false;
