@@ -460,8 +460,6 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   const int min_inliers = std::max(o.min_points, 6);
 
   SE3 T = T_target_source_guess;
-  Vector6d previous_step = Vector6d::Zero();  // the last fine step, in [rho_c; L phi]
-  double damping = 1.0;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
     // At most the first half of the iterations are coarse: the full cloud always gets the rest
@@ -503,19 +501,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
-    Vector6d step_c = constrained_step(degeneracy, eq.gradient());
-    if (!coarse) {
-      // A step that undoes most of the previous one is a pair switching in and out (a
-      // correspondence or a robust weight across its threshold) between states that each send the
-      // pose back (a Gauss-Newton overshoot is corrected by a much smaller step): from then on
-      // the steps are damped, halved again at each such reversal, so the pose settles at the
-      // switch instead of cycling to the iteration limit.
-      Vector6d scaled = step_c;
-      scaled.tail<3>() *= L;
-      if (scaled.dot(previous_step) < -0.5 * previous_step.squaredNorm()) damping *= 0.5;
-      step_c *= damping;
-      previous_step = damping * scaled;
-    }
+    const Vector6d step_c = constrained_step(degeneracy, eq.gradient());
     const SE3 T_c = SE3::Translation(c);
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
     if (coarse) {
