@@ -32,7 +32,8 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
       tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6},
                           "mask": {"min_depth_m": 5e-5},
                           "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4,
-                                  "coarse_points": 0, "coarse_step_m": 2e-5}})",
+                                  "coarse_points": 0, "coarse_step_m": 2e-5,
+                                  "symmetric": false}})",
                                                "cfg.json"),
                                "cfg.json");
   EXPECT_FALSE(c.depth.crop);
@@ -43,6 +44,8 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
   EXPECT_DOUBLE_EQ(c.icp.voxel_size_m, 1e-4);
   EXPECT_EQ(c.icp.coarse_points, 0);
   EXPECT_DOUBLE_EQ(c.icp.coarse_step_m, 2e-5);
+  EXPECT_TRUE(IcpOptions().symmetric);
+  EXPECT_FALSE(c.icp.symmetric);
   const TrackerConfig back = tracker_config_from_json(tracker_config_to_json(c), "round trip");
   EXPECT_EQ(tracker_config_to_json(back), tracker_config_to_json(c));
 }
@@ -61,6 +64,8 @@ TEST(TrackerConfig, ErrorsNameTheFileAndField) {
             std::string::npos);
   EXPECT_NE(error_of(R"({"icp": {"coarse_points": -1}})").find("icp.coarse_points"),
             std::string::npos);
+  EXPECT_NE(error_of(R"({"icp": {"symmetric": 1}})").find("icp.symmetric"), std::string::npos)
+      << error_of(R"({"icp": {"symmetric": 1}})");
   EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
 }
 
