@@ -22,8 +22,6 @@ CliRun run(const std::string& binary, const std::string& args) {
   return testing_support::run_command(binary, args);
 }
 
-
-
 CliRun patchgraph(const std::string& args) { return run(PATCHGRAPH_PATH, args); }
 
 // One small dataset for the whole suite: the default cube scene, 60 frames.
@@ -32,9 +30,10 @@ class PatchgraphCli : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = fs::temp_directory_path() / ("pg_pgcli_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
-    const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                          "/scenes/default.json -q --outputs color,normal,mask --out " +
-                                          (dir_ / "data").string());
+    const CliRun r =
+        run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                             "/scenes/default.json -q --outputs color,normal,mask --out " +
+                             (dir_ / "data").string());
     ASSERT_EQ(r.code, 0) << r.out;
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
@@ -96,9 +95,8 @@ TEST_F(PatchgraphCli, RegistrationSigmaWeighsTheRegistrations) {
 // the default scene).
 TEST_F(PatchgraphCli, PriorSigmasWeighThePriors) {
   ASSERT_EQ(patchgraph("track " + data() + " -q --out " + out("prior_default")).code, 0);
-  ASSERT_EQ(patchgraph("track " + data() + " -q --velocity-sigma 1e-5 --out " + out("velocity"))
-                .code,
-            0);
+  ASSERT_EQ(
+      patchgraph("track " + data() + " -q --velocity-sigma 1e-5 --out " + out("velocity")).code, 0);
   ASSERT_EQ(patchgraph("track " + data() + " -q --ee-sigma 1 --out " + out("ee")).code, 0);
   const double base =
       parse_json_file(out("prior_default") + "/summary.json")["rotation_rmse_rad"].get<double>();
@@ -120,12 +118,15 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   EXPECT_GT(summary["contact_frames"].get<int>(), 50);
   EXPECT_LT(summary["final_translation_error_m"].get<double>(), 2e-3);
   EXPECT_LT(summary["final_rotation_error_rad"].get<double>(), 0.05);
+  // Learned normals keep the target's normals in the ICP (docs/learned_normals.md).
+  EXPECT_EQ(summary["icp_symmetric"], false);
 }
 
 TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {
   const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
                                                "/scenes/examples/sphere_press.json -q --width 60 "
-                                               "--height 80 --outputs color --out " + out("small"));
+                                               "--height 80 --outputs color --out " +
+                                               out("small"));
   ASSERT_EQ(rendered.code, 0) << rendered.out;
   const CliRun r = patchgraph("track " + out("small") + " -q --normals " + kDefaultModel +
                               " --out " + out("track_small"));
@@ -153,15 +154,16 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("final error"), std::string::npos) << r.out;
   const auto summary = parse_json_file(out("track") + "/summary.json");
-  for (const char* key : {"method", "frames", "translation_rmse_m", "rotation_rmse_rad",
-                          "final_translation_error_m", "final_rotation_error_rad", "mean_frame_ms",
-                          "hz"}) {
+  for (const char* key :
+       {"method", "frames", "translation_rmse_m", "rotation_rmse_rad", "final_translation_error_m",
+        "final_rotation_error_rad", "mean_frame_ms", "hz"}) {
     EXPECT_TRUE(summary.contains(key)) << key;
   }
   EXPECT_EQ(summary["method"], "patchgraph");
   EXPECT_EQ(summary["frames"], 60);
   EXPECT_LT(summary["final_translation_error_m"].get<double>(), 2e-3);
   EXPECT_GT(summary["hz"].get<double>(), 0.0);
+  EXPECT_EQ(summary["icp_symmetric"], true);
   EXPECT_EQ(read_poses_csv(out("track") + "/poses.csv").size(), 60u);
   std::ifstream errors(out("track") + "/errors.csv");
   int lines = 0;
@@ -171,8 +173,10 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
-  const CliRun r = patchgraph("eval --datasets " + data() + " --methods constvel patchgraph -q "
-                              "--no-plots --out " + out("eval"));
+  const CliRun r = patchgraph("eval --datasets " + data() +
+                              " --methods constvel patchgraph -q "
+                              "--no-plots --out " +
+                              out("eval"));
   ASSERT_EQ(r.code, 0) << r.out;
   std::ifstream results(out("eval") + "/results.csv");
   int lines = 0;

@@ -196,6 +196,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"window", run.tracker->options().window},
       {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
       {"registration_information", run.tracker->options().registration_information},
+      {"icp_symmetric", run.tracker->options().icp.symmetric},
       {"patch_points", run.tracker->patch().cloud_object().size()},
   };
   if (s.batch_translation_rmse_m >= 0) {
