@@ -578,6 +578,16 @@ TEST(IcpSymmetric, CurvedPatchOnShiftedGridsRegistersWithASmallerError) {
   }
   EXPECT_LT(error[1], 0.3e-3);
   EXPECT_LT(error[1], 0.5 * error[0]);
+  // A source without normals has only the target's to offer: the same answer as without the
+  // symmetric objective.
+  PointCloud bare;
+  bare.points = source.points;
+  IcpOptions options;
+  options.min_eigenvalue_ratio = 0;
+  ASSERT_TRUE(options.symmetric);
+  const IcpResult r = PointToPlaneIcp(options).align(bare, tree, SE3::Identity());
+  ASSERT_TRUE(r.converged) << to_string(r.status);
+  EXPECT_NEAR(rotation_distance(r.T_target_source, truth), error[0], 1e-9);
 }
 
 TEST(IcpBadInput, TooFewPointsOrNoOverlapIsNotConverged) {
