@@ -36,6 +36,9 @@ struct Setting {
   int icp_iterations = IcpOptions().max_iterations;
   double max_correspondence_m = IcpOptions().max_correspondence_m;
   double voxel_m = IcpOptions().voxel_size_m;
+  // 0 / 1: the symmetric ICP objective off / on; -1: as `track` sets it for the normals source
+  // (resolved to 0 or 1 before the sweep runs).
+  int icp_symmetric = -1;
 
   std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
 };
@@ -76,6 +79,9 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
     add("window", std::to_string(w), [&](Setting& s) { s.window = w; });
   }
   add("registration information", "off", [](Setting& s) { s.registration_information = false; });
+  if (!args.quick) {
+    add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
+  }
   for (const char* m : args.quick ? std::vector<const char*>{"constvel"}
                                   : std::vector<const char*>{"constvel", "imagetoimage"}) {
     add("method", m, [&](Setting& s) { s.method = m; });
@@ -189,6 +195,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset) {
   o.front_end.icp.max_iterations = s.icp_iterations;
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;
+  if (s.icp_symmetric >= 0) o.front_end.icp.symmetric = s.icp_symmetric == 1;
   return o;
 }
 
@@ -196,7 +203,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream out(path);
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
-         "registration_information,icp_iterations,max_correspondence_m,voxel_m,runs,"
+         "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
@@ -204,9 +211,9 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
     out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals << ","
         << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
         << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
-        << "," << s.voxel_m << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m
-        << "," << r.final_r_rad << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t
-        << "," << r.front_r << "\n";
+        << "," << s.voxel_m << "," << s.icp_symmetric << "," << r.runs.size() << "," << r.median_ms
+        << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << "," << r.rmse_r_rad
+        << "," << r.front_t << "," << r.front_r << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
@@ -273,7 +280,7 @@ int run_track_bench(const TrackBenchArgs& in) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                   args.threads);
   }
-  const std::vector<Setting> settings = sweep(args);
+  std::vector<Setting> settings = sweep(args);
   // Learned normals read the colour images; ground truth only the normal images.
   std::vector<std::string> outputs = {"normal"};
   for (const auto& s : settings) {
@@ -290,7 +297,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   {
     const Dataset first = Dataset::open(cached_dataset(
         args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
-    for (const auto& s : settings) options_for(s, first);
+    for (auto& s : settings) s.icp_symmetric = options_for(s, first).front_end.icp.symmetric;
   }
   std::vector<Row> rows(settings.size());
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
