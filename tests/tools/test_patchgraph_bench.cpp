@@ -36,7 +36,8 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   std::map<std::string, std::size_t> column;
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
-                        "median_final_rotation_rad", "pareto_translation", "pareto_rotation"}) {
+                        "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
+                        "icp_symmetric"}) {
     ASSERT_TRUE(column.count(c)) << c;
   }
   std::vector<std::string> settings;
@@ -46,6 +47,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     ASSERT_EQ(cells.size(), header.size()) << line;
     settings.push_back(cells[column["setting"]]);
     EXPECT_EQ(cells[column["runs"]], "2") << line;
+    EXPECT_EQ(cells[column["icp_symmetric"]], "1") << line;  // ground-truth normals throughout
     for (const char* c :
          {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
       const double v = std::stod(cells[column[c]]);
