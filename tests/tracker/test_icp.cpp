@@ -540,11 +540,11 @@ TEST(IcpInformation, RobustWeightsAndDistantPairsMatchADirectSum) {
 
 // Two samplings of a curved patch on grids half a spacing apart, as two frames of a small
 // rounded contact: an ellipsoidal cap (radii of curvature 1 and 2.5 mm, like a rounded cube
-// corner) sampled every 0.16 mm (the 120x160 pixel pitch) over 1.2 mm, moved by 6 mrad and a few
-// micrometres. The target's tangent plane misses the neighbouring samples of the curved surface
-// by up to curvature x spacing^2 / 2 (~3 um), as much as the motion moves points; along the pair's
-// mean normal two exact samples of such a surface are nearly level, so the symmetric objective's
-// answer carries a fraction of the error of the target's normals alone.
+// corner) sampled every 0.16 mm (the 120x160 pixel pitch) within 1.2 mm of its apex, moved by 6
+// mrad and a few micrometres. The target's tangent plane misses the neighbouring samples of the
+// curved surface by up to curvature x spacing^2 / 2 (~3 um), as much as the motion moves points;
+// along the pair's mean normal two exact samples of such a surface are nearly level, so the
+// symmetric objective's answer carries a fraction of the error of the target's normals alone.
 TEST(IcpSymmetric, CurvedPatchOnShiftedGridsRegistersWithASmallerError) {
   const double h = 0.16e-3, rx = 1e-3, ry = 2.5e-3;
   const auto sample = [&](double ox, double oy) {
