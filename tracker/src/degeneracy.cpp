@@ -1,5 +1,6 @@
 #include "pg/tracker/degeneracy.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -12,14 +13,23 @@ namespace {
 // translation: large, so the step removes rotation first.
 constexpr double kRotationCostLengthM = 1.0;
 
-// Unconstrained twists drop rotation directions their span holds with a scaled singular value
-// below this times sqrt(min_eigenvalue_ratio) (see DegeneracyReport::unconstrained_twists).
-constexpr double kUnresolvedRotation = 0.5;
+// A rotation an unconstrained direction holds is a sliver (DegeneracyReport::unconstrained_twists)
+// when taking it out raises the direction's cost by at most this fraction of the threshold.
+// Measured: the benchmark cube edges' slide at most 0.01 of it, the roll of a 50 mm sphere's
+// nearly flat cap (a rotation about its far centre) 0.22. The free directions handed to the
+// factor graph drop the cap's roll too (then a slide); the ICP step keeps it, because the
+// least-rotation step needs it to undo the tilt the constrained step carries when the cap
+// translates (without it that cap's registrations tilted and lost the patch).
+constexpr double kSliverCost = 0.25;
+constexpr double kStepSliverCost = 0.05;
 
-// Scaled coordinates [rho_c; L phi] -> twist [rho_c; phi].
-Vector6d unscale(const Vector6d& x, double L) {
+// unconstrained_twists with the given sliver cost.
+Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost);
+
+// Scaled coordinates [rho_c; Lambda phi] -> twist [rho_c; phi].
+Vector6d unscale(const Vector6d& x, const Eigen::Matrix3d& Lambda) {
   Vector6d d = x;
-  d.tail<3>() /= L;
+  d.tail<3>() = Lambda.ldlt().solve(x.tail<3>());
   return d;
 }
 
@@ -39,7 +49,8 @@ void symmetric_eigen(const Matrix6d& H, Vector6d& values, Matrix6d& vectors) {
         if (A(p, q) == 0.0) continue;
         // The rotation in the (p, q) plane that zeroes A(p, q).
         const double theta = (A(q, q) - A(p, p)) / (2.0 * A(p, q));
-        const double t = (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1.0));
+        const double t =
+            (theta >= 0 ? 1.0 : -1.0) / (std::abs(theta) + std::sqrt(theta * theta + 1.0));
         const double c = 1.0 / std::sqrt(t * t + 1.0), s = t * c;
         for (int k = 0; k < 6; ++k) {  // A <- A G
           const double akp = A(k, p), akq = A(k, q);
@@ -69,11 +80,24 @@ void symmetric_eigen(const Matrix6d& H, Vector6d& values, Matrix6d& vectors) {
 
 }  // namespace
 
+Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c) {
+  const Eigen::Matrix3d& S = mean_outer_product_about_c;
+  const Eigen::Matrix3d J = S.trace() * Eigen::Matrix3d::Identity() - S;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(J);
+  const double largest = std::sqrt(std::max(eig.eigenvalues()[2], 0.0));
+  const double floor = std::max(1e-3 * largest, 1e-9);
+  Eigen::Vector3d extent;
+  for (int k = 0; k < 3; ++k)
+    extent[k] = std::max(std::sqrt(std::max(eig.eigenvalues()[k], 0.0)), floor);
+  return eig.eigenvectors() * extent.asDiagonal() * eig.eigenvectors().transpose();
+}
+
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
-                                    double length_scale_m, double min_eigenvalue_ratio) {
+                                    const Eigen::Matrix3d& rotation_scale_m,
+                                    double min_eigenvalue_ratio) {
   DegeneracyReport report;
   report.centre_target = centre_target;
-  report.length_scale_m = length_scale_m;
+  report.rotation_scale_m = rotation_scale_m;
   symmetric_eigen(H_scaled, report.eigenvalues, report.eigenvectors);
   const double largest = report.eigenvalues[5];
   report.min_eigenvalue_ratio = min_eigenvalue_ratio;
@@ -86,31 +110,46 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
   return report;
 }
 
-Matrix6Xd DegeneracyReport::unconstrained_twists() const {
-  const int k = unconstrained;
+Matrix6Xd DegeneracyReport::unconstrained_twists() const { return free_twists(*this, kSliverCost); }
+
+namespace {
+
+Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
+  const int k = report.unconstrained;
+  const Vector6d& eigenvalues = report.eigenvalues;
+  const Matrix6d& eigenvectors = report.eigenvectors;
   Matrix6Xd N(6, k);
   if (k == 0) return N;
   // The eigenvectors of a cluster of small eigenvalues are fixed by the data only up to mixing
-  // with the others: an edge's slide (eigenvalue 0.01) comes out with a 1e-3 rotation part that
-  // changes its cost by 1e-4. Rotation directions the span holds with a singular value below tol
-  // are such slivers: taking them out of a unit direction adds at most about
-  // lambda_max tol^2 = lambda_max ratio / 4 to its cost, so it stays unconstrained.
-  const double tol = kUnresolvedRotation * std::sqrt(min_eigenvalue_ratio);
+  // with their neighbours: an edge's slide (eigenvalue 0.01) comes out with a little of the turn
+  // about the edge or about the contact's normal. A rotation direction u the span holds with
+  // singular value s is such a sliver when the rotation itself is constrained (its curvature
+  // u^T H_rr u above the threshold) yet taking it out of a unit direction adds only about
+  // s^2 u^T H_rr u, at most kSliverCost of the threshold. A sphere's roll (a stiff tilt about c
+  // carried by a translation, s about Lambda / R) keeps its rotation, a flat patch's spin (a free
+  // rotation) too.
+  const double threshold = report.min_eigenvalue_ratio * eigenvalues[5];
+  const Matrix6d H = eigenvectors * eigenvalues.asDiagonal() * eigenvectors.transpose();
+  const Eigen::Matrix3d H_rr = H.bottomRightCorner<3, 3>();
   const Eigen::Matrix3Xd rotations = eigenvectors.block(3, 0, 3, k);
   const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(rotations, Eigen::ComputeFullU);
   Eigen::Matrix3d resolved = Eigen::Matrix3d::Zero();  // projector onto the rotations kept
   for (int j = 0; j < int(svd.singularValues().size()); ++j) {
-    if (svd.singularValues()[j] > tol) {
-      resolved += svd.matrixU().col(j) * svd.matrixU().col(j).transpose();
-    }
+    const Eigen::Vector3d u = svd.matrixU().col(j);
+    const double s = svd.singularValues()[j];
+    const double curvature = u.dot(H_rr * u);
+    const bool sliver = curvature > threshold && s * s * curvature <= sliver_cost * threshold;
+    if (s > 0.0 && !sliver) resolved += u * u.transpose();
   }
   for (int i = 0; i < k; ++i) {
     Vector6d x = eigenvectors.col(i);
     x.tail<3>() = resolved * x.tail<3>();
-    N.col(i) = unscale(x, length_scale_m);
+    N.col(i) = unscale(x, report.rotation_scale_m);
   }
   return N;
 }
+
+}  // namespace
 
 Matrix6Xd DegeneracyReport::unconstrained_twists_at_origin() const {
   // exp(delta) = T_c exp(delta_c) T_c^-1  =>  delta = Ad(T_c) delta_c.
@@ -124,17 +163,18 @@ Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scal
     const auto v = report.eigenvectors.col(i);
     x -= v * (v.dot(g_scaled) / report.eigenvalues[i]);
   }
-  Vector6d step = unscale(x, report.length_scale_m);
+  Vector6d step = unscale(x, report.rotation_scale_m);
   if (report.unconstrained == 0 || report.unconstrained == 6) return step;
   // Project out the unconstrained directions in the metric M = diag(1, 1, 1, l^2, l^2, l^2):
   // step <- step - sum_i b_i (b_i^T M step), with b_i an M-orthonormal basis of their span
   // (Gram-Schmidt; fixed-size vectors, no allocation).
   Vector6d m;
   m << 1, 1, 1, Eigen::Vector3d::Constant(kRotationCostLengthM * kRotationCostLengthM);
+  const Matrix6Xd free = free_twists(report, kStepSliverCost);
   Vector6d basis[6];
   int k = 0;
-  for (int i = 0; i < report.unconstrained; ++i) {
-    Vector6d b = unscale(report.eigenvectors.col(i), report.length_scale_m);
+  for (int i = 0; i < int(free.cols()); ++i) {
+    Vector6d b = free.col(i);
     for (int j = 0; j < k; ++j) b -= basis[j] * basis[j].dot(m.cwiseProduct(b));
     const double norm = std::sqrt(b.dot(m.cwiseProduct(b)));
     if (norm > 1e-12) basis[k++] = b / norm;

@@ -99,6 +99,7 @@ struct NormalEquations {
 
 struct Centroid {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();  // mean of (p - centre)(p - centre)^T
   double rms_radius = 0;
 };
 
@@ -106,8 +107,12 @@ Centroid centroid_and_radius(const std::vector<Eigen::Vector3f>& points) {
   Centroid c;
   for (const auto& p : points) c.centre += p.cast<double>();
   c.centre /= double(points.size());
-  for (const auto& p : points) c.rms_radius += (p.cast<double>() - c.centre).squaredNorm();
-  c.rms_radius = std::sqrt(c.rms_radius / double(points.size()));
+  for (const auto& p : points) {
+    const Eigen::Vector3d r = p.cast<double>() - c.centre;
+    c.scatter += r * r.transpose();
+  }
+  c.scatter /= double(points.size());
+  c.rms_radius = std::sqrt(c.scatter.trace());
   return c;
 }
 
@@ -482,7 +487,14 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
       return result;
     }
     const Matrix6d H_scaled = eq.hessian();
-    const DegeneracyReport degeneracy = analyse_degeneracy(H_scaled, c, L, o.min_eigenvalue_ratio);
+    // The sums are scaled by the one length L; the degeneracy analysis by the cloud's extent
+    // about each axis (degeneracy.h): x_Lambda = D^-1 x_L with D = diag(1, 1, 1, L Lambda^-1).
+    const Eigen::Matrix3d R = T.rotation_matrix();
+    const Eigen::Matrix3d Lambda = rotation_scale(R * cs.scatter * R.transpose());
+    Matrix6d D = Matrix6d::Identity();
+    D.bottomRightCorner<3, 3>() = L * Lambda.inverse();
+    const DegeneracyReport degeneracy =
+        analyse_degeneracy(D * H_scaled * D, c, Lambda, o.min_eigenvalue_ratio);
     if (!coarse) {
       result.inliers = eq.inliers;
       result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);
@@ -501,7 +513,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
-    const Vector6d step_c = constrained_step(degeneracy, eq.gradient());
+    const Vector6d step_c = constrained_step(degeneracy, D * eq.gradient());
     const SE3 T_c = SE3::Translation(c);
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
     if (coarse) {

@@ -4,10 +4,14 @@
 //
 // The analysis runs where translations and rotations are comparable: twists are taken about a
 // centre c (the source cloud's centroid, in the target frame) and the rotation part is scaled by
-// a length L (the cloud's RMS radius about c):
-//   x = [rho_c; L phi],  exp(delta) = T_c exp([rho_c; phi]) T_c^-1,  T_c = translation by c.
-// A point-to-plane term then contributes at most about 1 per direction, and an eigenvalue of the
-// scaled Hessian below a ratio of the largest means the data leave that direction free.
+// the cloud's extent about each axis, a symmetric matrix Lambda:
+//   x = [rho_c; Lambda phi],  exp(delta) = T_c exp([rho_c; phi]) T_c^-1,  T_c = translation by c,
+// Lambda = J^(1/2), J = mean over the points r = p - c of |r|^2 I - r r^T, so a unit turn about an
+// axis a in x moves the points by their RMS distance from that axis: for a long strip of contact
+// the turn about its own axis is scaled by the strip's width, not by its length. A point-to-plane
+// term then contributes at most about 1 per direction, and an eigenvalue of the scaled Hessian
+// below a ratio of the largest means the data leave that direction free.
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include "pg/core/se3.h"
@@ -18,35 +22,43 @@ namespace pg {
 using Matrix6Xd = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, 6>;
 
 struct DegeneracyReport {
-  Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();  // c [m]
-  double length_scale_m = 1.0;                              // L [m]
-  Vector6d eigenvalues = Vector6d::Zero();                  // of the scaled Hessian, ascending [-]
-  Matrix6d eigenvectors = Matrix6d::Identity();  // columns, in scaled coordinates [rho_c; L phi]
+  Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();         // c [m]
+  Eigen::Matrix3d rotation_scale_m = Eigen::Matrix3d::Identity();  // Lambda [m]
+  Vector6d eigenvalues = Vector6d::Zero();  // of the scaled Hessian, ascending [-]
+  Matrix6d eigenvectors =
+      Matrix6d::Identity();         // columns, in scaled coordinates [rho_c; Lambda phi]
   int unconstrained = 6;            // how many of the first eigenvalues fall below the ratio
   double min_eigenvalue_ratio = 0;  // the ratio they were compared with [-]
 
   bool degenerate() const { return unconstrained > 0; }
   // The unconstrained directions as twists [rho_c; phi] about c ([m; rad]), one per column: a
-  // basis of the span of the first `unconstrained` eigenvectors, less the rotations the span holds
-  // only to a degree the data cannot resolve (a scaled singular value at most half of
-  // sqrt(min_eigenvalue_ratio)). Divided by L to become a twist, such a sliver grows hundreds of
-  // times: an edge's slide would carry 0.3 mrad of rotation per mm, which a consumer pinning every
-  // other direction holds fixed, reading the slide from that rotation's noise.
+  // basis of the span of the first `unconstrained` eigenvectors, less the rotation slivers (a
+  // constrained rotation the span holds so little of that removing it leaves the direction
+  // unconstrained; degeneracy.cpp). Divided by Lambda to become a twist, a sliver grows hundreds of
+  // times: an edge's slide would carry 0.3 rad of rotation per metre, which a consumer pinning
+  // every other direction holds fixed, reading the slide from that rotation's noise.
   Matrix6Xd unconstrained_twists() const;
   // The same directions as twists [rho; phi] about the target frame's origin.
   Matrix6Xd unconstrained_twists_at_origin() const;
 };
 
-// Eigen-decomposes H_scaled (the Hessian in [rho_c; L phi]); eigenvalues below
+// Eigen-decomposes H_scaled (the Hessian in [rho_c; Lambda phi]); eigenvalues below
 // min_eigenvalue_ratio times the largest (or not positive) are unconstrained.
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
-                                    double length_scale_m, double min_eigenvalue_ratio);
+                                    const Eigen::Matrix3d& rotation_scale_m,
+                                    double min_eigenvalue_ratio);
+
+// Lambda for points about their centroid c (degeneracy.h's header comment), each principal extent
+// floored at 1e-3 of the largest (and 1e-9 m) so that a line of points stays invertible.
+Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c);
 
 // The Gauss-Newton step for H_scaled x = -g_scaled restricted to the constrained eigenvectors,
 // returned as a twist [rho_c; phi] about c. The data say nothing about the unconstrained
-// directions N, so every step + N a fits them equally well; of those, the one with the least
-// rotation (and then the least translation of c) is returned, so that a sphere keeps its initial
-// orientation and a flat patch its initial in-plane position and yaw.
+// directions N (unconstrained_twists, slivers removed), so every step + N a fits them equally
+// well; of those, the one with the least rotation (and then the least translation of c) is
+// returned, so that a sphere keeps its initial orientation and a flat patch its initial in-plane
+// position and yaw. With the slivers left in, an edge's slide would cancel the measured turn
+// about the edge: 20 mrad of turn traded for 2 mm of slide in one step.
 Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scaled);
 
 }  // namespace pg
