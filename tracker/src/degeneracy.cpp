@@ -23,9 +23,6 @@ constexpr double kRotationCostLengthM = 1.0;
 constexpr double kSliverCost = 0.25;
 constexpr double kStepSliverCost = 0.05;
 
-// unconstrained_twists with the given sliver cost.
-Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost);
-
 // Scaled coordinates [rho_c; Lambda phi] -> twist [rho_c; phi].
 Vector6d unscale(const Vector6d& x, const Eigen::Matrix3d& Lambda) {
   Vector6d d = x;
@@ -78,6 +75,42 @@ void symmetric_eigen(const Matrix6d& H, Vector6d& values, Matrix6d& vectors) {
   }
 }
 
+// DegeneracyReport::unconstrained_twists with the given sliver cost.
+Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
+  const int k = report.unconstrained;
+  const Vector6d& eigenvalues = report.eigenvalues;
+  const Matrix6d& eigenvectors = report.eigenvectors;
+  Matrix6Xd N(6, k);
+  if (k == 0) return N;
+  // The eigenvectors of a cluster of small eigenvalues are fixed by the data only up to mixing
+  // with their neighbours: an edge's slide (eigenvalue 0.01) comes out with a little of the turn
+  // about the edge or about the contact's normal. A rotation direction u the span holds with
+  // singular value s is such a sliver when the rotation itself is constrained (its curvature
+  // u^T H_rr u above the threshold) yet taking it out of a unit direction adds only about
+  // s^2 u^T H_rr u, at most sliver_cost x the threshold. A sphere's roll (a stiff tilt about c
+  // carried by a translation, s about Lambda / R) keeps its rotation, a flat patch's spin (a free
+  // rotation) too.
+  const double threshold = report.min_eigenvalue_ratio * eigenvalues[5];
+  const Matrix6d H = eigenvectors * eigenvalues.asDiagonal() * eigenvectors.transpose();
+  const Eigen::Matrix3d H_rr = H.bottomRightCorner<3, 3>();
+  const Eigen::Matrix3Xd rotations = eigenvectors.block(3, 0, 3, k);
+  const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(rotations, Eigen::ComputeFullU);
+  Eigen::Matrix3d resolved = Eigen::Matrix3d::Zero();  // projector onto the rotations kept
+  for (int j = 0; j < int(svd.singularValues().size()); ++j) {
+    const Eigen::Vector3d u = svd.matrixU().col(j);
+    const double s = svd.singularValues()[j];
+    const double curvature = u.dot(H_rr * u);
+    const bool sliver = curvature > threshold && s * s * curvature <= sliver_cost * threshold;
+    if (s > 0.0 && !sliver) resolved += u * u.transpose();
+  }
+  for (int i = 0; i < k; ++i) {
+    Vector6d x = eigenvectors.col(i);
+    x.tail<3>() = resolved * x.tail<3>();
+    N.col(i) = unscale(x, report.rotation_scale_m);
+  }
+  return N;
+}
+
 }  // namespace
 
 Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c) {
@@ -111,45 +144,6 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
 }
 
 Matrix6Xd DegeneracyReport::unconstrained_twists() const { return free_twists(*this, kSliverCost); }
-
-namespace {
-
-Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
-  const int k = report.unconstrained;
-  const Vector6d& eigenvalues = report.eigenvalues;
-  const Matrix6d& eigenvectors = report.eigenvectors;
-  Matrix6Xd N(6, k);
-  if (k == 0) return N;
-  // The eigenvectors of a cluster of small eigenvalues are fixed by the data only up to mixing
-  // with their neighbours: an edge's slide (eigenvalue 0.01) comes out with a little of the turn
-  // about the edge or about the contact's normal. A rotation direction u the span holds with
-  // singular value s is such a sliver when the rotation itself is constrained (its curvature
-  // u^T H_rr u above the threshold) yet taking it out of a unit direction adds only about
-  // s^2 u^T H_rr u, at most kSliverCost of the threshold. A sphere's roll (a stiff tilt about c
-  // carried by a translation, s about Lambda / R) keeps its rotation, a flat patch's spin (a free
-  // rotation) too.
-  const double threshold = report.min_eigenvalue_ratio * eigenvalues[5];
-  const Matrix6d H = eigenvectors * eigenvalues.asDiagonal() * eigenvectors.transpose();
-  const Eigen::Matrix3d H_rr = H.bottomRightCorner<3, 3>();
-  const Eigen::Matrix3Xd rotations = eigenvectors.block(3, 0, 3, k);
-  const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(rotations, Eigen::ComputeFullU);
-  Eigen::Matrix3d resolved = Eigen::Matrix3d::Zero();  // projector onto the rotations kept
-  for (int j = 0; j < int(svd.singularValues().size()); ++j) {
-    const Eigen::Vector3d u = svd.matrixU().col(j);
-    const double s = svd.singularValues()[j];
-    const double curvature = u.dot(H_rr * u);
-    const bool sliver = curvature > threshold && s * s * curvature <= sliver_cost * threshold;
-    if (s > 0.0 && !sliver) resolved += u * u.transpose();
-  }
-  for (int i = 0; i < k; ++i) {
-    Vector6d x = eigenvectors.col(i);
-    x.tail<3>() = resolved * x.tail<3>();
-    N.col(i) = unscale(x, report.rotation_scale_m);
-  }
-  return N;
-}
-
-}  // namespace
 
 Matrix6Xd DegeneracyReport::unconstrained_twists_at_origin() const {
   // exp(delta) = T_c exp(delta_c) T_c^-1  =>  delta = Ad(T_c) delta_c.
