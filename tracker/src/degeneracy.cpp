@@ -1,5 +1,6 @@
 #include "pg/tracker/degeneracy.h"
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <algorithm>

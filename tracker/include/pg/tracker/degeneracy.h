@@ -11,7 +11,6 @@
 // the turn about its own axis is scaled by the strip's width, not by its length. A point-to-plane
 // term then contributes at most about 1 per direction, and an eigenvalue of the scaled Hessian
 // below a ratio of the largest means the data leave that direction free.
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include "pg/core/se3.h"
@@ -25,8 +24,8 @@ struct DegeneracyReport {
   Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();         // c [m]
   Eigen::Matrix3d rotation_scale_m = Eigen::Matrix3d::Identity();  // Lambda [m]
   Vector6d eigenvalues = Vector6d::Zero();  // of the scaled Hessian, ascending [-]
-  Matrix6d eigenvectors =
-      Matrix6d::Identity();         // columns, in scaled coordinates [rho_c; Lambda phi]
+  // Columns, in scaled coordinates [rho_c; Lambda phi].
+  Matrix6d eigenvectors = Matrix6d::Identity();
   int unconstrained = 6;            // how many of the first eigenvalues fall below the ratio
   double min_eigenvalue_ratio = 0;  // the ratio they were compared with [-]
 
@@ -58,7 +57,7 @@ Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c
 // well; of those, the one with the least rotation (and then the least translation of c) is
 // returned, so that a sphere keeps its initial orientation and a flat patch its initial in-plane
 // position and yaw. With the slivers left in, an edge's slide would cancel the measured turn
-// about the edge: 20 mrad of turn traded for 2 mm of slide in one step.
+// about the edge: 20 mrad of turn traded for 2.4 mm of slide in one step.
 Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scaled);
 
 }  // namespace pg
