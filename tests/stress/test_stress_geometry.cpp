@@ -63,7 +63,11 @@ TEST(StressGeometry, FlatFaceSlidAndSpun) {
 // the estimate stays where it was and nothing runs away.
 TEST(StressGeometry, LongThinEdgeSlidAlongItself) {
   const ClosedLoop loop(shape(make_box({0.015f, 0.0003f, 0.005f})));
-  for (const double angle : {0.0, 0.3, 0.785}) {
+  struct Case {
+    double angle;    // to the pixel rows [rad]
+    bool staircase;  // its sides' pixel staircase holds the slide
+  };
+  for (const auto& [angle, staircase] : {Case{0.0, false}, Case{0.3, true}, Case{0.785, false}}) {
     SCOPED_TRACE("plate at " + std::to_string(angle) + " rad to the pixel rows");
     const Eigen::Quaterniond q(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()));
     std::vector<SE3> poses;
@@ -75,7 +79,7 @@ TEST(StressGeometry, LongThinEdgeSlidAlongItself) {
     run.print("LongThinEdgeSlidAlongItself at " + std::to_string(angle) + " rad");
     ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
     EXPECT_EQ(run.contact_frames, 60);
-    if (angle != 0.3) {
+    if (!staircase) {
       EXPECT_GE(max_unconstrained(run), 1) << "the slide along the edge is unobservable";
     }
     for (const auto& f : run.frames) {
