@@ -141,5 +141,48 @@ TEST(Degeneracy, CleanedDirectionsStayUnconstrained) {
   }
 }
 
+// A cloud registered against itself: what a shape leaves free. Samples 0.1 mm apart, normals
+// exact.
+TEST(Degeneracy, CloudDegeneracyCountsWhatEachShapeLeavesFree) {
+  const auto grid = [](auto&& add) {
+    for (int a = -15; a <= 15; ++a) {
+      for (int b = -15; b <= 15; ++b) add(1e-4 * a, 1e-4 * b);
+    }
+  };
+  PointCloud plane, cap, cylinder, corner;
+  grid([&](double u, double v) { plane.push_back({float(u), float(v), 0.0f}, {0, 0, -1}); });
+  const double R = 0.006;  // a sphere cap and a cylinder of radius R, their axis / centre at +z R
+  grid([&](double u, double v) {
+    const Eigen::Vector3d c_to_p(u, v, -std::sqrt(R * R - u * u - v * v));
+    cap.push_back((c_to_p + Eigen::Vector3d(0, 0, R)).cast<float>(),
+                  c_to_p.normalized().cast<float>());
+  });
+  grid([&](double u, double v) {
+    const Eigen::Vector3d c_to_p(u, 0, -std::sqrt(R * R - u * u));  // axis along y
+    cylinder.push_back((c_to_p + Eigen::Vector3d(0, v, R)).cast<float>(),
+                       c_to_p.normalized().cast<float>());
+  });
+  grid([&](double u, double v) {  // three faces meeting at the origin
+    if (u < 0 || v < 0) return;
+    corner.push_back({float(u), float(v), 0}, {0, 0, -1});
+    corner.push_back({float(u), 0, float(v)}, {0, -1, 0});
+    corner.push_back({0, float(u), float(v)}, {-1, 0, 0});
+  });
+  EXPECT_EQ(analyse_cloud_degeneracy(plane, kRatio).unconstrained, 3) << "two slides and the yaw";
+  EXPECT_EQ(analyse_cloud_degeneracy(cap, kRatio).unconstrained, 3) << "the three rotations";
+  EXPECT_EQ(analyse_cloud_degeneracy(cylinder, kRatio).unconstrained, 2)
+      << "the slide along the axis and the turn about it";
+  EXPECT_EQ(analyse_cloud_degeneracy(corner, kRatio).unconstrained, 0);
+  EXPECT_EQ(analyse_cloud_degeneracy(PointCloud(), kRatio).unconstrained, 6);
+  // The report's directions are the shape's: the cylinder's free twists are the slide along y
+  // and the turn about its axis (the line x = 0, z = R), as twists about the origin.
+  const Matrix6Xd N = analyse_cloud_degeneracy(cylinder, kRatio).unconstrained_twists_at_origin();
+  Vector6d slide = Vector6d::Zero(), turn = Vector6d::Zero();
+  slide[1] = 1;
+  turn << -R, 0, 0, 0, 1, 0;  // [-omega x q; omega] with omega = y, q = (0, 0, R)
+  EXPECT_LT(off_span(slide, N), 1e-3);
+  EXPECT_LT(off_span(turn, N), 1e-3);
+}
+
 }  // namespace
 }  // namespace pg

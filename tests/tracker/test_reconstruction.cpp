@@ -4,6 +4,8 @@
 
 #include "pg/sim/primitives.h"
 #include "pg/tracker/contact_cloud.h"
+#include "pg/tracker/degeneracy.h"
+#include "pg/tracker/kd_tree.h"
 #include "tracker_test_util.h"
 
 namespace pg {
@@ -39,10 +41,11 @@ TEST(RoundTrip, SphereCloudLiesOnTheSphere) {
   for (const char* preset : {"digit", "digit_240x320"}) {
     const RenderCase rc = make_render_case(preset, sphere);
     // Pressed 1 mm, off the gel centre.
-    const SE3 pose = SE3::Translation({0.001, -0.0015, 0}) *
-                     press_pose({0, 0, -0.006}, {0, 0, -1}, 0.001);
+    const SE3 pose =
+        SE3::Translation({0.001, -0.0015, 0}) * press_pose({0, 0, -0.006}, {0, 0, -1}, 0.001);
     for (bool ref : {true, false}) {
-      const std::string name = std::string("sphere ") + preset + (ref ? " render-ref" : " model-ref");
+      const std::string name =
+          std::string("sphere ") + preset + (ref ? " render-ref" : " model-ref");
       const PointCloud cloud_object = reconstruct_object_cloud(rc, pose, ref);
       // The UV sphere's facets lie within R (1 - cos(pi / 180)) = 0.9 um of the analytic sphere.
       std::vector<double> d;
@@ -99,6 +102,75 @@ TEST(RoundTrip, ToyBrickCloudLiesOnTheBrick) {
     for (const auto& p : cloud_object.points) on_stud += p.z() > 0.0042f;
     EXPECT_GT(on_stud, 50) << "the pose should press a stud's rim as well as the body corner";
   }
+}
+
+// The contact's core (MaskOptions::core_relative_depth): on a deep corner press the core alone
+// constrains the pose as well as the whole contact, so the cloud keeps only the core; on an edge
+// pressed just deep enough for the flat faces' shallow strips to show the turn about the edge,
+// the core alone would leave that turn free, so the cloud keeps the whole contact.
+struct CoreCase {
+  ContactFrame whole, core_alone, chosen;
+  int whole_free = 0, core_free = 0;  // unconstrained directions of each cloud
+};
+CoreCase core_case(const RenderCase& rc, const SE3& pose) {
+  const RenderedFrame f = render(rc, pose);
+  const ImageF& reference = rc.renderer->undeformed_normals();
+  ContactCloudOptions core_only = all_contact_pixels();
+  core_only.mask.relative_depth = ContactCloudOptions().mask.core_relative_depth;
+  CoreCase c;
+  c.whole = ContactCloudBuilder(rc.sensor, all_contact_pixels(), reference).build(f.images.normal);
+  c.core_alone = ContactCloudBuilder(rc.sensor, core_only, reference).build(f.images.normal);
+  c.chosen =
+      ContactCloudBuilder(rc.sensor, ContactCloudOptions(), reference).build(f.images.normal);
+  const double ratio = ContactCloudOptions().min_eigenvalue_ratio;
+  c.whole_free = analyse_cloud_degeneracy(c.whole.cloud_sensor, ratio).unconstrained;
+  c.core_free = analyse_cloud_degeneracy(c.core_alone.cloud_sensor, ratio).unconstrained;
+  std::printf("  whole contact %zu points, %d unconstrained; core %zu points, %d; kept: %s\n",
+              c.whole.cloud_sensor.size(), c.whole_free, c.core_alone.cloud_sensor.size(),
+              c.core_free, c.chosen.core ? "the core" : "the whole contact");
+  return c;
+}
+
+bool same_points(const PointCloud& a, const PointCloud& b) {
+  return a.points == b.points && a.normals == b.normals;
+}
+
+TEST(ContactCore, DeepCornerKeepsTheCore) {
+  const RenderCase rc = make_render_case("digit", mesh_shape("cube.glb"));
+  const double tip = 0.009 + 0.001 / std::sqrt(3.0);
+  const SE3 pose = press_pose({tip, tip, tip}, {1, 1, 1}, 0.0012, 0.3);
+  const CoreCase c = core_case(rc, pose);
+  ASSERT_EQ(c.whole.status, ContactStatus::kContact);
+  EXPECT_EQ(c.whole_free, 0);
+  EXPECT_EQ(c.core_free, 0);
+  EXPECT_TRUE(c.chosen.core);
+  EXPECT_TRUE(same_points(c.chosen.cloud_sensor, c.core_alone.cloud_sensor));
+  EXPECT_LT(c.chosen.cloud_sensor.size(), c.whole.cloud_sensor.size() * 9 / 10);
+  EXPECT_EQ(c.chosen.mask.pixels, c.whole.mask.pixels) << "the mask stays the whole contact";
+  // A reused frame does not keep the flag: the no-contact image after the press.
+  ContactCloudBuilder builder(rc.sensor, ContactCloudOptions(), rc.renderer->undeformed_normals());
+  ContactFrame frame;
+  builder.build(render(rc, pose).images.normal, frame);
+  ASSERT_TRUE(frame.core);
+  builder.build(rc.renderer->undeformed_normals(), frame);
+  EXPECT_EQ(frame.status, ContactStatus::kNoContact);
+  EXPECT_FALSE(frame.core);
+  EXPECT_TRUE(frame.cloud_sensor.empty());
+}
+
+TEST(ContactCore, EdgeKeepsTheWholeContactWhereOnlyItShowsTheTurn) {
+  const RenderCase rc = make_render_case("digit", mesh_shape("cube.glb"));
+  const double h = 0.009;  // the rounding's axis: x = y = 9 mm, along z
+  const Eigen::Vector3d tip(h + 0.001 / std::sqrt(2.0), h + 0.001 / std::sqrt(2.0), 0.002);
+  const CoreCase c = core_case(rc, press_pose(tip, {1, 1, 0}, 0.00075, 0.3));
+  EXPECT_EQ(c.whole_free, 1) << "the slide along the edge";
+  EXPECT_EQ(c.core_free, 2) << "the slide and the turn about the edge";
+  EXPECT_FALSE(c.chosen.core);
+  EXPECT_TRUE(same_points(c.chosen.cloud_sensor, c.whole.cloud_sensor));
+  // Deeper, the core shows the turn too and is kept.
+  const CoreCase deeper = core_case(rc, press_pose(tip, {1, 1, 0}, 0.001, 0.3));
+  EXPECT_EQ(deeper.core_free, 1);
+  EXPECT_TRUE(deeper.chosen.core);
 }
 
 }  // namespace

@@ -15,11 +15,13 @@
 
 namespace pg::test {
 
-// Front-end options that keep every contact pixel (no threshold relative to the deepest): the
-// geometry tests measure the reconstruction itself, shallow contact edges included.
+// Front-end options that keep every contact pixel (no threshold relative to the deepest, never the
+// core alone): the geometry tests measure the reconstruction itself, shallow contact edges
+// included.
 inline ContactCloudOptions all_contact_pixels() {
   ContactCloudOptions o;
   o.mask.relative_depth = 0.0;
+  o.mask.core_relative_depth = 0.0;
   return o;
 }
 

@@ -1,8 +1,19 @@
 #include "pg/tracker/contact_cloud.h"
 
 #include <cmath>
+#include <utility>
+
+#include "pg/tracker/degeneracy.h"
 
 namespace pg {
+
+namespace {
+
+// A core of fewer points is not worth trusting over the whole contact (the registrations need 20
+// at the least; a few dozen of a noisy reconstruction pin a pose poorly).
+constexpr int kMinCorePoints = 50;
+
+}  // namespace
 
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
                          const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor) {
@@ -40,10 +51,31 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
                frame.mask);
   frame.cloud_sensor.clear();
   frame.status = ContactStatus::kNoContact;
+  frame.core = false;
   if (!frame.mask.contact) return;
   back_project_contact(rays(), frame.depth.depth, frame.mask.mask, frame.mask.box, normals,
                        frame.cloud_sensor);
+  keep_core_if_as_constrained(normals, frame);
   if (!frame.cloud_sensor.empty()) frame.status = ContactStatus::kContact;
+}
+
+void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {
+  const MaskOptions& m = options_.mask;
+  if (!(m.core_relative_depth > m.relative_depth) || frame.cloud_sensor.empty()) return;
+  MaskOptions core = m;
+  core.relative_depth = m.core_relative_depth;
+  contact_mask(frame.depth.depth, frame.depth.window, core, rays().pixel_area_m2(), core_mask_);
+  if (core_mask_.pixels < kMinCorePoints || core_mask_.pixels == frame.mask.pixels) return;
+  back_project_contact(rays(), frame.depth.depth, core_mask_.mask, core_mask_.box, normals,
+                       core_cloud_);
+  if (int(core_cloud_.size()) < kMinCorePoints) return;
+  const double ratio = options_.min_eigenvalue_ratio;
+  if (analyse_cloud_degeneracy(core_cloud_, ratio).unconstrained >
+      analyse_cloud_degeneracy(frame.cloud_sensor, ratio).unconstrained) {
+    return;
+  }
+  std::swap(frame.cloud_sensor, core_cloud_);
+  frame.core = true;
 }
 
 ContactFrame ContactCloudBuilder::build(const ImageF& normals) {

@@ -144,6 +144,31 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
   return report;
 }
 
+DegeneracyReport analyse_cloud_degeneracy(const PointCloud& cloud, double min_eigenvalue_ratio) {
+  const std::size_t n = std::min(cloud.points.size(), cloud.normals.size());
+  if (n == 0) return DegeneracyReport();  // 6 unconstrained
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) c += cloud.points[i].cast<double>();
+  c /= double(n);
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d r = cloud.points[i].cast<double>() - c;
+    scatter += r * r.transpose();
+  }
+  const Eigen::Matrix3d Lambda = rotation_scale(scatter / double(n));
+  const Eigen::Matrix3d Lambda_inv = Lambda.inverse();
+  // Residual n . (rho_c + phi x r) = [n; Lambda^-1 (r x n)] . [rho_c; Lambda phi].
+  Matrix6d H = Matrix6d::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d normal = cloud.normals[i].cast<double>();
+    Vector6d J;
+    J << normal, Lambda_inv * (cloud.points[i].cast<double>() - c).cross(normal);
+    H.selfadjointView<Eigen::Upper>().rankUpdate(J);
+  }
+  const Matrix6d H_full = H.selfadjointView<Eigen::Upper>();
+  return analyse_degeneracy(H_full, c, Lambda, min_eigenvalue_ratio);
+}
+
 Matrix6Xd DegeneracyReport::unconstrained_twists() const { return free_twists(*this, kSliverCost); }
 
 Matrix6Xd DegeneracyReport::unconstrained_twists_at_origin() const {

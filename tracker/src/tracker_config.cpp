@@ -43,6 +43,7 @@ void read_mask(const nlohmann::json& j, const std::string& where, MaskOptions& m
   m.min_depth_m = f.number_in("min_depth_m", 0.0, 0.01, m.min_depth_m);
   m.min_area_m2 = f.number_in("min_area_m2", 0.0, 1e-2, m.min_area_m2);
   m.relative_depth = f.number_in("relative_depth", 0.0, 1.0, m.relative_depth);
+  m.core_relative_depth = f.number_in("core_relative_depth", 0.0, 1.0, m.core_relative_depth);
   f.finish();
 }
 
@@ -119,7 +120,8 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
       {"mask",
        {{"min_depth_m", c.mask.min_depth_m},
         {"min_area_m2", c.mask.min_area_m2},
-        {"relative_depth", c.mask.relative_depth}}},
+        {"relative_depth", c.mask.relative_depth},
+        {"core_relative_depth", c.mask.core_relative_depth}}},
       {"icp",
        {{"max_iterations", c.icp.max_iterations},
         {"max_correspondence_m", c.icp.max_correspondence_m},

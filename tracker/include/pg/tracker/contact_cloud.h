@@ -12,6 +12,10 @@ namespace pg {
 struct ContactCloudOptions {
   DepthOptions depth;
   MaskOptions mask;
+  // Below this fraction of the largest eigenvalue a direction counts as unconstrained when the
+  // contact's core is compared with the whole contact (MaskOptions::core_relative_depth); the
+  // registrations' IcpOptions::min_eigenvalue_ratio.
+  double min_eigenvalue_ratio = 5e-3;
 };
 
 enum class ContactStatus {
@@ -25,7 +29,11 @@ struct ContactFrame {
   ContactMask mask;   // contact pixels
   // Back-projected contact pixels in S [m]: p_S = o + d (t_gel - u). Normals are the object's
   // outward surface normals, i.e. minus the gel normals of the normal image (not re-estimated).
+  // Only the contact's core pixels when `core` is set.
   PointCloud cloud_sensor;
+  // cloud_sensor holds the contact's core only (MaskOptions::core_relative_depth): the core
+  // constrains as many pose directions as the whole contact.
+  bool core = false;
   // Normals rejected anywhere in the image (NaN, inf, far from unit length, or n.z <= 0: facing
   // the camera, which a gel surface cannot); the integration fills their gradient from their
   // neighbours, and they give no point.
@@ -56,8 +64,13 @@ class ContactCloudBuilder {
   const ContactCloudOptions& options() const { return options_; }
 
  private:
+  // Replaces frame.cloud_sensor by the contact's core when the core constrains as much.
+  void keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame);
+
   ContactCloudOptions options_;
   DepthFromNormals depth_;
+  ContactMask core_mask_;  // scratch, reused frame to frame
+  PointCloud core_cloud_;
 };
 
 }  // namespace pg

@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "pg/core/se3.h"
+#include "pg/tracker/point_cloud.h"
 
 namespace pg {
 
@@ -46,6 +47,13 @@ struct DegeneracyReport {
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
                                     const Eigen::Matrix3d& rotation_scale_m,
                                     double min_eigenvalue_ratio);
+
+// What a registration of `cloud` could constrain at best: the degeneracy of its point-to-plane
+// Hessian at perfect alignment with itself (each point's residual along its own normal), about
+// its centroid and scaled as above. A plane leaves 3 directions free (two slides and the turn
+// about its normal), a sphere cap 3 (the rotations), a cylinder 2 (the slide along it and the turn
+// about it), a corner of three faces none. Fewer than one point: all 6 free.
+DegeneracyReport analyse_cloud_degeneracy(const PointCloud& cloud, double min_eigenvalue_ratio);
 
 // Lambda for points about their centroid c (degeneracy.h's header comment), each principal extent
 // floored at 1e-3 of the largest (and 1e-9 m) so that a line of points stays invertible.

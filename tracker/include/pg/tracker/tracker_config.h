@@ -5,7 +5,8 @@
 //   {
 //     "depth": {"min_normal_dot_ray": 0.2, "disturbed_angle_rad": 0.005, "crop": true,
 //               "crop_margin_px": 4, "dst_backend": "real_fft", "measure_fft_plans": false},
-//     "mask":  {"min_depth_m": 1e-4, "min_area_m2": 5e-7, "relative_depth": 0.0},
+//     "mask":  {"min_depth_m": 1e-4, "min_area_m2": 5e-7, "relative_depth": 0.0,
+//               "core_relative_depth": 0.2},
 //     "icp":   {"max_iterations": 30, "max_correspondence_m": 1e-3, "kernel": "huber",
 //               "kernel_scale_m": 1e-4, "convergence_translation_m": 1e-7,
 //               "convergence_rotation_rad": 1e-6, "min_points": 20, "voxel_size_m": 0,
@@ -24,7 +25,7 @@ struct TrackerConfig {
   MaskOptions mask;
   IcpOptions icp;
 
-  ContactCloudOptions contact_cloud() const { return {depth, mask}; }
+  ContactCloudOptions contact_cloud() const { return {depth, mask, icp.min_eigenvalue_ratio}; }
 };
 
 // `where` names the file in messages. Throws InputError naming the field for unknown keys, wrong
