@@ -39,6 +39,7 @@ struct Setting {
   // 0 / 1: the symmetric ICP objective off / on; -1: as `track` sets it for the normals source
   // (resolved to 0 or 1 before the sweep runs).
   int icp_symmetric = -1;
+  bool contact_core = true;  // false: the cloud is always the whole contact
 
   std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
 };
@@ -81,6 +82,7 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
   add("registration information", "off", [](Setting& s) { s.registration_information = false; });
   if (!args.quick) {
     add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
+    add("contact core", "off", [](Setting& s) { s.contact_core = false; });
   }
   for (const char* m : args.quick ? std::vector<const char*>{"constvel"}
                                   : std::vector<const char*>{"constvel", "imagetoimage"}) {
@@ -196,6 +198,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset) {
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;
   if (s.icp_symmetric >= 0) o.front_end.icp.symmetric = s.icp_symmetric == 1;
+  if (!s.contact_core) o.front_end.mask.core_relative_depth = 0.0;
   return o;
 }
 
@@ -203,7 +206,8 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream out(path);
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
-         "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,runs,"
+         "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
+         "contact_core,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
@@ -211,9 +215,9 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
     out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals << ","
         << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
         << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
-        << "," << s.voxel_m << "," << s.icp_symmetric << "," << r.runs.size() << "," << r.median_ms
-        << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << "," << r.rmse_r_rad
-        << "," << r.front_t << "," << r.front_r << "\n";
+        << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.contact_core << ","
+        << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << ","
+        << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
