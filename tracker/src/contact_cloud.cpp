@@ -1,5 +1,6 @@
 #include "pg/tracker/contact_cloud.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -16,7 +17,8 @@ constexpr int kMinCorePoints = 50;
 }  // namespace
 
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
-                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor) {
+                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor,
+                         float min_indentation_m) {
   cloud_sensor.clear();
   const PixelRect b = box.clipped(rays.width, rays.height);
   int rejected = 0;
@@ -24,7 +26,7 @@ int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8
     const std::uint8_t* m = &mask.at(0, y);
     const float* u = &depth.at(0, y);
     for (int x = b.x0; x < b.x1; ++x) {
-      if (m[x] == 0) continue;
+      if (m[x] == 0 || !(u[x] > min_indentation_m)) continue;
       const float* n = &normals.at(x, y, 0);
       const Eigen::Vector3f n_gel(n[0], n[1], n[2]);
       const float len = n_gel.norm();
@@ -61,14 +63,15 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
 
 void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {
   const MaskOptions& m = options_.mask;
-  if (!(m.core_relative_depth > m.relative_depth) || frame.cloud_sensor.empty()) return;
-  MaskOptions core = m;
-  core.relative_depth = m.core_relative_depth;
-  contact_mask(frame.depth.depth, frame.depth.window, core, rays().pixel_area_m2(), core_mask_);
-  if (core_mask_.pixels < kMinCorePoints || core_mask_.pixels == frame.mask.pixels) return;
-  back_project_contact(rays(), frame.depth.depth, core_mask_.mask, core_mask_.box, normals,
-                       core_cloud_);
-  if (int(core_cloud_.size()) < kMinCorePoints) return;
+  const float deepest = frame.mask.deepest_m;
+  const float whole = std::max(float(m.min_depth_m), float(m.relative_depth) * deepest);
+  const float core = std::max(float(m.min_depth_m), float(m.core_relative_depth) * deepest);
+  if (!(core > whole) || frame.cloud_sensor.empty()) return;
+  back_project_contact(rays(), frame.depth.depth, frame.mask.mask, frame.mask.box, normals,
+                       core_cloud_, core);
+  if (int(core_cloud_.size()) < kMinCorePoints || core_cloud_.size() == frame.cloud_sensor.size()) {
+    return;
+  }
   const double ratio = options_.min_eigenvalue_ratio;
   if (analyse_cloud_degeneracy(core_cloud_, ratio).unconstrained >
       analyse_cloud_degeneracy(frame.cloud_sensor, ratio).unconstrained) {

@@ -51,6 +51,7 @@ void contact_mask(const ImageF& depth, const PixelRect& window, const MaskOption
     }
   }
   out.pixels = pixels;
+  out.deepest_m = deepest;
   out.box = pixels > 0 ? PixelRect{x0, y0, x1 + 1, y1 + 1} : PixelRect{};
   out.area_m2 = pixels * pixel_area_m2;
   out.contact = pixels > 0 && out.area_m2 >= options.min_area_m2;

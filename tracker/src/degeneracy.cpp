@@ -147,26 +147,45 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
 DegeneracyReport analyse_cloud_degeneracy(const PointCloud& cloud, double min_eigenvalue_ratio) {
   const std::size_t n = std::min(cloud.points.size(), cloud.normals.size());
   if (n == 0) return DegeneracyReport();  // 6 unconstrained
-  Eigen::Vector3d c = Eigen::Vector3d::Zero();
-  for (std::size_t i = 0; i < n; ++i) c += cloud.points[i].cast<double>();
-  c /= double(n);
-  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  // One pass about the first point p0 (r = p - p0, small, so no cancellation): the sums of r and
+  // r r^T, and the Hessian H0 of J0 = [n; r x n]. About the centroid c = p0 + m the Jacobian is
+  // J = [n; (r - m) x n] = M J0 with M = [I 0; -[m]x I], and scaled [n; Lambda^-1 (r - m) x n] =
+  // B M J0 with B = diag(I, Lambda^-1). Plain scalars: this runs on every contact frame, twice.
+  const Eigen::Vector3f p0 = cloud.points[0];
+  double s[3] = {}, ss[6] = {}, h[21] = {};
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d r = cloud.points[i].cast<double>() - c;
-    scatter += r * r.transpose();
+    const Eigen::Vector3f& p = cloud.points[i];
+    const Eigen::Vector3f& nf = cloud.normals[i];
+    const double rx = p.x() - p0.x(), ry = p.y() - p0.y(), rz = p.z() - p0.z();
+    const double nx = nf.x(), ny = nf.y(), nz = nf.z();
+    const double j[6] = {nx, ny, nz, ry * nz - rz * ny, rz * nx - rx * nz, rx * ny - ry * nx};
+    s[0] += rx;
+    s[1] += ry;
+    s[2] += rz;
+    ss[0] += rx * rx;
+    ss[1] += rx * ry;
+    ss[2] += rx * rz;
+    ss[3] += ry * ry;
+    ss[4] += ry * rz;
+    ss[5] += rz * rz;
+    for (int a = 0, k = 0; a < 6; ++a) {
+      for (int b = a; b < 6; ++b, ++k) h[k] += j[a] * j[b];
+    }
   }
-  const Eigen::Matrix3d Lambda = rotation_scale(scatter / double(n));
+  const Eigen::Vector3d m = Eigen::Vector3d(s[0], s[1], s[2]) / double(n);
+  Eigen::Matrix3d second;  // mean of r r^T
+  second << ss[0], ss[1], ss[2], ss[1], ss[3], ss[4], ss[2], ss[4], ss[5];
+  const Eigen::Matrix3d Lambda = rotation_scale(second / double(n) - m * m.transpose());
+  Matrix6d H0;
+  for (int a = 0, k = 0; a < 6; ++a) {
+    for (int b = a; b < 6; ++b, ++k) H0(a, b) = H0(b, a) = h[k];
+  }
+  Matrix6d BM = Matrix6d::Identity();
   const Eigen::Matrix3d Lambda_inv = Lambda.inverse();
-  // Residual n . (rho_c + phi x r) = [n; Lambda^-1 (r x n)] . [rho_c; Lambda phi].
-  Matrix6d H = Matrix6d::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d normal = cloud.normals[i].cast<double>();
-    Vector6d J;
-    J << normal, Lambda_inv * (cloud.points[i].cast<double>() - c).cross(normal);
-    H.selfadjointView<Eigen::Upper>().rankUpdate(J);
-  }
-  const Matrix6d H_full = H.selfadjointView<Eigen::Upper>();
-  return analyse_degeneracy(H_full, c, Lambda, min_eigenvalue_ratio);
+  BM.bottomLeftCorner<3, 3>() = -Lambda_inv * hat<double>(m);
+  BM.bottomRightCorner<3, 3>() = Lambda_inv;
+  const Eigen::Vector3d c = p0.cast<double>() + m;
+  return analyse_degeneracy(BM * H0 * BM.transpose(), c, Lambda, min_eigenvalue_ratio);
 }
 
 Matrix6Xd DegeneracyReport::unconstrained_twists() const { return free_twists(*this, kSliverCost); }

@@ -40,11 +40,13 @@ struct ContactFrame {
   int rejected_normals = 0;
 };
 
-// Back-projects the contact pixels in `box` (mask > 0) into S with their normals (see
-// ContactFrame::cloud_sensor). Pixels whose normal is not finite, roughly unit and +z are skipped
-// and counted in the return value. `cloud_sensor` is cleared first; its capacity is reused.
+// Back-projects the contact pixels in `box` (mask > 0, and indented by more than
+// min_indentation_m) into S with their normals (see ContactFrame::cloud_sensor). Pixels whose
+// normal is not finite, roughly unit and +z are skipped and counted in the return value.
+// `cloud_sensor` is cleared first; its capacity is reused.
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
-                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor);
+                         const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor,
+                         float min_indentation_m = 0.0f);
 
 // Coordinates the steps for one sensor; keeps the per-sensor constants, FFTW plans and scratch
 // buffers, so frames allocate nothing once the sizes have been seen. Not thread-safe: one per
@@ -69,8 +71,7 @@ class ContactCloudBuilder {
 
   ContactCloudOptions options_;
   DepthFromNormals depth_;
-  ContactMask core_mask_;  // scratch, reused frame to frame
-  PointCloud core_cloud_;
+  PointCloud core_cloud_;  // scratch, reused frame to frame
 };
 
 }  // namespace pg

@@ -31,6 +31,9 @@ struct ContactMask {
   int pixels = 0;        // contact pixels [px]
   double area_m2 = 0;    // pixels times the pixel area at the gel centre [m^2]
   bool contact = false;  // area_m2 >= min_area_m2
+  // The frame's deepest indentation as the relative thresholds see it: the 98th percentile of the
+  // pixels above min_depth_m (0: none) [m].
+  float deepest_m = 0.0f;
 };
 
 // Thresholds `depth` over `window` (the only region where it can be non-zero; pass the whole
