@@ -94,8 +94,8 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
     // the frame's deepest drops it (docs/learned_normals.md): the contact points then lie within
     // 0.05 mm (median) of the ground-truth ones instead of 0.15 mm.
     o.front_end.mask.relative_depth = 0.2;
-    // (So the core, at the same fraction by default, is the whole cloud: not measured with
-    // learned normals.)
+    // (So the contact's core, at the same fraction by default, is the whole cloud; a deeper core,
+    // 0.35, tracked the cube worse: docs/learned_normals.md.)
     // The symmetric objective leans on the source's normals, which are the network's here: on
     // the benchmark it tracked the cube better and the toy human worse than the target's normals
     // alone (docs/learned_normals.md).
