@@ -1,6 +1,5 @@
 #include "pg/tracker/contact_cloud.h"
 
-#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -64,8 +63,8 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
 void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {
   const MaskOptions& m = options_.mask;
   const float deepest = frame.mask.deepest_m;
-  const float whole = std::max(float(m.min_depth_m), float(m.relative_depth) * deepest);
-  const float core = std::max(float(m.min_depth_m), float(m.core_relative_depth) * deepest);
+  const float whole = indentation_threshold(m, m.relative_depth, deepest);
+  const float core = indentation_threshold(m, m.core_relative_depth, deepest);
   if (!(core > whole) || frame.cloud_sensor.empty()) return;
   back_project_contact(rays(), frame.depth.depth, frame.mask.mask, frame.mask.box, normals,
                        core_cloud_, core);

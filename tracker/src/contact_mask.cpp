@@ -33,8 +33,7 @@ void contact_mask(const ImageF& depth, const PixelRect& window, const MaskOption
     std::nth_element(indented.begin(), k, indented.end());
     deepest = *k;
   }
-  const float threshold =
-      std::max(float(options.min_depth_m), float(options.relative_depth) * deepest);
+  const float threshold = indentation_threshold(options, options.relative_depth, deepest);
   int pixels = 0, x0 = W, y0 = H, x1 = -1, y1 = -1;
   for (int y = win.y0; y < win.y1; ++y) {
     const float* u = &depth.at(0, y);

@@ -1,6 +1,8 @@
 #pragma once
 // Contact mask from the indentation: pixels pressed deeper than a threshold; a contact smaller
 // than a minimum area counts as no contact (noise, a grazing touch).
+#include <algorithm>
+
 #include "pg/core/image.h"
 #include "pg/core/pixel_rect.h"
 
@@ -35,6 +37,13 @@ struct ContactMask {
   // pixels above min_depth_m (0: none) [m].
   float deepest_m = 0.0f;
 };
+
+// The indentation a pixel must exceed: min_depth_m, and `fraction` of the frame's deepest
+// (ContactMask::deepest_m) [m]. The mask uses relative_depth; the contact's core
+// core_relative_depth.
+inline float indentation_threshold(const MaskOptions& options, double fraction, float deepest_m) {
+  return std::max(float(options.min_depth_m), float(fraction) * deepest_m);
+}
 
 // Thresholds `depth` over `window` (the only region where it can be non-zero; pass the whole
 // image when unsure). `out`'s buffers are reused; what it marked last time is cleared.
