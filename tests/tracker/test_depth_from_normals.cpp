@@ -67,7 +67,10 @@ class AnalyticSphere : public ::testing::TestWithParam<SphereCase> {};
 
 // Eq. 4: analytic normals of a sphere (R = 6 mm) pressed into the curved DIGIT gel, integrated
 // against the undeformed gel's normals, give the analytic indentation within 2% of the press
-// depth in the contact core (where u > press / 2), with and without cropping.
+// depth in the contact core (where u > press / 2), with and without cropping, by the averaged
+// integration. These normals are exact at each pixel's centre, not the renderer's central
+// differences, so the parity integration (which inverts those) is off by up to twice as much at
+// the rim's kink (its sub-grids have twice the spacing): within 4% here (3.1% measured).
 TEST_P(AnalyticSphere, DepthWithinTwoPercentOfPressInTheCore) {
   const SphereCase sc = GetParam();
   const SensorModel sensor = sensor_preset(sc.preset);
@@ -76,9 +79,13 @@ TEST_P(AnalyticSphere, DepthWithinTwoPercentOfPressInTheCore) {
   const Eigen::Vector3d c(0.0015, -0.002, 0.0);
   const Eigen::Vector3d centre(c.x(), c.y(), sensor.gel.surface_z(c.x(), c.y()) + R - sc.press_m);
   const auto frame = analytic_sphere_frame(sensor, centre, R);
-  for (bool crop : {true, false}) {
+  for (auto [crop, integration] :
+       {std::pair{true, DepthIntegration::kAveraged}, std::pair{false, DepthIntegration::kAveraged},
+        std::pair{true, DepthIntegration::kParity}, std::pair{false, DepthIntegration::kParity}}) {
+    const bool parity = integration == DepthIntegration::kParity;
     DepthOptions options;
     options.crop = crop;
+    options.integration = integration;
     DepthFromNormals solver(sensor, options, frame.reference);
     DepthResult out;
     solver.compute(frame.normal, out);
@@ -93,8 +100,9 @@ TEST_P(AnalyticSphere, DepthWithinTwoPercentOfPressInTheCore) {
       }
     }
     EXPECT_GT(core, 100);
-    EXPECT_LT(max_err, 0.02 * sc.press_m)
-        << sc.preset << (crop ? " cropped" : " full") << ": largest core error " << max_err * 1e6
+    EXPECT_LT(max_err, (parity ? 0.04 : 0.02) * sc.press_m)
+        << sc.preset << (crop ? " cropped" : " full") << (parity ? " parity" : " averaged")
+        << ": largest core error " << max_err * 1e6
         << " um for a press of " << sc.press_m * 1e6 << " um (true max " << true_max * 1e6
         << " um), " << core << " core pixels";
     if (crop) {

@@ -5,6 +5,7 @@
 #include "pg/sim/primitives.h"
 #include "pg/tracker/contact_cloud.h"
 #include "pg/tracker/degeneracy.h"
+#include "pg/tracker/depth_from_normals.h"
 #include "pg/tracker/kd_tree.h"
 #include "tracker_test_util.h"
 
@@ -86,6 +87,52 @@ TEST(RoundTrip, CubeCornerCloudLiesOnTheCube) {
     const PointCloud cloud_object = reconstruct_object_cloud(rc, pose, true);
     expect_on_surface(std::string("cube corner ") + preset,
                       distances_to_mesh(cube->mesh(), cloud_object.points), 300);
+  }
+}
+
+// The renderer's normal is the central difference of its neighbours' surface points, so the
+// parity integration inverts it: the rendered indentation comes back to float precision, kinks
+// (the rim, the cube's edges) included. The averaged integration smooths each kink by about a
+// pixel; it is checked to be measurably off here, so this test notices if the renderer's normals
+// change to something the parity integration no longer inverts.
+TEST(RoundTrip, ParityIntegrationRecoversTheRenderedIndentation) {
+  const auto cube = mesh_shape("cube.glb");
+  const double tip = 0.009 + 0.001 / std::sqrt(3.0), h = 0.009 + 0.001 / std::sqrt(2.0);
+  struct Case {
+    const char* name;
+    SE3 pose;
+  };
+  for (const char* preset : {"digit", "digit_240x320"}) {
+    const RenderCase rc = make_render_case(preset, cube);
+    for (const Case& c : {Case{"corner", press_pose({tip, tip, tip}, {1, 1, 1}, 0.0012, 0.3)},
+                          Case{"edge", press_pose({h, h, 0.002}, {1, 1, 0}, 0.0008, 0.2)}}) {
+      const RenderedFrame f = render(rc, c.pose);
+      double max_err[2] = {0, 0}, sum_sq[2] = {0, 0};
+      int pixels = 0;
+      for (int k = 0; k < 2; ++k) {
+        DepthOptions options;
+        options.integration = k == 0 ? DepthIntegration::kParity : DepthIntegration::kAveraged;
+        DepthFromNormals solver(rc.sensor, options, rc.renderer->undeformed_normals());
+        DepthResult out;
+        solver.compute(f.images.normal, out);
+        pixels = 0;
+        for (std::size_t i = 0; i < out.depth.data.size(); ++i) {
+          const double u = f.images.depth.data[i];
+          if (!(u > 0)) continue;
+          const double e = std::abs(double(out.depth.data[i]) - u);
+          max_err[k] = std::max(max_err[k], e);
+          sum_sq[k] += e * e;
+          ++pixels;
+        }
+      }
+      const std::string what = std::string(preset) + " " + c.name;
+      ASSERT_GT(pixels, 200) << what;
+      EXPECT_LT(max_err[0], 0.2e-6) << what << ": parity integration, largest error [m]";
+      const double averaged_rms = std::sqrt(sum_sq[1] / pixels);
+      EXPECT_GT(averaged_rms, 2e-6) << what << ": averaged integration, RMS error [m]";
+      std::printf("  %-20s %5d pixels: parity max %.3f um, averaged RMS %.1f um\n", what.c_str(),
+                  pixels, max_err[0] * 1e6, averaged_rms * 1e6);
+    }
   }
 }
 

@@ -29,7 +29,7 @@ TEST(TrackerConfig, EmptyObjectGivesTheDefaults) {
 
 TEST(TrackerConfig, OverridesAndRoundTrips) {
   const TrackerConfig c =
-      tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6},
+      tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6, "integration": "averaged"},
                           "mask": {"min_depth_m": 5e-5},
                           "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4,
                                   "coarse_points": 0, "coarse_step_m": 2e-5,
@@ -38,6 +38,8 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
                                "cfg.json");
   EXPECT_FALSE(c.depth.crop);
   EXPECT_EQ(c.depth.crop_margin_px, 6);
+  EXPECT_EQ(DepthOptions().integration, DepthIntegration::kParity);
+  EXPECT_EQ(c.depth.integration, DepthIntegration::kAveraged);
   EXPECT_DOUBLE_EQ(c.mask.min_depth_m, 5e-5);
   EXPECT_EQ(c.icp.kernel, RobustKernel::kTukey);
   EXPECT_DOUBLE_EQ(c.icp.kernel_scale_m, 2e-4);
@@ -66,6 +68,9 @@ TEST(TrackerConfig, ErrorsNameTheFileAndField) {
             std::string::npos);
   EXPECT_NE(error_of(R"({"icp": {"symmetric": 1}})").find("icp.symmetric"), std::string::npos)
       << error_of(R"({"icp": {"symmetric": 1}})");
+  EXPECT_NE(error_of(R"({"depth": {"integration": "poisson"}})").find("depth.integration"),
+            std::string::npos)
+      << error_of(R"({"depth": {"integration": "poisson"}})");
   EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
 }
 

@@ -75,11 +75,12 @@ BENCHMARK_CAPTURE(BM_NormalsToCloud, digit_240x320, "digit_240x320")
     ->Unit(benchmark::kMicrosecond);
 
 // Integration alone on a small contact (a 4 mm sphere pressed 0.3 mm at 240x320), cropped to the
-// contact or over the whole image.
-void BM_PoissonSmallContact(benchmark::State& state, bool crop) {
+// contact or over the whole image, by the parity (default) or the averaged integration.
+void BM_PoissonSmallContact(benchmark::State& state, bool crop, DepthIntegration integration) {
   const SphereFrame f = sphere_frame("digit_240x320", 0.004, 0.0003);
   DepthOptions options;
   options.crop = crop;
+  options.integration = integration;
   DepthFromNormals depth(f.sensor, options);
   DepthResult out;
   depth.compute(f.normals, out);
@@ -89,8 +90,14 @@ void BM_PoissonSmallContact(benchmark::State& state, bool crop) {
   }
   state.counters["grid_px"] = double(out.window.area());
 }
-BENCHMARK_CAPTURE(BM_PoissonSmallContact, cropped, true)->Unit(benchmark::kMicrosecond);
-BENCHMARK_CAPTURE(BM_PoissonSmallContact, full_image, false)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, cropped, true, DepthIntegration::kParity)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, cropped_averaged, true, DepthIntegration::kAveraged)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, full_image, false, DepthIntegration::kParity)
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_PoissonSmallContact, full_image_averaged, false, DepthIntegration::kAveraged)
+    ->Unit(benchmark::kMicrosecond);
 
 // Back-projection alone: the contact pixels of a 6 mm sphere pressed 1 mm, into points with
 // normals in S (the cloud the registrations align).

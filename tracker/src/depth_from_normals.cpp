@@ -81,9 +81,9 @@ int classify_row(const float* n, const float* ref, int width, float cos_threshol
 
 // Grows [lo, hi) by `margin` on both sides and then to the next fast DST size, centring the
 // padding. The result may reach past the image.
-void fast_window(int lo, int hi, int margin, int& out_lo, int& out_hi) {
+void fast_window(int lo, int hi, int margin, int& out_lo, int& out_hi, bool even) {
   const int want = (hi - lo) + 2 * margin;
-  const int n = dst_fast_size(want);
+  const int n = even ? 2 * dst_fast_size((want + 1) / 2) : dst_fast_size(want);
   out_lo = lo - margin - (n - want) / 2;
   out_hi = out_lo + n;
 }
@@ -169,8 +169,10 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   const PixelRect need = options_.crop ? out.disturbed_box : PixelRect{0, 0, W, H};
   const int margin = options_.crop ? options_.crop_margin_px : 0;
   PixelRect& win = out.window;
-  fast_window(need.x0, need.x1, margin, win.x0, win.x1);
-  fast_window(need.y0, need.y1, margin, win.y0, win.y1);
+  fast_window(need.x0, need.x1, margin, win.x0, win.x1,
+              options_.integration == DepthIntegration::kParity);
+  fast_window(need.y0, need.y1, margin, win.y0, win.y1,
+              options_.integration == DepthIntegration::kParity);
   const int nx = win.width(), ny = win.height();
 
   // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image. Invalid normals
@@ -203,9 +205,24 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
 
   if (!holes.empty()) fill_holes(holes, gw, gx_, gy_);
 
-  // 4. Right-hand side: the divergence of the gradient field, with the gradients averaged to the
-  // half-pixel positions so that it matches the 5-point Laplacian:
-  //   f = (g_x(x+1) - g_x(x-1)) / 2 + (g_y(y+1) - g_y(y-1)) / 2.
+  // 4. Solve for w = ln(t / t_gel) over the grid.
+  const float* w = options_.integration == DepthIntegration::kParity ? integrate_parity(nx, ny)
+                                                                     : integrate_averaged(nx, ny);
+
+  // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
+  const PixelRect inside = win.clipped(W, H);
+  for (int y = inside.y0; y < inside.y1; ++y) {
+    const float* wr = w + std::size_t(y - win.y0) * nx - win.x0;
+    float* ur = &out.depth.at(0, y);
+    const float* tg = &rays_.t_gel[std::size_t(y) * W];
+    for (int x = inside.x0; x < inside.x1; ++x) ur[x] = tg[x] * -std::expm1(wr[x]);
+  }
+}
+
+// The gradients averaged to the half-pixel positions so that the divergence matches the 5-point
+// Laplacian: f = (g_x(x+1) - g_x(x-1)) / 2 + (g_y(y+1) - g_y(y-1)) / 2.
+const float* DepthFromNormals::integrate_averaged(int nx, int ny) {
+  const int gw = nx + 2;
   float* f = solver_.grid(nx, ny);
   for (int y = 0; y < ny; ++y) {
     const float* gxr = &gx_[std::size_t(y + 1) * gw + 1];
@@ -217,15 +234,38 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
     }
   }
   solver_.solve();
+  return f;
+}
 
-  // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
-  const PixelRect inside = win.clipped(W, H);
-  for (int y = inside.y0; y < inside.y1; ++y) {
-    const float* wr = f + std::size_t(y - win.y0) * nx - win.x0;
-    float* ur = &out.depth.at(0, y);
-    const float* tg = &rays_.t_gel[std::size_t(y) * W];
-    for (int x = inside.x0; x < inside.x1; ++x) ur[x] = tg[x] * -std::expm1(wr[x]);
+// On the sub-grid of one parity (step 2 px), w(x + 2) - w(x) = 2 g_x(x + 1): its Laplacian is
+// 2 (g_x(x+1) - g_x(x-1)) + 2 (g_y(y+1) - g_y(y-1)) at each of its cells. nx, ny are even (see
+// fast_window), so the four sub-grids are nx/2 x ny/2 and their cells just outside lie on the
+// grid's ring or one beyond it, both undisturbed (w = 0) by the crop margin.
+const float* DepthFromNormals::integrate_parity(int nx, int ny) {
+  const int gw = nx + 2, mx = nx / 2, my = ny / 2;
+  w_.resize(std::size_t(nx) * ny);
+  for (int py = 0; py < 2; ++py) {
+    for (int px = 0; px < 2; ++px) {
+      float* f = solver_.grid(mx, my);
+      for (int j = 0; j < my; ++j) {
+        const float* g_x = &gx_[std::size_t(py + 2 * j + 1) * gw + px + 1];
+        const float* g_yu = &gy_[std::size_t(py + 2 * j) * gw + px + 1];
+        const float* g_yd = g_yu + 2 * std::size_t(gw);
+        float* fr = f + std::size_t(j) * mx;
+        for (int i = 0; i < mx; ++i) {
+          const int c = 2 * i;
+          fr[i] = 2.0f * (g_x[c + 1] - g_x[c - 1]) + 2.0f * (g_yd[c] - g_yu[c]);
+        }
+      }
+      solver_.solve();
+      for (int j = 0; j < my; ++j) {
+        float* wr = &w_[std::size_t(py + 2 * j) * nx + px];
+        const float* fr = f + std::size_t(j) * mx;
+        for (int i = 0; i < mx; ++i) wr[2 * i] = fr[i];
+      }
+    }
   }
+  return w_.data();
 }
 
 }  // namespace pg

@@ -35,6 +35,17 @@ void read_depth(const nlohmann::json& j, const std::string& where, DepthOptions&
     }
   }
   d.measure_fft_plans = f.optional<bool>("measure_fft_plans", d.measure_fft_plans);
+  if (f.has("integration")) {
+    const std::string i = f.required<std::string>("integration");
+    if (i == "parity") {
+      d.integration = DepthIntegration::kParity;
+    } else if (i == "averaged") {
+      d.integration = DepthIntegration::kAveraged;
+    } else {
+      throw InputError(f.field("integration") + ": unknown integration '" + i +
+                       "' (known: parity, averaged)");
+    }
+  }
   f.finish();
 }
 
@@ -116,7 +127,8 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"crop", c.depth.crop},
         {"crop_margin_px", c.depth.crop_margin_px},
         {"dst_backend", c.depth.dst_backend == DstBackend::kRealFft ? "real_fft" : "fftw_r2r"},
-        {"measure_fft_plans", c.depth.measure_fft_plans}}},
+        {"measure_fft_plans", c.depth.measure_fft_plans},
+        {"integration", c.depth.integration == DepthIntegration::kParity ? "parity" : "averaged"}}},
       {"mask",
        {{"min_depth_m", c.mask.min_depth_m},
         {"min_area_m2", c.mask.min_area_m2},
