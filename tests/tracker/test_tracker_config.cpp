@@ -29,7 +29,8 @@ TEST(TrackerConfig, EmptyObjectGivesTheDefaults) {
 
 TEST(TrackerConfig, OverridesAndRoundTrips) {
   const TrackerConfig c =
-      tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6, "integration": "averaged"},
+      tracker_config_from_json(parse_json_text(R"({"depth": {"crop": false, "crop_margin_px": 6,
+                                    "integration": "averaged"},
                           "mask": {"min_depth_m": 5e-5},
                           "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4,
                                   "coarse_points": 0, "coarse_step_m": 2e-5,
