@@ -20,7 +20,7 @@ KNOB_COLORS = {
     "default": "#000000", "resolution": "#8172b2", "keyframe interval": "#4c72b0",
     "ICP iterations": "#dd8452", "correspondence": "#55a868", "voxel": "#c44e52",
     "window": "#937860", "registration information": "#da8bc3", "ICP objective": "#17becf",
-    "contact core": "#bcbd22", "method": "#8c8c8c",
+    "contact core": "#bcbd22", "integration": "#1f1f7a", "method": "#8c8c8c",
     "normals": "#ccb974",
 }
 

@@ -37,7 +37,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
                         "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
-                        "icp_symmetric"}) {
+                        "icp_symmetric", "depth_integration"}) {
     ASSERT_TRUE(column.count(c)) << c;
   }
   std::vector<std::string> settings;
@@ -48,6 +48,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     settings.push_back(cells[column["setting"]]);
     EXPECT_EQ(cells[column["runs"]], "2") << line;
     EXPECT_EQ(cells[column["icp_symmetric"]], "1") << line;  // ground-truth normals throughout
+    EXPECT_EQ(cells[column["depth_integration"]], "parity") << line;  // the quick sweep: default
     for (const char* c :
          {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
       const double v = std::stod(cells[column[c]]);

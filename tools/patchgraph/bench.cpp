@@ -40,6 +40,9 @@ struct Setting {
   // (resolved to 0 or 1 before the sweep runs).
   int icp_symmetric = -1;
   bool contact_core = true;  // false: the cloud is always the whole contact
+  // 0 / 1: the averaged / parity integration of the normals; -1: as `track` sets it for the
+  // normals source (resolved before the sweep runs, as icp_symmetric).
+  int parity_integration = -1;
 
   std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
 };
@@ -83,6 +86,7 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
   if (!args.quick) {
     add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
     add("contact core", "off", [](Setting& s) { s.contact_core = false; });
+    add("integration", "averaged", [](Setting& s) { s.parity_integration = 0; });
   }
   for (const char* m : args.quick ? std::vector<const char*>{"constvel"}
                                   : std::vector<const char*>{"constvel", "imagetoimage"}) {
@@ -199,6 +203,10 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset) {
   o.front_end.icp.voxel_size_m = s.voxel_m;
   if (s.icp_symmetric >= 0) o.front_end.icp.symmetric = s.icp_symmetric == 1;
   if (!s.contact_core) o.front_end.mask.core_relative_depth = 0.0;
+  if (s.parity_integration >= 0) {
+    o.front_end.depth.integration =
+        s.parity_integration == 1 ? DepthIntegration::kParity : DepthIntegration::kAveraged;
+  }
   return o;
 }
 
@@ -207,7 +215,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
          "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
-         "contact_core,runs,"
+         "contact_core,depth_integration,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
@@ -216,8 +224,9 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
         << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
         << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
         << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.contact_core << ","
-        << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << ","
-        << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
+        << (s.parity_integration == 1 ? "parity" : "averaged") << "," << r.runs.size() << ","
+        << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << ","
+        << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
@@ -301,7 +310,11 @@ int run_track_bench(const TrackBenchArgs& in) {
   {
     const Dataset first = Dataset::open(cached_dataset(
         args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
-    for (auto& s : settings) s.icp_symmetric = options_for(s, first).front_end.icp.symmetric;
+    for (auto& s : settings) {
+      const TrackOptions o = options_for(s, first);
+      s.icp_symmetric = o.front_end.icp.symmetric;
+      s.parity_integration = o.front_end.depth.integration == DepthIntegration::kParity;
+    }
   }
   std::vector<Row> rows(settings.size());
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
