@@ -2,11 +2,13 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
@@ -186,6 +188,42 @@ TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("| cube | patchgraph | 1 |"), std::string::npos) << text;
   EXPECT_TRUE(fs::exists(out("eval") + "/runs"));
+}
+
+// Each sequence of an eval draws its own noise (a seed from --seed and the folder's name), and
+// `track --seed S` with S from results.csv reproduces that run alone.
+TEST_F(PatchgraphCli, EvalSeedsEachSequenceAndTrackReproducesARun) {
+  const std::string copy = out("data_copy");
+  fs::remove_all(copy);
+  fs::copy(data(), copy, fs::copy_options::recursive);
+  const CliRun r = patchgraph("eval --datasets " + data() + " " + copy +
+                              " --methods patchgraph -q --no-plots --out " + out("eval_seed"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream results(out("eval_seed") + "/results.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(results, line));
+  std::vector<std::string> header;
+  for (std::stringstream ss(line); std::getline(ss, line, ',');) header.push_back(line);
+  const auto column = [&](const std::string& name) {
+    return std::size_t(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  ASSERT_LT(column("seed"), header.size());
+  std::vector<std::vector<std::string>> rows;
+  while (std::getline(results, line)) {
+    rows.emplace_back();
+    for (std::stringstream ss(line); std::getline(ss, line, ',');) rows.back().push_back(line);
+  }
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_NE(rows[0][column("seed")], rows[1][column("seed")]);
+  const double t0 = std::stod(rows[0][column("final_translation_error_m")]);
+  const double t1 = std::stod(rows[1][column("final_translation_error_m")]);
+  EXPECT_GT(std::abs(t0 - t1), 1e-7) << "the same frames with other noise end elsewhere";
+  const CliRun t = patchgraph("track " + rows[0][column("dataset")] + " -q --seed " +
+                              rows[0][column("seed")] + " --out " + out("track_seed"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  const auto summary = parse_json_file(out("track_seed") + "/summary.json");
+  EXPECT_EQ(std::to_string(summary["seed"].get<std::uint64_t>()), rows[0][column("seed")]);
+  EXPECT_NEAR(summary["final_translation_error_m"].get<double>(), t0, 1e-7);
 }
 
 }  // namespace

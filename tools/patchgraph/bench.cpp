@@ -190,8 +190,9 @@ void mark_pareto(std::vector<Row>& rows) {
   }
 }
 
-TrackOptions options_for(const Setting& s, const Dataset& dataset) {
+TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed) {
   TrackArgs a;
+  a.seed = seed;
   a.method = s.method;
   a.normals = s.normals;  // the same path as `patchgraph track --normals`
   a.window = s.window;
@@ -311,7 +312,7 @@ int run_track_bench(const TrackBenchArgs& in) {
     const Dataset first = Dataset::open(cached_dataset(
         args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
     for (auto& s : settings) {
-      const TrackOptions o = options_for(s, first);
+      const TrackOptions o = options_for(s, first, 0);
       s.icp_symmetric = o.front_end.icp.symmetric;
       s.parity_integration = o.front_end.depth.integration == DepthIntegration::kParity;
     }
@@ -327,7 +328,8 @@ int run_track_bench(const TrackBenchArgs& in) {
       const std::string dir =
           cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
       const Dataset dataset = Dataset::open(dir);
-      const TrackRun run = track_dataset(dataset, options_for(s, dataset));
+      const TrackRun run =
+          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name)));
       row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
       ++done;
       if (!args.quiet) {

@@ -56,13 +56,13 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
-         "lost_frames,degenerate_frames\n";
+         "lost_frames,degenerate_frames,seed\n";
   for (const auto& r : rows) {
     out << r.dataset << "," << r.object << "," << r.method << "," << r.s.frames << ","
         << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
-        << r.s.lost_frames << "," << r.s.degenerate_frames << "\n";
+        << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
@@ -111,6 +111,7 @@ int run_eval(const EvalArgs& args) {
     for (const auto& m : methods) {
       TrackArgs a = args.track;
       a.method = m;
+      a.seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
       const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
       const std::string name = fs::path(dir).filename().string() + "_" + m;
       write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());

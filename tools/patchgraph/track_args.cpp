@@ -56,7 +56,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(CLI::NonNegativeNumber);
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--seed", a.seed, "Seed of the simulated measurement noise");
+  app.add_option("--seed", a.seed,
+                 "Seed of the simulated measurement noise (eval mixes it with each dataset's "
+                 "folder name: results.csv's seed column)");
   app.add_flag("--compare-batch", a.compare_batch,
                "Afterwards re-solve the whole sequence at once and report the difference");
 }
@@ -121,6 +123,15 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
     o.model_object.normals = s.normals;
   }
   return o;
+}
+
+std::uint64_t sequence_seed(std::uint64_t base, const std::string& name) {
+  std::uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a over the name
+  for (unsigned char c : name) h = (h ^ c) * 0x100000001b3ull;
+  std::uint64_t z = h ^ (base + 0x9e3779b97f4a7c15ull);  // then SplitMix64's finaliser
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+  return z ^ (z >> 31);
 }
 
 }  // namespace pg

@@ -1,6 +1,7 @@
 #pragma once
 // Options shared by `patchgraph track` and `patchgraph eval`.
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <string>
 
 #include "pg/graph/track_dataset.h"
@@ -27,5 +28,11 @@ struct TrackArgs {
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset);
+
+// The noise seed of one sequence of a batch (`eval`, `bench`): the base seed mixed with the
+// sequence's name (its dataset folder, or its scene file's stem), so each sequence draws its own
+// sensor-pose and vision-prior noise, whatever else runs with it, and one run is reproduced alone
+// by `patchgraph track DIR --seed S` with S from results.csv or summary.json.
+std::uint64_t sequence_seed(std::uint64_t base, const std::string& name);
 
 }  // namespace pg

@@ -100,6 +100,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   }
   run.summary = summarize(run.frames, to_string(graph.method));
   run.summary.normals = options.normals_name;
+  run.summary.seed = options.seed;
   if (options.compare_batch) {
     run.tracker->solve_batch();
     const std::vector<SE3> batch = run.tracker->object_trajectory();
@@ -178,6 +179,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"dataset", dataset.dir()},
       {"object", dataset.info().object_name},
       {"method", s.method},
+      {"seed", s.seed},
       {"normals", s.normals},
       {"frames", s.frames},
       {"contact_frames", s.contact_frames},

@@ -1,6 +1,7 @@
 #pragma once
 // Tracking a rendered (or recorded) dataset end to end: normals -> contact cloud -> PatchGraph,
 // with the paper's simulated measurement noise, and the errors against ground truth.
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -50,6 +51,7 @@ struct FrameResult {
 
 struct TrackSummary {
   std::string method;
+  std::uint64_t seed = 0;  // of the simulated sensor-pose and vision-prior noise
   int frames = 0;
   int contact_frames = 0;
   int episodes = 0;
