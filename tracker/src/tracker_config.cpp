@@ -1,6 +1,8 @@
 #include "pg/tracker/tracker_config.h"
 
+#include <initializer_list>
 #include <nlohmann/json.hpp>
+#include <utility>
 
 #include "pg/core/json_fields.h"
 
@@ -17,35 +19,36 @@ int int_in(JsonFields& f, const std::string& key, int lo, int hi, int fallback) 
   return v;
 }
 
+// An optional field naming one of `choices`; anything else is an InputError listing them.
+template <class E>
+void read_choice(JsonFields& f, const char* key, const char* what,
+                 std::initializer_list<std::pair<const char*, E>> choices, E& out) {
+  if (!f.has(key)) return;
+  const std::string v = f.required<std::string>(key);
+  std::string known;
+  for (const auto& [name, value] : choices) {
+    if (v == name) {
+      out = value;
+      return;
+    }
+    known += (known.empty() ? "" : ", ") + std::string(name);
+  }
+  throw InputError(f.field(key) + ": unknown " + what + " '" + v + "' (known: " + known + ")");
+}
+
 void read_depth(const nlohmann::json& j, const std::string& where, DepthOptions& d) {
   JsonFields f(j, where);
   d.min_normal_dot_ray = f.number_in("min_normal_dot_ray", 1e-3, 1.0, d.min_normal_dot_ray);
   d.disturbed_angle_rad = f.number_in("disturbed_angle_rad", 0.0, 1.0, d.disturbed_angle_rad);
   d.crop = f.optional<bool>("crop", d.crop);
   d.crop_margin_px = int_in(f, "crop_margin_px", 1, 1000, d.crop_margin_px);
-  if (f.has("dst_backend")) {
-    const std::string b = f.required<std::string>("dst_backend");
-    if (b == "real_fft") {
-      d.dst_backend = DstBackend::kRealFft;
-    } else if (b == "fftw_r2r") {
-      d.dst_backend = DstBackend::kFftwR2r;
-    } else {
-      throw InputError(f.field("dst_backend") + ": unknown backend '" + b +
-                       "' (known: real_fft, fftw_r2r)");
-    }
-  }
+  read_choice(f, "dst_backend", "backend",
+              {{"real_fft", DstBackend::kRealFft}, {"fftw_r2r", DstBackend::kFftwR2r}},
+              d.dst_backend);
   d.measure_fft_plans = f.optional<bool>("measure_fft_plans", d.measure_fft_plans);
-  if (f.has("integration")) {
-    const std::string i = f.required<std::string>("integration");
-    if (i == "parity") {
-      d.integration = DepthIntegration::kParity;
-    } else if (i == "averaged") {
-      d.integration = DepthIntegration::kAveraged;
-    } else {
-      throw InputError(f.field("integration") + ": unknown integration '" + i +
-                       "' (known: parity, averaged)");
-    }
-  }
+  read_choice(f, "integration", "integration",
+              {{"parity", DepthIntegration::kParity}, {"averaged", DepthIntegration::kAveraged}},
+              d.integration);
   f.finish();
 }
 
