@@ -3,6 +3,7 @@
 // (clean and with outliers), degeneracy on a flat patch and a sphere, the information matrix's
 // convention, and bad input.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 
 #include <algorithm>
 #include <random>
@@ -713,6 +714,24 @@ TEST(IcpCoarseToFine, SameAnswerAsTheFullCloudWithFewerQueries) {
   std::printf("  coarse to fine: %d+%d iterations, %ld queries; full cloud: %d iterations, %ld\n",
               a.coarse_iterations, a.iterations - a.coarse_iterations, coarse.last_queries(),
               b.iterations, full.last_queries());
+}
+
+// The parallel sums are reduced in a fixed order, so a registration gives the same bits every
+// time on two threads (with work-stealing reduction they differed by ~1e-12 from run to run,
+// and a tracker amplified that on hard sequences).
+TEST(IcpDeterminism, TheSameRegistrationGivesTheSameBitsOnTwoThreads) {
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, 2);
+  const PointCloudTree target(bumpy_surface(0.012, 0.00005));
+  const SE3 truth = SE3::exp((Vector6d() << 2e-4, -1e-4, 1e-4, 0.01, -0.015, 0.02).finished());
+  const PointCloud source = transform_cloud(truth.inverse(), bumpy_surface(0.008, 0.00007));
+  PointToPlaneIcp icp{IcpOptions()};
+  const IcpResult first = icp.align(source, target, SE3::Identity());
+  ASSERT_TRUE(first.converged) << to_string(first.status);
+  for (int k = 0; k < 20; ++k) {
+    const IcpResult again = icp.align(source, target, SE3::Identity());
+    ASSERT_EQ(again.T_target_source.matrix(), first.T_target_source.matrix()) << "run " << k;
+    ASSERT_EQ(again.hessian, first.hessian) << "run " << k;
+  }
 }
 
 TEST(IcpCoarseToFine, TheLastIterationsAndSmallCloudsUseEveryPoint) {
