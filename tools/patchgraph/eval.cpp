@@ -108,10 +108,11 @@ int run_eval(const EvalArgs& args) {
   const int total = int(datasets.size() * methods.size());
   for (const auto& dir : datasets) {
     const Dataset dataset = Dataset::open(dir);
+    const std::uint64_t seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
     for (const auto& m : methods) {
       TrackArgs a = args.track;
       a.method = m;
-      a.seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
+      a.seed = seed;
       const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
       const std::string name = fs::path(dir).filename().string() + "_" + m;
       write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());

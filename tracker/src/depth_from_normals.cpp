@@ -169,10 +169,9 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   const PixelRect need = options_.crop ? out.disturbed_box : PixelRect{0, 0, W, H};
   const int margin = options_.crop ? options_.crop_margin_px : 0;
   PixelRect& win = out.window;
-  fast_window(need.x0, need.x1, margin, win.x0, win.x1,
-              options_.integration == DepthIntegration::kParity);
-  fast_window(need.y0, need.y1, margin, win.y0, win.y1,
-              options_.integration == DepthIntegration::kParity);
+  const bool parity = options_.integration == DepthIntegration::kParity;
+  fast_window(need.x0, need.x1, margin, win.x0, win.x1, parity);
+  fast_window(need.y0, need.y1, margin, win.y0, win.y1, parity);
   const int nx = win.width(), ny = win.height();
 
   // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image. Invalid normals
@@ -206,8 +205,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   if (!holes.empty()) fill_holes(holes, gw, gx_, gy_);
 
   // 4. Solve for w = ln(t / t_gel) over the grid.
-  const float* w = options_.integration == DepthIntegration::kParity ? integrate_parity(nx, ny)
-                                                                     : integrate_averaged(nx, ny);
+  const float* w = parity ? integrate_parity(nx, ny) : integrate_averaged(nx, ny);
 
   // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
   const PixelRect inside = win.clipped(W, H);
