@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <exception>
 #include <functional>
+#include <string>
 
 #include "pg/core/error.h"
 
@@ -12,6 +13,21 @@ namespace pg {
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
+
+// CLI11's NonNegativeNumber and PositiveNumber, with a short message ("--window: must be >= 0,
+// got -1") instead of the range up to the largest double written out in full.
+inline CLI::Validator number_check(bool allow_zero) {
+  return CLI::Validator(
+      [allow_zero](std::string& text) -> std::string {
+        double value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "not a number: " + text;
+        if (allow_zero ? value >= 0 : value > 0) return {};
+        return std::string("must be ") + (allow_zero ? ">= 0" : "> 0") + ", got " + text;
+      },
+      allow_zero ? "NONNEGATIVE" : "POSITIVE");
+}
+inline const CLI::Validator kNonNegative = number_check(true);
+inline const CLI::Validator kPositive = number_check(false);
 
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.

@@ -29,30 +29,29 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->check(CLI::Range(1, 256));
   cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
       ->check(CLI::Range(1, 1024));
-  cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(CLI::PositiveNumber);
-  cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(CLI::PositiveNumber);
-  cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")
-      ->check(CLI::PositiveNumber);
+  cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(kPositive);
+  cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(kPositive);
+  cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")->check(kPositive);
   cmd->add_option("--l1-weight", o.l1_weight, "Weight of the L1 loss (default 100)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--gan-weight", o.gan_weight, "Weight of the GAN loss; 0 = no discriminator")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--contact-weight", o.contact_weight,
                   "Contact pixels' loss counts 1 + this times a background pixel's (default 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--labels", a.labels,
                   "Frame of the network's normals: sensor (default) or gel (relative to each "
                   "pixel's undeformed gel; the datasets must share one gel shape and camera)")
       ->check(CLI::IsMember({"sensor", "gel"}));
   cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
       ->check(CLI::Range(0.0, 0.9));
   cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation");
   cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_flag("--resume", o.resume, "Continue from OUT.ckpt");
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
@@ -64,8 +63,7 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   cmd->add_option("--model,-m", a.model, "Model file (from train-normals)")->required();
   cmd->add_option("--data", a.data, "Dataset folders (color, normal, mask outputs)")->required();
   cmd->add_option("--json", a.json, "Also write the results to this JSON file");
-  cmd->add_option("--threads", a.threads, "Torch threads (default 1)")
-      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--threads", a.threads, "Torch threads (default 1)")->check(kNonNegative);
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 
+#include "../common/cli_main.h"
 #include "pg/core/error.h"
 #include "pg/learn/normal_model.h"
 #include "pg/sim/mesh.h"
@@ -19,15 +20,15 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Normals source: gt (the dataset's normal images) or a model file from "
                  "train-normals (applied to the colour images)");
   app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   app.add_option("--config", a.config,
                  "Tracker config JSON (depth, mask, icp options; default: the built-in options, "
                  "with mask.relative_depth 0.2, icp.symmetric false and depth.integration "
                  "averaged for --normals MODEL)");
   app.add_option("--window", a.window, "Frames in the fixed-lag window; 0 = batch (default 5)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   app.add_option("--keyframe-interval", a.keyframe_interval, "Frames between patch key frames")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
   // The factor sigmas; help shows GraphOptions' defaults (the paper's values), kept when unset.
@@ -50,12 +51,21 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
     std::snprintf(fallback, sizeof fallback, "%g", s.fallback);
     app.add_option(s.name, *s.value,
                    std::string("Sigma of ") + s.factor + " [m, rad] (default " + fallback + ")")
-        ->check(CLI::PositiveNumber);
+        ->check(kPositive);
+  }
+  {
+    char fallback[32];
+    std::snprintf(fallback, sizeof fallback, "%g", graph.sigma_damping);
+    app.add_option("--damping-sigma", a.damping_sigma,
+                   std::string("Sigma of the zero-velocity (damping) prior [m, rad]; 0 turns it "
+                               "off (default ") +
+                       fallback + ")")
+        ->check(kNonNegative);
   }
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   app.add_option("--seed", a.seed,
                  "Seed of the simulated measurement noise (eval mixes it with each dataset's "
                  "folder name: results.csv's seed column)");
@@ -89,6 +99,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (a.velocity_sigma > 0) o.graph.sigma_velocity = a.velocity_sigma;
   if (a.end_effector_sigma > 0) o.graph.sigma_end_effector = a.end_effector_sigma;
   if (a.vision_sigma > 0) o.graph.sigma_vision = a.vision_sigma;
+  if (a.damping_sigma >= 0) o.graph.sigma_damping = a.damping_sigma;
   if (!a.config.empty()) {
     o.front_end = load_tracker_config(a.config);
   } else if (o.normals) {

@@ -13,9 +13,9 @@
 #include "../common/cli_main.h"
 #include "../common/progress.h"
 #include "bench.h"
-#include "sheet.h"
 #include "pg/core/dataset.h"
 #include "pg/sim/scene_renderer.h"
+#include "sheet.h"
 
 namespace pg {
 namespace {
@@ -57,13 +57,14 @@ int run_render(const RenderArgs& a) {
   }
   const SceneRenderer renderer(load_scene(a.scene), overrides);
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
-  const RenderSummary s = render_scene_to_dataset(
-      renderer, a.out, [&](int done, int) { progress.update(done); });
+  const RenderSummary s =
+      render_scene_to_dataset(renderer, a.out, [&](int done, int) { progress.update(done); });
   const auto& cam = renderer.sensor(0).sensor().camera;
-  std::printf("rendered %d frames x %d sensor(s) at %dx%d in %.2f s (%.1f frames/s, with image "
-              "writing) -> %s\n",
-              s.frames, renderer.sensor_count(), cam.width, cam.height, s.seconds,
-              s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
+  std::printf(
+      "rendered %d frames x %d sensor(s) at %dx%d in %.2f s (%.1f frames/s, with image "
+      "writing) -> %s\n",
+      s.frames, renderer.sensor_count(), cam.width, cam.height, s.seconds,
+      s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
   if (s.contact_frames == 0) {
     std::fprintf(stderr,
@@ -110,10 +111,11 @@ int main(int argc, char** argv) {
   CLI::App* cmd_render = app.add_subcommand("render", "Render a scene file into a dataset folder");
   cmd_render->add_option("scene", render.scene, "Scene file (JSON)")->required();
   cmd_render->add_option("--out,-o", render.out, "Output dataset folder")->required();
-  cmd_render->add_option("--outputs", render.outputs,
-                         "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
+  cmd_render->add_option(
+      "--outputs", render.outputs,
+      "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
       ->check(CLI::Range(8, 8192));
   cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
@@ -132,11 +134,11 @@ int main(int argc, char** argv) {
 
   BenchArgs bench;
   CLI::App* cmd_bench = app.add_subcommand("bench", "Benchmark the renderer (frames/s per case)");
-  cmd_bench->add_option("--frames", bench.frames, "Frames per timed run")->check(CLI::PositiveNumber);
+  cmd_bench->add_option("--frames", bench.frames, "Frames per timed run")->check(kPositive);
   cmd_bench->add_option("--repeats", bench.repeats, "Timed runs per case (median reported)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
   cmd_bench->add_flag("--quick", bench.quick, "Fewer frames, for a smoke test");
   cmd_bench->add_flag("--ablation", bench.ablation,
@@ -147,9 +149,11 @@ int main(int argc, char** argv) {
       app.add_subcommand("sheet", "Render one frame of each scene into a contact sheet PNG");
   cmd_sheet->add_option("scenes", sheet.scenes, "Scene files")->required();
   cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
-  cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(CLI::NonNegativeNumber);
-  cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")->check(CLI::Range(8, 8192));
-  cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")->check(CLI::Range(8, 8192));
+  cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(kNonNegative);
+  cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")
+      ->check(CLI::Range(8, 8192));
+  cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")
+      ->check(CLI::Range(8, 8192));
   cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
 
   return run_cli(app, argc, argv, [&]() -> int {
