@@ -81,10 +81,13 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   // A number out of range says which bound, briefly.
   r = patchgraph("track " + data() + " --window -1 --out " + out("x"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--window: must be >= 0, got -1"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--window: must be finite and >= 0, got -1"), std::string::npos) << r.out;
   r = patchgraph("track " + data() + " --ee-sigma nan --out " + out("x"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--ee-sigma: must be > 0, got nan"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--ee-sigma: must be finite and > 0, got nan"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " --ee-noise inf --out " + out("x"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--ee-noise: must be finite and >= 0, got inf"), std::string::npos) << r.out;
 }
 
 // A registration sigma a thousand times the paper's leaves the registrations almost no weight

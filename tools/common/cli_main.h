@@ -1,6 +1,7 @@
 #pragma once
 // Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <exception>
 #include <functional>
@@ -14,15 +15,16 @@ constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
 
-// CLI11's NonNegativeNumber and PositiveNumber, with a short message ("--window: must be >= 0,
-// got -1") instead of the range up to the largest double written out in full.
+// CLI11's NonNegativeNumber and PositiveNumber (which also refuse inf and nan), with a short
+// message ("--window: must be finite and >= 0, got -1") instead of the range up to the largest
+// double written out in full.
 inline CLI::Validator number_check(bool allow_zero) {
   return CLI::Validator(
       [allow_zero](std::string& text) -> std::string {
         double value = 0;
         if (!CLI::detail::lexical_cast(text, value)) return "not a number: " + text;
-        if (allow_zero ? value >= 0 : value > 0) return {};
-        return std::string("must be ") + (allow_zero ? ">= 0" : "> 0") + ", got " + text;
+        if (std::isfinite(value) && (allow_zero ? value >= 0 : value > 0)) return {};
+        return std::string("must be finite and ") + (allow_zero ? ">= 0" : "> 0") + ", got " + text;
       },
       allow_zero ? "NONNEGATIVE" : "POSITIVE");
 }
