@@ -51,43 +51,30 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   for (const char* sub : {"--help", "track --help", "eval --help"}) {
     EXPECT_EQ(patchgraph(sub).code, 0) << sub;
   }
-  CliRun r = patchgraph("track /no/such/data --out " + out("x"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("/no/such/data"), std::string::npos) << r.out;
-  r = patchgraph("track " + data() + " --method icpgraph --out " + out("x"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("unknown method 'icpgraph'"), std::string::npos) << r.out;
-  r = patchgraph("track " + data() + " --normals unet.pt --out " + out("x"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("unet.pt: model file not found"), std::string::npos) << r.out;
-  r = patchgraph("eval-normals --model unet.pt --data " + data());
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("unet.pt: model file not found"), std::string::npos) << r.out;
-  r = patchgraph("train-normals --data /no/such/data --out " + out("m.pt"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("/no/such/data"), std::string::npos) << r.out;
-  r = patchgraph("train-normals --data " + data() + " --arch vgg --out " + out("m.pt"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--arch"), std::string::npos) << r.out;
-  r = patchgraph("track " + data() + " --registration-sigma 0 --out " + out("x"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--registration-sigma"), std::string::npos) << r.out;
+  // Refused with this exit code and a message containing `text`.
+  const auto refused = [&](const std::string& args, int code, const std::string& text) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, code) << args;
+    EXPECT_NE(r.out.find(text), std::string::npos) << args << "\n" << r.out;
+  };
+  const std::string track = "track " + data() + " ";
+  refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
+  refused(track + "--method icpgraph --out " + out("x"), 1, "unknown method 'icpgraph'");
+  refused(track + "--normals unet.pt --out " + out("x"), 1, "unet.pt: model file not found");
+  refused("eval-normals --model unet.pt --data " + data(), 1, "unet.pt: model file not found");
+  refused("train-normals --data /no/such/data --out " + out("m.pt"), 1, "/no/such/data");
+  refused("train-normals --data " + data() + " --arch vgg --out " + out("m.pt"), 2, "--arch");
+  refused(track + "--registration-sigma 0 --out " + out("x"), 2, "--registration-sigma");
   for (const std::string option :
        {"--velocity-sigma", "--ee-sigma", "--vision-sigma", "--damping-sigma"}) {
-    r = patchgraph("track " + data() + " " + option + " -1 --out " + out("x"));
-    EXPECT_EQ(r.code, 2) << option;
-    EXPECT_NE(r.out.find(option), std::string::npos) << r.out;
+    refused(track + option + " -1 --out " + out("x"), 2, option);
   }
   // A number out of range says which bound, briefly.
-  r = patchgraph("track " + data() + " --window -1 --out " + out("x"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--window: must be finite and >= 0, got -1"), std::string::npos) << r.out;
-  r = patchgraph("track " + data() + " --ee-sigma nan --out " + out("x"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--ee-sigma: must be finite and > 0, got nan"), std::string::npos) << r.out;
-  r = patchgraph("track " + data() + " --ee-noise inf --out " + out("x"));
-  EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--ee-noise: must be finite and >= 0, got inf"), std::string::npos) << r.out;
+  refused(track + "--window -1 --out " + out("x"), 2, "--window: must be finite and >= 0, got -1");
+  refused(track + "--ee-sigma nan --out " + out("x"), 2,
+          "--ee-sigma: must be finite and > 0, got nan");
+  refused(track + "--ee-noise inf --out " + out("x"), 2,
+          "--ee-noise: must be finite and >= 0, got inf");
 }
 
 // A registration sigma a thousand times the paper's leaves the registrations almost no weight

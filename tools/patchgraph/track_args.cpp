@@ -38,29 +38,25 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
     double* value;
     const char* factor;
     double fallback;
+    const CLI::Validator& check;  // the damping prior may be 0 (off); the others may not
   } sigmas[] = {
       {"--registration-sigma", &a.registration_sigma,
-       "the image-to-image and image-to-patch factors", graph.sigma_image_to_image},
-      {"--velocity-sigma", &a.velocity_sigma, "the constant-velocity factor", graph.sigma_velocity},
-      {"--ee-sigma", &a.end_effector_sigma, "the end-effector prior", graph.sigma_end_effector},
+       "the image-to-image and image-to-patch factors", graph.sigma_image_to_image, kPositive},
+      {"--velocity-sigma", &a.velocity_sigma, "the constant-velocity factor", graph.sigma_velocity,
+       kPositive},
+      {"--ee-sigma", &a.end_effector_sigma, "the end-effector prior", graph.sigma_end_effector,
+       kPositive},
       {"--vision-sigma", &a.vision_sigma, "the vision prior on each episode's first pose",
-       graph.sigma_vision},
+       graph.sigma_vision, kPositive},
+      {"--damping-sigma", &a.damping_sigma, "the zero-velocity (damping) prior; 0 turns it off",
+       graph.sigma_damping, kNonNegative},
   };
   for (const auto& s : sigmas) {
     char fallback[32];
     std::snprintf(fallback, sizeof fallback, "%g", s.fallback);
     app.add_option(s.name, *s.value,
                    std::string("Sigma of ") + s.factor + " [m, rad] (default " + fallback + ")")
-        ->check(kPositive);
-  }
-  {
-    char fallback[32];
-    std::snprintf(fallback, sizeof fallback, "%g", graph.sigma_damping);
-    app.add_option("--damping-sigma", a.damping_sigma,
-                   std::string("Sigma of the zero-velocity (damping) prior [m, rad]; 0 turns it "
-                               "off (default ") +
-                       fallback + ")")
-        ->check(kNonNegative);
+        ->check(s.check);
   }
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(kNonNegative);
