@@ -1,0 +1,88 @@
+// The local patch's fusion: a per-voxel mean on a grid fixed in the object frame.
+#include <gtest/gtest.h>
+
+#include "pg/graph/patch_map.h"
+
+namespace pg {
+namespace {
+
+// A flat square of points at height z, `n` x `n` samples `step` apart from (x0, y0).
+PointCloud square(double x0, double y0, double z, int n, double step) {
+  PointCloud c;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      c.push_back(Eigen::Vector3f(float(x0 + i * step), float(y0 + j * step), float(z)),
+                  Eigen::Vector3f::UnitZ());
+    }
+  }
+  return c;
+}
+
+// The fused point nearest to p.
+Eigen::Vector3f nearest(const PointCloud& c, const Eigen::Vector3f& p) {
+  Eigen::Vector3f best = c.points.at(0);
+  for (const auto& q : c.points) {
+    if ((q - p).norm() < (best - p).norm()) best = q;
+  }
+  return best;
+}
+
+TEST(PatchMap, EachVoxelHoldsTheMeanOfEveryKeyFrame) {
+  // Three key frames of one surface at heights 0, 30 and 30 um, in and out of order: every
+  // voxel's point is at their mean, 20 um, however many key frames came before. (Re-voxelising
+  // the fused points with each key frame gave the newest one half the weight: 22.5 or 15 um.)
+  const PatchMapOptions options{10, 1e-4};
+  const double step = 1e-4, x0 = 0.5e-4;  // one sample per voxel, at its centre
+  for (const auto& heights : {std::array{0.0, 30e-6, 30e-6}, std::array{30e-6, 30e-6, 0.0}}) {
+    PatchMap patch(options);
+    for (double z : heights) patch.add_keyframe(square(x0, x0, z, 10, step), SE3());
+    ASSERT_EQ(patch.keyframes(), 3);
+    ASSERT_EQ(patch.cloud_object().size(), 100u);
+    for (const auto& p : patch.cloud_object().points) EXPECT_NEAR(p.z(), 20e-6, 1e-9);
+  }
+}
+
+TEST(PatchMap, TheGridStaysFixedAsThePatchGrows) {
+  // Samples 50 um apart, two by two to a 0.1 mm voxel: the fused points are the means of four.
+  // The same surface again, with a few points far to the side, adds four samples to each of
+  // those voxels, so their means stay where they were. (The old grid, placed at the cloud's
+  // corner, moved by 0.3 of a voxel with those points and re-paired every sample.)
+  const PatchMapOptions options{10, 1e-4};
+  const PointCloud surface = square(2.5e-5, 2.5e-5, 5e-5, 8, 5e-5);
+  PatchMap patch(options);
+  patch.add_keyframe(surface, SE3());
+  const PointCloud before = patch.cloud_object();
+  ASSERT_EQ(before.size(), 16u);
+  PointCloud again = surface;
+  const PointCloud far = square(-3.03e-3, -2.07e-3, 1.05e-3, 3, 5e-5);  // 2 x 2 voxels
+  again.points.insert(again.points.end(), far.points.begin(), far.points.end());
+  again.normals.insert(again.normals.end(), far.normals.begin(), far.normals.end());
+  patch.add_keyframe(again, SE3());
+  const PointCloud& after = patch.cloud_object();
+  EXPECT_EQ(after.size(), before.size() + 4u);
+  for (const auto& p : before.points) EXPECT_LT((nearest(after, p) - p).norm(), 1e-9);
+}
+
+TEST(PatchMap, KeyFramesAreFusedInTheObjectFrame) {
+  // One surface seen from two sensor poses: in the object frame the samples coincide, so the
+  // patch is the surface once, not twice.
+  const SE3 a(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+              Eigen::Vector3d(1e-3, -2e-3, 5e-3));
+  const SE3 b = a * SE3::Translation({2e-4, 1e-4, 0});
+  const PointCloud surface_object = square(0.5e-4, 0.5e-4, 0.5e-4, 10, 1e-4);
+  PatchMap patch(PatchMapOptions{10, 1e-4});
+  for (const SE3& T_object_sensor : {a, b}) {
+    patch.add_keyframe(transform_cloud(T_object_sensor.inverse(), surface_object), T_object_sensor);
+  }
+  ASSERT_EQ(patch.cloud_object().size(), surface_object.size());
+  for (const auto& p : surface_object.points) {
+    EXPECT_LT((nearest(patch.cloud_object(), p) - p).norm(), 1e-8);
+  }
+  patch.reset();
+  EXPECT_TRUE(patch.empty());
+  patch.add_keyframe(surface_object, SE3());
+  EXPECT_EQ(patch.keyframes(), 1);
+}
+
+}  // namespace
+}  // namespace pg
