@@ -131,6 +131,24 @@ TEST(StressMotion, DuplicatedAndMissingFrames) {
   EXPECT_LT(run.last().translation_error_m, 1e-3);
 }
 
+// 2400 frames of the rocking corner, 240 key frames fused into one patch: the patch must not
+// blur or drift with the estimate as it grows (the patch's fusion, docs/tracker.md: 0.006 rad
+// here, 0.019 rad with the earlier re-voxelising fusion).
+TEST(StressMotion, LongRockingKeepsTheRotation) {
+  const StressRun run = cube_loop().track(cube_rocking(2400));
+  run.print("LongRockingKeepsTheRotation");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_EQ(run.episodes, 1);
+  double late_max = 0;
+  for (int f = 1200; f < 2400; ++f) late_max = std::max(late_max, run.frames[f].rotation_error_rad);
+  std::printf(
+      "[stress] LongRockingKeepsTheRotation: largest rotation error, frames 1200-2399: "
+      "%.4f rad\n",
+      late_max);
+  EXPECT_LT(late_max, 0.01);
+  EXPECT_LT(run.max_translation_error_m(), 1e-3);
+}
+
 // 10,000 frames of the rocking corner (long option): bounded error, per-frame time flat.
 TEST(StressMotion, TenThousandFrames) {
   if (!long_cases_enabled())
@@ -143,6 +161,7 @@ TEST(StressMotion, TenThousandFrames) {
   ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
   EXPECT_EQ(run.episodes, 1);
   EXPECT_LT(run.max_translation_error_m(), 2e-3);
+  EXPECT_LT(run.last().rotation_error_rad, 0.02);  // 0.046 with the earlier patch fusion
   std::vector<double> head, tail;
   for (int f = 100; f < 1100; ++f) head.push_back(run.frames[f].frame_ms);
   for (int f = n - 1000; f < n; ++f) tail.push_back(run.frames[f].frame_ms);
