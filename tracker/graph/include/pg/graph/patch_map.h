@@ -43,8 +43,8 @@ class PatchMap {
   // Running sums of every key frame's points and normals per voxel of a grid fixed in the object
   // frame: each voxel's point is the mean of all that fell in it, whichever key frame brought
   // them. (Re-voxelising the fused points with each key frame, on a grid placed at the
-  // cloud's corner, averaged averages on a shifted grid every time: the patch blurred, its
-  // newest key frame weighed as much as all the others, and a stud's rim moved with it.)
+  // cloud's corner, averaged averages on a shifted grid every time: the patch blurred, and its
+  // newest key frame weighed as much as all the others; long episodes drifted in rotation.)
   struct VoxelSum {
     Eigen::Vector3d point_sum = Eigen::Vector3d::Zero();
     Eigen::Vector3d normal_sum = Eigen::Vector3d::Zero();
