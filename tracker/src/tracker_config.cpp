@@ -65,13 +65,11 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
   JsonFields f(j, where);
   o.max_iterations = int_in(f, "max_iterations", 1, 10000, o.max_iterations);
   o.max_correspondence_m = f.number_in("max_correspondence_m", 1e-9, 1.0, o.max_correspondence_m);
-  if (f.has("kernel")) {
-    try {
-      o.kernel = robust_kernel_from_string(f.required<std::string>("kernel"));
-    } catch (const InputError& e) {
-      throw InputError(f.field("kernel") + ": " + e.what());
-    }
-  }
+  read_choice(f, "kernel", "robust kernel",
+              {{"none", RobustKernel::kNone},
+               {"huber", RobustKernel::kHuber},
+               {"tukey", RobustKernel::kTukey}},
+              o.kernel);
   o.kernel_scale_m = f.number_in("kernel_scale_m", 1e-9, 1.0, o.kernel_scale_m);
   o.symmetric = f.optional<bool>("symmetric", o.symmetric);
   o.convergence_translation_m =
@@ -88,13 +86,6 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
 }
 
 }  // namespace
-
-RobustKernel robust_kernel_from_string(const std::string& name) {
-  if (name == "none") return RobustKernel::kNone;
-  if (name == "huber") return RobustKernel::kHuber;
-  if (name == "tukey") return RobustKernel::kTukey;
-  throw InputError("unknown robust kernel '" + name + "' (known: none, huber, tukey)");
-}
 
 const char* to_string(RobustKernel kernel) {
   switch (kernel) {

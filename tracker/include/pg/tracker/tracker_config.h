@@ -34,8 +34,6 @@ TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::strin
 TrackerConfig load_tracker_config(const std::string& path);
 nlohmann::json tracker_config_to_json(const TrackerConfig& config);
 
-// "none", "huber", "tukey"; throws InputError for other names.
-RobustKernel robust_kernel_from_string(const std::string& name);
 const char* to_string(RobustKernel kernel);
 
 }  // namespace pg
