@@ -1,7 +1,5 @@
 #include "pg/graph/patch_map.h"
 
-#include <cmath>
-
 #include "pg/core/point_io.h"
 
 namespace pg {
