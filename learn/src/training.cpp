@@ -138,19 +138,35 @@ nlohmann::json epoch_json(const EpochReport& r) {
           {"loss_l1", r.loss_l1},
           {"loss_gan", r.loss_gan},
           {"loss_d", r.loss_d},
+          {"learning_rate", r.learning_rate},
           {"val_mse_contact", r.val.mse_contact},
           {"val_mse_image", r.val.mse_image},
           {"val_angle_contact_deg", r.val.angle_contact_deg},
           {"seconds", r.seconds}};
 }
 
+void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
+  for (auto& group : optimizer.param_groups()) {
+    static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+  }
+}
+
 }  // namespace
+
+double learning_rate_at(const TrainOptions& o, int epoch) {
+  const double left = double(o.epochs - epoch) / double(std::max(0, o.decay_epochs) + 1);
+  return o.learning_rate * std::clamp(left, 0.0, 1.0);
+}
 
 void train_normals(const TrainOptions& o, const std::function<void(const EpochReport&)>& on_epoch,
                    const std::function<void(int, int)>& on_step) {
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");
   if (o.out.empty()) throw InputError("--out: no model file given");
   if (o.epochs < 1 || o.batch < 1) throw InputError("--epochs and --batch must be at least 1");
+  if (o.decay_epochs < 0 || o.decay_epochs > o.epochs) {
+    throw InputError("--decay-epochs: " + std::to_string(o.decay_epochs) +
+                     " is not between 0 and --epochs (" + std::to_string(o.epochs) + ")");
+  }
   // Fail now, not after the training, when the model cannot be written.
   {
     const fs::path folder = fs::absolute(o.out).parent_path();
@@ -304,6 +320,10 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
     EpochReport r;
     r.epoch = epoch + 1;
     r.epochs = o.epochs;
+    // A function of the epoch alone, so a resumed run follows the same schedule.
+    r.learning_rate = learning_rate_at(o, epoch);
+    set_learning_rate(opt_g, r.learning_rate);
+    if (gan) set_learning_rate(*opt_d, r.learning_rate);
     if (on_step) on_step(0, batches);
     for (int b = 0; b < batches; ++b) {
       const std::vector<int> index(

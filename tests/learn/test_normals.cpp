@@ -125,22 +125,57 @@ TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
 }
 
 TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
+  // With the learning rate decaying over the last two epochs, so the resumed run must also pick
+  // up the schedule where the interrupted one left it.
   TrainOptions whole = tiny_options(train_, val_, tmp_->str("whole.pt"));
   whole.epochs = 4;
-  train_normals(whole);
-  TrainOptions part = tiny_options(train_, val_, tmp_->str("part.pt"));
-  part.epochs = 2;
+  whole.decay_epochs = 2;
+  std::vector<double> rates;
+  train_normals(whole, [&](const EpochReport& r) { rates.push_back(r.learning_rate); });
+  const double lr = whole.learning_rate;
+  ASSERT_EQ(rates.size(), 4u);
+  EXPECT_DOUBLE_EQ(rates[0], lr);
+  EXPECT_DOUBLE_EQ(rates[1], lr);
+  EXPECT_DOUBLE_EQ(rates[2], lr * 2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(rates[3], lr / 3.0);
+
+  TrainOptions part = whole;
+  part.out = tmp_->str("part.pt");
   part.checkpoint_every = 2;
-  train_normals(part);
+  struct Interrupted {};
+  EXPECT_THROW(train_normals(part,
+                             [](const EpochReport& r) {
+                               if (r.epoch == 3) throw Interrupted{};  // after epoch 2's checkpoint
+                             }),
+               Interrupted);
   ASSERT_TRUE(fs::exists(part.out + ".ckpt"));
-  part.epochs = 4;
+  ASSERT_FALSE(fs::exists(part.out));
   part.resume = true;
-  train_normals(part);
+  std::vector<int> resumed;
+  train_normals(part, [&](const EpochReport& r) { resumed.push_back(r.epoch); });
+  EXPECT_EQ(resumed, (std::vector<int>{3, 4}));
   const Dataset d = Dataset::open(val_);
   const ImageF a = NormalEstimator::load(whole.out).predict(d.color(3), d.background());
   const ImageF b = NormalEstimator::load(part.out).predict(d.color(3), d.background());
   ASSERT_EQ(a.data.size(), b.data.size());
   for (std::size_t i = 0; i < a.data.size(); ++i) ASSERT_FLOAT_EQ(a.data[i], b.data[i]) << i;
+
+  // The schedule reaches the optimiser: without it the same seed ends elsewhere.
+  TrainOptions constant = whole;
+  constant.out = tmp_->str("constant.pt");
+  constant.decay_epochs = 0;
+  train_normals(constant);
+  const ImageF c = NormalEstimator::load(constant.out).predict(d.color(3), d.background());
+  double moved = 0;
+  for (std::size_t i = 0; i < a.data.size(); ++i)
+    moved = std::max(moved, double(std::abs(a.data[i] - c.data[i])));
+  EXPECT_GT(moved, 1e-3);
+
+  // A schedule longer than the training is refused.
+  TrainOptions bad = tiny_options(train_, val_, tmp_->str("bad.pt"));
+  bad.decay_epochs = bad.epochs + 1;
+  EXPECT_NE(input_error_message([&] { train_normals(bad); }).find("--decay-epochs"),
+            std::string::npos);
 }
 
 TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {

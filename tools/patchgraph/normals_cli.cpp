@@ -32,6 +32,10 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
   cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(kPositive);
   cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(kPositive);
   cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")->check(kPositive);
+  cmd->add_option("--decay-epochs", o.decay_epochs,
+                  "Lower the learning rate linearly towards 0 over the last this many epochs "
+                  "(pix2pix's schedule; default 0: constant)")
+      ->check(kNonNegative);
   cmd->add_option("--l1-weight", o.l1_weight, "Weight of the L1 loss (default 100)")
       ->check(kNonNegative);
   cmd->add_option("--gan-weight", o.gan_weight, "Weight of the GAN loss; 0 = no discriminator")
@@ -83,10 +87,10 @@ int run_train_normals(const TrainNormalsArgs& a) {
         progress.reset();
         epoch = r.epoch;
         std::printf(
-            "epoch %3d/%d  %5.1f s  L1 %.4f  GAN %.3f  D %.3f  |  val MSE contact %.2e "
-            "image %.2e  angle contact %.2f deg\n",
-            r.epoch, r.epochs, r.seconds, r.loss_l1, r.loss_gan, r.loss_d, r.val.mse_contact,
-            r.val.mse_image, r.val.angle_contact_deg);
+            "epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  val MSE contact "
+            "%.2e image %.2e  angle contact %.2f deg\n",
+            r.epoch, r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d,
+            r.val.mse_contact, r.val.mse_image, r.val.angle_contact_deg);
         std::fflush(stdout);
       },
       [&](int done, int total) {

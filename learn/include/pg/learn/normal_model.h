@@ -93,6 +93,9 @@ struct TrainOptions {
   int epochs = 150;
   int batch = 4;
   double learning_rate = 2e-4, beta1 = 0.5;  // Adam, as pix2pix
+  // The last decay_epochs epochs lower the learning rate linearly towards zero (pix2pix's
+  // schedule): epoch e (0-based) of E trains at lr * min(1, (E - e) / (decay_epochs + 1)).
+  int decay_epochs = 0;
   double l1_weight = 100.0;  // unet/resnet: L1 on the normals x this + the GAN loss x gan_weight
   double gan_weight = 1.0;   // 0 trains without the PatchGAN discriminator; mlp: L2 only
   // The L1 (mlp: L2) loss of a contact pixel counts 1 + contact_weight times a background
@@ -110,8 +113,12 @@ struct TrainOptions {
   bool resume = false;        // continue from OUT.ckpt
 };
 
+// The learning rate of epoch `epoch` (0-based) under TrainOptions' schedule.
+double learning_rate_at(const TrainOptions& options, int epoch);
+
 struct EpochReport {
   int epoch = 0, epochs = 0;
+  double learning_rate = 0;
   double loss_l1 = 0, loss_gan = 0, loss_d = 0;  // means over the epoch (mlp: loss_l1 = L2)
   NormalMetrics val;
   double seconds = 0;
