@@ -151,12 +151,13 @@ void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
   }
 }
 
-}  // namespace
-
+// The learning rate of epoch `epoch` (0-based) under TrainOptions::decay_epochs' schedule.
 double learning_rate_at(const TrainOptions& o, int epoch) {
-  const double left = double(o.epochs - epoch) / double(std::max(0, o.decay_epochs) + 1);
+  const double left = double(o.epochs - epoch) / double(o.decay_epochs + 1);
   return o.learning_rate * std::clamp(left, 0.0, 1.0);
 }
+
+}  // namespace
 
 void train_normals(const TrainOptions& o, const std::function<void(const EpochReport&)>& on_epoch,
                    const std::function<void(int, int)>& on_step) {

@@ -113,9 +113,6 @@ struct TrainOptions {
   bool resume = false;        // continue from OUT.ckpt
 };
 
-// The learning rate of epoch `epoch` (0-based) under TrainOptions' schedule.
-double learning_rate_at(const TrainOptions& options, int epoch);
-
 struct EpochReport {
   int epoch = 0, epochs = 0;
   double learning_rate = 0;
