@@ -151,6 +151,43 @@ void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
   }
 }
 
+// The settings that make a training run what it is, recorded in the checkpoint so that a resumed
+// run can be held to them: resuming with another learning rate, batch, seed, loss weight,
+// augmentation or training data would silently continue a different run. --epochs and
+// --decay-epochs may change on resuming (to train longer); the schedule is a function of the
+// epoch, so it then continues as the new values say.
+nlohmann::json run_settings(const TrainOptions& o) {
+  nlohmann::json data = nlohmann::json::array();
+  for (const std::string& folder : o.train_data) {
+    std::error_code ec;
+    const fs::path canonical = fs::weakly_canonical(folder, ec);
+    data.push_back(ec ? folder : canonical.string());
+  }
+  return {{"--lr", o.learning_rate},
+          {"beta1", o.beta1},
+          {"--batch", o.batch},
+          {"--seed", o.seed},
+          {"--l1-weight", o.l1_weight},
+          {"--gan-weight", o.gan_weight},
+          {"--contact-weight", o.contact_weight},
+          {"--shift", o.shift_px},
+          {"--gain-jitter", o.gain_jitter},
+          {"--data", data}};
+}
+
+// Throws InputError naming the first setting of `o` that differs from the checkpoint's record
+// (a checkpoint written before the record existed is not checked).
+void check_run_settings(const nlohmann::json& recorded, const TrainOptions& o,
+                        const std::string& checkpoint) {
+  const nlohmann::json now = run_settings(o);
+  for (const auto& [option, value] : now.items()) {
+    if (!recorded.contains(option) || recorded.at(option) == value) continue;
+    throw InputError(checkpoint + ": trained with " + option + " " + recorded.at(option).dump() +
+                     ", resumed with " + value.dump() +
+                     "; resume with the same value, or start a new run without --resume");
+  }
+}
+
 // The learning rate of epoch `epoch` (0-based) under TrainOptions::decay_epochs' schedule.
 double learning_rate_at(const TrainOptions& o, int epoch) {
   const double left = double(o.epochs - epoch) / double(o.decay_epochs + 1);
@@ -248,6 +285,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
         throw InputError(checkpoint + ": was trained with another network or loss (" + j.dump() +
                          "); pass the same --arch, --depth, --width, --gan-weight, --labels");
       }
+      if (j.contains("run")) check_run_settings(j.at("run"), o, checkpoint);
       history = j.at("history");
       first_epoch = int(epoch.toInt());
       torch::serialize::InputArchive sub;
@@ -283,7 +321,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
                         {"mlp_hidden", o.spec.mlp_hidden},
                         {"gan", gan},
                         {"gel_relative", o.gel_relative},
-                        {"contact_weight", o.contact_weight},
+                        {"run", run_settings(o)},
                         {"history", history}};
     a.write("info", c10::IValue(j.dump()));
     a.write("epoch", c10::IValue(int64_t(epochs_done)));

@@ -151,6 +151,23 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   ASSERT_TRUE(fs::exists(part.out + ".ckpt"));
   ASSERT_FALSE(fs::exists(part.out));
   part.resume = true;
+  // Resuming with a setting that would make it another run is refused, naming the option, and
+  // leaves the checkpoint as it was.
+  const auto checkpoint_bytes = fs::file_size(part.out + ".ckpt");
+  TrainOptions other_lr = part;
+  other_lr.learning_rate *= 2;
+  const std::string lr_error = input_error_message([&] { train_normals(other_lr); });
+  EXPECT_NE(lr_error.find("--lr"), std::string::npos) << lr_error;
+  TrainOptions other_seed = part;
+  other_seed.seed += 1;
+  EXPECT_NE(input_error_message([&] { train_normals(other_seed); }).find("--seed"),
+            std::string::npos);
+  TrainOptions other_data = part;
+  other_data.train_data = {val_};
+  EXPECT_NE(input_error_message([&] { train_normals(other_data); }).find("--data"),
+            std::string::npos);
+  EXPECT_EQ(fs::file_size(part.out + ".ckpt"), checkpoint_bytes);
+  ASSERT_FALSE(fs::exists(part.out));
   std::vector<int> resumed;
   train_normals(part, [&](const EpochReport& r) { resumed.push_back(r.epoch); });
   EXPECT_EQ(resumed, (std::vector<int>{3, 4}));

@@ -56,7 +56,8 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->check(kNonNegative);
   cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
       ->check(kPositive);
-  cmd->add_flag("--resume", o.resume, "Continue from OUT.ckpt");
+  cmd->add_flag("--resume", o.resume,
+                "Continue from OUT.ckpt (same settings; --epochs and --decay-epochs may change)");
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }
