@@ -184,9 +184,25 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   EXPECT_EQ(summary["icp_symmetric"], true);
   EXPECT_EQ(read_poses_csv(out("track") + "/poses.csv").size(), 60u);
   std::ifstream errors(out("track") + "/errors.csv");
-  int lines = 0;
-  for (std::string line; std::getline(errors, line);) ++lines;
-  EXPECT_EQ(lines, 61);
+  std::string header;
+  std::getline(errors, header);
+  const std::string last_columns = ",unconstrained_directions,contact_points,contact_core";
+  ASSERT_GT(header.size(), last_columns.size());
+  EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
+  int lines = 0, core_frames = 0;
+  for (std::string line; std::getline(errors, line); ++lines) {
+    std::vector<std::string> field;
+    std::stringstream fields(line);
+    for (std::string f; std::getline(fields, f, ',');) field.push_back(f);
+    ASSERT_EQ(field.size(), 13u) << line;
+    const bool contact = field[3] == "1";
+    const int points = std::stoi(field[11]), core = std::stoi(field[12]);
+    EXPECT_EQ(points > 0, contact) << line;
+    EXPECT_TRUE(core == 0 || (core == 1 && points > 0)) << line;
+    core_frames += core;
+  }
+  EXPECT_EQ(lines, 60);
+  EXPECT_GT(core_frames, 0) << "the default scene's corner is deep enough for its core";
   EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
 }
 

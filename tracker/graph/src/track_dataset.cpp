@@ -95,6 +95,8 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.rejected_registrations = est.rejected_registrations;
     r.tracking_lost = est.tracking_lost;
     r.unconstrained_directions = est.contact ? est.unconstrained_directions : 0;
+    r.contact_points = int(input.cloud_sensor.size());
+    r.contact_core = r.contact_points > 0 && contact.core;
     run.frames.push_back(r);
     if (progress) progress(i + 1, dataset.frames());
   }
@@ -166,12 +168,14 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   std::ofstream errors(errors_path);
   errors.precision(9);
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
-            "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions\n";
+            "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
+            "contact_points,contact_core\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
            << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
-           << f.normals_ms << "," << f.unconstrained_directions << "\n";
+           << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
+           << f.contact_core << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;

@@ -45,6 +45,10 @@ struct FrameResult {
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
   int unconstrained_directions = 0;
+  // Points of the frame's contact cloud (0 without contact), and whether they are the contact's
+  // core only (ContactFrame::core: the pixels deeper than mask.core_relative_depth of the deepest).
+  int contact_points = 0;
+  bool contact_core = false;
   double frame_ms = 0;    // normals -> cloud -> registrations -> graph update
   double normals_ms = 0;  // of which estimating the normals (0 for ground-truth normals)
 };
