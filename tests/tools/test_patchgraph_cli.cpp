@@ -109,11 +109,45 @@ TEST_F(PatchgraphCli, PriorSigmasWeighThePriors) {
 // The damping (zero-velocity) prior is an option too: a thousand times tighter than its default
 // it holds the object still (rotation RMSE 0.0014 -> 0.23 rad on the default scene); 0 turns it
 // off, which is accepted (0.0012 rad).
+// Sums a column of OUT/errors.csv.
+int errors_column_sum(const std::string& out_dir, const std::string& column) {
+  std::ifstream errors(out_dir + "/errors.csv");
+  std::string line;
+  std::getline(errors, line);
+  std::vector<std::string> header;
+  std::stringstream names(line);
+  for (std::string name; std::getline(names, name, ',');) header.push_back(name);
+  const auto at = std::find(header.begin(), header.end(), column);
+  if (at == header.end()) return -1;
+  int sum = 0;
+  while (std::getline(errors, line)) {
+    std::stringstream fields(line);
+    std::string field;
+    for (auto i = header.begin(); i <= at; ++i) std::getline(fields, field, ',');
+    sum += std::stoi(field);
+  }
+  return sum;
+}
+
 TEST_F(PatchgraphCli, DampingSigmaWeighsTheDampingPrior) {
-  ASSERT_EQ(patchgraph("track " + data() + " -q --out " + out("damping_default")).code, 0);
-  ASSERT_EQ(
-      patchgraph("track " + data() + " -q --damping-sigma 1e-5 --out " + out("damping_tight")).code,
-      0);
+  const CliRun normal = patchgraph("track " + data() + " -q --out " + out("damping_default"));
+  ASSERT_EQ(normal.code, 0) << normal.out;
+  const CliRun tight =
+      patchgraph("track " + data() + " -q --damping-sigma 1e-5 --out " + out("damping_tight"));
+  ASSERT_EQ(tight.code, 0) << tight.out;
+  // A damping prior far too stiff outweighs the registrations: reported per frame, in the
+  // summary and on the console; the default run reports nothing of the kind.
+  for (const auto& [name, run] :
+       {std::pair{"damping_default", &normal}, {"damping_tight", &tight}}) {
+    const auto summary = parse_json_file(out(name) + "/summary.json");
+    for (const char* count : {"overridden_registrations", "unconverged_registrations"}) {
+      EXPECT_EQ(summary[count].get<int>(), errors_column_sum(out(name), count)) << name << count;
+    }
+    const bool tight_run = run == &tight;
+    EXPECT_EQ(summary["overridden_registrations"].get<int>() > 0, tight_run) << name;
+    EXPECT_EQ(run->out.find("overrode") != std::string::npos, tight_run) << run->out;
+    EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 0);
+  }
   const CliRun off =
       patchgraph("track " + data() + " -q --damping-sigma 0 --out " + out("damping_off"));
   ASSERT_EQ(off.code, 0) << off.out;
@@ -186,7 +220,9 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   std::ifstream errors(out("track") + "/errors.csv");
   std::string header;
   std::getline(errors, header);
-  const std::string last_columns = ",unconstrained_directions,contact_points,contact_core";
+  const std::string last_columns =
+      ",unconstrained_directions,contact_points,contact_core,unconverged_registrations,"
+      "overridden_registrations,invalid_input";
   ASSERT_GT(header.size(), last_columns.size());
   EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
   int lines = 0, core_frames = 0;
@@ -194,7 +230,7 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
     std::vector<std::string> field;
     std::stringstream fields(line);
     for (std::string f; std::getline(fields, f, ',');) field.push_back(f);
-    ASSERT_EQ(field.size(), 13u) << line;
+    ASSERT_EQ(field.size(), 16u) << line;
     const bool contact = field[3] == "1";
     const int points = std::stoi(field[11]), core = std::stoi(field[12]);
     EXPECT_EQ(points > 0, contact) << line;

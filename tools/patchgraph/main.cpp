@@ -36,6 +36,18 @@ int run_track(const TrackArgs& a) {
     std::fprintf(stderr, "warning: tracking was reported lost in %d frame(s) (errors.csv)\n",
                  s.lost_frames);
   }
+  if (s.overridden_registrations > 0) {
+    std::fprintf(stderr,
+                 "warning: the solved poses overrode %d accepted registration(s): the motion "
+                 "priors outweighed them (errors.csv: overridden_registrations)\n",
+                 s.overridden_registrations);
+  }
+  if (s.invalid_input_frames > 0) {
+    std::fprintf(stderr,
+                 "warning: %d frame(s) had a non-finite sensor pose, vision prior or point, "
+                 "left out (errors.csv: invalid_input)\n",
+                 s.invalid_input_frames);
+  }
   if (s.degenerate_frames > 0) {
     std::printf(
         "note: in %d of %d contact frames the contact did not constrain every direction "

@@ -93,6 +93,9 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
     r.rejected_registrations = est.rejected_registrations;
+    r.unconverged_registrations = est.unconverged_registrations;
+    r.overridden_registrations = est.overridden_registrations;
+    r.invalid_input = est.invalid_input;
     r.tracking_lost = est.tracking_lost;
     r.unconstrained_directions = est.contact ? est.unconstrained_directions : 0;
     r.contact_points = int(input.cloud_sensor.size());
@@ -141,6 +144,9 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.episodes += f.new_episode;
     s.rejected_registrations += f.rejected_registrations;
     s.lost_frames += f.tracking_lost;
+    s.unconverged_registrations += f.unconverged_registrations;
+    s.overridden_registrations += f.overridden_registrations;
+    s.invalid_input_frames += f.invalid_input;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
   }
   s.translation_rmse_m = std::sqrt(t_sq / frames.size());
@@ -169,13 +175,15 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   errors.precision(9);
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
-            "contact_points,contact_core\n";
+            "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
+            "invalid_input\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
            << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
            << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
-           << f.contact_core << "\n";
+           << f.contact_core << "," << f.unconverged_registrations << ","
+           << f.overridden_registrations << "," << f.invalid_input << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
@@ -190,6 +198,9 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"episodes", s.episodes},
       {"rejected_registrations", s.rejected_registrations},
       {"lost_frames", s.lost_frames},
+      {"unconverged_registrations", s.unconverged_registrations},
+      {"overridden_registrations", s.overridden_registrations},
+      {"invalid_input_frames", s.invalid_input_frames},
       {"degenerate_frames", s.degenerate_frames},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},

@@ -41,6 +41,9 @@ struct FrameResult {
   bool new_episode = false;
   bool image_to_patch = false;
   int rejected_registrations = 0;
+  int unconverged_registrations = 0;  // TrackerEstimate's counts, per frame
+  int overridden_registrations = 0;
+  bool invalid_input = false;  // a non-finite sensor pose, prior or point was left out
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
@@ -61,6 +64,12 @@ struct TrackSummary {
   int episodes = 0;
   int rejected_registrations = 0;  // implausible registrations dropped (a tracking warning)
   int lost_frames = 0;             // frames the tracker reported tracking as lost
+  // Registrations that did not converge (too few points or matches, the iteration limit), and
+  // accepted ones the solved poses then disagreed with (the priors outweighed them; see
+  // GraphOptions::max_registration_residual_m), both tracking warnings.
+  int unconverged_registrations = 0;
+  int overridden_registrations = 0;
+  int invalid_input_frames = 0;  // frames with a non-finite input the tracker left out
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
   // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
   int degenerate_frames = 0;
