@@ -65,8 +65,8 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused("train-normals --data /no/such/data --out " + out("m.pt"), 1, "/no/such/data");
   refused("train-normals --data " + data() + " --arch vgg --out " + out("m.pt"), 2, "--arch");
   refused(track + "--registration-sigma 0 --out " + out("x"), 2, "--registration-sigma");
-  for (const std::string option :
-       {"--velocity-sigma", "--ee-sigma", "--vision-sigma", "--damping-sigma"}) {
+  for (const std::string option : {"--velocity-sigma", "--ee-sigma", "--vision-sigma",
+                                   "--damping-sigma", "--image-to-image-gate"}) {
     refused(track + option + " -1 --out " + out("x"), 2, option);
   }
   // A number out of range says which bound, briefly.
@@ -222,7 +222,7 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   std::getline(errors, header);
   const std::string last_columns =
       ",unconstrained_directions,contact_points,contact_core,unconverged_registrations,"
-      "overridden_registrations,invalid_input";
+      "overridden_registrations,invalid_input,image_to_image_dropped";
   ASSERT_GT(header.size(), last_columns.size());
   EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
   int lines = 0, core_frames = 0;
@@ -230,7 +230,7 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
     std::vector<std::string> field;
     std::stringstream fields(line);
     for (std::string f; std::getline(fields, f, ',');) field.push_back(f);
-    ASSERT_EQ(field.size(), 16u) << line;
+    ASSERT_EQ(field.size(), 17u) << line;
     const bool contact = field[3] == "1";
     const int points = std::stoi(field[11]), core = std::stoi(field[12]);
     EXPECT_EQ(points > 0, contact) << line;
@@ -239,6 +239,15 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   }
   EXPECT_EQ(lines, 60);
   EXPECT_GT(core_frames, 0) << "the default scene's corner is deep enough for its core";
+  EXPECT_EQ(summary["image_to_image_dropped"].get<int>(),
+            errors_column_sum(out("track"), "image_to_image_dropped"));
+  EXPECT_GT(summary["image_to_image_gate_rad"].get<double>(), 0.0) << "on by default";
+  // The gate off: no image-to-image factor is left out.
+  ASSERT_EQ(
+      patchgraph("track " + data() + " -q --image-to-image-gate 0 --out " + out("nogate")).code, 0);
+  const auto ungated = parse_json_file(out("nogate") + "/summary.json");
+  EXPECT_EQ(ungated["image_to_image_gate_rad"].get<double>(), 0.0);
+  EXPECT_EQ(ungated["image_to_image_dropped"].get<int>(), 0);
   EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
 }
 

@@ -58,6 +58,14 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                    std::string("Sigma of ") + s.factor + " [m, rad] (default " + fallback + ")")
         ->check(s.check);
   }
+  char gate[32];
+  std::snprintf(gate, sizeof gate, "%g", graph.image_to_image_gate_rad);
+  app.add_option("--image-to-image-gate", a.image_to_image_gate,
+                 std::string("Leave a frame's image-to-image factor out when it and the "
+                             "image-to-patch registration put the object this far apart [rad] "
+                             "(default ") +
+                     gate + "; 0 = off)")
+      ->check(kNonNegative);
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(kNonNegative);
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
@@ -96,6 +104,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (a.end_effector_sigma > 0) o.graph.sigma_end_effector = a.end_effector_sigma;
   if (a.vision_sigma > 0) o.graph.sigma_vision = a.vision_sigma;
   if (a.damping_sigma >= 0) o.graph.sigma_damping = a.damping_sigma;
+  if (a.image_to_image_gate >= 0) o.graph.image_to_image_gate_rad = a.image_to_image_gate;
   if (!a.config.empty()) {
     o.front_end = load_tracker_config(a.config);
   } else if (o.normals) {

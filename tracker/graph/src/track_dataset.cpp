@@ -92,6 +92,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.contact = est.contact;
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
+    r.image_to_image_dropped = est.image_to_image_dropped;
     r.rejected_registrations = est.rejected_registrations;
     r.unconverged_registrations = est.unconverged_registrations;
     r.overridden_registrations = est.overridden_registrations;
@@ -147,6 +148,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.unconverged_registrations += f.unconverged_registrations;
     s.overridden_registrations += f.overridden_registrations;
     s.invalid_input_frames += f.invalid_input;
+    s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
   }
   s.translation_rmse_m = std::sqrt(t_sq / frames.size());
@@ -176,14 +178,15 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
             "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
-            "invalid_input\n";
+            "invalid_input,image_to_image_dropped\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
            << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
            << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
            << f.contact_core << "," << f.unconverged_registrations << ","
-           << f.overridden_registrations << "," << f.invalid_input << "\n";
+           << f.overridden_registrations << "," << f.invalid_input << ","
+           << f.image_to_image_dropped << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
@@ -201,6 +204,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"unconverged_registrations", s.unconverged_registrations},
       {"overridden_registrations", s.overridden_registrations},
       {"invalid_input_frames", s.invalid_input_frames},
+      {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},
@@ -213,6 +217,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"window", run.tracker->options().window},
       {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
       {"registration_information", run.tracker->options().registration_information},
+      {"image_to_image_gate_rad", run.tracker->options().image_to_image_gate_rad},
       {"icp_symmetric", run.tracker->options().icp.symmetric},
       {"patch_points", run.tracker->patch().cloud_object().size()},
   };

@@ -87,6 +87,34 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   return projector / sigma + (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
 }
 
+bool PatchGraphTracker::registrations_inconsistent(std::size_t first_registration) const {
+  if (options_.image_to_image_gate_rad <= 0) return false;
+  const Factor* to_previous = nullptr;
+  const Factor* to_patch = nullptr;
+  for (std::size_t k = first_registration; k < factors_.size(); ++k) {
+    if (factors_[k].kind == FactorKind::kImageToImage) to_previous = &factors_[k];
+    if (factors_[k].kind == FactorKind::kImageToPatch) to_patch = &factors_[k];
+  }
+  if (!to_previous || !to_patch) return false;
+  // The object in the current sensor frame, as each registration has it: the patch's answer
+  // T_object_sensor inverted, and the previous frame's estimate carried by the image-to-image
+  // answer T_previous_current.
+  const int t = to_patch->frames[0];
+  const Frame& p = frames_[t - 1];
+  const SE3 from_patch = to_patch->measured.inverse();
+  const SE3 from_previous =
+      to_previous->measured.inverse() * (pose_from_block(p.e).inverse() * pose_from_block(p.o));
+  return rotation_distance(from_previous, from_patch) > options_.image_to_image_gate_rad;
+}
+
+void PatchGraphTracker::drop_image_to_image(std::size_t first_registration) {
+  for (std::size_t k = first_registration; k < factors_.size(); ++k) {
+    if (factors_[k].kind != FactorKind::kImageToImage) continue;
+    factors_.erase(factors_.begin() + std::ptrdiff_t(k));
+    return;
+  }
+}
+
 bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
   return translation_distance(r.T_target_source, guess) <= options_.max_registration_jump_m &&
          rotation_distance(r.T_target_source, guess) <= options_.max_registration_jump_rad;
@@ -232,6 +260,12 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       to_patch = register_to_patch(cur, est);
     }
     anchor = m == Method::kImageToImage ? to_previous : to_patch;
+    if (to_previous == Outcome::kAccepted && to_patch == Outcome::kAccepted &&
+        registrations_inconsistent(first_registration)) {
+      drop_image_to_image(first_registration);
+      est.image_to_image = false;
+      est.image_to_image_dropped = true;
+    }
   }
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;

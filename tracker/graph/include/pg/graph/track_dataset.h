@@ -40,6 +40,7 @@ struct FrameResult {
   bool contact = false;  // the frame's cloud was used
   bool new_episode = false;
   bool image_to_patch = false;
+  bool image_to_image_dropped = false;  // TrackerEstimate::image_to_image_dropped
   int rejected_registrations = 0;
   int unconverged_registrations = 0;  // TrackerEstimate's counts, per frame
   int overridden_registrations = 0;
@@ -70,6 +71,8 @@ struct TrackSummary {
   int unconverged_registrations = 0;
   int overridden_registrations = 0;
   int invalid_input_frames = 0;  // frames with a non-finite input the tracker left out
+  // Frames whose image-to-image factor was left out for disagreeing with the image-to-patch one.
+  int image_to_image_dropped = 0;
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
   // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
   int degenerate_frames = 0;

@@ -51,6 +51,14 @@ struct GraphOptions {
   // (TrackerEstimate::overridden_registrations) and does not count as registered below.
   double max_registration_residual_m = 1e-3;
   double max_registration_residual_rad = 0.05;
+  // When both registrations of a frame hold but turn the object in the current sensor frame
+  // further apart than this (the image-to-patch answer against the previous estimate carried by
+  // the image-to-image one), the image-to-image factor is left out
+  // (TrackerEstimate::image_to_image_dropped): the patch, fused over many frames, is the steadier
+  // reference. Two factors at the full sigma that disagree by tens of sigmas along a weakly seen
+  // direction were otherwise reconciled by a turn along the one neither sees (a rolling limb's
+  // own axis: docs/tracker.md "The image-to-image gate"). 0 turns the gate off.
+  double image_to_image_gate_rad = 2.5e-3;
   // Tracking is reported lost (TrackerEstimate::tracking_lost) once the anchoring registration
   // (image-to-patch; image-to-image for that method) failed in this many consecutive contact
   // frames: too few points or matches within max_correspondence_m, an implausible jump, or a
@@ -73,15 +81,16 @@ struct TrackerEstimate {
   SE3 T_world_object;
   SE3 T_world_sensor;
   bool contact = false;
-  bool new_episode = false;           // a contact episode started at this frame
-  bool image_to_image = false;        // an image-to-image factor was added
-  bool image_to_patch = false;        // an image-to-patch factor was added
-  bool keyframe = false;              // the cloud was fused into the patch
-  int unconstrained_directions = 0;   // of the image-to-patch registration (if it got that far)
-  int rejected_registrations = 0;     // converged, but too far from the prediction
-  int unconverged_registrations = 0;  // ICP failed (too few points or matches, iteration limit)
-  int overridden_registrations = 0;   // accepted, but the solution disagrees (see GraphOptions)
-  bool tracking_lost = false;         // see GraphOptions::lost_after_frames
+  bool new_episode = false;             // a contact episode started at this frame
+  bool image_to_image = false;          // an image-to-image factor was added
+  bool image_to_patch = false;          // an image-to-patch factor was added
+  bool image_to_image_dropped = false;  // disagreed with image-to-patch (see GraphOptions)
+  bool keyframe = false;                // the cloud was fused into the patch
+  int unconstrained_directions = 0;     // of the image-to-patch registration (if it got that far)
+  int rejected_registrations = 0;       // converged, but too far from the prediction
+  int unconverged_registrations = 0;    // ICP failed (too few points or matches, iteration limit)
+  int overridden_registrations = 0;     // accepted, but the solution disagrees (see GraphOptions)
+  bool tracking_lost = false;           // see GraphOptions::lost_after_frames
   // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
   // pose then holds the previous frame's, the object pose the prediction).
   bool invalid_input = false;
@@ -140,6 +149,10 @@ class PatchGraphTracker {
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
   bool plausible(const IcpResult& r, const SE3& guess) const;
   bool registration_disagrees(const Factor& factor) const;
+  // This frame's image-to-image and image-to-patch factors (from first_registration on) turn the
+  // object further apart than GraphOptions::image_to_image_gate_rad.
+  bool registrations_inconsistent(std::size_t first_registration) const;
+  void drop_image_to_image(std::size_t first_registration);
 
   GraphOptions options_;
   PatchMap patch_;
