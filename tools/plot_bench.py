@@ -21,7 +21,7 @@ KNOB_COLORS = {
     "ICP iterations": "#dd8452", "correspondence": "#55a868", "voxel": "#c44e52",
     "window": "#937860", "registration information": "#da8bc3", "ICP objective": "#17becf",
     "contact core": "#bcbd22", "integration": "#1f1f7a", "method": "#8c8c8c",
-    "normals": "#ccb974",
+    "normals": "#ccb974", "image-to-image gate": "#e377c2",
 }
 
 

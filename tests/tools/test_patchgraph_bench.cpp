@@ -37,7 +37,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
                         "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
-                        "icp_symmetric", "depth_integration"}) {
+                        "icp_symmetric", "depth_integration", "image_to_image_gate"}) {
     ASSERT_TRUE(column.count(c)) << c;
   }
   std::vector<std::string> settings;
@@ -49,6 +49,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     EXPECT_EQ(cells[column["runs"]], "2") << line;
     EXPECT_EQ(cells[column["icp_symmetric"]], "1") << line;  // ground-truth normals throughout
     EXPECT_EQ(cells[column["depth_integration"]], "parity") << line;  // the quick sweep: default
+    EXPECT_EQ(cells[column["image_to_image_gate"]], "1") << line;
     for (const char* c :
          {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
       const double v = std::stod(cells[column[c]]);

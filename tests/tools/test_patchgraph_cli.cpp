@@ -170,8 +170,10 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   EXPECT_GT(summary["contact_frames"].get<int>(), 50);
   EXPECT_LT(summary["final_translation_error_m"].get<double>(), 2e-3);
   EXPECT_LT(summary["final_rotation_error_rad"].get<double>(), 0.05);
-  // Learned normals keep the target's normals in the ICP (docs/learned_normals.md).
+  // Learned normals keep the target's normals in the ICP and have no image-to-image gate
+  // (docs/learned_normals.md).
   EXPECT_EQ(summary["icp_symmetric"], false);
+  EXPECT_EQ(summary["image_to_image_gate_rad"].get<double>(), 0.0);
 }
 
 TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {

@@ -43,6 +43,7 @@ struct Setting {
   // 0 / 1: the averaged / parity integration of the normals; -1: as `track` sets it for the
   // normals source (resolved before the sweep runs, as icp_symmetric).
   int parity_integration = -1;
+  bool image_to_image_gate = true;  // false: GraphOptions::image_to_image_gate_rad 0
 
   std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
 };
@@ -87,6 +88,7 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
     add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
     add("contact core", "off", [](Setting& s) { s.contact_core = false; });
     add("integration", "averaged", [](Setting& s) { s.parity_integration = 0; });
+    add("image-to-image gate", "off", [](Setting& s) { s.image_to_image_gate = false; });
   }
   for (const char* m : args.quick ? std::vector<const char*>{"constvel"}
                                   : std::vector<const char*>{"constvel", "imagetoimage"}) {
@@ -198,6 +200,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t
   a.window = s.window;
   a.keyframe_interval = s.keyframe_interval;
   a.no_registration_information = !s.registration_information;
+  if (!s.image_to_image_gate) a.image_to_image_gate = 0;
   TrackOptions o = make_track_options(a, dataset);
   o.front_end.icp.max_iterations = s.icp_iterations;
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
@@ -216,7 +219,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
          "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
-         "contact_core,depth_integration,runs,"
+         "contact_core,depth_integration,image_to_image_gate,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
@@ -225,9 +228,9 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
         << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
         << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
         << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.contact_core << ","
-        << (s.parity_integration == 1 ? "parity" : "averaged") << "," << r.runs.size() << ","
-        << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad << "," << r.rmse_t_m << ","
-        << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
+        << (s.parity_integration == 1 ? "parity" : "averaged") << "," << s.image_to_image_gate
+        << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad
+        << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }

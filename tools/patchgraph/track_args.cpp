@@ -62,9 +62,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   std::snprintf(gate, sizeof gate, "%g", graph.image_to_image_gate_rad);
   app.add_option("--image-to-image-gate", a.image_to_image_gate,
                  std::string("Leave a frame's image-to-image factor out when it and the "
-                             "image-to-patch registration put the object this far apart [rad] "
+                             "image-to-patch registration turn the object this far apart [rad] "
                              "(default ") +
-                     gate + "; 0 = off)")
+                     gate + ", off for --normals MODEL; 0 = off)")
       ->check(kNonNegative);
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
       ->check(kNonNegative);
@@ -104,7 +104,14 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (a.end_effector_sigma > 0) o.graph.sigma_end_effector = a.end_effector_sigma;
   if (a.vision_sigma > 0) o.graph.sigma_vision = a.vision_sigma;
   if (a.damping_sigma >= 0) o.graph.sigma_damping = a.damping_sigma;
-  if (a.image_to_image_gate >= 0) o.graph.image_to_image_gate_rad = a.image_to_image_gate;
+  if (a.image_to_image_gate >= 0) {
+    o.graph.image_to_image_gate_rad = a.image_to_image_gate;
+  } else if (o.normals) {
+    // The network's per-frame errors are milliradians: the gate would drop the image-to-image
+    // factor in many frames, and on the benchmark that tracked the cube worse and the toy brick
+    // better (docs/learned_normals.md); off unless asked for.
+    o.graph.image_to_image_gate_rad = 0;
+  }
   if (!a.config.empty()) {
     o.front_end = load_tracker_config(a.config);
   } else if (o.normals) {

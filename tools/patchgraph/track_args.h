@@ -19,8 +19,9 @@ struct TrackArgs {
   bool no_registration_information = false;
   // Factor sigmas; 0 keeps GraphOptions' own (the paper's values).
   double registration_sigma = 0, velocity_sigma = 0, end_effector_sigma = 0, vision_sigma = 0;
-  double damping_sigma = -1;        // < 0 keeps GraphOptions' own; 0 turns the damping prior off
-  double image_to_image_gate = -1;  // [rad]; < 0 keeps GraphOptions' own; 0 turns it off
+  double damping_sigma = -1;  // < 0 keeps GraphOptions' own; 0 turns the damping prior off
+  // [rad]; < 0 keeps GraphOptions' own (off for --normals MODEL); 0 turns it off
+  double image_to_image_gate = -1;
   double end_effector_noise = 1e-5, vision_noise = 1e-4;
   std::uint64_t seed = 0;
   bool quiet = false;
