@@ -8,7 +8,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <initializer_list>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include "pg/core/error.h"
 
@@ -43,6 +45,14 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
   const int status = pclose(pipe);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+// The comma-separated cells of one CSV line (the project's CSV files quote nothing).
+inline std::vector<std::string> split_csv_line(const std::string& line) {
+  std::vector<std::string> cells;
+  std::stringstream ss(line);
+  for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+  return cells;
 }
 
 // Runs f and expects an InputError whose message contains every one of `parts` (a file name, a

@@ -73,10 +73,8 @@ TEST_F(StressData, NonFinitePoseIsRejectedWithTheRow) {
     fs::remove_all(tmp_.path / "data");
     const std::string dir = copy();
     auto rows = lines(dir + "/poses.csv");
-    std::stringstream row(rows[6]);  // frame 5
-    std::vector<std::string> cells;
-    for (std::string c; std::getline(row, c, ',');) cells.push_back(c);
-    cells[3] = bad;  // obj_y
+    std::vector<std::string> cells = testing_support::split_csv_line(rows[6]);  // frame 5
+    cells[3] = bad;                                                             // obj_y
     std::string joined;
     for (const auto& c : cells) joined += (joined.empty() ? "" : ",") + c;
     rows[6] = joined;

@@ -15,12 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing_support::TempDir;
 
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> cells;
-  std::stringstream ss(line);
-  for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
-  return cells;
-}
+using testing_support::split_csv_line;
 
 TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   TempDir tmp;
@@ -32,7 +27,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   std::ifstream csv(tmp.str("b/bench.csv"));
   std::string line;
   ASSERT_TRUE(std::getline(csv, line));
-  const std::vector<std::string> header = split(line);
+  const std::vector<std::string> header = split_csv_line(line);
   std::map<std::string, std::size_t> column;
   for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
@@ -43,7 +38,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   std::vector<std::string> settings;
   int on_front = 0;
   while (std::getline(csv, line)) {
-    const std::vector<std::string> cells = split(line);
+    const std::vector<std::string> cells = split_csv_line(line);
     ASSERT_EQ(cells.size(), header.size()) << line;
     settings.push_back(cells[column["setting"]]);
     EXPECT_EQ(cells[column["runs"]], "2") << line;
