@@ -87,32 +87,26 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   return projector / sigma + (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
 }
 
-bool PatchGraphTracker::registrations_inconsistent(std::size_t first_registration) const {
+bool PatchGraphTracker::gate_image_to_image(std::size_t first_registration) {
   if (options_.image_to_image_gate_rad <= 0) return false;
-  const Factor* to_previous = nullptr;
-  const Factor* to_patch = nullptr;
+  std::size_t to_previous = factors_.size(), to_patch = factors_.size();
   for (std::size_t k = first_registration; k < factors_.size(); ++k) {
-    if (factors_[k].kind == FactorKind::kImageToImage) to_previous = &factors_[k];
-    if (factors_[k].kind == FactorKind::kImageToPatch) to_patch = &factors_[k];
+    if (factors_[k].kind == FactorKind::kImageToImage) to_previous = k;
+    if (factors_[k].kind == FactorKind::kImageToPatch) to_patch = k;
   }
-  if (!to_previous || !to_patch) return false;
+  if (to_previous == factors_.size() || to_patch == factors_.size()) return false;
   // The object in the current sensor frame, as each registration has it: the patch's answer
   // T_object_sensor inverted, and the previous frame's estimate carried by the image-to-image
   // answer T_previous_current.
-  const int t = to_patch->frames[0];
-  const Frame& p = frames_[t - 1];
-  const SE3 from_patch = to_patch->measured.inverse();
-  const SE3 from_previous =
-      to_previous->measured.inverse() * (pose_from_block(p.e).inverse() * pose_from_block(p.o));
-  return rotation_distance(from_previous, from_patch) > options_.image_to_image_gate_rad;
-}
-
-void PatchGraphTracker::drop_image_to_image(std::size_t first_registration) {
-  for (std::size_t k = first_registration; k < factors_.size(); ++k) {
-    if (factors_[k].kind != FactorKind::kImageToImage) continue;
-    factors_.erase(factors_.begin() + std::ptrdiff_t(k));
-    return;
+  const Frame& p = frames_[factors_[to_patch].frames[0] - 1];
+  const SE3 from_patch = factors_[to_patch].measured.inverse();
+  const SE3 from_previous = factors_[to_previous].measured.inverse() *
+                            (pose_from_block(p.e).inverse() * pose_from_block(p.o));
+  if (rotation_distance(from_previous, from_patch) <= options_.image_to_image_gate_rad) {
+    return false;
   }
+  factors_.erase(factors_.begin() + std::ptrdiff_t(to_previous));
+  return true;
 }
 
 bool PatchGraphTracker::plausible(const IcpResult& r, const SE3& guess) const {
@@ -260,9 +254,9 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       to_patch = register_to_patch(cur, est);
     }
     anchor = m == Method::kImageToImage ? to_previous : to_patch;
-    if (to_previous == Outcome::kAccepted && to_patch == Outcome::kAccepted &&
-        registrations_inconsistent(first_registration)) {
-      drop_image_to_image(first_registration);
+    // When both registrations were accepted (a factor each from first_registration on), the
+    // gate may leave the image-to-image one out.
+    if (gate_image_to_image(first_registration)) {
       est.image_to_image = false;
       est.image_to_image_dropped = true;
     }

@@ -149,10 +149,10 @@ class PatchGraphTracker {
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
   bool plausible(const IcpResult& r, const SE3& guess) const;
   bool registration_disagrees(const Factor& factor) const;
-  // This frame's image-to-image and image-to-patch factors (from first_registration on) turn the
-  // object further apart than GraphOptions::image_to_image_gate_rad.
-  bool registrations_inconsistent(std::size_t first_registration) const;
-  void drop_image_to_image(std::size_t first_registration);
+  // Removes this frame's image-to-image factor (from first_registration on) when it and the
+  // frame's image-to-patch factor turn the object further apart than
+  // GraphOptions::image_to_image_gate_rad; true if it did.
+  bool gate_image_to_image(std::size_t first_registration);
 
   GraphOptions options_;
   PatchMap patch_;
