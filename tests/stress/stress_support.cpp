@@ -131,7 +131,7 @@ StressRun ClosedLoop::track(const std::vector<SE3>& T_sensor_object, const Graph
     TrackerInput input;
     input.T_world_sensor_measured = SE3();
     input.T_world_object_prior = truth;
-    if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
+    set_measurement(contact, input);
     if (hooks.corrupt_input) hooks.corrupt_input(int(i), input);
     StressFrame f;
     f.cloud_points = int(input.cloud_sensor.size());

@@ -146,7 +146,8 @@ TEST(StressDataInMemory, NonFinitePixelsInTheNormals) {
   EXPECT_LT(run.max_translation_error_m(), 1e-3);
 }
 
-// A whole frame of NaN normals: no contact for that frame, then a new episode.
+// A whole frame of NaN normals: unreadable, so the frame is predicted and flagged, and the
+// contact episode goes on through it (no new episode, no new vision prior, the patch kept).
 TEST(StressDataInMemory, WholeFrameOfNaN) {
   const ClosedLoop& loop = cube_loop();
   StressHooks hooks;
@@ -157,6 +158,10 @@ TEST(StressDataInMemory, WholeFrameOfNaN) {
   run.print("WholeFrameOfNaN");
   ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
   EXPECT_FALSE(run.frames[30].estimate.contact);
+  EXPECT_TRUE(run.frames[30].estimate.invalid_input);
+  EXPECT_TRUE(run.frames[29].estimate.contact && run.frames[31].estimate.contact);
+  EXPECT_FALSE(run.frames[31].estimate.new_episode);
+  EXPECT_TRUE(run.frames[31].estimate.image_to_patch) << "registered against the kept patch";
   EXPECT_LT(run.last().translation_error_m, 1e-3);
 }
 

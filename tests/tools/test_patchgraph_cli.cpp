@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -218,13 +219,13 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   std::getline(errors, header);
   const std::string last_columns =
       ",unconstrained_directions,contact_points,contact_core,unconverged_registrations,"
-      "overridden_registrations,invalid_input,image_to_image_dropped";
+      "overridden_registrations,invalid_input,image_to_image_dropped,rejected_normals";
   ASSERT_GT(header.size(), last_columns.size());
   EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
   int lines = 0, core_frames = 0;
   for (std::string line; std::getline(errors, line); ++lines) {
     const std::vector<std::string> field = split_csv_line(line);
-    ASSERT_EQ(field.size(), 17u) << line;
+    ASSERT_EQ(field.size(), 18u) << line;
     const bool contact = field[3] == "1";
     const int points = std::stoi(field[11]), core = std::stoi(field[12]);
     EXPECT_EQ(points > 0, contact) << line;
@@ -236,6 +237,8 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   EXPECT_EQ(summary["image_to_image_dropped"].get<int>(),
             errors_column_sum(out("track"), "image_to_image_dropped"));
   EXPECT_GT(summary["image_to_image_gate_rad"].get<double>(), 0.0) << "on by default";
+  EXPECT_EQ(summary["rejected_normal_frames"].get<int>(), 0) << "rendered normals are clean";
+  EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 0);
   // The gate off: no image-to-image factor is left out.
   ASSERT_EQ(
       patchgraph("track " + data() + " -q --image-to-image-gate 0 --out " + out("nogate")).code, 0);
@@ -243,6 +246,46 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   EXPECT_EQ(ungated["image_to_image_gate_rad"].get<double>(), 0.0);
   EXPECT_EQ(ungated["image_to_image_dropped"].get<int>(), 0);
   EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
+}
+
+// Corrupt normal files: a few NaN pixels are counted, filled and warned about; frames of NaN
+// normals say nothing about the contact, so the episode goes on through them (its patch kept, no
+// new vision prior) instead of ending and restarting as at a real break in the contact.
+TEST_F(PatchgraphCli, CorruptNormalsAreReportedAndAnUnreadableFrameKeepsTheEpisode) {
+  const std::string copy = out("corrupt");
+  fs::remove_all(copy);
+  fs::copy(data(), copy, fs::copy_options::recursive);
+  const Dataset clean = Dataset::open(copy);
+  ImageF speckled = clean.normal(10);
+  for (int x = 0; x < 30; ++x) speckled.at(x, 3, 0) = NAN;  // a corner, away from the contact
+  write_image(dataset_frame_path(copy, "normal", 10), speckled);
+  for (int f = 30; f < 33; ++f) {
+    write_image(dataset_frame_path(copy, "normal", f),
+                ImageF(clean.info().width(), clean.info().height(), 3, NAN));
+  }
+  const CliRun r = patchgraph("track " + copy + " -q --out " + out("corrupt_track"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("4 frame(s) had unusable normal pixels"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("3 frame(s) had a non-finite"), std::string::npos) << r.out;
+  std::ifstream errors(out("corrupt_track") + "/errors.csv");
+  std::string line;
+  std::getline(errors, line);
+  while (std::getline(errors, line)) {
+    const std::vector<std::string> field = split_csv_line(line);
+    const int frame = std::stoi(field[0]);
+    const bool unreadable = frame >= 30 && frame < 33;
+    EXPECT_EQ(std::stoi(field[17]) > 0, unreadable || frame == 10) << line;
+    EXPECT_EQ(field[15], unreadable ? "1" : "0") << line;  // invalid_input
+    if (unreadable) {
+      EXPECT_EQ(field[3], "0") << line;  // no contact measured
+    }
+    EXPECT_EQ(field[4], frame == 0 ? "1" : "0") << line;  // one episode throughout
+  }
+  const auto summary = parse_json_file(out("corrupt_track") + "/summary.json");
+  EXPECT_EQ(summary["rejected_normal_frames"].get<int>(), 4);
+  EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 3);
+  EXPECT_EQ(summary["episodes"].get<int>(), 1);
+  EXPECT_LT(summary["final_translation_error_m"].get<double>(), 1e-3);
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -3,6 +3,7 @@
 // against full-image integration, and bad input.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <random>
 
 #include "pg/core/error.h"
@@ -206,6 +207,26 @@ TEST(DepthBadInput, NanNormalsAreRejectedAndCounted) {
   }
   EXPECT_LE(f.cloud_sensor.size() + 25, clean.cloud_sensor.size() + 2);
   for (float u : f.depth.depth.data) ASSERT_TRUE(std::isfinite(u));
+}
+
+// Bad normals over a contact's area in a frame that shows no contact: whether the object touches
+// is unknown (kUnreadable), while a few bad pixels on the untouched gel leave it kNoContact.
+TEST(DepthBadInput, BadNormalsThatCouldHideAContactMakeTheFrameUnreadable) {
+  const SensorModel sensor = sensor_preset("digit");
+  ContactCloudOptions options;
+  ContactCloudBuilder builder(sensor, options);
+  const ImageF gel = undeformed_gel_normals(builder.rays());
+  const double pixel_m2 = builder.rays().pixel_area_m2();
+  const int smallest = int(std::ceil(options.mask.min_area_m2 / pixel_m2));
+  for (const int bad : {smallest - 1, smallest}) {
+    ImageF n = gel;
+    for (int k = 0; k < bad; ++k) n.at(40 + k % 10, 70 + k / 10, 0) = NAN;
+    const ContactFrame f = builder.build(n);
+    EXPECT_EQ(f.rejected_normals, bad);
+    EXPECT_EQ(f.status, bad < smallest ? ContactStatus::kNoContact : ContactStatus::kUnreadable)
+        << bad << " bad pixels, " << smallest << " make the smallest contact";
+    EXPECT_TRUE(f.cloud_sensor.empty());
+  }
 }
 
 TEST(DepthBadInput, WrongImageSizeIsAnInputError) {

@@ -42,10 +42,18 @@ int run_track(const TrackArgs& a) {
                  "priors outweighed them (errors.csv: overridden_registrations)\n",
                  s.overridden_registrations);
   }
+  if (s.rejected_normal_frames > 0) {
+    std::fprintf(stderr,
+                 "warning: %d frame(s) had unusable normal pixels (non-finite, not unit length "
+                 "or facing the camera), filled from their neighbours (errors.csv: "
+                 "rejected_normals)\n",
+                 s.rejected_normal_frames);
+  }
   if (s.invalid_input_frames > 0) {
     std::fprintf(stderr,
-                 "warning: %d frame(s) had a non-finite sensor pose, vision prior or point, "
-                 "left out (errors.csv: invalid_input)\n",
+                 "warning: %d frame(s) had a non-finite sensor pose, vision prior or point, or "
+                 "normals too corrupt to tell whether the object touches; left out, an episode "
+                 "in progress continued (errors.csv: invalid_input)\n",
                  s.invalid_input_frames);
   }
   if (s.degenerate_frames > 0) {

@@ -53,7 +53,11 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   frame.cloud_sensor.clear();
   frame.status = ContactStatus::kNoContact;
   frame.core = false;
-  if (!frame.mask.contact) return;
+  if (!frame.mask.contact) {
+    const double rejected_m2 = double(frame.rejected_normals) * rays().pixel_area_m2();
+    if (rejected_m2 >= options_.mask.min_area_m2) frame.status = ContactStatus::kUnreadable;
+    return;
+  }
   back_project_contact(rays(), frame.depth.depth, frame.mask.mask, frame.mask.box, normals,
                        frame.cloud_sensor);
   keep_core_if_as_constrained(normals, frame);

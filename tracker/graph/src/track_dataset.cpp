@@ -78,7 +78,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
               .count();
     }
     builder.build(normals, contact);
-    if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
+    set_measurement(contact, input);
     const TrackerEstimate est = run.tracker->add(input);
     FrameResult r;
     r.frame_ms =
@@ -97,6 +97,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.unconverged_registrations = est.unconverged_registrations;
     r.overridden_registrations = est.overridden_registrations;
     r.invalid_input = est.invalid_input;
+    r.rejected_normals = contact.rejected_normals;
     r.tracking_lost = est.tracking_lost;
     r.unconstrained_directions = est.contact ? est.unconstrained_directions : 0;
     r.contact_points = int(input.cloud_sensor.size());
@@ -148,6 +149,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.unconverged_registrations += f.unconverged_registrations;
     s.overridden_registrations += f.overridden_registrations;
     s.invalid_input_frames += f.invalid_input;
+    s.rejected_normal_frames += f.rejected_normals > 0;
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
   }
@@ -178,7 +180,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
             "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
-            "invalid_input,image_to_image_dropped\n";
+            "invalid_input,image_to_image_dropped,rejected_normals\n";
   for (const auto& f : run.frames) {
     errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
            << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
@@ -186,7 +188,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
            << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
            << f.contact_core << "," << f.unconverged_registrations << ","
            << f.overridden_registrations << "," << f.invalid_input << ","
-           << f.image_to_image_dropped << "\n";
+           << f.image_to_image_dropped << "," << f.rejected_normals << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
@@ -204,6 +206,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"unconverged_registrations", s.unconverged_registrations},
       {"overridden_registrations", s.overridden_registrations},
       {"invalid_input_frames", s.invalid_input_frames},
+      {"rejected_normal_frames", s.rejected_normal_frames},
       {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
       {"translation_rmse_m", s.translation_rmse_m},

@@ -180,6 +180,12 @@ PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
   return Outcome::kAccepted;
 }
 
+void set_measurement(const ContactFrame& contact, TrackerInput& input) {
+  input.cloud_sensor.clear();
+  if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
+  input.measurement_missing = contact.status == ContactStatus::kUnreadable;
+}
+
 TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   const auto start = std::chrono::steady_clock::now();
   TrackerEstimate est;
@@ -188,8 +194,10 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   // dropped and reported: inside the window one NaN would poison every later estimate.
   const bool sensor_ok = is_finite(input.T_world_sensor_measured);
   const bool prior_ok = is_finite(input.T_world_object_prior);
-  const int dropped_points = copy_finite_points(input.cloud_sensor, current_cloud_);
-  est.invalid_input = !sensor_ok || !prior_ok || dropped_points > 0;
+  const int dropped_points =
+      input.measurement_missing ? 0 : copy_finite_points(input.cloud_sensor, current_cloud_);
+  if (input.measurement_missing) current_cloud_.clear();
+  est.invalid_input = !sensor_ok || !prior_ok || dropped_points > 0 || input.measurement_missing;
   Frame f;
   pose_to_block(sensor_ok ? input.T_world_sensor_measured
                 : t >= 1  ? pose_from_block(frames_[t - 1].e)
@@ -236,7 +244,8 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     patch_.reset();
     last_keyframe_ = -1;
   }
-  in_episode_ = cur.contact;
+  // A missing measurement says nothing about the contact: the episode goes on.
+  if (!input.measurement_missing) in_episode_ = cur.contact;
 
   // Registrations (eq. 5 and 6) at the predicted poses.
   const std::size_t first_registration = factors_.size();

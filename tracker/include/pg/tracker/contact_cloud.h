@@ -21,6 +21,10 @@ struct ContactCloudOptions {
 enum class ContactStatus {
   kContact,    // cloud_sensor holds the contact's points
   kNoContact,  // nothing deformed, or less contact than mask.min_area_m2: the cloud is empty
+  // No contact was found, but at least mask.min_area_m2 of the image held unusable normals
+  // (rejected_normals): a contact may hide there, so whether the object touches is unknown. The
+  // cloud is empty; a tracker should treat the frame as missing, not as the contact's end.
+  kUnreadable,
 };
 
 struct ContactFrame {

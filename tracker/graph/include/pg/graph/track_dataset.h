@@ -44,7 +44,12 @@ struct FrameResult {
   int rejected_registrations = 0;
   int unconverged_registrations = 0;  // TrackerEstimate's counts, per frame
   int overridden_registrations = 0;
-  bool invalid_input = false;  // a non-finite sensor pose, prior or point was left out
+  // A non-finite sensor pose, prior or point was left out, or the frame was unreadable
+  // (TrackerInput::measurement_missing).
+  bool invalid_input = false;
+  // Normal pixels rejected as unusable (ContactFrame::rejected_normals: non-finite, far from
+  // unit length, or facing the camera); 0 for a clean frame.
+  int rejected_normals = 0;
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
@@ -70,7 +75,8 @@ struct TrackSummary {
   // GraphOptions::max_registration_residual_m), both tracking warnings.
   int unconverged_registrations = 0;
   int overridden_registrations = 0;
-  int invalid_input_frames = 0;  // frames with a non-finite input the tracker left out
+  int invalid_input_frames = 0;    // frames with a non-finite or missing input left out
+  int rejected_normal_frames = 0;  // frames with any rejected normal pixel
   // Frames whose image-to-image factor was left out for disagreeing with the image-to-patch one.
   int image_to_image_dropped = 0;
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the

@@ -11,6 +11,7 @@
 
 #include "pg/graph/patch_map.h"
 #include "pg/graph/pose_block.h"
+#include "pg/tracker/contact_cloud.h"
 #include "pg/tracker/icp.h"
 
 namespace pg {
@@ -75,7 +76,15 @@ struct TrackerInput {
   PointCloud cloud_sensor;      // the contact's points in the sensor frame; empty: no contact
   SE3 T_world_sensor_measured;  // e~_t: the end-effector pose measurement
   SE3 T_world_object_prior;     // o~_t: the vision prior, used at the start of a contact episode
+  // The tactile image could not be read (ContactStatus::kUnreadable): whether the object touches
+  // is unknown. The cloud is ignored and the frame is predicted by the motion priors, but a
+  // contact episode in progress continues (its patch kept, no new vision prior) instead of
+  // ending as it would at a frame without contact. Reported as invalid_input.
+  bool measurement_missing = false;
 };
+
+// Sets the input's measurement from a frame's contact: its cloud, none, or missing.
+void set_measurement(const ContactFrame& contact, TrackerInput& input);
 
 struct TrackerEstimate {
   SE3 T_world_object;
@@ -92,7 +101,8 @@ struct TrackerEstimate {
   int overridden_registrations = 0;     // accepted, but the solution disagrees (see GraphOptions)
   bool tracking_lost = false;           // see GraphOptions::lost_after_frames
   // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
-  // pose then holds the previous frame's, the object pose the prediction).
+  // pose then holds the previous frame's, the object pose the prediction); or the measurement was
+  // missing (TrackerInput::measurement_missing).
   bool invalid_input = false;
   double solve_ms = 0;  // graph update time
 };
