@@ -171,6 +171,42 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   EXPECT_EQ(summary["image_to_image_gate_rad"].get<double>(), 0.0);
 }
 
+// A camera dropout (a black or white frame) is no image of the gel: with learned normals it is
+// unreadable (reported, the episode goes on), not a contact over the whole image.
+TEST_F(PatchgraphCli, ADroppedColourFrameIsUnreadableNotAContact) {
+  const std::string copy = out("dropout");
+  fs::remove_all(copy);
+  fs::copy(data(), copy, fs::copy_options::recursive);
+  const Dataset clean = Dataset::open(copy);
+  const int w = clean.info().width(), h = clean.info().height();
+  for (int f = 30; f < 33; ++f) {
+    write_image(dataset_frame_path(copy, "color", f), ImageU8(w, h, 3, 0));
+  }
+  write_image(dataset_frame_path(copy, "color", 40), ImageU8(w, h, 3, 255));
+  const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
+                              out("dropout_track"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("a camera dropout"), std::string::npos) << r.out;
+  std::ifstream errors(out("dropout_track") + "/errors.csv");
+  std::string line;
+  std::getline(errors, line);
+  while (std::getline(errors, line)) {
+    const std::vector<std::string> field = split_csv_line(line);
+    const int frame = std::stoi(field[0]);
+    const bool dropped = (frame >= 30 && frame < 33) || frame == 40;
+    EXPECT_EQ(field[15], dropped ? "1" : "0") << line;  // invalid_input
+    if (dropped) {
+      EXPECT_EQ(field[3], "0") << line;                // no contact measured
+      EXPECT_EQ(std::stoi(field[17]), w * h) << line;  // no usable normal
+      EXPECT_EQ(std::stod(field[9]), 0.0) << line;     // and no inference run
+    }
+  }
+  const auto summary = parse_json_file(out("dropout_track") + "/summary.json");
+  EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 4);
+  EXPECT_EQ(summary["episodes"].get<int>(), 1);
+  EXPECT_TRUE(std::isfinite(summary["final_translation_error_m"].get<double>()));
+}
+
 TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {
   const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
                                                "/scenes/examples/sphere_press.json -q --width 60 "

@@ -45,15 +45,16 @@ int run_track(const TrackArgs& a) {
   if (s.rejected_normal_frames > 0) {
     std::fprintf(stderr,
                  "warning: %d frame(s) had unusable normal pixels (non-finite, not unit length "
-                 "or facing the camera), filled from their neighbours (errors.csv: "
-                 "rejected_normals)\n",
+                 "or facing the camera; a dropped colour frame counts all of its pixels) "
+                 "(errors.csv: rejected_normals)\n",
                  s.rejected_normal_frames);
   }
   if (s.invalid_input_frames > 0) {
     std::fprintf(stderr,
                  "warning: %d frame(s) had a non-finite sensor pose, vision prior or point, or "
-                 "normals too corrupt to tell whether the object touches; left out, an episode "
-                 "in progress continued (errors.csv: invalid_input)\n",
+                 "an image too corrupt to tell whether the object touches (unusable normals, or "
+                 "a uniform colour frame: a camera dropout); left out, an episode in progress "
+                 "continued (errors.csv: invalid_input)\n",
                  s.invalid_input_frames);
   }
   if (s.degenerate_frames > 0) {

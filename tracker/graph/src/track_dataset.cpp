@@ -37,6 +37,23 @@ class Gaussian {
   std::mt19937_64 rng_;
 };
 
+// A colour frame no sensor makes: every channel within kDropoutSpread levels across the image (a
+// camera dropout, black, white or one colour). The sensor's LEDs always light its gel unevenly:
+// the rendered and the real DIGIT backgrounds span 88-164 levels per channel.
+constexpr int kDropoutSpread = 16;
+
+bool is_dropout(const ImageU8& color) {
+  for (int c = 0; c < color.channels; ++c) {
+    int lo = 255, hi = 0;
+    for (std::size_t i = std::size_t(c); i < color.data.size(); i += std::size_t(color.channels)) {
+      lo = std::min<int>(lo, color.data[i]);
+      hi = std::max<int>(hi, color.data[i]);
+    }
+    if (hi - lo > kDropoutSpread) return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
@@ -71,13 +88,21 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     input.T_world_object_prior = noise.perturb(gt.T_world_object, options.vision_noise);
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;
-    if (learned) {
-      normals = options.normals(color);
-      normals_ms =
-          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-              .count();
+    if (learned && is_dropout(color)) {
+      // Nothing to estimate normals from, and whether the object touches is unknown.
+      contact.status = ContactStatus::kUnreadable;
+      contact.cloud_sensor.clear();
+      contact.core = false;
+      contact.rejected_normals = color.width * color.height;
+    } else {
+      if (learned) {
+        normals = options.normals(color);
+        normals_ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                .count();
+      }
+      builder.build(normals, contact);
     }
-    builder.build(normals, contact);
     set_measurement(contact, input);
     const TrackerEstimate est = run.tracker->add(input);
     FrameResult r;
