@@ -43,6 +43,13 @@ class PatchgraphCli : public ::testing::Test {
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static std::string data() { return (dir_ / "data").string(); }
   static std::string out(const std::string& name) { return (dir_ / name).string(); }
+  // A fresh copy of the suite's dataset, to corrupt.
+  static std::string data_copy(const std::string& name) {
+    const std::string copy = out(name);
+    fs::remove_all(copy);
+    fs::copy(data(), copy, fs::copy_options::recursive);
+    return copy;
+  }
   static fs::path dir_;
 };
 fs::path PatchgraphCli::dir_;
@@ -106,6 +113,16 @@ TEST_F(PatchgraphCli, PriorSigmasWeighThePriors) {
             4 * base);
   EXPECT_GT(parse_json_file(out("ee") + "/summary.json")["rotation_rmse_rad"].get<double>(),
             3 * base);
+}
+
+// The rows of OUT/errors.csv after its header, split into fields.
+std::vector<std::vector<std::string>> errors_rows(const std::string& out_dir) {
+  std::ifstream errors(out_dir + "/errors.csv");
+  std::string line;
+  std::getline(errors, line);
+  std::vector<std::vector<std::string>> rows;
+  while (std::getline(errors, line)) rows.push_back(split_csv_line(line));
+  return rows;
 }
 
 // Sums a column of OUT/errors.csv (-1 if it has no such column).
@@ -174,9 +191,7 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
 // A camera dropout (a black or white frame) is no image of the gel: with learned normals it is
 // unreadable (reported, the episode goes on), not a contact over the whole image.
 TEST_F(PatchgraphCli, ADroppedColourFrameIsUnreadableNotAContact) {
-  const std::string copy = out("dropout");
-  fs::remove_all(copy);
-  fs::copy(data(), copy, fs::copy_options::recursive);
+  const std::string copy = data_copy("dropout");
   const Dataset clean = Dataset::open(copy);
   const int w = clean.info().width(), h = clean.info().height();
   for (int f = 30; f < 33; ++f) {
@@ -187,18 +202,14 @@ TEST_F(PatchgraphCli, ADroppedColourFrameIsUnreadableNotAContact) {
                               out("dropout_track"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("a camera dropout"), std::string::npos) << r.out;
-  std::ifstream errors(out("dropout_track") + "/errors.csv");
-  std::string line;
-  std::getline(errors, line);
-  while (std::getline(errors, line)) {
-    const std::vector<std::string> field = split_csv_line(line);
+  for (const std::vector<std::string>& field : errors_rows(out("dropout_track"))) {
     const int frame = std::stoi(field[0]);
     const bool dropped = (frame >= 30 && frame < 33) || frame == 40;
-    EXPECT_EQ(field[15], dropped ? "1" : "0") << line;  // invalid_input
+    EXPECT_EQ(field[15], dropped ? "1" : "0") << "frame " << frame;  // invalid_input
     if (dropped) {
-      EXPECT_EQ(field[3], "0") << line;                // no contact measured
-      EXPECT_EQ(std::stoi(field[17]), w * h) << line;  // no usable normal
-      EXPECT_EQ(std::stod(field[9]), 0.0) << line;     // and no inference run
+      EXPECT_EQ(field[3], "0") << "frame " << frame;                // no contact measured
+      EXPECT_EQ(std::stoi(field[17]), w * h) << "frame " << frame;  // no usable normal
+      EXPECT_EQ(std::stod(field[9]), 0.0) << "frame " << frame;     // and no inference run
     }
   }
   const auto summary = parse_json_file(out("dropout_track") + "/summary.json");
@@ -288,9 +299,7 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
 // normals say nothing about the contact, so the episode goes on through them (its patch kept, no
 // new vision prior) instead of ending and restarting as at a real break in the contact.
 TEST_F(PatchgraphCli, CorruptNormalsAreReportedAndAnUnreadableFrameKeepsTheEpisode) {
-  const std::string copy = out("corrupt");
-  fs::remove_all(copy);
-  fs::copy(data(), copy, fs::copy_options::recursive);
+  const std::string copy = data_copy("corrupt");
   const Dataset clean = Dataset::open(copy);
   ImageF speckled = clean.normal(10);
   for (int x = 0; x < 30; ++x) speckled.at(x, 3, 0) = NAN;  // a corner, away from the contact
@@ -303,19 +312,15 @@ TEST_F(PatchgraphCli, CorruptNormalsAreReportedAndAnUnreadableFrameKeepsTheEpiso
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("4 frame(s) had unusable normal pixels"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("3 frame(s) had a non-finite"), std::string::npos) << r.out;
-  std::ifstream errors(out("corrupt_track") + "/errors.csv");
-  std::string line;
-  std::getline(errors, line);
-  while (std::getline(errors, line)) {
-    const std::vector<std::string> field = split_csv_line(line);
+  for (const std::vector<std::string>& field : errors_rows(out("corrupt_track"))) {
     const int frame = std::stoi(field[0]);
     const bool unreadable = frame >= 30 && frame < 33;
-    EXPECT_EQ(std::stoi(field[17]) > 0, unreadable || frame == 10) << line;
-    EXPECT_EQ(field[15], unreadable ? "1" : "0") << line;  // invalid_input
+    EXPECT_EQ(std::stoi(field[17]) > 0, unreadable || frame == 10) << "frame " << frame;
+    EXPECT_EQ(field[15], unreadable ? "1" : "0") << "frame " << frame;  // invalid_input
     if (unreadable) {
-      EXPECT_EQ(field[3], "0") << line;  // no contact measured
+      EXPECT_EQ(field[3], "0") << "frame " << frame;  // no contact measured
     }
-    EXPECT_EQ(field[4], frame == 0 ? "1" : "0") << line;  // one episode throughout
+    EXPECT_EQ(field[4], frame == 0 ? "1" : "0") << "frame " << frame;  // one episode throughout
   }
   const auto summary = parse_json_file(out("corrupt_track") + "/summary.json");
   EXPECT_EQ(summary["rejected_normal_frames"].get<int>(), 4);
@@ -343,9 +348,7 @@ TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
 // Each sequence of an eval draws its own noise (a seed from --seed and the folder's name), and
 // `track --seed S` with S from results.csv reproduces that run alone.
 TEST_F(PatchgraphCli, EvalSeedsEachSequenceAndTrackReproducesARun) {
-  const std::string copy = out("data_copy");
-  fs::remove_all(copy);
-  fs::copy(data(), copy, fs::copy_options::recursive);
+  const std::string copy = data_copy("data_copy");
   const CliRun r = patchgraph("eval --datasets " + data() + " " + copy +
                               " --methods patchgraph -q --no-plots --out " + out("eval_seed"));
   ASSERT_EQ(r.code, 0) << r.out;
