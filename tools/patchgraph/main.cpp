@@ -28,6 +28,7 @@ int run_track(const TrackArgs& a) {
   std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
               a.dataset.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
               s.episodes);
+  std::fflush(stdout);  // the warnings below (stderr) follow this line in a shared log too
   if (s.rejected_registrations > 0) {
     std::fprintf(stderr, "warning: %d registrations were rejected as implausible jumps\n",
                  s.rejected_registrations);

@@ -66,6 +66,7 @@ int run_render(const RenderArgs& a) {
       s.frames, renderer.sensor_count(), cam.width, cam.height, s.seconds,
       s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
+  std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
   if (s.contact_frames == 0) {
     std::fprintf(stderr,
                  "warning: %s: no object touches the gel in any frame; every frame shows the "
