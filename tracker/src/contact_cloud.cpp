@@ -64,6 +64,14 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   if (!frame.cloud_sensor.empty()) frame.status = ContactStatus::kContact;
 }
 
+void ContactCloudBuilder::build_unreadable(ContactFrame& frame) const {
+  frame.rejected_normals = rays().width * rays().height;
+  frame.mask.contact = false;
+  frame.cloud_sensor.clear();
+  frame.core = false;
+  frame.status = ContactStatus::kUnreadable;
+}
+
 void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {
   const MaskOptions& m = options_.mask;
   const float deepest = frame.mask.deepest_m;

@@ -89,11 +89,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;
     if (learned && is_dropout(color)) {
-      // Nothing to estimate normals from, and whether the object touches is unknown.
-      contact.status = ContactStatus::kUnreadable;
-      contact.cloud_sensor.clear();
-      contact.core = false;
-      contact.rejected_normals = color.width * color.height;
+      builder.build_unreadable(contact);  // nothing to estimate normals from
     } else {
       if (learned) {
         normals = options.normals(color);

@@ -22,8 +22,9 @@ enum class ContactStatus {
   kContact,    // cloud_sensor holds the contact's points
   kNoContact,  // nothing deformed, or less contact than mask.min_area_m2: the cloud is empty
   // No contact was found, but at least mask.min_area_m2 of the image held unusable normals
-  // (rejected_normals): a contact may hide there, so whether the object touches is unknown. The
-  // cloud is empty; a tracker should treat the frame as missing, not as the contact's end.
+  // (rejected_normals), or there was no usable image at all (build_unreadable): a contact may
+  // hide there, so whether the object touches is unknown. The cloud is empty; a tracker should
+  // treat the frame as missing, not as the contact's end.
   kUnreadable,
 };
 
@@ -65,6 +66,9 @@ class ContactCloudBuilder {
   // estimated from the colour image. `frame`'s buffers are reused.
   void build(const ImageF& normals, ContactFrame& frame);
   ContactFrame build(const ImageF& normals);
+  // A frame with no usable image at all (a camera dropout): kUnreadable, every pixel rejected,
+  // no contact mask and no cloud.
+  void build_unreadable(ContactFrame& frame) const;
 
   const GelRays& rays() const { return depth_.rays(); }
   const ContactCloudOptions& options() const { return options_; }

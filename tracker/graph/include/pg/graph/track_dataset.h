@@ -48,7 +48,7 @@ struct FrameResult {
   // (TrackerInput::measurement_missing).
   bool invalid_input = false;
   // Normal pixels rejected as unusable (ContactFrame::rejected_normals: non-finite, far from
-  // unit length, or facing the camera); 0 for a clean frame.
+  // unit length, or facing the camera; every pixel of a dropped colour frame); 0 when clean.
   int rejected_normals = 0;
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
