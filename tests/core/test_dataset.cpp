@@ -2,6 +2,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
@@ -231,6 +233,21 @@ TEST(Image, FormatsRoundTrip) {
   EXPECT_EQ(s.width, 16);
   EXPECT_EQ(s.channels, 3);
   EXPECT_NEAR(read_image_u8(tmp.str("c.jpg")).data[0], 128, 2);
+}
+
+TEST(Image, ExrFilesCarryNoWriteTime) {
+  // Two renders of one scene must give byte-identical files; OpenImageIO's default EXR header
+  // holds the time of writing in "capDate". Ours must hold an empty one.
+  TempDir tmp;
+  write_image(tmp.str("a.exr"), ImageF(3, 2, 1, 0.5f));
+  std::ifstream in(tmp.str("a.exr"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string attribute("capDate\0string\0", 15);  // name, type, then a 4-byte size
+  const std::size_t at = bytes.find(attribute);
+  if (at == std::string::npos) return;  // no date at all is as good
+  ASSERT_LE(at + attribute.size() + 4, bytes.size());
+  EXPECT_EQ(bytes.substr(at + attribute.size(), 4), std::string(4, '\0'))
+      << "the capDate attribute is not empty";
 }
 
 TEST(Image, ErrorsNameThePath) {
