@@ -23,6 +23,8 @@ const char* kPosesHeader =
     "frame,time,obj_x,obj_y,obj_z,obj_qx,obj_qy,obj_qz,obj_qw,"
     "sensor_x,sensor_y,sensor_z,sensor_qx,sensor_qy,sensor_qz,sensor_qw,contact";
 constexpr int kPosesColumns = 17;
+constexpr int kObjectFirst = 2;     // obj_x
+constexpr int kContactColumn = 16;  // contact
 constexpr int kFormatVersion = 1;
 
 std::string extension_of(const std::string& output) {
@@ -141,10 +143,17 @@ void write_poses_csv(const std::string& path, const std::vector<FramePose>& pose
     const auto& qo = p.T_world_object.rotation();
     const auto& ts = p.T_world_sensor.translation();
     const auto& qs = p.T_world_sensor.rotation();
-    out << p.frame << "," << p.time_s << "," << to.x() << "," << to.y() << "," << to.z() << ","
-        << qo.x() << "," << qo.y() << "," << qo.z() << "," << qo.w() << "," << ts.x() << ","
-        << ts.y() << "," << ts.z() << "," << qs.x() << "," << qs.y() << "," << qs.z() << ","
-        << qs.w() << "," << (p.contact ? 1 : 0) << "\n";
+    out << p.frame << "," << p.time_s << ",";
+    if (p.object_known) {
+      out << to.x() << "," << to.y() << "," << to.z() << "," << qo.x() << "," << qo.y() << ","
+          << qo.z() << "," << qo.w() << ",";
+    } else {
+      out << ",,,,,,,";
+    }
+    out << ts.x() << "," << ts.y() << "," << ts.z() << "," << qs.x() << "," << qs.y() << ","
+        << qs.z() << "," << qs.w() << ",";
+    if (p.contact_known) out << (p.contact ? 1 : 0);
+    out << "\n";
   }
   write_text_atomically(path, out.str());
 }
@@ -162,25 +171,45 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
     ++line_no;
     if (line.empty()) continue;
     const std::string where = path + ": line " + std::to_string(line_no);
-    std::vector<double> v;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) {
+    // Cells split on every comma, so that an empty last cell counts.
+    std::vector<std::string> cells(1);
+    for (char ch : line) {
+      if (ch == ',') {
+        cells.emplace_back();
+      } else if (ch != '\r') {
+        cells.back() += ch;
+      }
+    }
+    if (int(cells.size()) != kPosesColumns) {
+      throw InputError(where + ": expected " + std::to_string(kPosesColumns) + " columns, got " +
+                       std::to_string(cells.size()));
+    }
+    // Empty cells are allowed for the object pose (all seven, columns 3-9) and the contact.
+    const auto is_object_column = [&](int c) { return c >= kObjectFirst && c < kObjectFirst + 7; };
+    int empty_object_cells = 0;
+    std::vector<double> v(kPosesColumns, 0.0);
+    for (int c = 0; c < kPosesColumns; ++c) {
+      const std::string& cell = cells[c];
+      if (cell.empty() && (is_object_column(c) || c == kContactColumn)) {
+        empty_object_cells += is_object_column(c);
+        continue;
+      }
       char* end = nullptr;
-      const double d = std::strtod(cell.c_str(), &end);
+      v[c] = std::strtod(cell.c_str(), &end);
       if (cell.empty() || end != cell.c_str() + cell.size()) {
         throw InputError(where + ": '" + cell + "' is not a number");
       }
-      v.push_back(d);
-    }
-    if (int(v.size()) != kPosesColumns) {
-      throw InputError(where + ": expected " + std::to_string(kPosesColumns) + " columns, got " +
-                       std::to_string(v.size()));
-    }
-    for (int c = 0; c < kPosesColumns; ++c) {
       if (!std::isfinite(v[c])) throw InputError(where + ": non-finite value in column " + std::to_string(c + 1));
     }
-    const Eigen::Quaterniond qo(v[8], v[5], v[6], v[7]), qs(v[15], v[12], v[13], v[14]);
+    const bool object_known = empty_object_cells == 0;
+    if (!object_known && empty_object_cells != 7) {
+      throw InputError(where +
+                       ": the object pose (columns 3-9) must be given in full or left "
+                       "empty, not in part");
+    }
+    const Eigen::Quaterniond qo =
+        object_known ? Eigen::Quaterniond(v[8], v[5], v[6], v[7]) : Eigen::Quaterniond::Identity();
+    const Eigen::Quaterniond qs(v[15], v[12], v[13], v[14]);
     for (const auto* q : {&qo, &qs}) {
       if (std::abs(q->norm() - 1.0) > 1e-6) {
         throw InputError(where + ": quaternion is not unit length (norm " +
@@ -188,6 +217,8 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
       }
     }
     FramePose p;
+    p.object_known = object_known;
+    p.contact_known = !cells[kContactColumn].empty();
     p.frame = int(v[0]);
     if (p.frame != int(poses.size()) || v[0] != double(p.frame)) {
       throw InputError(where + ": expected frame " + std::to_string(poses.size()));
@@ -195,7 +226,7 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
     p.time_s = v[1];
     p.T_world_object = SE3(qo, Eigen::Vector3d(v[2], v[3], v[4]));
     p.T_world_sensor = SE3(qs, Eigen::Vector3d(v[9], v[10], v[11]));
-    if (v[16] != 0.0 && v[16] != 1.0) throw InputError(where + ": contact must be 0 or 1");
+    if (v[16] != 0.0 && v[16] != 1.0) throw InputError(where + ": contact must be 0, 1 or empty");
     p.contact = v[16] == 1.0;
     poses.push_back(p);
   }
@@ -298,10 +329,11 @@ ImageU8 Dataset::background() const {
     return image;
   }
   for (const FramePose& p : poses_) {
-    if (!p.contact) return color(p.frame);
+    if (p.contact_known && !p.contact) return color(p.frame);
   }
-  throw InputError(dir_ + ": no background.png and no frame without contact to use as the "
-                   "no-contact reference image");
+  throw InputError(dir_ +
+                   ": no background.png and no frame that poses.csv marks as without "
+                   "contact to use as the no-contact reference image");
 }
 
 ImageF Dataset::normal(int frame) const {

@@ -166,6 +166,52 @@ TEST(Dataset, ReaderRejectsNanPosesAndBadRows) {
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "has 1 frames");
 }
 
+TEST(Dataset, ARecordingMayLeaveTheObjectPoseAndTheContactUnknown) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 3);
+  const std::string csv = tmp.str("d/poses.csv");
+  std::vector<FramePose> poses = read_poses_csv(csv);
+  poses[1].object_known = false;   // written as seven empty cells
+  poses[2].contact_known = false;  // an empty last cell
+  write_poses_csv(csv, poses);
+  std::ifstream in(csv);
+  std::string header, row0, row1, row2;
+  std::getline(in, header);
+  std::getline(in, row0);
+  std::getline(in, row1);
+  std::getline(in, row2);
+  EXPECT_NE(row1.find(",,,,,,,,"), std::string::npos) << row1;
+  EXPECT_EQ(row2.back(), ',') << row2;
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_TRUE(d.poses()[0].object_known && d.poses()[0].contact_known);
+  EXPECT_FALSE(d.poses()[1].object_known);
+  EXPECT_TRUE(d.poses()[1].contact_known);
+  EXPECT_TRUE(d.poses()[2].object_known);
+  EXPECT_FALSE(d.poses()[2].contact_known);
+  EXPECT_NEAR(ominus(d.poses()[1].T_world_sensor, poses[1].T_world_sensor).norm(), 0, 1e-12);
+  in.close();
+
+  // Part of an object pose is an error, as is an empty sensor cell.
+  const std::size_t first = row1.find(',', row1.find(',') + 1);  // after frame and time
+  std::string partial = row1;
+  partial.replace(first, 1, ",0.001");
+  std::ofstream(csv) << header << "\n" << row0 << "\n" << partial << "\n" << row2 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 3: the object pose");
+  std::string no_sensor = row0;
+  no_sensor.replace(no_sensor.rfind(','), 1, ",,");  // shifts the cells: 18 columns
+  std::ofstream(csv) << header << "\n" << no_sensor << "\n" << row1 << "\n" << row2 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 2: expected 17 columns");
+  std::string empty_sensor = row0;
+  const std::size_t sensor_x = [&] {
+    std::size_t at = 0;
+    for (int c = 0; c < 9; ++c) at = empty_sensor.find(',', at) + 1;
+    return at;
+  }();
+  empty_sensor.erase(sensor_x, empty_sensor.find(',', sensor_x) - sensor_x);
+  std::ofstream(csv) << header << "\n" << empty_sensor << "\n" << row1 << "\n" << row2 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 2: '' is not a number");
+}
+
 TEST(Dataset, ReaderRejectsBadInfo) {
   TempDir tmp;
   write_small(tmp.str("d"), 1);
@@ -264,6 +310,11 @@ TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {
   write_small(tmp.str("a"), 5);
   const Dataset a = Dataset::open(tmp.str("a"));
   EXPECT_EQ(a.background().data, a.color(1).data);
+  // A frame whose contact is not known is not taken: frame 3 is.
+  std::vector<FramePose> poses = read_poses_csv(tmp.str("a/poses.csv"));
+  poses[1].contact_known = false;
+  write_poses_csv(tmp.str("a/poses.csv"), poses);
+  EXPECT_EQ(Dataset::open(tmp.str("a")).background().data, a.color(3).data);
 
   DatasetWriter w(tmp.str("b"), small_info(1));
   ImageU8 bg(24, 32, 3, 77);
@@ -277,7 +328,7 @@ TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {
 
   // Neither a reference nor a frame without contact; and a reference of the wrong size.
   fs::remove(tmp.str("b") + "/background.png");
-  expect_input_error([&] { b.background(); }, "no frame without contact");
+  expect_input_error([&] { b.background(); }, "no frame that poses.csv marks as without");
   EXPECT_THROW(w.write_background(ImageU8(10, 10, 3)), InputError);
 }
 

@@ -85,18 +85,37 @@ int run_render(const RenderArgs& a) {
 int run_info(const std::string& dir) {
   const Dataset d = Dataset::open(dir);
   const DatasetInfo& info = d.info();
-  int contact = 0;
-  for (const auto& p : d.poses()) contact += p.contact;
+  int contact = 0, contact_unknown = 0, object_known = 0;
+  for (const auto& p : d.poses()) {
+    contact += p.contact_known && p.contact;
+    contact_unknown += !p.contact_known;
+    object_known += p.object_known;
+  }
   std::string outputs;
   for (const auto& o : info.outputs) outputs += (outputs.empty() ? "" : ", ") + o;
   std::printf("dataset   %s\n", dir.c_str());
   std::printf("sensor    %s, %dx%d px, fx %.2f px\n", info.sensor.name.c_str(), info.width(),
               info.height(), info.sensor.camera.fx);
-  std::printf("frames    %d at %.1f fps (%d with contact)\n", info.frames, info.fps, contact);
+  std::printf("frames    %d at %.1f fps (%d with contact", info.frames, info.fps, contact);
+  if (contact_unknown > 0) std::printf(", %d not known", contact_unknown);
+  std::printf(")\n");
+  if (object_known < info.frames) {
+    std::printf("poses     the object's pose is given in %d of %d frames\n", object_known,
+                info.frames);
+  }
   std::printf("outputs   %s\n", outputs.c_str());
-  std::printf("object    %s (%s, scale %g)\n", info.object_name.c_str(), info.object_mesh.c_str(),
-              info.object_scale);
-  std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
+  if (!info.object_mesh.empty()) {
+    std::printf("object    %s (%s, scale %g)\n", info.object_name.c_str(), info.object_mesh.c_str(),
+                info.object_scale);
+  } else {
+    std::printf("object    %s (no mesh)\n",
+                info.object_name.empty() ? "-" : info.object_name.c_str());
+  }
+  if (!info.scene.empty()) {
+    std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
+  } else {
+    std::printf("scene     none (a recording)\n");
+  }
   return kExitOk;
 }
 

@@ -2,7 +2,8 @@
 // The dataset format: what the renderer writes and the tracker reads.
 //
 //   DIR/dataset.json      sensor model, image size, frame count, outputs, scene, seed, object
-//   DIR/poses.csv         one row per frame (world frame, metres, unit quaternions x y z w)
+//   DIR/poses.csv         one row per frame (world frame, metres, unit quaternions x y z w);
+//                         a recording may leave the object pose and the contact cells empty
 //   DIR/color/000000.png  8-bit RGB           DIR/normal/000000.exr  float xyz in S
 //   DIR/depth/000000.exr  indentation [m]     DIR/mask/000000.png    contact 0/255
 //   DIR/points/000000.ply the tracked object's contact points, in its own frame (optional)
@@ -27,6 +28,11 @@ struct FramePose {
   SE3 T_world_object;
   SE3 T_world_sensor;
   bool contact = false;
+  // A recording has no ground truth: poses.csv may leave a row's seven object-pose cells empty
+  // (the object's pose is not known at that frame; T_world_object is then the identity) and its
+  // contact cell (not known; such a frame is never taken as the no-contact reference image).
+  bool object_known = true;
+  bool contact_known = true;
 };
 
 struct DatasetInfo {
