@@ -60,7 +60,8 @@ def quat_to_rpy(qx, qy, qz, qw):
 
 
 def pose_series(path):
-    rows = read_csv(path)
+    # A recording may leave the object's pose empty in some rows: those are not plotted.
+    rows = [r for r in read_csv(path) if r["obj_x"] != ""]
     t = [float(r["time"]) for r in rows]
     pos = [[float(r["obj_" + a]) * 1e3 for r in rows] for a in "xyz"]
     rpy = list(zip(*[quat_to_rpy(*(float(r["obj_q" + a]) for a in "xyzw")) for r in rows]))
@@ -79,12 +80,12 @@ def trajectories(out, rows):
         if not (os.path.exists(est) and os.path.exists(gt)):
             continue
         t, p_est, r_est = pose_series(est)
-        _, p_gt, r_gt = pose_series(gt)
+        t_gt, p_gt, r_gt = pose_series(gt)
         fig, (ax_r, ax_t) = plt.subplots(1, 2, figsize=(10, 3.5))
         for k, (c, name) in enumerate(zip(["#e67e22", "#8e44ad", "#27ae60"], "xyz")):
-            ax_r.plot(t, r_gt[k], color=c, lw=2, label=f"{name} true")
+            ax_r.plot(t_gt, r_gt[k], color=c, lw=2, label=f"{name} true")
             ax_r.plot(t, r_est[k], color=c, lw=1, alpha=0.5, ls="--", label=f"{name} est")
-            ax_t.plot(t, p_gt[k], color="#555555", lw=2)
+            ax_t.plot(t_gt, p_gt[k], color="#555555", lw=2)
             ax_t.plot(t, p_est[k], color="#aaaaaa", lw=1, ls="--")
         ax_r.set_title(f"{r['object']}: rotation (rpy)")
         ax_r.set_xlabel("time [s]")

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -327,6 +328,99 @@ TEST_F(PatchgraphCli, CorruptNormalsAreReportedAndAnUnreadableFrameKeepsTheEpiso
   EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 3);
   EXPECT_EQ(summary["episodes"].get<int>(), 1);
   EXPECT_LT(summary["final_translation_error_m"].get<double>(), 1e-3);
+}
+
+// A copy of the suite's dataset whose poses.csv leaves the object's pose empty in the frames
+// `keep` rejects, as a recording without ground truth would.
+std::string without_object_poses(const std::string& copy, const std::function<bool(int)>& keep) {
+  std::vector<FramePose> poses = read_poses_csv(copy + "/poses.csv");
+  for (FramePose& p : poses) p.object_known = keep(p.frame);
+  write_poses_csv(copy + "/poses.csv", poses);
+  return copy;
+}
+
+// The object's motion since frame 0 in the world frame, estimated against true; the same for any
+// choice of the object's frame.
+void expect_same_motion(const std::vector<FramePose>& est, const std::vector<FramePose>& truth,
+                        double translation_m, double rotation_rad) {
+  ASSERT_EQ(est.size(), truth.size());
+  for (std::size_t f = 1; f < est.size(); ++f) {
+    const SE3 moved_est = est[f].T_world_object * est[0].T_world_object.inverse();
+    const SE3 moved_true = truth[f].T_world_object * truth[0].T_world_object.inverse();
+    EXPECT_LT(translation_distance(moved_est, moved_true), translation_m) << "frame " << f;
+    EXPECT_LT(rotation_distance(moved_est, moved_true), rotation_rad) << "frame " << f;
+  }
+}
+
+// A recording has no ground truth: with the object's pose only at frame 0 the tracker runs as
+// with every pose (it reads the pose only where an episode starts) and reports errors only where
+// there is a pose; with none at all the object's frame is the sensor's at frame 0 and the motion
+// is tracked as well; poses that begin after frame 0 are refused, as is eval without them.
+TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
+  const CliRun full = patchgraph("track " + data() + " -q --out " + out("gt_full"));
+  ASSERT_EQ(full.code, 0) << full.out;
+
+  const std::string first =
+      without_object_poses(data_copy("gt_first"), [](int frame) { return frame == 0; });
+  const CliRun r = patchgraph("track " + first + " -q --out " + out("gt_first_track"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("no object pose at the last frame"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("over the 1 of 60 frames"), std::string::npos) << r.out;
+  const std::vector<FramePose> est_full = read_poses_csv(out("gt_full") + "/poses.csv");
+  const std::vector<FramePose> est_first = read_poses_csv(out("gt_first_track") + "/poses.csv");
+  ASSERT_EQ(est_first.size(), est_full.size());
+  for (std::size_t f = 0; f < est_full.size(); ++f) {
+    EXPECT_TRUE(est_first[f].object_known);
+    EXPECT_EQ(est_first[f].T_world_object.translation(), est_full[f].T_world_object.translation());
+  }
+  for (const std::vector<std::string>& field : errors_rows(out("gt_first_track"))) {
+    const bool known = field[0] == "0";
+    EXPECT_EQ(field[1].empty(), !known) << "frame " << field[0];
+    EXPECT_EQ(field[2].empty(), !known) << "frame " << field[0];
+  }
+  const auto summary = parse_json_file(out("gt_first_track") + "/summary.json");
+  EXPECT_EQ(summary["ground_truth_frames"].get<int>(), 1);
+  EXPECT_TRUE(summary["final_translation_error_m"].is_null());
+  EXPECT_EQ(summary["object_frame"], "dataset");
+  EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 0);
+
+  const std::string none = without_object_poses(data_copy("gt_none"), [](int) { return false; });
+  const CliRun n = patchgraph("track " + none + " -q --out " + out("gt_none_track"));
+  ASSERT_EQ(n.code, 0) << n.out;
+  EXPECT_NE(n.out.find("the dataset has no object poses"), std::string::npos) << n.out;
+  EXPECT_EQ(n.out.find("final error"), std::string::npos) << n.out;
+  const CliRun info = run(TACSIM_PATH, "info " + none);
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("the object's pose is given in 0 of 60 frames"), std::string::npos)
+      << info.out;
+  const auto none_summary = parse_json_file(out("gt_none_track") + "/summary.json");
+  EXPECT_EQ(none_summary["object_frame"], "sensor at frame 0");
+  EXPECT_EQ(none_summary["ground_truth_frames"].get<int>(), 0);
+  EXPECT_TRUE(none_summary["translation_rmse_m"].is_null());
+  EXPECT_EQ(none_summary["episodes"].get<int>(), 1);
+  const std::vector<FramePose> truth = Dataset::open(data()).poses();
+  const std::vector<FramePose> est_none = read_poses_csv(out("gt_none_track") + "/poses.csv");
+  EXPECT_LT(translation_distance(est_none[0].T_world_object, truth[0].T_world_sensor), 1e-4);
+  EXPECT_GT(translation_distance(est_none[0].T_world_object, truth[0].T_world_object), 1e-3);
+  // The motion is tracked to a fraction of how far the corner rocks (0.35 rad; largest errors
+  // 0.05 mm and 0.002 rad).
+  expect_same_motion(est_none, truth, 3e-4, 0.01);
+  double rocked = 0;
+  for (const FramePose& p : truth) {
+    rocked = std::max(rocked, rotation_distance(p.T_world_object, truth[0].T_world_object));
+  }
+  EXPECT_GT(rocked, 0.2);
+
+  const std::string late = without_object_poses(data_copy("gt_late"), [](int f) { return f >= 5; });
+  const CliRun l = patchgraph("track " + late + " -q --out " + out("gt_late_track"));
+  EXPECT_EQ(l.code, 1) << l.out;
+  EXPECT_NE(l.out.find("poses.csv: line 2: no object pose at frame 0, but frame 5"),
+            std::string::npos)
+      << l.out;
+  const CliRun e = patchgraph("eval --datasets " + first +
+                              " --methods patchgraph -q --no-plots --out " + out("gt_first_eval"));
+  EXPECT_EQ(e.code, 1) << e.out;
+  EXPECT_NE(e.out.find("no object pose at the last frame"), std::string::npos) << e.out;
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -102,6 +102,14 @@ int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
   for (const auto& m : methods) method_from_string(m);  // fail before any work
+  for (const auto& dir : datasets) {
+    const Dataset dataset = Dataset::open(dir);
+    if (dataset.frames() > 0 && !dataset.poses().back().object_known) {
+      throw InputError(dir +
+                       "/poses.csv: no object pose at the last frame; eval compares final "
+                       "errors against ground truth (track runs without it)");
+    }
+  }
   fs::create_directories(fs::path(args.out) / "runs");
   std::vector<Row> rows;
   int done = 0;

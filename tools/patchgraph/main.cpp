@@ -4,6 +4,7 @@
 //   patchgraph train-normals --data DIR... --arch unet|resnet|mlp --out MODEL
 //   patchgraph eval-normals --model MODEL --data DIR...
 //   patchgraph bench [--quick] --out OUT
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -65,13 +66,32 @@ int run_track(const TrackArgs& a) {
         "motion prior along those (errors.csv: unconstrained_directions)\n",
         s.degenerate_frames, s.contact_frames);
   }
-  std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
-              s.final_rotation_error_rad);
-  std::printf("RMSE            %.3f mm  %.4f rad\n", s.translation_rmse_m * 1e3,
-              s.rotation_rmse_rad);
-  if (s.batch_translation_rmse_m >= 0) {
-    std::printf("batch RMSE      %.3f mm  %.4f rad; fixed-lag vs batch RMS %.4f mm  %.5f rad\n",
-                s.batch_translation_rmse_m * 1e3, s.batch_rotation_rmse_rad,
+  if (s.object_frame != "dataset") {
+    std::printf(
+        "note: the dataset has no object poses; poses.csv gives the object's motion with its "
+        "frame placed at the sensor's frame at frame 0, and there are no errors to report\n");
+  }
+  if (std::isfinite(s.final_translation_error_m)) {
+    std::printf("final error     %.3f mm  %.4f rad\n", s.final_translation_error_m * 1e3,
+                s.final_rotation_error_rad);
+  } else if (s.ground_truth_frames > 0) {
+    std::printf("final error     none: the dataset has no object pose at the last frame\n");
+  }
+  if (s.ground_truth_frames > 0) {
+    std::printf("RMSE            %.3f mm  %.4f rad", s.translation_rmse_m * 1e3,
+                s.rotation_rmse_rad);
+    if (s.ground_truth_frames < s.frames) {
+      std::printf(" (over the %d of %d frames with an object pose)", s.ground_truth_frames,
+                  s.frames);
+    }
+    std::printf("\n");
+  }
+  if (s.window_vs_batch_translation_rms_m >= 0) {
+    if (std::isfinite(s.batch_translation_rmse_m)) {
+      std::printf("batch RMSE      %.3f mm  %.4f rad; ", s.batch_translation_rmse_m * 1e3,
+                  s.batch_rotation_rmse_rad);
+    }
+    std::printf("fixed-lag vs batch RMS %.4f mm  %.5f rad\n",
                 s.window_vs_batch_translation_rms_m * 1e3, s.window_vs_batch_rotation_rms_rad);
   }
   std::printf("per-frame update median %.3f ms (%.0f Hz), mean %.3f ms -> %s\n", s.median_frame_ms,

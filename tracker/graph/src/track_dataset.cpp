@@ -54,6 +54,24 @@ bool is_dropout(const ImageU8& color) {
   return true;
 }
 
+// Where the object's frame comes from: the dataset's pose at frame 0, or, in a recording with no
+// object pose at all, the sensor's frame at frame 0. A recording that has poses from some later
+// frame on cannot be started consistently: an error.
+bool object_frame_is_sensor(const Dataset& dataset) {
+  const auto& poses = dataset.poses();
+  const auto known =
+      std::find_if(poses.begin(), poses.end(), [](const FramePose& p) { return p.object_known; });
+  if (known == poses.end()) return true;
+  if (known != poses.begin()) {
+    throw InputError(dataset.dir() + "/poses.csv: line 2: no object pose at frame 0, but frame " +
+                     std::to_string(known->frame) +
+                     " has one; the tracker starts at frame 0, so give the object's pose there "
+                     "(later rows may leave it empty), or leave it empty in every row (the "
+                     "object's frame is then the sensor's at frame 0)");
+  }
+  return false;
+}
+
 }  // namespace
 
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
@@ -71,6 +89,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   ContactCloudBuilder builder(dataset.info().sensor, options.front_end.contact_cloud());
+  const bool sensor_frame = object_frame_is_sensor(dataset);
   Gaussian noise(options.seed);
   ContactFrame contact;
   for (int i = 0; i < dataset.frames(); ++i) {
@@ -86,6 +105,8 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     TrackerInput input;
     input.T_world_sensor_measured = noise.perturb(gt.T_world_sensor, options.end_effector_noise);
     input.T_world_object_prior = noise.perturb(gt.T_world_object, options.vision_noise);
+    if (sensor_frame && i == 0) input.T_world_object_prior = input.T_world_sensor_measured;
+    input.object_prior_given = gt.object_known || (sensor_frame && i == 0);
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;
     if (learned && is_dropout(color)) {
@@ -107,9 +128,13 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.normals_ms = normals_ms;
     r.frame = i;
     r.T_world_object = est.T_world_object;
+    r.ground_truth = gt.object_known;
     r.T_world_object_gt = gt.T_world_object;
-    r.translation_error_m = translation_distance(est.T_world_object, gt.T_world_object);
-    r.rotation_error_rad = rotation_distance(est.T_world_object, gt.T_world_object);
+    r.translation_error_m = gt.object_known
+                                ? translation_distance(est.T_world_object, gt.T_world_object)
+                                : std::nan("");
+    r.rotation_error_rad =
+        gt.object_known ? rotation_distance(est.T_world_object, gt.T_world_object) : std::nan("");
     r.contact = est.contact;
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
@@ -129,21 +154,24 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   run.summary = summarize(run.frames, to_string(graph.method));
   run.summary.normals = options.normals_name;
   run.summary.seed = options.seed;
+  run.summary.object_frame = sensor_frame ? "sensor at frame 0" : "dataset";
   if (options.compare_batch) {
     run.tracker->solve_batch();
     const std::vector<SE3> batch = run.tracker->object_trajectory();
-    double bt = 0, br = 0, dt = 0, dr = 0;
+    double bt = 0, br = 0, dt = 0, dr = 0, known = 0;
     for (std::size_t i = 0; i < batch.size(); ++i) {
-      const SE3& gt = run.frames[i].T_world_object_gt;
       const SE3& win = run.frames[i].T_world_object;
-      bt += std::pow(translation_distance(batch[i], gt), 2);
-      br += std::pow(rotation_distance(batch[i], gt), 2);
       dt += std::pow(translation_distance(batch[i], win), 2);
       dr += std::pow(rotation_distance(batch[i], win), 2);
+      if (!run.frames[i].ground_truth) continue;
+      const SE3& gt = run.frames[i].T_world_object_gt;
+      bt += std::pow(translation_distance(batch[i], gt), 2);
+      br += std::pow(rotation_distance(batch[i], gt), 2);
+      ++known;
     }
     const double n = double(std::max<std::size_t>(1, batch.size()));
-    run.summary.batch_translation_rmse_m = std::sqrt(bt / n);
-    run.summary.batch_rotation_rmse_rad = std::sqrt(br / n);
+    run.summary.batch_translation_rmse_m = known > 0 ? std::sqrt(bt / known) : std::nan("");
+    run.summary.batch_rotation_rmse_rad = known > 0 ? std::sqrt(br / known) : std::nan("");
     run.summary.window_vs_batch_translation_rms_m = std::sqrt(dt / n);
     run.summary.window_vs_batch_rotation_rms_rad = std::sqrt(dr / n);
   }
@@ -159,8 +187,11 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
   std::vector<double> times, normals_times;
   for (const auto& f : frames) {
     normals_times.push_back(f.normals_ms);
-    t_sq += f.translation_error_m * f.translation_error_m;
-    r_sq += f.rotation_error_rad * f.rotation_error_rad;
+    if (f.ground_truth) {
+      t_sq += f.translation_error_m * f.translation_error_m;
+      r_sq += f.rotation_error_rad * f.rotation_error_rad;
+      ++s.ground_truth_frames;
+    }
     ms += f.frame_ms;
     times.push_back(f.frame_ms);
     s.contact_frames += f.contact;
@@ -174,8 +205,10 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
   }
-  s.translation_rmse_m = std::sqrt(t_sq / frames.size());
-  s.rotation_rmse_rad = std::sqrt(r_sq / frames.size());
+  // Over the frames with ground truth; NaN (null in summary.json) when there are none.
+  const double known = s.ground_truth_frames > 0 ? s.ground_truth_frames : std::nan("");
+  s.translation_rmse_m = std::sqrt(t_sq / known);
+  s.rotation_rmse_rad = std::sqrt(r_sq / known);
   s.final_translation_error_m = frames.back().translation_error_m;
   s.final_rotation_error_rad = frames.back().rotation_error_rad;
   s.mean_frame_ms = ms / frames.size();
@@ -192,7 +225,9 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   std::vector<FramePose> poses = dataset.poses();
   for (std::size_t i = 0; i < poses.size() && i < run.frames.size(); ++i) {
     poses[i].T_world_object = run.frames[i].T_world_object;
+    poses[i].object_known = true;
     poses[i].contact = run.frames[i].contact;
+    poses[i].contact_known = true;
   }
   write_poses_csv((fs::path(out_dir) / "poses.csv").string(), poses);
   const std::string errors_path = (fs::path(out_dir) / "errors.csv").string();
@@ -203,8 +238,13 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
             "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
             "invalid_input,image_to_image_dropped,rejected_normals\n";
   for (const auto& f : run.frames) {
-    errors << f.frame << "," << f.translation_error_m << "," << f.rotation_error_rad << ","
-           << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
+    errors << f.frame << ",";
+    if (f.ground_truth) {
+      errors << f.translation_error_m << "," << f.rotation_error_rad;
+    } else {
+      errors << ",";  // no ground truth at this frame: empty cells
+    }
+    errors << "," << f.contact << "," << f.new_episode << "," << f.image_to_patch << ","
            << f.rejected_registrations << "," << f.tracking_lost << "," << f.frame_ms << ","
            << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
            << f.contact_core << "," << f.unconverged_registrations << ","
@@ -220,6 +260,8 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"seed", s.seed},
       {"normals", s.normals},
       {"frames", s.frames},
+      {"object_frame", s.object_frame},
+      {"ground_truth_frames", s.ground_truth_frames},
       {"contact_frames", s.contact_frames},
       {"episodes", s.episodes},
       {"rejected_registrations", s.rejected_registrations},
@@ -245,7 +287,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"icp_symmetric", run.tracker->options().icp.symmetric},
       {"patch_points", run.tracker->patch().cloud_object().size()},
   };
-  if (s.batch_translation_rmse_m >= 0) {
+  if (s.window_vs_batch_translation_rms_m >= 0) {
     summary["batch_translation_rmse_m"] = s.batch_translation_rmse_m;
     summary["batch_rotation_rmse_rad"] = s.batch_rotation_rmse_rad;
     summary["window_vs_batch_translation_rms_m"] = s.window_vs_batch_translation_rms_m;

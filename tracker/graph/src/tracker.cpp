@@ -193,10 +193,11 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   // A non-finite measurement (a live pipeline's glitch; datasets are checked when read) is
   // dropped and reported: inside the window one NaN would poison every later estimate.
   const bool sensor_ok = is_finite(input.T_world_sensor_measured);
-  const bool prior_ok = is_finite(input.T_world_object_prior);
+  const bool prior_ok = input.object_prior_given && is_finite(input.T_world_object_prior);
   const int dropped_points = copy_finite_points(input.cloud_sensor, current_cloud_);
   if (input.measurement_missing) current_cloud_.clear();  // its cloud, if any, is not used
-  est.invalid_input = !sensor_ok || !prior_ok || dropped_points > 0 || input.measurement_missing;
+  est.invalid_input = !sensor_ok || (input.object_prior_given && !prior_ok) || dropped_points > 0 ||
+                      input.measurement_missing;
   Frame f;
   pose_to_block(sensor_ok ? input.T_world_sensor_measured
                 : t >= 1  ? pose_from_block(frames_[t - 1].e)

@@ -34,8 +34,9 @@ struct TrackOptions {
 struct FrameResult {
   int frame = 0;
   SE3 T_world_object;     // estimated, as it was right after this frame's update
-  SE3 T_world_object_gt;  // ground truth
-  double translation_error_m = 0;
+  SE3 T_world_object_gt;  // ground truth, where the dataset has it
+  bool ground_truth = true;        // false: the dataset has no object pose at this frame
+  double translation_error_m = 0;  // NaN without ground truth
   double rotation_error_rad = 0;
   bool contact = false;  // the frame's cloud was used
   bool new_episode = false;
@@ -66,6 +67,10 @@ struct TrackSummary {
   std::string method;
   std::uint64_t seed = 0;  // of the simulated sensor-pose and vision-prior noise
   int frames = 0;
+  // Where the object's frame comes from: "dataset" (the vision prior at frame 0) or "sensor at
+  // frame 0" (a recording without object poses: poses are relative to the sensor's start).
+  std::string object_frame = "dataset";
+  int ground_truth_frames = 0;  // frames with the object's pose in the dataset
   int contact_frames = 0;
   int episodes = 0;
   int rejected_registrations = 0;  // implausible registrations dropped (a tracking warning)
@@ -82,6 +87,8 @@ struct TrackSummary {
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
   // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
   int degenerate_frames = 0;
+  // Errors against ground truth: RMSE over the frames that have it, final = the last frame's;
+  // NaN where there is none.
   double translation_rmse_m = 0;
   double rotation_rmse_rad = 0;
   double final_translation_error_m = 0;
@@ -109,7 +116,7 @@ struct TrackRun {
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 
-// The summary of per-frame results (RMSE over all frames, final = last frame).
+// The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
 
 // OUT/poses.csv (the dataset's pose columns, estimated), OUT/errors.csv, OUT/summary.json,

@@ -76,6 +76,10 @@ struct TrackerInput {
   PointCloud cloud_sensor;      // the contact's points in the sensor frame; empty: no contact
   SE3 T_world_sensor_measured;  // e~_t: the end-effector pose measurement
   SE3 T_world_object_prior;     // o~_t: the vision prior, used at the start of a contact episode
+  // False when there is no vision prior for this frame (a recording without the object's pose
+  // here): a contact episode starting at it starts from the motion priors' prediction (with a
+  // fresh patch as always), and frame 0 at the identity. Not an invalid input.
+  bool object_prior_given = true;
   // The tactile image could not be read (ContactStatus::kUnreadable): whether the object touches
   // is unknown. The cloud is ignored and the frame is predicted by the motion priors, but a
   // contact episode in progress continues (its patch kept, no new vision prior) instead of
