@@ -146,9 +146,9 @@ TEST(Tracking, ResumesAfterANoContactGap) {
 }
 
 // A recording with the object's pose only at frame 0: the second episode starts without a vision
-// prior, from the motion priors' prediction across the gap, with a fresh patch. The prediction's
-// offset stays (4.7 mm / 0.28 rad here; nothing model-free can see it), but the motion from
-// there on is tracked.
+// prior, from the motion priors' prediction across the gap, with a fresh patch. The object moved
+// while lifted (4.7 mm / 0.28 rad off at the episode's start); that offset stays, as nothing
+// touched saw the move, but the motion from there on is tracked.
 TEST(Tracking, AnEpisodeWithoutAPoseStartsFromThePrediction) {
   TempDir tmp;
   render(scene_with_a_gap(), tmp.path / "gap");
