@@ -389,6 +389,10 @@ TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
   ASSERT_EQ(n.code, 0) << n.out;
   EXPECT_NE(n.out.find("the dataset has no object poses"), std::string::npos) << n.out;
   EXPECT_EQ(n.out.find("final error"), std::string::npos) << n.out;
+  const CliRun gated =
+      patchgraph("track " + none + " -q --max-translation 1e-3 --out " + out("gt_none_gated"));
+  EXPECT_EQ(gated.code, 3) << gated.out;
+  EXPECT_NE(gated.out.find("no final error to check"), std::string::npos) << gated.out;
   const CliRun info = run(TACSIM_PATH, "info " + none);
   ASSERT_EQ(info.code, 0) << info.out;
   EXPECT_NE(info.out.find("the object's pose is given in 0 of 60 frames"), std::string::npos)
@@ -421,6 +425,33 @@ TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
                               " --methods patchgraph -q --no-plots --out " + out("gt_first_eval"));
   EXPECT_EQ(e.code, 1) << e.out;
   EXPECT_NE(e.out.find("no object pose at the last frame"), std::string::npos) << e.out;
+}
+
+// The accuracy gate a CI pipeline sets: exit 3 and a line per missed bound; within it, 0. The
+// default scene ends about 0.18 mm and 0.0004 rad off.
+TEST_F(PatchgraphCli, AccuracyGateFailsARunWithExitCode3) {
+  const CliRun pass =
+      patchgraph("track " + data() + " -q --max-translation 2e-3 --max-rotation 0.05 --out " +
+                 out("gate_pass"));
+  EXPECT_EQ(pass.code, 0) << pass.out;
+  EXPECT_EQ(pass.out.find("accuracy gate"), std::string::npos) << pass.out;
+  const CliRun fail =
+      patchgraph("track " + data() + " -q --max-translation 1e-5 --max-rotation 1e-6 --out " +
+                 out("gate_fail"));
+  EXPECT_EQ(fail.code, 3) << fail.out;
+  EXPECT_NE(fail.out.find("final translation error"), std::string::npos) << fail.out;
+  EXPECT_NE(fail.out.find("final rotation error"), std::string::npos) << fail.out;
+  EXPECT_TRUE(fs::exists(out("gate_fail") + "/summary.json")) << "the outputs are written anyway";
+  const CliRun eval = patchgraph(
+      "eval --datasets " + data() +
+      " --methods constvel patchgraph -q --no-plots --max-rotation 3e-3 --out " + out("gate_eval"));
+  EXPECT_EQ(eval.code, 3) << eval.out;  // constvel ends about 0.02 rad off, PatchGraph 0.0004
+  EXPECT_NE(eval.out.find("cube constvel (median) final rotation error"), std::string::npos)
+      << eval.out;
+  EXPECT_EQ(eval.out.find("cube patchgraph (median)"), std::string::npos) << eval.out;
+  const CliRun bad =
+      patchgraph("track " + data() + " -q --max-rotation -1 --out " + out("gate_bad"));
+  EXPECT_EQ(bad.code, 2) << bad.out;
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -1,5 +1,6 @@
 #pragma once
-// Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage.
+// Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage, 3 an accuracy
+// gate missed (patchgraph track/eval --max-translation/--max-rotation).
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
@@ -14,6 +15,7 @@ namespace pg {
 constexpr int kExitOk = 0;
 constexpr int kExitFailure = 1;
 constexpr int kExitUsage = 2;
+constexpr int kExitAccuracy = 3;
 
 // CLI11's NonNegativeNumber and PositiveNumber (which also refuse inf and nan), with a short
 // message ("--window: must be finite and >= 0, got -1") instead of the range up to the largest

@@ -8,6 +8,7 @@
 #include <map>
 #include <sstream>
 
+#include "../common/cli_main.h"
 #include "../common/plot_script.h"
 #include "pg/core/error.h"
 
@@ -67,31 +68,48 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   if (!out) throw InputError(path + ": cannot write");
 }
 
-std::string summary_markdown(const std::vector<Row>& rows,
-                             const std::vector<std::string>& methods) {
+// One object and method's runs: final errors [m, rad] and per-frame update times [ms].
+struct Group {
+  std::string object, method;
+  std::vector<double> translation, rotation, ms;
+};
+
+// Groups by object (sorted), then method (in `methods`' order).
+std::vector<Group> group_runs(const std::vector<Row>& rows,
+                              const std::vector<std::string>& methods) {
   std::map<std::string, std::map<std::string, std::vector<const Row*>>> by;
   for (const auto& r : rows) by[r.object][r.method].push_back(&r);
-  std::ostringstream md;
-  md << "| object | method | runs | final translation [mm] median (q1-q3) | final rotation [rad] "
-        "median (q1-q3) | median update [ms] |\n|---|---|---:|---|---|---:|\n";
-  char line[512];
+  std::vector<Group> groups;
   for (const auto& [object, per_method] : by) {
     for (const auto& m : methods) {
       const auto it = per_method.find(m);
       if (it == per_method.end()) continue;
-      std::vector<double> t, rot, ms;
+      Group g{object, m, {}, {}, {}};
       for (const Row* r : it->second) {
-        t.push_back(r->s.final_translation_error_m * 1e3);
-        rot.push_back(r->s.final_rotation_error_rad);
-        ms.push_back(r->s.median_frame_ms);
+        g.translation.push_back(r->s.final_translation_error_m);
+        g.rotation.push_back(r->s.final_rotation_error_rad);
+        g.ms.push_back(r->s.median_frame_ms);
       }
-      std::snprintf(line, sizeof(line),
-                    "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
-                    object.c_str(), m.c_str(), t.size(), quantile(t, 0.5), quantile(t, 0.25),
-                    quantile(t, 0.75), quantile(rot, 0.5), quantile(rot, 0.25), quantile(rot, 0.75),
-                    quantile(ms, 0.5));
-      md << line;
+      groups.push_back(std::move(g));
     }
+  }
+  return groups;
+}
+
+std::string summary_markdown(const std::vector<Group>& groups) {
+  std::ostringstream md;
+  md << "| object | method | runs | final translation [mm] median (q1-q3) | final rotation [rad] "
+        "median (q1-q3) | median update [ms] |\n|---|---|---:|---|---|---:|\n";
+  char line[512];
+  for (const Group& g : groups) {
+    const auto& t = g.translation;
+    const auto& rot = g.rotation;
+    std::snprintf(line, sizeof(line),
+                  "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
+                  g.object.c_str(), g.method.c_str(), t.size(), quantile(t, 0.5) * 1e3,
+                  quantile(t, 0.25) * 1e3, quantile(t, 0.75) * 1e3, quantile(rot, 0.5),
+                  quantile(rot, 0.25), quantile(rot, 0.75), quantile(g.ms, 0.5));
+    md << line;
   }
   return md.str();
 }
@@ -136,12 +154,19 @@ int run_eval(const EvalArgs& args) {
   }
   const std::string results = (fs::path(args.out) / "results.csv").string();
   write_results_csv(results, rows);
-  const std::string md = summary_markdown(rows, methods);
+  const std::vector<Group> groups = group_runs(rows, methods);
+  const std::string md = summary_markdown(groups);
   std::ofstream((fs::path(args.out) / "summary.md").string()) << md;
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
   if (!args.no_plots) run_plot_script("plot_eval.py", args.out);
-  return 0;
+  std::fflush(stdout);
+  bool within = true;
+  for (const Group& g : groups) {
+    within &= within_accuracy_gate(args.track, g.object + " " + g.method + " (median)",
+                                   quantile(g.translation, 0.5), quantile(g.rotation, 0.5));
+  }
+  return within ? kExitOk : kExitAccuracy;
 }
 
 }  // namespace pg

@@ -99,6 +99,11 @@ int run_track(const TrackArgs& a) {
   if (s.normals != "gt") {
     std::printf("of which normals from the model: median %.3f ms\n", s.median_normals_ms);
   }
+  std::fflush(stdout);
+  if (!within_accuracy_gate(a, a.dataset, s.final_translation_error_m,
+                            s.final_rotation_error_rad)) {
+    return kExitAccuracy;
+  }
   return kExitOk;
 }
 

@@ -1,5 +1,6 @@
 #include "track_args.h"
 
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -75,6 +76,38 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "folder name: results.csv's seed column)");
   app.add_flag("--compare-batch", a.compare_batch,
                "Afterwards re-solve the whole sequence at once and report the difference");
+  app.add_option("--max-translation", a.max_translation_m,
+                 "Accuracy gate [m]: exit 3 when the final translation error (eval: the median "
+                 "per object and method) is above it")
+      ->check(kPositive);
+  app.add_option("--max-rotation", a.max_rotation_rad,
+                 "Accuracy gate [rad]: exit 3 when the final rotation error (eval: the median "
+                 "per object and method) is above it")
+      ->check(kPositive);
+}
+
+bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double translation_m,
+                          double rotation_rad) {
+  if ((a.max_translation_m >= 0 || a.max_rotation_rad >= 0) &&
+      !(std::isfinite(translation_m) && std::isfinite(rotation_rad))) {
+    std::fprintf(stderr,
+                 "accuracy gate missed: %s has no final error to check (no object pose at the "
+                 "last frame)\n",
+                 what.c_str());
+    return false;
+  }
+  bool ok = true;
+  if (a.max_translation_m >= 0 && !(translation_m <= a.max_translation_m)) {
+    std::fprintf(stderr, "accuracy gate missed: %s final translation error %.3f mm > %.3f mm\n",
+                 what.c_str(), translation_m * 1e3, a.max_translation_m * 1e3);
+    ok = false;
+  }
+  if (a.max_rotation_rad >= 0 && !(rotation_rad <= a.max_rotation_rad)) {
+    std::fprintf(stderr, "accuracy gate missed: %s final rotation error %.4f rad > %.4f rad\n",
+                 what.c_str(), rotation_rad, a.max_rotation_rad);
+    ok = false;
+  }
+  return ok;
 }
 
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {

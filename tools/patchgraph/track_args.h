@@ -26,11 +26,19 @@ struct TrackArgs {
   std::uint64_t seed = 0;
   bool quiet = false;
   bool compare_batch = false;
+  // Accuracy gate for CI (< 0: off): `track` fails when its final error, `eval` when any object
+  // and method's median final error, is above these.
+  double max_translation_m = -1, max_rotation_rad = -1;
 };
 
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset);
+
+// Checks one final (or median final) error against the accuracy gate of `args`; prints a line
+// to stderr naming `what` and the bound for each bound it misses. True when within the gate.
+bool within_accuracy_gate(const TrackArgs& args, const std::string& what, double translation_m,
+                          double rotation_rad);
 
 // The noise seed of one sequence of a batch (`eval`, `bench`): the base seed mixed with the
 // sequence's name (its dataset folder, or its scene file's stem), so each sequence draws its own
