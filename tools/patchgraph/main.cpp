@@ -13,6 +13,7 @@
 #include "bench.h"
 #include "eval.h"
 #include "normals_cli.h"
+#include "recording.h"
 #include "track_args.h"
 
 namespace pg {
@@ -154,10 +155,13 @@ int main(int argc, char** argv) {
   CLI::App* cmd_train_normals = add_train_normals_command(app, train_normals_args);
   EvalNormalsArgs eval_normals_args;
   CLI::App* cmd_eval_normals = add_eval_normals_command(app, eval_normals_args);
+  RecordingArgs recording_args;
+  CLI::App* cmd_recording = add_recording_command(app, recording_args);
 
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_train_normals->parsed()) return run_train_normals(train_normals_args);
     if (cmd_eval_normals->parsed()) return run_eval_normals(eval_normals_args);
+    if (cmd_recording->parsed()) return run_recording(recording_args);
     if (cmd_bench->parsed()) return run_track_bench(bench);
     if (cmd_track->parsed()) return run_track(track);
     if (cmd_eval->parsed()) return run_eval(eval);

@@ -1,0 +1,162 @@
+#include "recording.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+#include <filesystem>
+#include <vector>
+
+#include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+#include "pg/core/image.h"
+#include "pg/core/sensor.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+bool is_image_file(const fs::path& path) {
+  std::string ext = path.extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tif" ||
+         ext == ".tiff";
+}
+
+std::vector<fs::path> image_files(const std::string& dir) {
+  if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (--images)");
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(dir)) {
+    if (entry.is_regular_file() && is_image_file(entry.path())) files.push_back(entry.path());
+  }
+  if (files.empty()) {
+    throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (--images)");
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, and
+// `factor` x `factor` pixel blocks are averaged (rounded to the nearest level).
+ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int factor) {
+  const ImageU8 raw = read_image_u8(path);
+  if (raw.channels != 3 && raw.channels != 4) {
+    throw InputError(path + ": " + std::to_string(raw.channels) +
+                     " channels; a tactile sensor's frame is RGB");
+  }
+  if (raw.width != camera.width * factor || raw.height != camera.height * factor) {
+    std::string hint;
+    if (raw.width % camera.width == 0 && raw.height % camera.height == 0 &&
+        raw.width / camera.width == raw.height / camera.height) {
+      hint = "; --downsample " + std::to_string(raw.width / camera.width) + " fits";
+    }
+    throw InputError(path + ": " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
+                     " px, but the sensor is " + std::to_string(camera.width) + "x" +
+                     std::to_string(camera.height) + " px" +
+                     (factor > 1 ? " (x" + std::to_string(factor) + " with --downsample)" : "") +
+                     hint + " (--sensor, --sensor-file)");
+  }
+  ImageU8 out(camera.width, camera.height, 3);
+  const int n = factor * factor;
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        int sum = 0;
+        for (int dy = 0; dy < factor; ++dy) {
+          for (int dx = 0; dx < factor; ++dx) sum += raw.at(x * factor + dx, y * factor + dy, c);
+        }
+        out.at(x, y, c) = static_cast<std::uint8_t>((sum + n / 2) / n);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
+  CLI::App* cmd = app.add_subcommand(
+      "recording", "Make a dataset of a real sensor's frames, for track --normals MODEL");
+  cmd->add_option("--images", a.images, "Folder of the frames (png, jpg, ...), in name order")
+      ->required();
+  cmd->add_option("--background", a.background, "The sensor's image with nothing touching")
+      ->required();
+  auto* poses = cmd->add_option("--poses", a.poses,
+                                "poses.csv in the dataset format, one row per frame (the object "
+                                "pose and contact cells may be empty)");
+  auto* fixed = cmd->add_flag("--static-sensor", a.static_sensor,
+                              "The sensor did not move: its frame is the world for every frame");
+  poses->excludes(fixed);
+  fixed->excludes(poses);
+  cmd->add_option("--sensor", a.sensor, "Sensor preset (default digit)");
+  cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)");
+  cmd->add_option("--fps", a.fps, "Frame rate, for the time column with --static-sensor")
+      ->check(kPositive);
+  cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
+      ->check(CLI::Range(1, 16));
+  cmd->add_option("--object", a.object, "Name of the object, for the outputs");
+  cmd->add_option("--out,-o", a.out, "Output dataset folder")->required();
+  cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
+  return cmd;
+}
+
+int run_recording(const RecordingArgs& a) {
+  if (a.poses.empty() && !a.static_sensor) {
+    throw InputError(
+        "--poses or --static-sensor: the tracker needs the sensor's pose in every frame");
+  }
+  const std::vector<fs::path> files = image_files(a.images);
+  std::error_code ec;
+  if (fs::equivalent(a.images, fs::path(a.out) / "color", ec)) {
+    throw InputError(a.out + ": its color folder is --images; the frames would be overwritten");
+  }
+  const SensorModel sensor = a.sensor_file.empty() ? sensor_preset(a.sensor)
+                                                   : load_sensor_file(a.sensor_file);
+  const int frames = int(files.size());
+  std::vector<FramePose> poses(frames);
+  if (!a.poses.empty()) {
+    poses = read_poses_csv(a.poses);
+    if (int(poses.size()) != frames) {
+      throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + a.images +
+                       " holds " + std::to_string(frames) + " frames");
+    }
+  } else {
+    for (int i = 0; i < frames; ++i) {
+      poses[i].frame = i;
+      poses[i].time_s = i / a.fps;
+      poses[i].object_known = false;
+      poses[i].contact_known = false;
+    }
+  }
+  // Read everything that can fail before writing anything.
+  const ImageU8 background = sensor_image(a.background, sensor.camera, a.downsample);
+  sensor_image(files.front().string(), sensor.camera, a.downsample);
+
+  DatasetInfo info;
+  info.sensor = sensor;
+  info.frames = frames;
+  info.fps = a.fps;
+  info.outputs = {"color"};
+  info.object_name = a.object;
+  DatasetWriter writer(a.out, info);
+  writer.write_background(background);
+  Progress progress("importing", frames, !a.quiet);
+  for (int i = 0; i < frames; ++i) {
+    FrameImages images;
+    images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
+    writer.write_frame(poses[i], images);
+    progress.update(i + 1);
+  }
+  writer.finish();
+  int object_poses = 0;
+  for (const auto& p : poses) object_poses += p.object_known;
+  std::printf("%d frames of %s (%dx%d px) -> %s; the object's pose is given in %d of them\n",
+              frames, a.images.c_str(), sensor.camera.width, sensor.camera.height, a.out.c_str(),
+              object_poses);
+  return kExitOk;
+}
+
+}  // namespace pg

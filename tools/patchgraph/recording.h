@@ -1,0 +1,25 @@
+#pragma once
+// patchgraph recording: a real sensor's frames -> a dataset the tracker reads.
+#include <CLI/CLI.hpp>
+#include <string>
+
+namespace pg {
+
+struct RecordingArgs {
+  std::string images;      // folder of the frames, taken in file-name order
+  std::string background;  // the sensor's image with nothing touching
+  std::string poses;       // poses.csv in the dataset's format, one row per frame
+  bool static_sensor = false;  // no poses file: the sensor did not move (the world is its frame)
+  std::string sensor = "digit";
+  std::string sensor_file;
+  double fps = 60.0;
+  int downsample = 1;  // average N x N pixel blocks
+  std::string object;  // name of the object, for the outputs
+  std::string out;
+  bool quiet = false;
+};
+
+CLI::App* add_recording_command(CLI::App& app, RecordingArgs& args);
+int run_recording(const RecordingArgs& args);
+
+}  // namespace pg
