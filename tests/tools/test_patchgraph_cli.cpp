@@ -220,6 +220,30 @@ TEST_F(PatchgraphCli, ADroppedColourFrameIsUnreadableNotAContact) {
   EXPECT_TRUE(std::isfinite(summary["final_translation_error_m"].get<double>()));
 }
 
+// Frames that show the gel as it is without contact, less noisy than the renders the model was
+// trained on (a real sensor's camera, or here the noise-free reference itself): the network reads
+// a shallow false dent into such a frame (the default model: a contact in every one), so a frame
+// no different from the reference beyond the camera's noise is taken as no contact without
+// running it. Frames 10-19 lifted off: the episode ends and a new one starts at frame 20.
+TEST_F(PatchgraphCli, AFrameThatShowsNoChangeIsNoContact) {
+  const std::string copy = data_copy("untouched");
+  const ImageU8 background = Dataset::open(copy).background();
+  for (int f = 10; f < 20; ++f) write_image(dataset_frame_path(copy, "color", f), background);
+  const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
+                              out("untouched_track"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const std::vector<std::string>& field : errors_rows(out("untouched_track"))) {
+    const int frame = std::stoi(field[0]);
+    const bool untouched = frame >= 10 && frame < 20;
+    EXPECT_EQ(field[3], untouched ? "0" : "1") << "frame " << frame;          // contact
+    EXPECT_EQ(field[15], "0") << "frame " << frame;                           // not invalid input
+    if (untouched) EXPECT_EQ(std::stod(field[9]), 0.0) << "frame " << frame;  // no inference
+  }
+  const auto summary = parse_json_file(out("untouched_track") + "/summary.json");
+  EXPECT_EQ(summary["episodes"].get<int>(), 2);
+  EXPECT_EQ(summary["contact_frames"].get<int>(), 50);
+}
+
 TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {
   const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
                                                "/scenes/examples/sphere_press.json -q --width 60 "

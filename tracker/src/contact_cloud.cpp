@@ -1,5 +1,6 @@
 #include "pg/tracker/contact_cloud.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -64,12 +65,25 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   if (!frame.cloud_sensor.empty()) frame.status = ContactStatus::kContact;
 }
 
-void ContactCloudBuilder::build_unreadable(ContactFrame& frame) const {
-  frame.rejected_normals = rays().width * rays().height;
+void ContactCloudBuilder::set_without_normals(ContactFrame& frame, ContactStatus status,
+                                              int rejected) {
+  frame.rejected_normals = rejected;
   frame.mask.contact = false;
   frame.cloud_sensor.clear();
   frame.core = false;
-  frame.status = ContactStatus::kUnreadable;
+  frame.status = status;
+}
+
+void ContactCloudBuilder::build_unreadable(ContactFrame& frame) const {
+  set_without_normals(frame, ContactStatus::kUnreadable, rays().width * rays().height);
+}
+
+void ContactCloudBuilder::build_untouched(ContactFrame& frame) const {
+  set_without_normals(frame, ContactStatus::kNoContact, 0);
+}
+
+int ContactCloudBuilder::min_contact_pixels() const {
+  return std::max(1, int(std::ceil(options_.mask.min_area_m2 / rays().pixel_area_m2())));
 }
 
 void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {

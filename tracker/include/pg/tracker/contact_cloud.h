@@ -69,11 +69,19 @@ class ContactCloudBuilder {
   // A frame with no usable image at all (a camera dropout): kUnreadable, every pixel rejected,
   // no contact mask and no cloud.
   void build_unreadable(ContactFrame& frame) const;
+  // A frame whose image shows nothing pressing the gel, found without estimating its normals
+  // (a colour frame no different from the no-contact reference beyond the camera's noise):
+  // kNoContact, no contact mask and no cloud.
+  void build_untouched(ContactFrame& frame) const;
+  // The smallest contact, mask.min_area_m2, in pixels of this sensor (at least 1).
+  int min_contact_pixels() const;
 
   const GelRays& rays() const { return depth_.rays(); }
   const ContactCloudOptions& options() const { return options_; }
 
  private:
+  // A frame measured without normals: no mask, no cloud, `status`, `rejected` pixels.
+  static void set_without_normals(ContactFrame& frame, ContactStatus status, int rejected);
   // Replaces frame.cloud_sensor by the contact's core when the core constrains as much.
   void keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame);
 
