@@ -84,18 +84,24 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
 }
 
 // A batch of frames with the augmentation: the same random shift of input and target (replicated
-// edges), and the difference image scaled by a random gain. Neither changes the lights' geometry.
+// edges), the difference image scaled by a random gain and, with offset_jitter, each colour
+// channel of it shifted by a random offset (a brightness drift since the reference was taken).
+// None changes the lights' geometry.
 struct Batch {
   torch::Tensor input, target, mask;
 };
 
 Batch make_batch(const FrameSet& set, const std::vector<int>& index, int shift, double gain_jitter,
-                 std::mt19937_64& rng) {
+                 double offset_jitter, std::mt19937_64& rng) {
   std::vector<torch::Tensor> in, out, masks;
   std::uniform_int_distribution<int> offset(-shift, shift);
   std::uniform_real_distribution<double> gain(1.0 - gain_jitter, 1.0 + gain_jitter);
+  std::uniform_real_distribution<double> level(-offset_jitter, offset_jitter);
   for (int i : index) {
     torch::Tensor x = set.input[i] * gain(rng), y = set.target[i], m = set.mask[i];
+    if (offset_jitter > 0) {  // no draws without it: the same run as before the option
+      for (int c = 0; c < 3; ++c) x[c] += level(rng) / 255.0;
+    }
     if (shift > 0) {
       const int dx = offset(rng), dy = offset(rng);
       const auto pad = F::PadFuncOptions({shift, shift, shift, shift}).mode(torch::kReplicate);
@@ -172,6 +178,7 @@ nlohmann::json run_settings(const TrainOptions& o) {
           {"--contact-weight", o.contact_weight},
           {"--shift", o.shift_px},
           {"--gain-jitter", o.gain_jitter},
+          {"--offset-jitter", o.offset_jitter},
           {"--data", data}};
 }
 
@@ -368,7 +375,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
       const std::vector<int> index(
           order.begin() + b * o.batch,
           order.begin() + std::min<std::size_t>(order.size(), (b + 1) * o.batch));
-      const Batch batch = make_batch(train, index, o.shift_px, o.gain_jitter, rng);
+      const Batch batch = make_batch(train, index, o.shift_px, o.gain_jitter, o.offset_jitter, rng);
       const torch::Tensor x = (batch.input - mean) / std;
       const torch::Tensor fake = g->forward(x);
       if (gan) {

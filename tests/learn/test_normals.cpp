@@ -162,6 +162,10 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   other_seed.seed += 1;
   EXPECT_NE(input_error_message([&] { train_normals(other_seed); }).find("--seed"),
             std::string::npos);
+  TrainOptions other_offsets = part;
+  other_offsets.offset_jitter = 6;
+  EXPECT_NE(input_error_message([&] { train_normals(other_offsets); }).find("--offset-jitter"),
+            std::string::npos);
   TrainOptions other_data = part;
   other_data.train_data = {val_};
   EXPECT_NE(input_error_message([&] { train_normals(other_data); }).find("--data"),

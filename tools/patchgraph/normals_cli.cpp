@@ -51,6 +51,10 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->check(kNonNegative);
   cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
       ->check(CLI::Range(0.0, 0.9));
+  cmd->add_option("--offset-jitter", o.offset_jitter,
+                  "Augmentation: each colour channel shifted by up to +- this many levels (a "
+                  "brightness drift since the reference image; default 0)")
+      ->check(CLI::Range(0.0, 64.0));
   cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation");
   cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
       ->check(kNonNegative);

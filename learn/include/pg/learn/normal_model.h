@@ -107,6 +107,9 @@ struct TrainOptions {
   bool gel_relative = false;
   int shift_px = 8;          // augmentation: random image shifts up to this [px]
   double gain_jitter = 0.3;  // augmentation: the difference image scaled by 1 +- this
+  // Augmentation: each colour channel of the difference image shifted by up to +- this many
+  // levels (a brightness drift of the sensor since its reference image); 0 = off.
+  double offset_jitter = 0.0;
   std::uint64_t seed = 0;
   int threads = 0;            // 0 = all cores
   int checkpoint_every = 10;  // epochs
