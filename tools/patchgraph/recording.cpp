@@ -113,8 +113,8 @@ int run_recording(const RecordingArgs& a) {
   if (fs::equivalent(a.images, fs::path(a.out) / "color", ec)) {
     throw InputError(a.out + ": its color folder is --images; the frames would be overwritten");
   }
-  const SensorModel sensor = a.sensor_file.empty() ? sensor_preset(a.sensor)
-                                                   : load_sensor_file(a.sensor_file);
+  const SensorModel sensor =
+      a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
   const int frames = int(files.size());
   std::vector<FramePose> poses(frames);
   if (!a.poses.empty()) {

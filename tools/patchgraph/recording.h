@@ -6,9 +6,9 @@
 namespace pg {
 
 struct RecordingArgs {
-  std::string images;      // folder of the frames, taken in file-name order
-  std::string background;  // the sensor's image with nothing touching
-  std::string poses;       // poses.csv in the dataset's format, one row per frame
+  std::string images;          // folder of the frames, taken in file-name order
+  std::string background;      // the sensor's image with nothing touching
+  std::string poses;           // poses.csv in the dataset's format, one row per frame
   bool static_sensor = false;  // no poses file: the sensor did not move (the world is its frame)
   std::string sensor = "digit";
   std::string sensor_file;
