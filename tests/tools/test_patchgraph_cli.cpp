@@ -574,6 +574,11 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                        data() + "/poses.csv -q --out " + out("rec_bad"));
   EXPECT_EQ(more_poses.code, 1) << more_poses.out;
   EXPECT_NE(more_poses.out.find("60 rows, but"), std::string::npos) << more_poses.out;
+  const CliRun two_sensors =
+      patchgraph("recording --images " + frames.string() + " --background " +
+                 (dir_ / "rec_background.png").string() +
+                 " --static-sensor --sensor digit --sensor-file x.json -q --out " + out("rec_bad"));
+  EXPECT_EQ(two_sensors.code, 2) << two_sensors.out;
   const CliRun over = patchgraph("recording --images " + out("rec") + "/color --background " +
                                  (dir_ / "rec_background.png").string() +
                                  " --static-sensor -q --out " + out("rec"));

@@ -91,8 +91,9 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
                               "The sensor did not move: its frame is the world for every frame");
   poses->excludes(fixed);
   fixed->excludes(poses);
-  cmd->add_option("--sensor", a.sensor, "Sensor preset (default digit)");
-  cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)");
+  auto* preset = cmd->add_option("--sensor", a.sensor, "Sensor preset (default digit)");
+  cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)")
+      ->excludes(preset);
   cmd->add_option("--fps", a.fps, "Frame rate, for the time column with --static-sensor")
       ->check(kPositive);
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
