@@ -78,8 +78,9 @@ bool object_frame_is_sensor(const Dataset& dataset) {
 // than `min_pixels` pixels whose 3x3 mean difference exceeds kChangeLevels in a channel. The
 // mean of nine pixels of noise sigma 7 (the renderer's) has a sigma of 2.3 levels, so 10 levels
 // are 4.3 sigma: 0 or 1 such pixels in a rendered frame without contact, and none with less noise.
-// A contact the tracker can use (0.5 mm^2 indented by 0.1 mm) changes 50 to 100 pixels by more,
-// on the rigid and the elastic gel, with the synthetic and the real DIGIT background.
+// A sphere pressed just deep enough for 6 pixels to be indented by 0.1 mm already changes 57 to
+// 166 pixels by more, on the rigid and the elastic gel, with the synthetic and the real DIGIT
+// background (docs/learned_normals.md).
 constexpr int kChangeLevels = 10;
 
 bool shows_no_change(const ImageU8& color, const ImageU8& background, int min_pixels) {
