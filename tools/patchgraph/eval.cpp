@@ -120,9 +120,10 @@ int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
   for (const auto& m : methods) method_from_string(m);  // fail before any work
+  std::vector<Dataset> opened;                          // all checked before any work
   for (const auto& dir : datasets) {
-    const Dataset dataset = Dataset::open(dir);
-    if (dataset.frames() > 0 && !dataset.poses().back().object_known) {
+    opened.push_back(Dataset::open(dir));
+    if (opened.back().frames() > 0 && !opened.back().poses().back().object_known) {
       throw InputError(dir +
                        "/poses.csv: no object pose at the last frame; eval compares final "
                        "errors against ground truth (track runs without it)");
@@ -132,8 +133,8 @@ int run_eval(const EvalArgs& args) {
   std::vector<Row> rows;
   int done = 0;
   const int total = int(datasets.size() * methods.size());
-  for (const auto& dir : datasets) {
-    const Dataset dataset = Dataset::open(dir);
+  for (const Dataset& dataset : opened) {
+    const std::string& dir = dataset.dir();
     const std::uint64_t seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
     for (const auto& m : methods) {
       TrackArgs a = args.track;

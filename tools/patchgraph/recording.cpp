@@ -134,7 +134,8 @@ int run_recording(const RecordingArgs& a) {
   }
   // Read everything that can fail before writing anything.
   const ImageU8 background = sensor_image(a.background, sensor.camera, a.downsample);
-  sensor_image(files.front().string(), sensor.camera, a.downsample);
+  FrameImages images;
+  images.color = sensor_image(files.front().string(), sensor.camera, a.downsample);
 
   DatasetInfo info;
   info.sensor = sensor;
@@ -146,8 +147,7 @@ int run_recording(const RecordingArgs& a) {
   writer.write_background(background);
   Progress progress("importing", frames, !a.quiet);
   for (int i = 0; i < frames; ++i) {
-    FrameImages images;
-    images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
+    if (i > 0) images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
     writer.write_frame(poses[i], images);
     progress.update(i + 1);
   }

@@ -120,9 +120,8 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
                        a.normals);
     }
     model->check_sensor(dataset.info().sensor, dataset.dir());
-    const ImageU8 background = dataset.background();
-    o.normals = [model, background](const ImageU8& color) {
-      return model->predict(color, background);
+    o.normals = [model](const ImageU8& color, const ImageU8& reference) {
+      return model->predict(color, reference);
     };
     o.normals_name = a.normals;
   }

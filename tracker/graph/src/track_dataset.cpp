@@ -84,20 +84,21 @@ bool object_frame_is_sensor(const Dataset& dataset) {
 constexpr int kChangeLevels = 10;
 
 bool shows_no_change(const ImageU8& color, const ImageU8& background, int min_pixels) {
-  const int w = color.width, h = color.height;
-  // Per channel: column sums of three rows of the difference, then three of those.
-  std::vector<int> diff(std::size_t(w) * h * 3);
-  for (std::size_t i = 0; i < diff.size(); ++i) {
-    diff[i] = int(color.data[i]) - int(background.data[i]);
-  }
-  std::vector<int> column(std::size_t(w) * 3);
+  const std::size_t row = std::size_t(color.width) * 3;
+  // Per row: the difference summed over it and the rows above and below, per column and
+  // channel; then three of those sums side by side.
+  std::vector<int> column(row);
   int changed = 0;
-  for (int y = 1; y + 1 < h; ++y) {
-    for (int i = 0; i < w * 3; ++i) {
-      column[i] = diff[std::size_t(y - 1) * w * 3 + i] + diff[std::size_t(y) * w * 3 + i] +
-                  diff[std::size_t(y + 1) * w * 3 + i];
+  for (int y = 1; y + 1 < color.height; ++y) {
+    const std::size_t above = std::size_t(y - 1) * row;
+    for (std::size_t i = 0; i < row; ++i) {
+      int sum = 0;
+      for (std::size_t r = above; r < above + 3 * row; r += row) {
+        sum += int(color.data[r + i]) - int(background.data[r + i]);
+      }
+      column[i] = sum;
     }
-    for (int x = 1; x + 1 < w; ++x) {
+    for (int x = 1; x + 1 < color.width; ++x) {
       for (int c = 0; c < 3; ++c) {
         const int sum = column[(x - 1) * 3 + c] + column[x * 3 + c] + column[(x + 1) * 3 + c];
         if (std::abs(sum) > 9 * kChangeLevels) {
@@ -154,7 +155,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
       builder.build_untouched(contact);  // nothing pressed: no normals to estimate
     } else {
       if (learned) {
-        normals = options.normals(color);
+        normals = options.normals(color, background);
         normals_ms =
             std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                 .count();

@@ -26,8 +26,9 @@ struct TrackOptions {
   // report how far the fixed-lag estimates are from it.
   bool compare_batch = false;
   // Where the normals come from: null = the dataset's ground-truth normal images ("gt"); else a
-  // function of the frame's colour image (a learned model), timed as part of the frame.
-  std::function<ImageF(const ImageU8& color)> normals;
+  // function of the frame's colour image and the dataset's no-contact reference image
+  // (Dataset::background; a learned model), timed as part of the frame.
+  std::function<ImageF(const ImageU8& color, const ImageU8& reference)> normals;
   std::string normals_name = "gt";  // for the summary
 };
 
