@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "pg/core/dataset.h"
 #include "pg/core/image.h"
 #include "pg/learn/normal_model.h"
 
@@ -57,6 +58,10 @@ torch::Tensor image_to_tensor(const ImageF& image);
 ImageF tensor_to_image(const torch::Tensor& chw);
 // A 0/255 contact mask as a 1 x H x W tensor of 0/1.
 torch::Tensor mask_tensor(const ImageU8& mask);
+// A dataset's ground-truth normal image of `frame`, for training and evaluation: throws
+// InputError naming the file and pixel when a value is not finite (the tracker, which only
+// integrates normals, copes with such pixels; a loss or a metric would turn NaN).
+ImageF true_normals(const Dataset& dataset, int frame);
 
 // Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
 void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info);

@@ -116,6 +116,19 @@ torch::Tensor image_to_tensor(const ImageF& image) {
   return t;
 }
 
+ImageF true_normals(const Dataset& dataset, int frame) {
+  ImageF n = dataset.normal(frame);
+  for (std::size_t k = 0; k < n.data.size(); ++k) {
+    if (!std::isfinite(n.data[k])) {
+      const std::size_t pixel = k / 3;
+      throw InputError(dataset_frame_path(dataset.dir(), "normal", frame) + ": pixel (" +
+                       std::to_string(pixel % n.width) + ", " + std::to_string(pixel / n.width) +
+                       ") is not finite; ground truth for training and evaluation must be");
+    }
+  }
+  return n;
+}
+
 torch::Tensor mask_tensor(const ImageU8& mask) {
   torch::Tensor t = torch::empty({1, mask.height, mask.width}, torch::kFloat32);
   float* out = t.data_ptr<float>();
@@ -215,11 +228,18 @@ NormalMetrics MetricSums::metrics(int frames) const {
 
 }  // namespace learn
 
+namespace {
+// Pixel offsets of the frame for phase averaging, in the order they join: the stride-2 layers see
+// a frame shifted by one pixel on another sampling grid, so each offset is another phase of them.
+constexpr int kPhaseShifts[4][2] = {{0, 0}, {1, 1}, {1, 0}, {0, 1}};
+}  // namespace
+
 struct NormalEstimator::Impl {
   std::string path;
   NormalModelInfo info;
   learn::Generator generator{nullptr};
   ImageF gel;  // the undeformed gel's normals, for a gel-relative model
+  int phases = 1;
 };
 
 NormalEstimator::NormalEstimator(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -244,6 +264,15 @@ NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
   at::globalContext().setFlushDenormal(true);
   return NormalEstimator(std::move(impl));
 }
+
+void NormalEstimator::set_phases(int phases) {
+  if (phases != 1 && phases != 2 && phases != 4) {
+    throw InputError("normals phases must be 1, 2 or 4, not " + std::to_string(phases));
+  }
+  impl_->phases = phases;
+}
+
+int NormalEstimator::phases() const { return impl_->phases; }
 
 const NormalModelInfo& NormalEstimator::info() const { return impl_->info; }
 const std::string& NormalEstimator::path() const { return impl_->path; }
@@ -276,40 +305,50 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
   check(color, "colour");
   check(background, "background");
   // The input encoding, normalisation and forward()'s edge padding in one pass: the network then
-  // runs on an image whose sides are already multiples of what it needs.
+  // runs on an image whose sides are already multiples of what it needs. With phase averaging
+  // the batch holds the frame shifted by each phase's pixel offset.
   const int w = info.width, h = info.height, m = impl_->generator->multiple();
   const int pw = (m - w % m) % m, ph = (m - h % m) % m;
   const int wp = w + pw, hp = h + ph, left = pw / 2, top = ph / 2;
-  torch::Tensor x = torch::empty({1, 3, hp, wp}, torch::kFloat32);
+  const int phases = impl_->phases;
+  const std::size_t plane = std::size_t(wp) * hp;
+  torch::Tensor x = torch::empty({phases, 3, hp, wp}, torch::kFloat32);
   {
-    float* in = x.data_ptr<float>();
-    const std::size_t plane = std::size_t(wp) * hp;
     float scale[3], offset[3];
     for (int c = 0; c < 3; ++c) {
       scale[c] = 1.0f / (255.0f * info.input_std[c]);
       offset[c] = -info.input_mean[c] / info.input_std[c];
     }
-    for (int yp = 0; yp < hp; ++yp) {
-      const int y = std::clamp(yp - top, 0, h - 1);
-      for (int xp = 0; xp < wp; ++xp) {
-        const std::size_t p = (std::size_t(y) * w + std::clamp(xp - left, 0, w - 1)) * 3;
-        for (int c = 0; c < 3; ++c) {
-          const float d = float(color.data[p + c]) - float(background.data[p + c]);
-          in[c * plane + std::size_t(yp) * wp + xp] = d * scale[c] + offset[c];
+    for (int k = 0; k < phases; ++k) {
+      float* in = x.data_ptr<float>() + std::size_t(k) * 3 * plane;
+      const int dx = kPhaseShifts[k][0], dy = kPhaseShifts[k][1];
+      for (int yp = 0; yp < hp; ++yp) {
+        const int y = std::clamp(yp - top - dy, 0, h - 1);
+        for (int xp = 0; xp < wp; ++xp) {
+          const std::size_t p = (std::size_t(y) * w + std::clamp(xp - left - dx, 0, w - 1)) * 3;
+          for (int c = 0; c < 3; ++c) {
+            const float d = float(color.data[p + c]) - float(background.data[p + c]);
+            in[c * plane + std::size_t(yp) * wp + xp] = d * scale[c] + offset[c];
+          }
         }
       }
     }
   }
   torch::NoGradGuard no_grad;
-  const torch::Tensor n = impl_->generator->forward(x)[0].contiguous();
-  // Unit length, facing the camera's side of the gel (z > 0) where the network is unsure.
+  const torch::Tensor n = impl_->generator->forward(x).contiguous();
+  // The phases' mean, of unit length, facing the camera's side of the gel (z > 0) where the
+  // network is unsure.
   ImageF normals(w, h, 3);
   const float* out = n.data_ptr<float>();
-  const std::size_t plane = std::size_t(wp) * hp;
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
-      const std::size_t q = std::size_t(y + top) * wp + x + left;
-      const float nx = out[q], ny = out[plane + q], nz = out[2 * plane + q];
+      float nx = 0.0f, ny = 0.0f, nz = 0.0f;
+      for (int k = 0; k < phases; ++k) {
+        const int xs = std::min(x + left + kPhaseShifts[k][0], wp - 1);
+        const int ys = std::min(y + top + kPhaseShifts[k][1], hp - 1);
+        const float* o = out + std::size_t(k) * 3 * plane + std::size_t(ys) * wp + xs;
+        nx += o[0], ny += o[plane], nz += o[2 * plane];
+      }
       const float inv = 1.0f / std::max(std::sqrt(nx * nx + ny * ny + nz * nz), 1e-6f);
       float* o = &normals.data[(std::size_t(y) * w + x) * 3];
       if (nz * inv > 0.05f) {
@@ -354,7 +393,7 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count());
       sums.add(learn::image_to_tensor(predicted).unsqueeze(0),
-               learn::image_to_tensor(d.normal(i)).unsqueeze(0),
+               learn::image_to_tensor(learn::true_normals(d, i)).unsqueeze(0),
                learn::mask_tensor(d.mask(i)).unsqueeze(0));
       ++done;
       if (progress) progress(done, total);

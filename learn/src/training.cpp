@@ -2,10 +2,13 @@
 // L2 for the per-pixel MLP, as in the paper's Table I.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <stdexcept>
 #include <thread>
 
 #include "networks.h"
@@ -36,7 +39,7 @@ struct FrameSet {
 void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background, const ImageF& gel,
                int i) {
   set.input.push_back(learn::difference_tensor(d.color(i), background));
-  ImageF normals = d.normal(i);
+  ImageF normals = learn::true_normals(d, i);
   if (!gel.empty()) {
     for (std::size_t p = 0; p < gel.data.size(); p += 3) {
       learn::rotate_gel_frame(&gel.data[p], &normals.data[p], true);
@@ -238,6 +241,7 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
   val.sensor = train.sensor;
   val.gel = train.gel;
+  if (o.val_data.empty()) val.width = train.width, val.height = train.height;  // held out of it
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
@@ -407,6 +411,16 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
           loss = loss + o.gan_weight * g_gan;
           r.loss_gan += g_gan.item<double>();
         }
+      }
+      const double total = loss.item<double>();
+      if (!std::isfinite(total)) {
+        // Diverged (a learning rate too high for the data, or data out of range): stop before a
+        // NaN network is written as a model.
+        char text[64];
+        std::snprintf(text, sizeof text, "%g", total);
+        throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) +
+                                 ", batch " + std::to_string(b + 1) + ": the loss is " + text +
+                                 " (try a lower --lr); " + o.out + " not written");
       }
       loss.backward();
       opt_g.step();

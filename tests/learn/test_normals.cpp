@@ -7,7 +7,9 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
+#include <stdexcept>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
@@ -270,6 +272,10 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   EXPECT_NE(msg.find("40x30x3"), std::string::npos) << msg;
   msg = input_error_message([&] { model.predict(ImageU8(40, 30, 1), bg); });
   EXPECT_NE(msg.find("40x30x1"), std::string::npos) << msg;
+  NormalEstimator averaged = NormalEstimator::load(o.out);
+  msg = input_error_message([&] { averaged.set_phases(3); });
+  EXPECT_NE(msg.find("1, 2 or 4, not 3"), std::string::npos) << msg;
+  EXPECT_EQ(averaged.phases(), 1);
   SensorModel sensor = d.info().sensor;
   sensor.gel.sag_m *= 0.5;  // a sensor-frame model checks only the size
   EXPECT_NO_THROW(model.check_sensor(sensor, "half_sag"));
@@ -307,6 +313,54 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   EXPECT_NE(msg.find("never_trained.pt.ckpt"), std::string::npos) << msg;
 }
 
+// Without --val, every 10th training frame is held out for validation (the documented default).
+TEST_F(NormalsTraining, WithoutValidationDataFramesAreHeldOut) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("held_out.pt"));
+  o.val_data.clear();
+  o.epochs = 1;
+  std::vector<EpochReport> epochs;
+  train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
+  ASSERT_EQ(epochs.size(), 1u);
+  EXPECT_EQ(epochs[0].val.frames, Dataset::open(train_).frames() / 10);
+  EXPECT_TRUE(std::isfinite(epochs[0].val.angle_contact_deg));
+  EXPECT_GT(epochs[0].val.angle_contact_deg, 0.0);
+}
+
+// A diverging training stops with an error instead of writing a NaN network as a model; ground
+// truth that is not finite is refused naming the file and pixel, in training and evaluation.
+TEST_F(NormalsTraining, DivergenceAndNonFiniteGroundTruthWriteNoModel) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("diverged.pt"));
+  o.epochs = 2;
+  o.learning_rate = 1e30;
+  std::string msg;
+  try {
+    train_normals(o);
+  } catch (const std::runtime_error& e) {
+    msg = e.what();
+  }
+  EXPECT_NE(msg.find("training diverged: epoch 1"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("diverged.pt not written"), std::string::npos) << msg;
+  EXPECT_FALSE(fs::exists(o.out));
+
+  const std::string nan_set = tmp_->str("nan_normals");
+  fs::copy(val_, nan_set, fs::copy_options::recursive);
+  const std::string frame = dataset_frame_path(nan_set, "normal", 3);
+  ImageF n = read_image_float(frame);
+  n.at(7, 5, 1) = std::numeric_limits<float>::quiet_NaN();
+  write_image(frame, n);
+  o = tiny_options(nan_set, val_, tmp_->str("nan.pt"));
+  o.epochs = 1;
+  msg = input_error_message([&] { train_normals(o); });
+  EXPECT_NE(msg.find(frame + ": pixel (7, 5) is not finite"), std::string::npos) << msg;
+  EXPECT_FALSE(fs::exists(o.out));
+  o = tiny_options(train_, val_, tmp_->str("fine.pt"));
+  o.epochs = 1;
+  train_normals(o);
+  const NormalEstimator model = NormalEstimator::load(o.out);
+  msg = input_error_message([&] { evaluate_normals(model, {nan_set}); });
+  EXPECT_NE(msg.find(frame + ": pixel (7, 5) is not finite"), std::string::npos) << msg;
+}
+
 // Bounds for the default model: measured 2.4 deg and 1.9e-4 (docs/learned_normals.md), about
 // the errors on its own validation presses (sphere 2.4 deg, cube 3.5 deg); twice that allows for
 // other CPUs' floating point and for retraining with another seed, and still fails a model that
@@ -315,22 +369,59 @@ constexpr double kDefaultModelMaxAngleDeg = 5.5;
 constexpr double kDefaultModelMaxMse = 6e-4;
 
 // The committed default model on a rendered sphere press (the elastic gel, shadows and noise it
-// was trained with, but a scene it never saw): see docs/learned_normals.md for the bound.
-TEST(DefaultNormalsModel, RecoversASpherePress) {
-  const std::string model_path = kSource + "/models/normals_unet.pt";
-  ASSERT_TRUE(fs::exists(model_path)) << model_path;
-  TempDir tmp;
-  RenderOverrides overrides;
-  overrides.outputs = {"color", "normal", "mask"};
-  overrides.shadows = true;
-  const SceneRenderer renderer(load_scene(kSource + "/scenes/examples/sphere_press.json"),
-                               overrides);
-  render_scene_to_dataset(renderer, tmp.str("press"));
-  const NormalEstimator model = NormalEstimator::load(model_path);
-  const NormalMetrics m = evaluate_normals(model, {tmp.str("press")});
+// was trained with, but a scene it never saw), rendered once for the suite.
+class DefaultNormalsModel : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = new SuiteDir();
+    RenderOverrides overrides;
+    overrides.outputs = {"color", "normal", "mask"};
+    overrides.shadows = true;
+    const SceneRenderer renderer(load_scene(kSource + "/scenes/examples/sphere_press.json"),
+                                 overrides);
+    render_scene_to_dataset(renderer, press());
+  }
+  static void TearDownTestSuite() { delete tmp_; }
+  static std::string press() { return tmp_->str("press"); }
+  static std::string model_path() { return kSource + "/models/normals_unet.pt"; }
+  static SuiteDir* tmp_;
+};
+SuiteDir* DefaultNormalsModel::tmp_ = nullptr;
+
+// See docs/learned_normals.md for the bound.
+TEST_F(DefaultNormalsModel, RecoversASpherePress) {
+  ASSERT_TRUE(fs::exists(model_path())) << model_path();
+  const NormalEstimator model = NormalEstimator::load(model_path());
+  const NormalMetrics m = evaluate_normals(model, {press()});
   EXPECT_EQ(m.frames, 10);
   EXPECT_LT(m.angle_contact_deg, kDefaultModelMaxAngleDeg);
   EXPECT_LT(m.mse_contact, kDefaultModelMaxMse);
+}
+
+// Phase averaging (the network on the frame shifted by a pixel, averaged) on the same press:
+// measured 2.39 -> 2.14 (2 phases) -> 2.04 deg (4), about what it gains on the validation
+// presses (8-13 %); the bounds ask for a third of that and fail an average that misaligns the
+// shifted outputs (off by a pixel, the press's steep rim gets worse, not better).
+TEST_F(DefaultNormalsModel, PhaseAveragingLowersTheError) {
+  ASSERT_TRUE(fs::exists(model_path())) << model_path();
+  NormalEstimator model = NormalEstimator::load(model_path());
+  const NormalMetrics single = evaluate_normals(model, {press()});
+  model.set_phases(2);
+  const NormalMetrics two = evaluate_normals(model, {press()});
+  model.set_phases(4);
+  const NormalMetrics four = evaluate_normals(model, {press()});
+  EXPECT_LT(two.angle_contact_deg, 0.97 * single.angle_contact_deg);
+  EXPECT_LT(four.angle_contact_deg, 0.95 * single.angle_contact_deg);
+  EXPECT_LT(four.mse_image, 0.95 * single.mse_image);
+  // Unit normals facing the camera's side, as a single pass gives.
+  const Dataset d = Dataset::open(press());
+  const ImageF n = model.predict(d.color(5), d.background());
+  for (std::size_t i = 0; i < n.data.size(); i += 3) {
+    const float len = std::sqrt(n.data[i] * n.data[i] + n.data[i + 1] * n.data[i + 1] +
+                                n.data[i + 2] * n.data[i + 2]);
+    ASSERT_NEAR(len, 1.0f, 1e-5f) << i / 3;
+    ASSERT_GT(n.data[i + 2], 0.0f) << i / 3;
+  }
 }
 
 }  // namespace
