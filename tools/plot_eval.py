@@ -74,7 +74,10 @@ def trajectories(out, rows):
         if r["object"] in seen or r["method"] != "patchgraph":
             continue
         seen.add(r["object"])
-        run = os.path.join(out, "runs", os.path.basename(r["dataset"].rstrip("/")) + "_patchgraph")
+        if r.get("run"):
+            run = os.path.join(out, r["run"])
+        else:  # results.csv of an older eval: runs named after the dataset's folder
+            run = os.path.join(out, "runs", os.path.basename(r["dataset"].rstrip("/")) + "_patchgraph")
         est = os.path.join(run, "poses.csv")
         gt = os.path.join(r["dataset"], "poses.csv")
         if not (os.path.exists(est) and os.path.exists(gt)):

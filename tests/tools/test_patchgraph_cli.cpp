@@ -86,6 +86,69 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
           "--ee-sigma: must be finite and > 0, got nan");
   refused(track + "--ee-noise inf --out " + out("x"), 2,
           "--ee-noise: must be finite and >= 0, got inf");
+  // Seeds out of range are refused, not clamped to the largest one.
+  refused(track + "--seed -1 --out " + out("x"), 2, "--seed: must be a whole number");
+  refused(track + "--seed 18446744073709551616 --out " + out("x"), 2, "--seed");
+  refused("train-normals --data " + data() + " --seed 1e3 --out " + out("m.pt"), 2, "--seed");
+  refused("recording --images " + data() + "/color --background " + data() +
+              "/background.png --static-sensor --fps 1e-300 --out " + out("rec"),
+          2, "--fps");
+  EXPECT_FALSE(fs::exists(out("rec")));
+}
+
+// An output folder that is an input is refused before anything is written: `track DS --out DS`
+// would replace the dataset's ground truth (poses.csv) with the estimate.
+TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
+  const std::string copy = data_copy("data_self");
+  const auto poses_text = [&] {
+    std::ifstream in(copy + "/poses.csv");
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  const std::string before = poses_text();
+  for (const std::string args :
+       {"track " + copy + " -q --out " + copy,
+        "eval --datasets " + data() + " " + copy + " --methods constvel -q --no-plots --out " +
+            copy,
+        "recording --images " + copy + "/color --background " + copy +
+            "/background.png --static-sensor -q --out " + copy + "/color"}) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_NE(r.out.find("write the outputs to another folder"), std::string::npos) << r.out;
+  }
+  EXPECT_EQ(poses_text(), before);
+  EXPECT_FALSE(fs::exists(copy + "/summary.json"));
+  EXPECT_FALSE(fs::exists(copy + "/results.csv"));
+}
+
+// Two datasets of one folder name keep their own runs (named with their parents' folders), a
+// dataset or method given twice is refused (it would count twice in the medians).
+TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {
+  fs::create_directories(out("names/p1"));
+  fs::create_directories(out("names/p2"));
+  fs::remove_all(out("names/p1/a"));
+  fs::remove_all(out("names/p2/a"));
+  fs::copy(data(), out("names/p1/a"), fs::copy_options::recursive);
+  fs::copy(data(), out("names/p2/a"), fs::copy_options::recursive);
+  const CliRun r = patchgraph("eval --datasets " + out("names/p1/a") + " " + out("names/p2/a") +
+                              " --methods constvel -q --no-plots --out " + out("names_eval"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(out("names_eval") + "/runs/p1_a_constvel/poses.csv"));
+  EXPECT_TRUE(fs::exists(out("names_eval") + "/runs/p2_a_constvel/poses.csv"));
+  std::ifstream results(out("names_eval") + "/results.csv");
+  std::string header, row;
+  ASSERT_TRUE(std::getline(results, header));
+  EXPECT_NE(header.find(",run"), std::string::npos) << header;
+  ASSERT_TRUE(std::getline(results, row));
+  EXPECT_NE(row.find("runs/p1_a_constvel"), std::string::npos) << row;
+
+  CliRun twice = patchgraph("eval --datasets " + data() + " " + data() +
+                            " --methods constvel -q --no-plots --out " + out("twice"));
+  EXPECT_EQ(twice.code, 1);
+  EXPECT_NE(twice.out.find("given twice"), std::string::npos) << twice.out;
+  twice = patchgraph("eval --datasets " + data() +
+                     " --methods constvel constvel -q --no-plots --out " + out("twice"));
+  EXPECT_EQ(twice.code, 1);
+  EXPECT_NE(twice.out.find("--methods: constvel given twice"), std::string::npos) << twice.out;
 }
 
 // A registration sigma a thousand times the paper's leaves the registrations almost no weight

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <functional>
 #include <string>
 
@@ -32,6 +33,29 @@ inline CLI::Validator number_check(bool allow_zero) {
 }
 inline const CLI::Validator kNonNegative = number_check(true);
 inline const CLI::Validator kPositive = number_check(false);
+
+// A seed: a whole number from 0 to 2^64 - 1, written in decimal digits (CLI11 alone would take
+// "-1" or a number past the range as the largest seed).
+inline const CLI::Validator kSeed(
+    [](std::string& text) -> std::string {
+      const bool digits = !text.empty() && text.size() <= 20 &&
+                          text.find_first_not_of("0123456789") == std::string::npos;
+      if (digits && (text.size() < 20 || text <= "18446744073709551615")) return {};
+      return "must be a whole number from 0 to 18446744073709551615, got " + text;
+    },
+    "SEED");
+
+// Throws InputError when the output folder `out` is the input folder `input` (the option
+// `input_what`): writing there would overwrite or mix into what is read. A folder that does not
+// exist yet is never the input.
+inline void check_output_is_not_input(const std::string& out, const std::string& input,
+                                      const std::string& input_what) {
+  std::error_code ec;
+  if (std::filesystem::equivalent(out, input, ec)) {
+    throw InputError("--out " + out + " is " + input_what + " " + input +
+                     "; write the outputs to another folder");
+  }
+}
 
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.

@@ -38,6 +38,32 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
   return out;
 }
 
+// The folder under OUT/runs of each dataset's runs (before "_METHOD"): its own folder's name, or,
+// where two datasets share that name, with their parents' names before it (a/x and b/x become
+// a_x and b_x). A dataset given twice (also through a folder of datasets) is an error.
+std::vector<std::string> run_names(const std::vector<std::string>& datasets) {
+  std::map<std::string, std::string> seen;  // canonical path -> as given
+  std::map<std::string, int> uses;
+  for (const auto& dir : datasets) {
+    const std::string canonical = fs::weakly_canonical(dir).string();
+    const auto [it, fresh] = seen.emplace(canonical, dir);
+    if (!fresh) throw InputError(dir + ": given twice (also as " + it->second + ")");
+    ++uses[fs::path(canonical).filename().string()];
+  }
+  std::vector<std::string> names;
+  for (const auto& dir : datasets) {
+    const fs::path canonical = fs::weakly_canonical(dir);
+    std::string name = canonical.filename().string();
+    if (uses[name] > 1) name = canonical.parent_path().filename().string() + "_" + name;
+    if (std::find(names.begin(), names.end(), name) != names.end()) {
+      throw InputError(dir + ": its runs would share OUT/runs/" + name +
+                       "_* with another dataset's; rename one of the two folders");
+    }
+    names.push_back(name);
+  }
+  return names;
+}
+
 // Quartiles by linear interpolation between order statistics.
 double quantile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
@@ -48,7 +74,7 @@ double quantile(std::vector<double> v, double q) {
 }
 
 struct Row {
-  std::string dataset, object, method;
+  std::string dataset, object, method, run;
   TrackSummary s;
 };
 
@@ -57,13 +83,14 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
-         "lost_frames,degenerate_frames,seed\n";
+         "lost_frames,degenerate_frames,seed,run\n";
   for (const auto& r : rows) {
     out << r.dataset << "," << r.object << "," << r.method << "," << r.s.frames << ","
         << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
-        << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << "\n";
+        << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << "," << r.run
+        << "\n";
   }
   if (!out) throw InputError(path + ": cannot write");
 }
@@ -119,9 +146,16 @@ std::string summary_markdown(const std::vector<Group>& groups) {
 int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
-  for (const auto& m : methods) method_from_string(m);  // fail before any work
+  for (std::size_t i = 0; i < methods.size(); ++i) {  // fail before any work
+    method_from_string(methods[i]);
+    if (std::find(methods.begin(), methods.begin() + i, methods[i]) != methods.begin() + i) {
+      throw InputError("--methods: " + methods[i] + " given twice");
+    }
+  }
+  const std::vector<std::string> names = run_names(datasets);
   std::vector<Dataset> opened;                          // all checked before any work
   for (const auto& dir : datasets) {
+    check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(Dataset::open(dir));
     if (opened.back().frames() > 0 && !opened.back().poses().back().object_known) {
       throw InputError(dir +
@@ -133,7 +167,8 @@ int run_eval(const EvalArgs& args) {
   std::vector<Row> rows;
   int done = 0;
   const int total = int(datasets.size() * methods.size());
-  for (const Dataset& dataset : opened) {
+  for (std::size_t k = 0; k < opened.size(); ++k) {
+    const Dataset& dataset = opened[k];
     const std::string& dir = dataset.dir();
     const std::uint64_t seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
     for (const auto& m : methods) {
@@ -141,9 +176,9 @@ int run_eval(const EvalArgs& args) {
       a.method = m;
       a.seed = seed;
       const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
-      const std::string name = fs::path(dir).filename().string() + "_" + m;
+      const std::string name = names[k] + "_" + m;
       write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
-      rows.push_back({dir, dataset.info().object_name, m, run.summary});
+      rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
       ++done;
       if (!args.track.quiet) {
         std::fprintf(stderr, "[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n", done, total,

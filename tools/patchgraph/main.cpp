@@ -20,6 +20,7 @@ namespace pg {
 namespace {
 
 int run_track(const TrackArgs& a) {
+  check_output_is_not_input(a.out, a.dataset, "the dataset");  // its poses.csv would be replaced
   const Dataset dataset = Dataset::open(a.dataset);
   const TrackOptions options = make_track_options(a, dataset);
   Progress progress("tracking", dataset.frames(), !a.quiet);

@@ -55,7 +55,8 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                   "Augmentation: each colour channel shifted by up to +- this many levels (a "
                   "brightness drift since the reference image; default 0)")
       ->check(CLI::Range(0.0, 64.0));
-  cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation");
+  cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation")
+      ->check(kSeed);
   cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
       ->check(kNonNegative);
   cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
@@ -73,6 +74,10 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   cmd->add_option("--data", a.data, "Dataset folders (color, normal, mask outputs)")->required();
   cmd->add_option("--json", a.json, "Also write the results to this JSON file");
   cmd->add_option("--threads", a.threads, "Torch threads (default 1)")->check(kNonNegative);
+  cmd->add_option("--phases", a.phases,
+                  "Average the model over the frame shifted by a pixel: 1 (default), 2 or 4 "
+                  "passes (as track --normals-phases)")
+      ->check(CLI::IsMember({1, 2, 4}));
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }
@@ -82,9 +87,12 @@ int run_train_normals(const TrainNormalsArgs& a) {
   o.gel_relative = a.labels == "gel";
   std::unique_ptr<Progress> progress;
   int epoch = 0;
-  std::printf("training %s (depth %d, width %d) on %zu dataset(s) for %d epochs -> %s\n",
-              o.spec.arch.c_str(), o.spec.depth, o.spec.base_width, o.train_data.size(), o.epochs,
-              o.out.c_str());
+  const std::string shape = o.spec.arch == "mlp"
+                                ? "hidden " + std::to_string(o.spec.mlp_hidden)
+                                : "depth " + std::to_string(o.spec.depth) + ", width " +
+                                      std::to_string(o.spec.base_width);
+  std::printf("training %s (%s) on %zu dataset(s) for %d epochs -> %s\n", o.spec.arch.c_str(),
+              shape.c_str(), o.train_data.size(), o.epochs, o.out.c_str());
   std::fflush(stdout);
   train_normals(
       o,
@@ -111,7 +119,8 @@ int run_train_normals(const TrainNormalsArgs& a) {
 }
 
 int run_eval_normals(const EvalNormalsArgs& a) {
-  const NormalEstimator model = NormalEstimator::load(a.model, a.threads);
+  NormalEstimator model = NormalEstimator::load(a.model, a.threads);
+  model.set_phases(a.phases);
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",
               "MSE image", "angle contact", "angle image", "ms/frame");

@@ -19,6 +19,7 @@ struct EvalNormalsArgs {
   std::vector<std::string> data;
   std::string json;  // output file
   int threads = 1;
+  int phases = 1;  // NormalEstimator::set_phases
   bool quiet = false;
 };
 

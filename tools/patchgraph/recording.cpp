@@ -95,7 +95,7 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)")
       ->excludes(preset);
   cmd->add_option("--fps", a.fps, "Frame rate, for the time column with --static-sensor")
-      ->check(kPositive);
+      ->check(CLI::Range(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
       ->check(CLI::Range(1, 16));
   cmd->add_option("--object", a.object, "Name of the object, for the outputs");
@@ -109,6 +109,7 @@ int run_recording(const RecordingArgs& a) {
     throw InputError(
         "--poses or --static-sensor: the tracker needs the sensor's pose in every frame");
   }
+  check_output_is_not_input(a.out, a.images, "--images");
   const std::vector<fs::path> files = image_files(a.images);
   std::error_code ec;
   if (fs::equivalent(a.images, fs::path(a.out) / "color", ec)) {

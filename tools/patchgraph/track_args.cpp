@@ -22,6 +22,10 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "train-normals (applied to the colour images)");
   app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
       ->check(kPositive);
+  app.add_option("--normals-phases", a.normals_phases,
+                 "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "
+                 "4 passes per frame, less error for more time")
+      ->check(CLI::IsMember({1, 2, 4}));
   app.add_option("--config", a.config,
                  "Tracker config JSON (depth, mask, icp options; default: the built-in options, "
                  "with mask.relative_depth 0.2, icp.symmetric false and depth.integration "
@@ -73,7 +77,8 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(kNonNegative);
   app.add_option("--seed", a.seed,
                  "Seed of the simulated measurement noise (eval mixes it with each dataset's "
-                 "folder name: results.csv's seed column)");
+                 "folder name: results.csv's seed column)")
+      ->check(kSeed);
   app.add_flag("--compare-batch", a.compare_batch,
                "Afterwards re-solve the whole sequence at once and report the difference");
   app.add_option("--max-translation", a.max_translation_m,
@@ -115,6 +120,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   if (a.normals != "gt") {
     auto model =
         std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
+    model->set_phases(a.normals_phases);
     if (!dataset.info().has_output("color")) {
       throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                        a.normals);

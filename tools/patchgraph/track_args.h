@@ -13,6 +13,7 @@ struct TrackArgs {
   std::string method = "patchgraph";
   std::string normals = "gt";  // or a model file from train-normals
   int normals_threads = 1;
+  int normals_phases = 1;  // NormalEstimator::set_phases
   std::string config;  // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;
