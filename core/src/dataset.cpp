@@ -24,8 +24,22 @@ const char* kPosesHeader =
     "sensor_x,sensor_y,sensor_z,sensor_qx,sensor_qy,sensor_qz,sensor_qw,contact";
 constexpr int kPosesColumns = 17;
 constexpr int kObjectFirst = 2;     // obj_x
+constexpr int kSensorFirst = 9;     // sensor_x
 constexpr int kContactColumn = 16;  // contact
 constexpr int kFormatVersion = 1;
+
+// The header's name of column c (0-based), for messages.
+std::string column_name(int c) {
+  std::stringstream header(kPosesHeader);
+  std::string name;
+  for (int i = 0; i <= c; ++i) std::getline(header, name, ',');
+  return name;
+}
+
+// obj_x, obj_y, obj_z and sensor_x, sensor_y, sensor_z.
+bool is_position_column(int c) {
+  return (c >= kObjectFirst && c < kObjectFirst + 3) || (c >= kSensorFirst && c < kSensorFirst + 3);
+}
 
 std::string extension_of(const std::string& output) {
   if (output == "points") return ".ply";
@@ -82,7 +96,11 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
                      std::to_string(h) + " disagrees with the sensor's camera");
   }
   info.frames = f.required<int>("frames");
-  if (info.frames < 0) throw InputError(f.field("frames") + ": must be >= 0");
+  // A dataset without frames has nothing to track, and the tracker's summary of it would be a
+  // vacuous "final error 0.000 mm" that passes any accuracy gate.
+  if (info.frames < 1) {
+    throw InputError(f.field("frames") + ": must be >= 1, got " + std::to_string(info.frames));
+  }
   info.fps = f.required_number_in("fps", 1e-6, 1e6);
   info.outputs = f.required<std::vector<std::string>>("outputs");
   for (const auto& o : info.outputs) check_output_name(o, f.field("outputs"));
@@ -159,11 +177,16 @@ void write_poses_csv(const std::string& path, const std::vector<FramePose>& pose
 }
 
 std::vector<FramePose> read_poses_csv(const std::string& path) {
+  if (fs::is_directory(path)) throw InputError(path + ": is a directory, not a poses.csv file");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::string line;
-  if (!std::getline(in, line) || line != kPosesHeader) {
-    throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) + "'");
+  const bool has_line = static_cast<bool>(std::getline(in, line));
+  // A file saved on Windows ends its lines with "\r\n"; the rows drop the '\r' below.
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  if (!has_line || line != kPosesHeader) {
+    throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) +
+                     "', found '" + excerpt(line) + "'");
   }
   std::vector<FramePose> poses;
   int line_no = 1;
@@ -197,9 +220,18 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
       char* end = nullptr;
       v[c] = std::strtod(cell.c_str(), &end);
       if (cell.empty() || end != cell.c_str() + cell.size()) {
-        throw InputError(where + ": '" + cell + "' is not a number");
+        throw InputError(where + ": '" + excerpt(cell) + "' is not a number");
       }
-      if (!std::isfinite(v[c])) throw InputError(where + ": non-finite value in column " + std::to_string(c + 1));
+      if (!std::isfinite(v[c])) {
+        throw InputError(where + ": non-finite value in column " + std::to_string(c + 1) + " (" +
+                         column_name(c) + ")");
+      }
+      if (is_position_column(c) && std::abs(v[c]) > kMaxPositionM) {
+        std::ostringstream msg;
+        msg << where << ": " << column_name(c) << " = " << v[c] << " is out of range: positions "
+            << "must be within +-" << kMaxPositionM << " m";
+        throw InputError(msg.str());
+      }
     }
     const bool object_known = empty_object_cells == 0;
     if (!object_known && empty_object_cells != 7) {
@@ -211,9 +243,13 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
         object_known ? Eigen::Quaterniond(v[8], v[5], v[6], v[7]) : Eigen::Quaterniond::Identity();
     const Eigen::Quaterniond qs(v[15], v[12], v[13], v[14]);
     for (const auto* q : {&qo, &qs}) {
-      if (std::abs(q->norm() - 1.0) > 1e-6) {
-        throw InputError(where + ": quaternion is not unit length (norm " +
-                         std::to_string(q->norm()) + ")");
+      // stableNorm: the plain norm squares the components and overflows for 1e155 and above.
+      const double norm = q->coeffs().stableNorm();
+      if (std::abs(norm - 1.0) > 1e-6) {
+        std::ostringstream msg;
+        msg << where << ": " << (q == &qo ? "obj" : "sensor")
+            << " quaternion is not unit length (norm " << norm << ")";
+        throw InputError(msg.str());
       }
     }
     FramePose p;

@@ -12,6 +12,9 @@ namespace pg {
 namespace {
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
+  if (std::filesystem::is_directory(path)) {
+    throw InputError(path + ": is a directory, not an image file");
+  }
   if (!std::filesystem::is_regular_file(path)) {
     throw InputError(path + ": image file not found");
   }

@@ -1,8 +1,12 @@
 #include "pg/core/json_fields.h"
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
+
+#include "pg/core/se3.h"
 
 namespace pg {
 
@@ -23,6 +27,14 @@ void line_and_column(const std::string& text, std::size_t byte, int& line, int& 
   }
 }
 
+// nlohmann's message without its "[json.exception.out_of_range.406] " tag.
+std::string without_tag(const std::string& what) {
+  const auto tag_end = what.find("] ");
+  return what.rfind("[json.exception.", 0) == 0 && tag_end != std::string::npos
+             ? what.substr(tag_end + 2)
+             : what;
+}
+
 }  // namespace
 
 nlohmann::json parse_json_text(const std::string& text, const std::string& name) {
@@ -37,10 +49,17 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& name)
     if (colon != std::string::npos) what = what.substr(colon + 2);
     throw InputError(name + ":" + std::to_string(line) + ":" + std::to_string(column) +
                      ": malformed JSON: " + what);
+  } catch (const nlohmann::json::exception& e) {
+    // Not a syntax error but, e.g., "number overflow parsing '1e400'" (out_of_range.406): a
+    // number beyond the range of a double, which nlohmann reports without the file or position.
+    throw InputError(name + ": malformed JSON: " + excerpt(without_tag(e.what()), 80));
   }
 }
 
 nlohmann::json parse_json_file(const std::string& path) {
+  if (std::filesystem::is_directory(path)) {
+    throw InputError(path + ": is a directory, not a JSON file");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::stringstream buffer;
@@ -136,6 +155,21 @@ Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
 }
 
 template <>
+Eigen::Quaterniond JsonFields::convert<Eigen::Quaterniond>(const nlohmann::json& v,
+                                                           const std::string& key) const {
+  const char* expected = "an array of 4 numbers [x, y, z, w]";
+  if (!v.is_array() || v.size() != 4) type_error(key, expected, v);
+  Eigen::Vector4d xyzw;
+  for (int i = 0; i < 4; ++i) {
+    if (!v[i].is_number()) type_error(key, expected, v);
+    xyzw[i] = v[i].get<double>();
+  }
+  Eigen::Quaterniond q;
+  if (!unit_quaternion(xyzw, q)) throw InputError(field(key) + ": must be finite and non-zero");
+  return q;
+}
+
+template <>
 std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
     const nlohmann::json& v, const std::string& key) const {
   if (!v.is_array()) type_error(key, "an array of strings", v);
@@ -159,6 +193,21 @@ double JsonFields::required_number_in(const std::string& key, double lo, double 
 
 double JsonFields::number_in(const std::string& key, double lo, double hi, double fallback) {
   return has(key) ? required_number_in(key, lo, hi) : fallback;
+}
+
+Eigen::Vector3d JsonFields::required_position(const std::string& key) {
+  const Eigen::Vector3d p = required<Eigen::Vector3d>(key);
+  if (p.cwiseAbs().maxCoeff() > kMaxPositionM) {
+    std::ostringstream msg;
+    msg << field(key) << ": [" << p.x() << ", " << p.y() << ", " << p.z()
+        << "] is out of range: each coordinate must be within +-" << kMaxPositionM << " m";
+    throw InputError(msg.str());
+  }
+  return p;
+}
+
+Eigen::Vector3d JsonFields::position(const std::string& key, const Eigen::Vector3d& fallback) {
+  return has(key) ? required_position(key) : fallback;
 }
 
 void JsonFields::finish() const {

@@ -4,6 +4,14 @@
 
 namespace pg {
 
+bool unit_quaternion(const Eigen::Vector4d& xyzw, Eigen::Quaterniond& q) {
+  const double largest = xyzw.cwiseAbs().maxCoeff();
+  if (!xyzw.allFinite() || largest == 0.0) return false;
+  const Eigen::Vector4d unit = (xyzw / largest).normalized();
+  q = Eigen::Quaterniond(unit[3], unit[0], unit[1], unit[2]);
+  return true;
+}
+
 Eigen::Quaterniond quaternion_from_rpy(const Eigen::Vector3d& rpy) {
   return Eigen::AngleAxisd(rpy.z(), Eigen::Vector3d::UnitZ()) *
          Eigen::AngleAxisd(rpy.y(), Eigen::Vector3d::UnitY()) *

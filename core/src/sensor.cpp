@@ -93,7 +93,7 @@ void read_gel(const nlohmann::json& j, const std::string& where, GelModel& gel) 
 PointLight read_light(const nlohmann::json& j, const std::string& where) {
   JsonFields f(j, where);
   PointLight light;
-  light.position_m = f.required<Eigen::Vector3d>("position_m");
+  light.position_m = f.required_position("position_m");
   light.color = f.optional<Eigen::Vector3d>("color", light.color);
   if ((light.color.array() < 0.0).any() || (light.color.array() > 1.0).any()) {
     throw InputError(f.field("color") + ": components must be in [0, 1]");
@@ -157,8 +157,10 @@ SensorModel sensor_preset(const std::string& name) {
 SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) {
   JsonFields f(j, where);
   SensorModel s;
+  // Read outside the try: a wrong type's message already names the field; sensor_preset()'s not.
+  const std::string preset = f.optional<std::string>("preset", "digit");
   try {
-    s = sensor_preset(f.optional<std::string>("preset", "digit"));
+    s = sensor_preset(preset);
   } catch (const InputError& e) {
     throw InputError(f.field("preset") + ": " + e.what());
   }

@@ -11,6 +11,7 @@
 
 #include "mesh_formats.h"
 #include "pg/core/error.h"
+#include "pg/core/se3.h"
 #include "pg/sim/mesh.h"
 
 namespace pg {
@@ -102,7 +103,7 @@ std::int64_t read_index(const AccessorData& data, size_t i) {
 }
 
 // Node transform: `matrix` (column-major) if given, else T * R * S.
-Eigen::Matrix4d local_transform(const tinygltf::Node& node) {
+Eigen::Matrix4d local_transform(const tinygltf::Node& node, int index) {
   if (node.matrix.size() == 16) return Eigen::Map<const Eigen::Matrix4d>(node.matrix.data());
   Eigen::Affine3d transform = Eigen::Affine3d::Identity();
   if (node.translation.size() == 3) {
@@ -110,9 +111,14 @@ Eigen::Matrix4d local_transform(const tinygltf::Node& node) {
         Eigen::Vector3d(node.translation[0], node.translation[1], node.translation[2]));
   }
   if (node.rotation.size() == 4) {  // glTF stores (x, y, z, w)
-    transform.rotate(
-        Eigen::Quaterniond(node.rotation[3], node.rotation[0], node.rotation[1], node.rotation[2])
-            .normalized());
+    Eigen::Quaterniond q;
+    if (!unit_quaternion(
+            Eigen::Vector4d(node.rotation[0], node.rotation[1], node.rotation[2], node.rotation[3]),
+            q)) {
+      throw FormatError("node " + std::to_string(index) +
+                        ": rotation must be a finite, non-zero quaternion");
+    }
+    transform.rotate(q);
   }
   if (node.scale.size() == 3) {
     transform.scale(Eigen::Vector3d(node.scale[0], node.scale[1], node.scale[2]));
@@ -130,7 +136,7 @@ class GltfFlattener {
     }
     if (depth > model_.nodes.size()) throw FormatError("the node hierarchy has a cycle");
     const tinygltf::Node& node = model_.nodes[static_cast<size_t>(index)];
-    const Eigen::Matrix4d T = T_parent * local_transform(node);
+    const Eigen::Matrix4d T = T_parent * local_transform(node, index);
     if (node.mesh >= 0) {
       if (static_cast<size_t>(node.mesh) >= model_.meshes.size()) {
         throw FormatError("node " + std::to_string(index) + " refers to missing mesh " +

@@ -9,6 +9,7 @@
 #include <unordered_map>
 
 #include "mesh_formats.h"
+#include "pg/core/error.h"
 
 namespace pg::mesh_formats {
 namespace {
@@ -138,7 +139,7 @@ PlyType ply_type(const Token& token) {
     if (token.text == name) return type;
   }
   throw FormatError("line " + std::to_string(token.line) + ": unknown PLY type '" +
-                    std::string(token.text) + "'");
+                    excerpt(token.text) + "'");
 }
 
 // Reads the body's values one at a time, whatever the encoding.
@@ -152,7 +153,7 @@ class PlyValueReader {
     } else if (format == "binary_little_endian" || format == "binary_big_endian") {
       big_endian_ = format == "binary_big_endian";
     } else {
-      throw FormatError("unknown PLY format '" + format + "'");
+      throw FormatError("unknown PLY format '" + excerpt(format) + "'");
     }
   }
 
@@ -195,14 +196,14 @@ class PlyValueReader {
   std::int64_t read_integer(PlyType type, const char* what) {
     const double value = read(type);
     if (!(std::abs(value) < 9e15) || value != std::floor(value)) {
-      throw FormatError("element '" + element_ + "': " + what + " is not an integer");
+      throw FormatError("element '" + excerpt(element_) + "': " + what + " is not an integer");
     }
     return static_cast<std::int64_t>(value);
   }
 
  private:
   FormatError end_of_data() const {
-    return FormatError("the data ends early, inside element '" + element_ + "'");
+    return FormatError("the data ends early, inside element '" + excerpt(element_) + "'");
   }
 
   std::string_view body_;
@@ -258,8 +259,8 @@ RawMesh parse_ply(std::string_view bytes) {
       }
       elements.back().properties.push_back(property);
     } else if (keyword != "ply" && keyword != "comment" && keyword != "obj_info") {
-      throw FormatError(where + "unexpected PLY header line starting with '" +
-                        std::string(keyword) + "'");
+      throw FormatError(where + "unexpected PLY header line starting with '" + excerpt(keyword) +
+                        "'");
     }
   }
 
@@ -302,7 +303,9 @@ RawMesh parse_ply(std::string_view bytes) {
         const std::int64_t n = reader.read_integer(property.count_type, "a list length");
         const bool is_indices =
             is_face && (property.name == "vertex_indices" || property.name == "vertex_index");
-        if (n < 0) throw FormatError("element '" + element.name + "': negative list length");
+        if (n < 0) {
+          throw FormatError("element '" + excerpt(element.name) + "': negative list length");
+        }
         polygon.clear();
         for (std::int64_t j = 0; j < n; ++j) {
           if (is_indices) {

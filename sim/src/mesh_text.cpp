@@ -8,13 +8,14 @@
 #include <string>
 
 #include "mesh_formats.h"
+#include "pg/core/error.h"
 
 namespace pg::mesh_formats {
 namespace {
 
 bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
 
-std::string quoted(const Token& token) { return "'" + std::string(token.text) + "'"; }
+std::string quoted(const Token& token) { return "'" + excerpt(token.text) + "'"; }
 
 }  // namespace
 
@@ -135,10 +136,10 @@ RawMesh parse_off(std::string_view text) {
   const std::string keyword(tokens[0].text);
   const std::string header_line = "line " + std::to_string(tokens[0].line) + ": ";
   if (keyword.size() < 3 || keyword.compare(keyword.size() - 3, 3, "OFF") != 0) {
-    throw FormatError(header_line + "expected an OFF header, found '" + keyword + "'");
+    throw FormatError(header_line + "expected an OFF header, found '" + excerpt(keyword) + "'");
   }
   if (keyword.find('4') != std::string::npos || keyword.find('n') != std::string::npos) {
-    throw FormatError("4D and n-dimensional OFF ('" + keyword + "') are not supported");
+    throw FormatError("4D and n-dimensional OFF ('" + excerpt(keyword) + "') are not supported");
   }
   tokens.erase(tokens.begin());
   if (!tokens.empty() && tokens[0].text == "BINARY") {

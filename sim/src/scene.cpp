@@ -21,25 +21,13 @@ std::string resolve(const std::string& base_dir, const std::string& p) {
 // {"position": [m], "rpy": [rad]} or {"position": [m], "quaternion": [x, y, z, w]}.
 SE3 read_pose(const nlohmann::json& j, const std::string& where) {
   JsonFields f(j, where);
-  const Eigen::Vector3d position = f.optional<Eigen::Vector3d>("position", Eigen::Vector3d::Zero());
+  const Eigen::Vector3d position = f.position("position", Eigen::Vector3d::Zero());
   SE3 pose = SE3::Translation(position);
   if (f.has("rpy") && f.has("quaternion")) {
     throw InputError(where + ": give either rpy or quaternion, not both");
   }
   if (f.has("rpy")) pose = pose_from_position_rpy(position, f.required<Eigen::Vector3d>("rpy"));
-  if (f.has("quaternion")) {
-    const auto& q = f.at("quaternion");
-    if (!q.is_array() || q.size() != 4 ||
-        !std::all_of(q.begin(), q.end(), [](const auto& v) { return v.is_number(); })) {
-      throw InputError(f.field("quaternion") + ": expected an array of 4 numbers [x, y, z, w]");
-    }
-    const Eigen::Quaterniond quat(q[3].get<double>(), q[0].get<double>(), q[1].get<double>(),
-                                  q[2].get<double>());
-    if (!quat.coeffs().allFinite() || quat.norm() < 1e-9) {
-      throw InputError(f.field("quaternion") + ": must be finite and non-zero");
-    }
-    pose = SE3(quat, position);
-  }
+  if (f.has("quaternion")) pose = SE3(f.required<Eigen::Quaterniond>("quaternion"), position);
   f.finish();
   return pose;
 }
@@ -77,7 +65,7 @@ Trajectory read_motion(JsonFields& f) {
     JsonFields w(arr[i], where);
     Waypoint wp;
     wp.frame = w.required<int>("frame");
-    wp.position_m = w.optional<Eigen::Vector3d>("position", Eigen::Vector3d::Zero());
+    wp.position_m = w.position("position", Eigen::Vector3d::Zero());
     wp.rpy_rad = w.optional<Eigen::Vector3d>("rpy", Eigen::Vector3d::Zero());
     w.finish();
     if (!waypoints.empty() && wp.frame <= waypoints.back().frame) {
@@ -91,11 +79,27 @@ Trajectory read_motion(JsonFields& f) {
   return Trajectory::from_waypoints(waypoints);
 }
 
+// A scene with several sensors writes each one's dataset to OUT/<sensor name>/, so the name must
+// be one plain folder name: no separator, not "." or "..", nothing that escapes OUT.
+void check_folder_name(const std::string& name, const std::string& where) {
+  const auto allowed = [](char c) {  // ASCII only, whatever the locale
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+           c == '-' || c == '.';
+  };
+  if (name.empty() || name == "." || name == ".." ||
+      !std::all_of(name.begin(), name.end(), allowed)) {
+    throw InputError(where + ": '" + excerpt(name) +
+                     "' is not a plain folder name (letters, digits, '_', '-', '.'; not '.' or "
+                     "'..'): it names the sensor's output folder");
+  }
+}
+
 SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
                         const std::string& base_dir, int index) {
   JsonFields f(j, where);
   SceneSensor s;
   s.name = f.optional<std::string>("name", "sensor" + std::to_string(index));
+  check_folder_name(s.name, f.field("name"));
   if (f.has("sensor") && f.has("sensor_file")) {
     throw InputError(where + ": give either sensor or sensor_file, not both");
   }
@@ -158,6 +162,15 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
       read_array(f, "sensors", [&](const nlohmann::json& s, const std::string& w, int i) {
         return read_sensor(s, w, base_dir, i);
       });
+  for (std::size_t i = 1; i < scene.sensors.size(); ++i) {
+    for (std::size_t k = 0; k < i; ++k) {
+      if (scene.sensors[i].name == scene.sensors[k].name) {
+        throw InputError(f.field("sensors") + "[" + std::to_string(i) + "].name: '" +
+                         scene.sensors[i].name + "' is also sensors[" + std::to_string(k) +
+                         "]'s name; each sensor writes to its own folder OUT/<name>/");
+      }
+    }
+  }
   scene.objects =
       read_array(f, "objects", [&](const nlohmann::json& o, const std::string& w, int i) {
         return read_object(o, w, base_dir, i);

@@ -8,6 +8,7 @@
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/json_fields.h"
 #include "pg/core/point_io.h"
 
 namespace pg {
@@ -166,6 +167,94 @@ TEST(Dataset, ReaderRejectsNanPosesAndBadRows) {
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "has 1 frames");
 }
 
+// The rows of a dataset's poses.csv, header first, without line ends.
+std::vector<std::string> csv_lines(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+void write_lines(const std::string& path, const std::vector<std::string>& lines,
+                 const std::string& end = "\n") {
+  std::ofstream out(path, std::ios::binary);
+  for (const auto& line : lines) out << line << end;
+}
+
+TEST(Dataset, ReaderRejectsHugeQuaternionsAndPositions) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 2);
+  const std::string csv = tmp.str("d/poses.csv");
+  const std::vector<std::string> lines = csv_lines(csv);
+  ASSERT_EQ(lines.size(), 3u);
+  const auto with_cells = [&](std::vector<std::pair<int, std::string>> edits) {
+    std::vector<std::string> cells = testing_support::split_csv_line(lines[2]);
+    for (const auto& [column, text] : edits) cells[column] = text;
+    std::string row;
+    for (const auto& c : cells) row += (row.empty() ? "" : ",") + c;
+    if (lines[2].back() == ',') row += ",";  // an empty contact cell
+    write_lines(csv, {lines[0], lines[1], row});
+  };
+  // Squared, 1e200 overflows to an infinite norm; the message gives the norm itself.
+  with_cells({{5, "1e200"}, {6, "0"}, {7, "0"}, {8, "0"}});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 3: obj quaternion is not unit length (norm 1e+200)");
+  with_cells({{12, "0"}, {13, "1e-200"}, {14, "0"}, {15, "0"}});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 3: sensor quaternion is not unit");
+  // Finite but absurd positions made the tracker's output inf/NaN.
+  with_cells({{2, "1e300"}});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 3: obj_x = 1e+300 is out of range: positions must be within +-1000 m");
+  with_cells({{11, "-1.7e308"}});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 3: sensor_z = -1.7e+308");
+  with_cells({{3, "inf"}});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 3: non-finite value in column 4 (obj_y)");
+  with_cells({{3, std::string(100000, '9') + "x"}});
+  try {
+    Dataset::open(tmp.str("d"));
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_LT(std::string(e.what()).size(), csv.size() + 200) << "the cell is quoted whole";
+  }
+  with_cells({{2, "999.5"}, {11, "-1000"}});
+  EXPECT_DOUBLE_EQ(Dataset::open(tmp.str("d")).poses()[1].T_world_object.translation().x(), 999.5);
+}
+
+TEST(Dataset, ReaderAcceptsCrlfLineEndsAndNamesADirectory) {
+  TempDir tmp;
+  const auto poses = write_small(tmp.str("d"), 3);
+  const std::string csv = tmp.str("d/poses.csv");
+  write_lines(csv, csv_lines(csv), "\r\n");
+  const Dataset d = Dataset::open(tmp.str("d"));
+  ASSERT_EQ(d.poses().size(), 3u);
+  EXPECT_NEAR(ominus(d.poses()[2].T_world_object, poses[2].T_world_object).norm(), 0, 1e-12);
+  EXPECT_EQ(d.poses()[1].contact, poses[1].contact);
+
+  fs::remove(csv);
+  fs::create_directory(csv);
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "poses.csv: is a directory");
+  fs::remove(csv);
+  std::ofstream(csv) << "frame;time\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "found 'frame;time'");
+}
+
+// "frames": 0 used to open as an empty dataset, whose tracking "succeeded" with a final error of
+// 0.000 mm and passed any accuracy gate.
+TEST(Dataset, ReaderRejectsZeroFrames) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 1);
+  const std::string info = tmp.str("d/dataset.json");
+  nlohmann::json j = parse_json_file(info);
+  j["frames"] = 0;
+  std::ofstream(info) << j.dump(2);
+  write_lines(tmp.str("d/poses.csv"), {csv_lines(tmp.str("d/poses.csv"))[0]});
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "dataset.json: frames: must be >= 1");
+  fs::remove(info);
+  fs::create_directory(info);
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "dataset.json: is a directory");
+}
+
 TEST(Dataset, ARecordingMayLeaveTheObjectPoseAndTheContactUnknown) {
   TempDir tmp;
   write_small(tmp.str("d"), 3);
@@ -217,6 +306,11 @@ TEST(Dataset, ReaderRejectsBadInfo) {
   write_small(tmp.str("d"), 1);
   std::ofstream(tmp.str("d/dataset.json")) << "{\"format\": \"patchgraph-dataset\", ";
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "dataset.json:1:");
+  // A number beyond a double is no syntax error to nlohmann, which then named no file.
+  std::ofstream(tmp.str("d/dataset.json"))
+      << "{\"format\": \"patchgraph-dataset\", \"fps\": 1e400}";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "dataset.json: malformed JSON: number overflow parsing '1e400'");
 }
 
 TEST(Dataset, ContactPointsRoundTripAsPly) {
@@ -302,6 +396,7 @@ TEST(Image, ErrorsNameThePath) {
   std::ofstream(tmp.str("junk.png")) << "not a png";
   expect_input_error([&] { read_image_u8(tmp.str("junk.png")); }, "junk.png");
   expect_input_error([&] { write_image(tmp.str("x.unknownext"), ImageU8(2, 2, 1)); }, "x.unknownext");
+  expect_input_error([&] { read_image_u8(tmp.str()); }, "is a directory, not an image file");
 }
 
 TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {

@@ -112,6 +112,17 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   expect_input_error(parse(R"({"gel": {"elastic": {"bend_radius_m": 2}}})"),
                      {"gel.elastic.bend_radius_m"});
   expect_input_error(parse(R"([1, 2])"), {"cfg.json", "an object"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0, 1e300, 0]}]})"),
+                     {"lights[0].position_m", "out of range", "1000 m"});
+}
+
+TEST(SensorConfig, WrongTypedPresetNamesTheFieldOnce) {
+  try {
+    sensor_from_json(nlohmann::json::parse(R"({"preset": 5})"), "cfg.json");
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), "cfg.json: preset: expected a string, got a number");
+  }
 }
 
 TEST(JsonFile, MalformedJsonReportsLineAndColumn) {
@@ -119,6 +130,18 @@ TEST(JsonFile, MalformedJsonReportsLineAndColumn) {
                      {"x.json:3:", "malformed JSON"});
   expect_input_error([] { parse_json_file("/nonexistent/dir/s.json"); },
                      {"/nonexistent/dir/s.json", "cannot read"});
+}
+
+TEST(JsonFile, NumberOverflowAndDirectoriesNameTheFile) {
+  expect_input_error([] { parse_json_text("{\"a\": [1, -2e308, 3]}", "x.json"); },
+                     {"x.json: malformed JSON: number overflow parsing '-2e308'"});
+  try {
+    parse_json_text("{\"a\": 1e" + std::string(5000, '9') + "}", "x.json");
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_LT(std::string(e.what()).size(), 200u) << "the number is quoted whole";
+  }
+  expect_input_error([] { parse_json_file("/"); }, {"/: is a directory, not a JSON file"});
 }
 
 }  // namespace

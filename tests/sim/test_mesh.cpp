@@ -314,6 +314,19 @@ TEST_F(MeshIoTest, GltfAppliesNodeTransformsDownTheDefaultScene) {
   EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(3, 4, 5));
 }
 
+// A node rotation of any finite scale is a rotation; squared, 1e200 overflowed the norm and
+// normalised the quaternion to zero.
+TEST_F(MeshIoTest, GltfNodeRotationOfAnyScaleIsNormalised) {
+  const std::string scenes = R"("scenes": [{"nodes": [0]}])";
+  const TriangleMesh mesh = load_mesh(
+      write("huge.gltf",
+            gltf_json(0, 1, 2, R"([{"rotation": [0, 0, 1e200, 1e200], "mesh": 0}])", scenes)));
+  expect_vertex(mesh, 1, {0, 1, 0});  // (1, 0, 0) turned 90 deg about z
+  const std::string message = load_error(
+      write("zero.gltf", gltf_json(0, 1, 2, R"([{"rotation": [0, 0, 0, 0], "mesh": 0}])", scenes)));
+  EXPECT_TRUE(Contains(message, "node 0: rotation must be a finite, non-zero quaternion"));
+}
+
 TEST_F(MeshIoTest, GltfMirroringTransformKeepsTrianglesCounterClockwise) {
   const std::string path = write("mirror.gltf", gltf_json(0, 1, 2, R"([{"scale": [-1, 1, 1],
     "mesh": 0}])",
@@ -419,6 +432,22 @@ TEST_F(MeshIoTest, ParseErrorsNameTheFileAndLine) {
                        "ends early"));
   EXPECT_TRUE(Contains(load_error(write("junk.stl", std::string(100, 'x'))), "neither binary STL"));
   EXPECT_TRUE(Contains(load_error(write("junk.glb", "not a glb at all")), "glTF"));
+}
+
+// A garbage file's "word" is quoted back in the message: cut short and made printable, not echoed
+// whole (a 2 MB first line used to give a 2 MB message, raw bytes and all).
+TEST_F(MeshIoTest, GarbageIsQuotedShortAndPrintable) {
+  const std::string path = write("long.off", std::string(2'000'000, 'X') + "\n");
+  std::string message = load_error(path);
+  EXPECT_TRUE(Contains(message, path));
+  EXPECT_TRUE(Contains(message, "expected an OFF header, found 'XXXX"));
+  EXPECT_TRUE(Contains(message, "X...'"));
+  EXPECT_LT(message.size(), path.size() + 200) << message.size() << " characters";
+  message = load_error(write("binary.off", std::string("\x88\xe8\xc5Jrf\x01", 7) + "\n3 1 0\n"));
+  EXPECT_TRUE(Contains(message, "found '\\x88\\xe8\\xc5Jrf\\x01'"));
+  message = load_error(write("long.obj", "v 0 0 " + std::string(100'000, 'z') + "\n"));
+  EXPECT_TRUE(Contains(message, "line 1: expected a number for vertex z, found 'zzzz"));
+  EXPECT_LT(message.size(), 300u) << message.size() << " characters";
 }
 
 TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {

@@ -254,6 +254,23 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
        {": tracked_object", "'ghost'"}},
       {"unknown sensor preset", [](json& j) { j["sensors"][0]["sensor"] = "digit9"; },
        {"sensors[0].sensor", "unknown sensor preset 'digit9'"}},
+      {"zero quaternion",
+       [](json& j) { j["objects"][0]["pose"] = {{"quaternion", {0, 0, 0, 0}}}; },
+       {"objects[0].pose.quaternion", "finite and non-zero"}},
+      {"position beyond a kilometre",
+       [](json& j) { j["objects"][0]["pose"] = {{"position", {0, 1.7e308, 0}}}; },
+       {"objects[0].pose.position", "out of range", "1000 m"}},
+      {"waypoint position beyond a kilometre",
+       [](json& j) {
+         j["sensors"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0}, {0, 0, 0}),
+                                                       waypoint(4, {-1e300, 0, 0}, {0, 0, 0})};
+       },
+       {"sensors[0].trajectory.waypoints[1].position", "out of range"}},
+      {"light position beyond a kilometre",
+       [](json& j) {
+         j["sensors"][0]["sensor"] = {{"lights", {{{"position_m", {0, 0, 2e3}}}}}};
+       },
+       {"sensors[0].sensor.lights[0].position_m", "out of range"}},
   };
   for (std::size_t i = 0; i < cases.size(); ++i) {
     SCOPED_TRACE(cases[i].name);
@@ -266,6 +283,73 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
       EXPECT_NE(message.find(part), std::string::npos) << "'" << part << "' not in: " << message;
     }
   }
+}
+
+// Each sensor of a multi-sensor scene writes its dataset to OUT/<name>/: a name that is not one
+// plain folder name would write outside OUT, and two equal names into the same folder.
+TEST_F(SceneFileTest, SensorNamesArePlainUniqueFolderNames) {
+  for (const std::string bad : {"/tmp/x", "../..", "..", ".", "", "a/b", "a\\b", "two words"}) {
+    SCOPED_TRACE("name '" + bad + "'");
+    json j = minimal_scene();
+    j["sensors"] = {{{"name", "ok"}}, {{"name", bad}}};
+    const std::string path = write("bad_name.json", j);
+    const std::string message = load_error(path);
+    EXPECT_EQ(message.rfind(path + ": sensors[1].name: ", 0), 0u) << message;
+    EXPECT_NE(message.find("not a plain folder name"), std::string::npos) << message;
+  }
+  json j = minimal_scene();
+  j["sensors"] = {{{"name", "left"}}, {{"name", "right"}}, {{"name", "left"}}};
+  std::string path = write("duplicate.json", j);
+  std::string message = load_error(path);
+  EXPECT_EQ(message.rfind(path + ": sensors[2].name: 'left' is also sensors[0]'s name", 0), 0u)
+      << message;
+  // A default name ("sensor<i>") clashes like any other.
+  j["sensors"] = {json::object(), {{"name", "sensor0"}}};
+  message = load_error(write("default_clash.json", j));
+  EXPECT_NE(message.find("sensors[1].name: 'sensor0' is also sensors[0]'s name"), std::string::npos)
+      << message;
+
+  j["sensors"] = {{{"name", "digit_top"}}, {{"name", "GelSight-Mini.2"}}, json::object()};
+  const Scene s = load_scene(write("good.json", j));
+  EXPECT_EQ(s.sensors[1].name, "GelSight-Mini.2");
+  EXPECT_EQ(s.sensors[2].name, "sensor2");
+}
+
+// The norm of [1e200, 0, 0, 0] squared overflows; such a quaternion is still a rotation (half a
+// turn about x) and must not be normalised to [0, 0, 0, 0].
+TEST_F(SceneFileTest, QuaternionsOfAnyFiniteScaleAreNormalised) {
+  json j = minimal_scene();
+  j["objects"][0]["pose"] = {{"position", {0, 0, 0.01}}, {"quaternion", {1e200, 0, 0, 0}}};
+  j["sensors"][0]["pose"] = {{"quaternion", {1e308, 0, 0, 1e308}}};
+  j["objects"].push_back({{"mesh", "m.glb"}, {"pose", {{"quaternion", {0, 0, 3e-300, 0}}}}});
+  const Scene s = load_scene(write("scene.json", j));
+  expect_near(s.objects[0].T_world_object.at(0), {0, 0, 0.01},
+              Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vector3d::UnitX())));
+  expect_near(s.sensors[0].T_world_sensor.at(0), Vector3d::Zero(),
+              Eigen::Quaterniond(Eigen::AngleAxisd(kPi / 2, Vector3d::UnitX())));
+  expect_near(s.objects[1].T_world_object.at(0), Vector3d::Zero(),
+              Eigen::Quaterniond(Eigen::AngleAxisd(kPi, Vector3d::UnitZ())));
+  EXPECT_DOUBLE_EQ(s.objects[0].T_world_object.at(0).rotation().norm(), 1.0);
+}
+
+TEST_F(SceneFileTest, NumbersBeyondADoubleAndWrongTypedPresetsNameTheFileOnce) {
+  std::string path = write("overflow.json", std::string(R"({"frames": 3, "fps": 1e400})"));
+  std::string message = load_error(path);
+  EXPECT_EQ(message.rfind(path + ": ", 0), 0u) << message;
+  EXPECT_NE(message.find("number overflow parsing '1e400'"), std::string::npos) << message;
+  EXPECT_EQ(message.find("[json.exception"), std::string::npos) << message;
+
+  const std::string sensor = write("sensor.json", std::string(R"({"noise": {"sigma": 1e999}})"));
+  json j = minimal_scene();
+  j["sensors"][0] = {{"sensor_file", "sensor.json"}};
+  message = load_error(write("uses_sensor.json", j));
+  EXPECT_EQ(message.rfind(sensor + ": ", 0), 0u) << message;
+  EXPECT_NE(message.find("number overflow"), std::string::npos) << message;
+
+  j["sensors"][0] = {{"sensor", {{"preset", 5}}}};
+  path = write("preset.json", j);
+  message = load_error(path);
+  EXPECT_EQ(message, path + ": sensors[0].sensor.preset: expected a string, got a number");
 }
 
 // --------------------------------------------------------------------------- trajectories

@@ -6,9 +6,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
+#include "pg/core/image.h"
 
 namespace pg {
 namespace {
@@ -104,6 +107,42 @@ TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   EXPECT_EQ(r.out.find(warning, first + 1), std::string::npos) << "said more than once";
   const Dataset d = Dataset::open(tmp.str("d"));
   for (const auto& p : d.poses()) EXPECT_FALSE(p.contact);
+}
+
+// Scenes whose sensors differ in image size share one sheet: every cell is as large as the
+// largest image (the sheet was sized from the first scene and a larger image overran it).
+TEST(TacsimCli, SheetOfScenesWithDifferentImageSizes) {
+  TempDir tmp;
+  std::ifstream in(kScenes + "examples/sphere_press.json");
+  std::string scene((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string digit = "\"sensor\": \"digit\"";
+  ASSERT_NE(scene.find(digit), std::string::npos);
+  scene.replace(scene.find(digit), digit.size(), "\"sensor\": \"gelsight_mini\"");
+  const std::string mesh = "../../meshes/";
+  scene.replace(scene.find(mesh), mesh.size(), std::string(PG_SOURCE_DIR) + "/meshes/");
+  std::ofstream(tmp.str("mini.json")) << scene;
+
+  const CliRun r =
+      tacsim("sheet " + kScenes + "examples/sphere_press.json " + tmp.str("mini.json") + " " +
+             kScenes + "examples/sphere_press.json --out " + tmp.str("s.png"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const ImageU8 sheet = read_image_u8(tmp.str("s.png"));
+  const int gap = 4;  // cells of 240x320 (gelsight_mini), three columns, three rows
+  ASSERT_EQ(sheet.width, 3 * 240 + 2 * gap);
+  ASSERT_EQ(sheet.height, 3 * 320 + 2 * gap);
+  // The 120x160 DIGIT image sits centred in its cell: white around it, the image inside.
+  EXPECT_EQ(sheet.at(10, 10, 0), 255);
+  EXPECT_EQ(sheet.at(10, 10, 1), 255);
+  const std::uint8_t* centre = &sheet.at(120, 160, 0);
+  EXPECT_FALSE(centre[0] == 255 && centre[1] == 255 && centre[2] == 255);
+}
+
+TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {
+  TempDir tmp;
+  const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --background " +
+                          tmp.str() + " --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("is a directory, not an image file"), std::string::npos) << r.out;
 }
 
 }  // namespace

@@ -13,7 +13,8 @@ struct SheetArgs {
 };
 
 // Renders one frame of each scene and tiles them: a column per scene, rows colour, normals
-// (encoded (n + 1) / 2) and indentation (white = deepest in that frame).
+// (encoded (n + 1) / 2) and indentation (white = deepest in that frame). Cells take the largest
+// image size; a smaller image is centred in its cell.
 int run_sheet(const SheetArgs& args);
 
 }  // namespace pg

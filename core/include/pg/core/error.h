@@ -1,8 +1,10 @@
 #pragma once
 // Error policy at the file/API boundary: an InputError names the file (and field) and what was
 // expected. Tools catch it, print its message to stderr and exit 1.
+#include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace pg {
 
@@ -10,5 +12,24 @@ class InputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+// `text` as it may be quoted in a message: bytes outside printable ASCII as \xNN, and cut after
+// `max_chars` characters with "...", so that a garbage file (a 2 MB binary "line") gives a short,
+// printable message.
+inline std::string excerpt(std::string_view text, std::size_t max_chars = 60) {
+  std::string out;
+  for (const char ch : text) {
+    if (out.size() >= max_chars) return out + "...";
+    const auto byte = static_cast<unsigned char>(ch);
+    if (byte >= 0x20 && byte < 0x7f) {
+      out += ch;
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof(hex), "\\x%02x", byte);
+      out += hex;
+    }
+  }
+  return out;
+}
 
 }  // namespace pg

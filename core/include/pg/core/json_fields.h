@@ -10,13 +10,20 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include "pg/core/error.h"
 
 namespace pg {
 
-// Parses a JSON file. Throws InputError "PATH:LINE:COLUMN: message" on malformed JSON and
-// "PATH: cannot read" for a missing file.
+// Bound on every position coordinate read from a file (scenes, sensor configs, poses.csv) [m].
+// A tactile scene spans centimetres and a robot's world a few metres; a kilometre leaves room for
+// any real setup while keeping the arithmetic on positions (differences, squares, interpolation)
+// far from overflow, so a typo like 1e300 is refused up front instead of ending as inf/NaN poses.
+constexpr double kMaxPositionM = 1e3;
+
+// Parses a JSON file. Throws InputError "PATH:LINE:COLUMN: message" on malformed JSON,
+// "PATH: message" on a number too large for a double and "PATH: cannot read" for a missing file.
 nlohmann::json parse_json_file(const std::string& path);
 // Same for text already in memory; `name` stands for the file in messages.
 nlohmann::json parse_json_text(const std::string& text, const std::string& name);
@@ -45,6 +52,9 @@ class JsonFields {
   // A number in [lo, hi]; the error names the key and the range.
   double number_in(const std::string& key, double lo, double hi, double fallback);
   double required_number_in(const std::string& key, double lo, double hi);
+  // A position [m]: 3 finite numbers, each within +-kMaxPositionM; the error names the key.
+  Eigen::Vector3d position(const std::string& key, const Eigen::Vector3d& fallback);
+  Eigen::Vector3d required_position(const std::string& key);
 
   // Throws InputError naming the first key that was never read.
   void finish() const;
@@ -75,6 +85,10 @@ Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
 template <>
 std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
     const nlohmann::json& v, const std::string& key) const;
+// [x, y, z, w], any finite non-zero scale; returned normalised.
+template <>
+Eigen::Quaterniond JsonFields::convert<Eigen::Quaterniond>(const nlohmann::json& v,
+                                                           const std::string& key) const;
 template <>
 std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
                                                  const std::string& key) const;

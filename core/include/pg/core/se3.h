@@ -192,6 +192,12 @@ inline double translation_distance(const SE3& A, const SE3& B) {
   return (A.translation() - B.translation()).norm();
 }
 
+// The unit quaternion of `xyzw` = (x, y, z, w) at any finite non-zero scale, or false when it has
+// none (a non-finite or zero component vector). Scales by the largest component before
+// normalising: the plain norm squares the components, so [1e200, 0, 0, 0] would overflow to an
+// infinite norm and normalise to zero.
+bool unit_quaternion(const Eigen::Vector4d& xyzw, Eigen::Quaterniond& q);
+
 // Roll-pitch-yaw [rad] as R = Rz(yaw) Ry(pitch) Rx(roll) (rotations about the fixed x, y, z axes).
 Eigen::Quaterniond quaternion_from_rpy(const Eigen::Vector3d& rpy);
 Eigen::Vector3d rpy_from_quaternion(const Eigen::Quaterniond& q);
