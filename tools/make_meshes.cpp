@@ -5,6 +5,7 @@
 //
 // Every part is a closed, outward-oriented (counter-clockwise seen from outside) triangle mesh;
 // composite objects are unions of such parts, which may overlap (fine for ray casting).
+#include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
@@ -16,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "common/cli_main.h"
 #include "pg/core/error.h"
 #include "pg/sim/mesh.h"
 
@@ -330,14 +332,7 @@ pg::TriangleMesh centred(const Part& part) {
   return mesh;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s OUT_DIR\n", argv[0]);
-    return 2;
-  }
-  const std::filesystem::path out_dir = argv[1];
+int write_meshes(const std::filesystem::path& out_dir) {
   const int sphere_levels = 5;  // 20480 triangles; r = 8 mm: 0.33 mm edges, facets within 2.3 um
   const std::vector<std::pair<std::string, std::function<Part()>>> objects = {
       {"sphere_r4mm.glb", [&] { return icosphere(4.0 * kMm, sphere_levels); }},
@@ -360,20 +355,25 @@ int main(int argc, char** argv) {
       {"rounded_plate.glb",
        [] { return rounded_box(Vector3d(7.0, 5.0, 2.0) * kMm, 0.3 * kMm, 4, 0.5 * kMm); }},
   };
-  try {
-    std::filesystem::create_directories(out_dir);
-    for (const auto& [name, make] : objects) {
-      const pg::TriangleMesh mesh = centred(make());
-      const std::string path = (out_dir / name).string();
-      pg::save_glb(path, mesh);
-      const pg::Bounds3 b = pg::mesh_bounds(mesh);
-      const Eigen::Vector3f size = (b.max - b.min) / kMm;
-      std::printf("%-24s %6zu vertices %6zu triangles  size %.3f x %.3f x %.3f mm\n", name.c_str(),
-                  mesh.vertices.size(), mesh.triangles.size(), size.x(), size.y(), size.z());
-    }
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+  std::filesystem::create_directories(out_dir);
+  for (const auto& [name, make] : objects) {
+    const pg::TriangleMesh mesh = centred(make());
+    const std::string path = (out_dir / name).string();
+    pg::save_glb(path, mesh);
+    const pg::Bounds3 b = pg::mesh_bounds(mesh);
+    const Eigen::Vector3f size = (b.max - b.min) / kMm;
+    std::printf("%-24s %6zu vertices %6zu triangles  size %.3f x %.3f x %.3f mm\n", name.c_str(),
+                mesh.vertices.size(), mesh.triangles.size(), size.x(), size.y(), size.z());
   }
-  return 0;
+  return pg::kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app("Writes the repository's object meshes (meshes/*.glb) into OUT_DIR, byte for byte",
+               "make_meshes");
+  std::string out_arg;
+  app.add_option("out_dir", out_arg, "Output folder (the repository's meshes/)")->required();
+  return pg::run_cli(app, argc, argv, [&] { return write_meshes(out_arg); });
 }

@@ -6,6 +6,7 @@
 //
 // The world is the (static) sensor frame S: +z points out of the gel toward the object, so an
 // object presses into the gel from +z and penetrates where its surface lies below surface_z(x, y).
+#include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -21,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "common/cli_main.h"
 #include "pg/core/error.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/sensor.h"
@@ -692,12 +694,14 @@ std::vector<Output> make_all(const fs::path& root) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s REPO_ROOT\n", argv[0]);
-    return 2;
-  }
-  const fs::path root = argv[1];
-  try {
+  CLI::App app(
+      "Writes the repository's generated scenes (scenes/default.json, examples/, benchmark/, "
+      "normals/) under REPO_ROOT/scenes, byte for byte; reads REPO_ROOT/meshes",
+      "make_scenes");
+  std::string root_arg;
+  app.add_option("repo_root", root_arg, "The repository's root folder")->required();
+  return pg::run_cli(app, argc, argv, [&] {
+    const fs::path root = root_arg;
     // Everything is generated and checked before the first file is written.
     for (const Output& o : make_all(root)) {
       const fs::path path = root / o.file;
@@ -706,9 +710,6 @@ int main(int argc, char** argv) {
       out << o.text;
       if (!out) throw std::runtime_error(path.string() + ": cannot write");
     }
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "make_scenes: error: %s\n", e.what());
-    return 1;
-  }
-  return 0;
+    return pg::kExitOk;
+  });
 }
