@@ -250,6 +250,8 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
        {"objects[0].pose", "either pose or trajectory"}},
       {"unknown output", [](json& j) { j["render"] = {{"outputs", {"color", "rgb"}}}; },
        {"render.outputs", "unknown output 'rgb'"}},
+      {"no output", [](json& j) { j["render"] = {{"outputs", json::array()}}; },
+       {"render.outputs", "empty; name at least one"}},
       {"unknown tracked object", [](json& j) { j["tracked_object"] = "ghost"; },
        {": tracked_object", "'ghost'"}},
       {"unknown sensor preset", [](json& j) { j["sensors"][0]["sensor"] = "digit9"; },
