@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "networks.h"
@@ -219,8 +220,11 @@ NormalMetrics MetricSums::metrics(int frames) const {
   NormalMetrics m;
   m.frames = frames;
   const double c = std::max(contact_px, 1.0), i = std::max(image_px, 1.0);
-  m.mse_contact = se_contact / c;
-  m.angle_contact_deg = angle_contact / c;
+  // No contact pixel: no contact error to report (0 would read as a perfect model).
+  const double no_contact = std::numeric_limits<double>::quiet_NaN();
+  m.contact_pixels = long(contact_px);
+  m.mse_contact = contact_px > 0 ? se_contact / c : no_contact;
+  m.angle_contact_deg = contact_px > 0 ? angle_contact / c : no_contact;
   m.mse_image = se_image / i;
   m.angle_image_deg = angle_image / i;
   return m;

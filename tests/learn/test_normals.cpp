@@ -380,6 +380,9 @@ class DefaultNormalsModel : public ::testing::Test {
     const SceneRenderer renderer(load_scene(kSource + "/scenes/examples/sphere_press.json"),
                                  overrides);
     render_scene_to_dataset(renderer, press());
+    const SceneRenderer untouched(load_scene(kSource + "/scenes/examples/no_contact.json"),
+                                  overrides);
+    render_scene_to_dataset(untouched, tmp_->str("no_contact"));
   }
   static void TearDownTestSuite() { delete tmp_; }
   static std::string press() { return tmp_->str("press"); }
@@ -396,6 +399,20 @@ TEST_F(DefaultNormalsModel, RecoversASpherePress) {
   EXPECT_EQ(m.frames, 10);
   EXPECT_LT(m.angle_contact_deg, kDefaultModelMaxAngleDeg);
   EXPECT_LT(m.mse_contact, kDefaultModelMaxMse);
+}
+
+// Frames without contact have no contact error: NaN (null in JSON, "n/a" printed), not a
+// perfect 0.
+TEST_F(DefaultNormalsModel, NoContactMeansNoContactMetrics) {
+  const NormalEstimator model = NormalEstimator::load(model_path());
+  const NormalMetrics none = evaluate_normals(model, {tmp_->str("no_contact")});
+  EXPECT_EQ(none.frames, 5);
+  EXPECT_EQ(none.contact_pixels, 0);
+  EXPECT_TRUE(std::isnan(none.mse_contact));
+  EXPECT_TRUE(std::isnan(none.angle_contact_deg));
+  EXPECT_TRUE(std::isfinite(none.mse_image) && none.mse_image > 0.0);
+  const NormalMetrics pressed = evaluate_normals(model, {press()});
+  EXPECT_GT(pressed.contact_pixels, 100);
 }
 
 // Phase averaging (the network on the frame shifted by a pixel, averaged) on the same press:

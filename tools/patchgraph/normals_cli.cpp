@@ -1,15 +1,28 @@
 #include "normals_cli.h"
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
 #include "pg/core/error.h"
 
 namespace pg {
+namespace {
+
+// A metric as printf's `format` gives it, or "n/a" when it is NaN (no contact pixel to measure).
+std::string metric(double value, const char* format) {
+  if (std::isnan(value)) return "n/a";
+  char text[32];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
+}  // namespace
 
 CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
   TrainOptions& o = a.options;
@@ -99,11 +112,15 @@ int run_train_normals(const TrainNormalsArgs& a) {
       [&](const EpochReport& r) {
         progress.reset();
         epoch = r.epoch;
-        std::printf(
-            "epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  val MSE contact "
-            "%.2e image %.2e  angle contact %.2f deg\n",
-            r.epoch, r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d,
-            r.val.mse_contact, r.val.mse_image, r.val.angle_contact_deg);
+        std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
+                    r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
+        if (r.val.frames == 0) {
+          std::printf("no validation frames\n");
+        } else {
+          std::printf("val MSE contact %s image %.2e  angle contact %s deg\n",
+                      metric(r.val.mse_contact, "%.2e").c_str(), r.val.mse_image,
+                      metric(r.val.angle_contact_deg, "%.2f").c_str());
+        }
         std::fflush(stdout);
       },
       [&](int done, int total) {
@@ -130,10 +147,16 @@ int run_eval_normals(const EvalNormalsArgs& a) {
       if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
       progress->update(done);
     });
-    std::printf("%-40s %7d %12.3e %12.3e %10.2f deg %8.2f deg %9.2f\n", dir.c_str(), m.frames,
-                m.mse_contact, m.mse_image, m.angle_contact_deg, m.angle_image_deg, m.ms_per_frame);
+    std::printf("%-40s %7d %12s %12.3e %10s deg %8.2f deg %9.2f\n", dir.c_str(), m.frames,
+                metric(m.mse_contact, "%.3e").c_str(), m.mse_image,
+                metric(m.angle_contact_deg, "%.2f").c_str(), m.angle_image_deg, m.ms_per_frame);
+    if (m.contact_pixels == 0) {
+      std::fprintf(stderr, "warning: %s: no contact pixel in its masks; no contact metrics\n",
+                   dir.c_str());
+    }
     results.push_back({{"dataset", dir},
                        {"frames", m.frames},
+                       {"contact_pixels", m.contact_pixels},
                        {"mse_contact", m.mse_contact},
                        {"mse_image", m.mse_image},
                        {"angle_contact_deg", m.angle_contact_deg},

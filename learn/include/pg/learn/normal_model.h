@@ -81,6 +81,7 @@ class NormalEstimator {
 // angle between predicted and true normals [deg].
 struct NormalMetrics {
   int frames = 0;
+  long contact_pixels = 0;  // the contact metrics are NaN when there is none
   double mse_contact = 0, mse_image = 0;
   double angle_contact_deg = 0, angle_image_deg = 0;
   double ms_per_frame = 0;  // median inference time
