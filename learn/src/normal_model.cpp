@@ -341,7 +341,8 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
   torch::NoGradGuard no_grad;
   const torch::Tensor n = impl_->generator->forward(x).contiguous();
   // The phases' mean, of unit length, facing the camera's side of the gel (z > 0) where the
-  // network is unsure.
+  // network is unsure. (A shifted frame's last column or row, beyond the padding, is its
+  // neighbour's.)
   ImageF normals(w, h, 3);
   const float* out = n.data_ptr<float>();
   for (int y = 0; y < h; ++y) {

@@ -170,7 +170,8 @@ int run_eval(const EvalArgs& args) {
   for (std::size_t k = 0; k < opened.size(); ++k) {
     const Dataset& dataset = opened[k];
     const std::string& dir = dataset.dir();
-    const std::uint64_t seed = sequence_seed(args.track.seed, fs::path(dir).filename().string());
+    // The run's name: the dataset's folder name unless two datasets share it.
+    const std::uint64_t seed = sequence_seed(args.track.seed, names[k]);
     for (const auto& m : methods) {
       TrackArgs a = args.track;
       a.method = m;

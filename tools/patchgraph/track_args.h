@@ -42,9 +42,10 @@ bool within_accuracy_gate(const TrackArgs& args, const std::string& what, double
                           double rotation_rad);
 
 // The noise seed of one sequence of a batch (`eval`, `bench`): the base seed mixed with the
-// sequence's name (its dataset folder, or its scene file's stem), so each sequence draws its own
-// sensor-pose and vision-prior noise, whatever else runs with it, and one run is reproduced alone
-// by `patchgraph track DIR --seed S` with S from results.csv or summary.json.
+// sequence's name (its dataset folder, with its parent's where two share a name, or its scene
+// file's stem), so each sequence draws its own sensor-pose and vision-prior noise, whatever else
+// runs with it, and one run is reproduced alone by `patchgraph track DIR --seed S` with S from
+// results.csv or summary.json.
 std::uint64_t sequence_seed(std::uint64_t base, const std::string& name);
 
 }  // namespace pg
