@@ -648,6 +648,16 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_EQ(over.code, 1) << over.out;
   EXPECT_NE(over.out.find("would be overwritten"), std::string::npos) << over.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
+  // A frame that cannot be read half-way through: the error names it and no half-written
+  // dataset is left behind.
+  std::ofstream(frames / "capture_1030.png") << "not a png";
+  fs::remove_all(out("rec_half"));
+  const CliRun half = patchgraph("recording --images " + frames.string() + " --background " +
+                                 (dir_ / "rec_background.png").string() +
+                                 " --static-sensor -q --out " + out("rec_half"));
+  EXPECT_EQ(half.code, 1) << half.out;
+  EXPECT_NE(half.out.find("capture_1030.png"), std::string::npos) << half.out;
+  EXPECT_FALSE(fs::exists(out("rec_half")));
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -144,15 +144,24 @@ int run_recording(const RecordingArgs& a) {
   info.fps = a.fps;
   info.outputs = {"color"};
   info.object_name = a.object;
-  DatasetWriter writer(a.out, info);
-  writer.write_background(background);
-  Progress progress("importing", frames, !a.quiet);
-  for (int i = 0; i < frames; ++i) {
-    if (i > 0) images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
-    writer.write_frame(poses[i], images);
-    progress.update(i + 1);
+  // A frame that turns out unreadable half-way leaves no half-written dataset behind (unless the
+  // folder was there before: then it is not ours to delete).
+  const bool out_existed = fs::exists(a.out);
+  try {
+    DatasetWriter writer(a.out, info);
+    writer.write_background(background);
+    Progress progress("importing", frames, !a.quiet);
+    for (int i = 0; i < frames; ++i) {
+      if (i > 0) images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
+      writer.write_frame(poses[i], images);
+      progress.update(i + 1);
+    }
+    writer.finish();
+  } catch (...) {
+    std::error_code ignored;
+    if (!out_existed) fs::remove_all(a.out, ignored);
+    throw;
   }
-  writer.finish();
   int object_poses = 0;
   for (const auto& p : poses) object_poses += p.object_known;
   std::printf("%d frames of %s (%dx%d px) -> %s; the object's pose is given in %d of them\n",
