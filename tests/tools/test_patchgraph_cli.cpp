@@ -631,6 +631,14 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                        (dir_ / "rec_background.png").string() + " --poses " +
                                        data() + "/poses.csv -q --out " + out("rec_bad"));
   EXPECT_EQ(with_poses.code, 0) << with_poses.out;  // 60 rows for 60 frames
+  // The frame rate is the time column's (the default scene's 60); an --fps that contradicts it
+  // is refused.
+  EXPECT_NEAR(Dataset::open(out("rec_bad")).info().fps, 60.0, 1e-6);
+  const CliRun other_rate = patchgraph("recording --images " + frames.string() + " --background " +
+                                       (dir_ / "rec_background.png").string() + " --poses " +
+                                       data() + "/poses.csv --fps 30 -q --out " + out("rec_rate"));
+  EXPECT_EQ(other_rate.code, 1) << other_rate.out;
+  EXPECT_NE(other_rate.out.find("--fps 30 disagrees with"), std::string::npos) << other_rate.out;
   fs::remove(frames / "capture_1059.png");
   const CliRun more_poses = patchgraph("recording --images " + frames.string() + " --background " +
                                        (dir_ / "rec_background.png").string() + " --poses " +

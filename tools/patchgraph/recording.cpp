@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <vector>
@@ -75,6 +76,29 @@ ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int fac
   return out;
 }
 
+// The frame rate of a poses file's time column (first to last row), so that dataset.json says
+// what the rows do; `given` (--fps, 0 if not) must agree with it to 1 %. A single row or a
+// constant time column has none: `given`, or 60.
+double frame_rate(const std::vector<FramePose>& poses, const std::string& path, double given) {
+  const double span = poses.back().time_s - poses.front().time_s;
+  if (poses.size() < 2 || !(span > 0)) return given > 0 ? given : 60.0;
+  const double rate = double(poses.size() - 1) / span;
+  const auto number = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%g", v);
+    return std::string(text);
+  };
+  if (given > 0 && std::abs(given - rate) > 0.01 * rate) {
+    throw InputError("--fps " + number(given) + " disagrees with " + path + "'s time column (" +
+                     number(rate) + " frames per second)");
+  }
+  if (!(rate >= 1e-6 && rate <= 1e6)) {
+    throw InputError(path + ": the time column gives " + number(rate) +
+                     " frames per second, outside [1e-06, 1e+06]");
+  }
+  return given > 0 ? given : rate;
+}
+
 }  // namespace
 
 CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
@@ -94,7 +118,9 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   auto* preset = cmd->add_option("--sensor", a.sensor, "Sensor preset (default digit)");
   cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)")
       ->excludes(preset);
-  cmd->add_option("--fps", a.fps, "Frame rate, for the time column with --static-sensor")
+  cmd->add_option("--fps", a.fps,
+                  "Frame rate: the time column with --static-sensor (default 60); with --poses "
+                  "it is the time column's and --fps, if given, must agree")
       ->check(CLI::Range(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
       ->check(CLI::Range(1, 16));
@@ -119,16 +145,18 @@ int run_recording(const RecordingArgs& a) {
       a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
   const int frames = int(files.size());
   std::vector<FramePose> poses(frames);
+  double fps = a.fps > 0 ? a.fps : 60.0;
   if (!a.poses.empty()) {
     poses = read_poses_csv(a.poses);
     if (int(poses.size()) != frames) {
       throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + a.images +
                        " holds " + std::to_string(frames) + " frames");
     }
+    fps = frame_rate(poses, a.poses, a.fps);
   } else {
     for (int i = 0; i < frames; ++i) {
       poses[i].frame = i;
-      poses[i].time_s = i / a.fps;
+      poses[i].time_s = i / fps;
       poses[i].object_known = false;
       poses[i].contact_known = false;
     }
@@ -141,7 +169,7 @@ int run_recording(const RecordingArgs& a) {
   DatasetInfo info;
   info.sensor = sensor;
   info.frames = frames;
-  info.fps = a.fps;
+  info.fps = fps;
   info.outputs = {"color"};
   info.object_name = a.object;
   // A frame that turns out unreadable half-way leaves no half-written dataset behind (unless the
@@ -164,9 +192,11 @@ int run_recording(const RecordingArgs& a) {
   }
   int object_poses = 0;
   for (const auto& p : poses) object_poses += p.object_known;
-  std::printf("%d frames of %s (%dx%d px) -> %s; the object's pose is given in %d of them\n",
-              frames, a.images.c_str(), sensor.camera.width, sensor.camera.height, a.out.c_str(),
-              object_poses);
+  const int w = sensor.camera.width, h = sensor.camera.height, n = a.downsample;
+  std::printf(
+      "%d frames of %s (%dx%d px) -> %s (%dx%d px); the object's pose is given in %d of "
+      "them\n",
+      frames, a.images.c_str(), w * n, h * n, a.out.c_str(), w, h, object_poses);
   return kExitOk;
 }
 

@@ -12,7 +12,7 @@ struct RecordingArgs {
   bool static_sensor = false;  // no poses file: the sensor did not move (the world is its frame)
   std::string sensor = "digit";
   std::string sensor_file;
-  double fps = 60.0;
+  double fps = 0.0;    // 0: not given (60 with --static-sensor; --poses' time column's rate)
   int downsample = 1;  // average N x N pixel blocks
   std::string object;  // name of the object, for the outputs
   std::string out;
