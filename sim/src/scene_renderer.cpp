@@ -91,6 +91,9 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   for (int i = 0; i < renderer.sensor_count(); ++i) {
     DatasetInfo info;
     info.sensor = renderer.sensor(i).sensor();
+    // dataset.json describes the frames: a scene rendered without noise has none, whatever its
+    // sensor's noise model would add.
+    if (!scene.render.noise) info.sensor.noise.sigma = 0.0;
     info.frames = scene.frames;
     info.fps = scene.fps;
     info.outputs = scene.render.outputs;

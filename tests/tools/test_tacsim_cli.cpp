@@ -77,6 +77,29 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
   EXPECT_NE(info.out.find("60x80"), std::string::npos) << info.out;
 }
 
+// dataset.json describes the frames: the sensor's noise sigma is 0 when the scene renders
+// without noise, its model's sigma when with.
+TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
+  TempDir tmp;
+  std::ifstream in(kScenes + "examples/sphere_press.json");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto replace = [&](const std::string& from, const std::string& to) {
+    const std::size_t at = text.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    text.replace(at, from.size(), to);
+  };
+  replace("../../meshes/", std::string(PG_SOURCE_DIR) + "/meshes/");
+  replace("\"noise\": true", "\"noise\": false");
+  std::ofstream(tmp.str("quiet.json")) << text;
+  for (const auto& [scene, sigma] :
+       {std::pair<std::string, double>{kScenes + "examples/sphere_press.json", 7.0},
+        {tmp.str("quiet.json"), 0.0}}) {
+    const CliRun r = tacsim("render " + scene + " -q --outputs mask --out " + tmp.str("d"));
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(Dataset::open(tmp.str("d")).info().sensor.noise.sigma, sigma) << scene;
+  }
+}
+
 TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   TempDir tmp;
   const CliRun r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask,points --out " +
