@@ -103,12 +103,13 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   }
   bool ok = true;
   if (a.max_translation_m >= 0 && !(translation_m <= a.max_translation_m)) {
-    std::fprintf(stderr, "accuracy gate missed: %s final translation error %.3f mm > %.3f mm\n",
+    // %.6g: a bound missed by a little does not print as "0.0004 > 0.0004".
+    std::fprintf(stderr, "accuracy gate missed: %s final translation error %.6g mm > %.6g mm\n",
                  what.c_str(), translation_m * 1e3, a.max_translation_m * 1e3);
     ok = false;
   }
   if (a.max_rotation_rad >= 0 && !(rotation_rad <= a.max_rotation_rad)) {
-    std::fprintf(stderr, "accuracy gate missed: %s final rotation error %.4f rad > %.4f rad\n",
+    std::fprintf(stderr, "accuracy gate missed: %s final rotation error %.6g rad > %.6g rad\n",
                  what.c_str(), rotation_rad, a.max_rotation_rad);
     ok = false;
   }

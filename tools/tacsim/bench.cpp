@@ -228,7 +228,7 @@ int run_bench(const BenchArgs& in) {
   const std::vector<Case> cases = bench_cases();
   if (args.ablation) return run_ablation(cases, args, in);
   std::ostringstream head, table;
-  head << "Command: `" << command(in) << "`  \n"
+  head << "Command: `" << command(args) << "`  \n"
        << machine_line() << "  \n"
        << "Date: " << utc_now() << "  \n"
        << "Colour + normals, noise on; frames/s with " << threads
