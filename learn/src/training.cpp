@@ -60,6 +60,7 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
       }
     }
     if (set.width == 0) set.width = d.info().width(), set.height = d.info().height();
+    if (held_out) held_out->width = set.width, held_out->height = set.height;
     if (d.info().width() != set.width || d.info().height() != set.height) {
       throw InputError(dir + ": images are " + std::to_string(d.info().width()) + "x" +
                        std::to_string(d.info().height()) + ", the other datasets " +
@@ -241,7 +242,6 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
   val.sensor = train.sensor;
   val.gel = train.gel;
-  if (o.val_data.empty()) val.width = train.width, val.height = train.height;  // held out of it
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {

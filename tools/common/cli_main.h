@@ -34,6 +34,13 @@ inline CLI::Validator number_check(bool allow_zero) {
 inline const CLI::Validator kNonNegative = number_check(true);
 inline const CLI::Validator kPositive = number_check(false);
 
+// `value` as printf's `format` gives it (a number in a message or a help text).
+inline std::string format_number(double value, const char* format = "%g") {
+  char text[48];
+  std::snprintf(text, sizeof text, format, value);
+  return text;
+}
+
 // A seed: a whole number from 0 to 2^64 - 1, written in decimal digits (CLI11 alone would take
 // "-1" or a number past the range as the largest seed).
 inline const CLI::Validator kSeed(

@@ -44,17 +44,18 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
 std::vector<std::string> run_names(const std::vector<std::string>& datasets) {
   std::map<std::string, std::string> seen;  // canonical path -> as given
   std::map<std::string, int> uses;
+  std::vector<fs::path> canonical;
   for (const auto& dir : datasets) {
-    const std::string canonical = fs::weakly_canonical(dir).string();
-    const auto [it, fresh] = seen.emplace(canonical, dir);
+    canonical.push_back(fs::weakly_canonical(dir));
+    const auto [it, fresh] = seen.emplace(canonical.back().string(), dir);
     if (!fresh) throw InputError(dir + ": given twice (also as " + it->second + ")");
-    ++uses[fs::path(canonical).filename().string()];
+    ++uses[canonical.back().filename().string()];
   }
   std::vector<std::string> names;
-  for (const auto& dir : datasets) {
-    const fs::path canonical = fs::weakly_canonical(dir);
-    std::string name = canonical.filename().string();
-    if (uses[name] > 1) name = canonical.parent_path().filename().string() + "_" + name;
+  for (std::size_t k = 0; k < datasets.size(); ++k) {
+    const std::string& dir = datasets[k];
+    std::string name = canonical[k].filename().string();
+    if (uses[name] > 1) name = canonical[k].parent_path().filename().string() + "_" + name;
     if (std::find(names.begin(), names.end(), name) != names.end()) {
       throw InputError(dir + ": its runs would share OUT/runs/" + name +
                        "_* with another dataset's; rename one of the two folders");

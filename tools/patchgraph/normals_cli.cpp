@@ -16,10 +16,7 @@ namespace {
 
 // A metric as printf's `format` gives it, or "n/a" when it is NaN (no contact pixel to measure).
 std::string metric(double value, const char* format) {
-  if (std::isnan(value)) return "n/a";
-  char text[32];
-  std::snprintf(text, sizeof text, format, value);
-  return text;
+  return std::isnan(value) ? "n/a" : format_number(value, format);
 }
 
 }  // namespace

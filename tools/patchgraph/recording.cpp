@@ -83,17 +83,12 @@ double frame_rate(const std::vector<FramePose>& poses, const std::string& path, 
   const double span = poses.back().time_s - poses.front().time_s;
   if (poses.size() < 2 || !(span > 0)) return given > 0 ? given : 60.0;
   const double rate = double(poses.size() - 1) / span;
-  const auto number = [](double v) {
-    char text[32];
-    std::snprintf(text, sizeof text, "%g", v);
-    return std::string(text);
-  };
   if (given > 0 && std::abs(given - rate) > 0.01 * rate) {
-    throw InputError("--fps " + number(given) + " disagrees with " + path + "'s time column (" +
-                     number(rate) + " frames per second)");
+    throw InputError("--fps " + format_number(given) + " disagrees with " + path +
+                     "'s time column (" + format_number(rate) + " frames per second)");
   }
   if (!(rate >= 1e-6 && rate <= 1e6)) {
-    throw InputError(path + ": the time column gives " + number(rate) +
+    throw InputError(path + ": the time column gives " + format_number(rate) +
                      " frames per second, outside [1e-06, 1e+06]");
   }
   return given > 0 ? given : rate;

@@ -57,14 +57,12 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
        graph.sigma_damping, kNonNegative},
   };
   for (const auto& s : sigmas) {
-    char fallback[32];
-    std::snprintf(fallback, sizeof fallback, "%g", s.fallback);
     app.add_option(s.name, *s.value,
-                   std::string("Sigma of ") + s.factor + " [m, rad] (default " + fallback + ")")
+                   std::string("Sigma of ") + s.factor + " [m, rad] (default " +
+                       format_number(s.fallback) + ")")
         ->check(s.check);
   }
-  char gate[32];
-  std::snprintf(gate, sizeof gate, "%g", graph.image_to_image_gate_rad);
+  const std::string gate = format_number(graph.image_to_image_gate_rad);
   app.add_option("--image-to-image-gate", a.image_to_image_gate,
                  std::string("Leave a frame's image-to-image factor out when it and the "
                              "image-to-patch registration turn the object this far apart [rad] "
