@@ -5,8 +5,10 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "../common/test_support.h"
+#include "pg/core/error.h"
 #include "pg/core/json_fields.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/sim/scene_renderer.h"
@@ -205,6 +207,46 @@ TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
   EXPECT_LT(2 * with_gate.summary.final_translation_error_m,
             without_gate.summary.final_translation_error_m)
       << "the gate is what keeps it (without it the arm turned away)";
+}
+
+// Sigmas that overflow the solver's information (or no longer pull) and pose noise that puts a
+// pose anywhere are refused with the option's name, not tracked to a plausible-looking result.
+TEST(TrackingBadInput, OutOfRangeSigmasAndNoiseAreRefused) {
+  const auto message = [](const auto& make) -> std::string {
+    try {
+      make();
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  GraphOptions tiny;
+  tiny.sigma_vision = 1e-300;
+  EXPECT_NE(message([&] { PatchGraphTracker t(tiny); }).find("sigma_vision = 1e-300"),
+            std::string::npos);
+  GraphOptions huge;
+  huge.sigma_image_to_patch = 1e300;
+  EXPECT_NE(message([&] { PatchGraphTracker t(huge); }).find("sigma_image_to_patch"),
+            std::string::npos);
+  GraphOptions nan;
+  nan.sigma_velocity = std::nan("");
+  EXPECT_NE(message([&] { PatchGraphTracker t(nan); }).find("sigma_velocity"), std::string::npos);
+  GraphOptions damping_off;
+  damping_off.sigma_damping = 0;
+  EXPECT_EQ(message([&] { PatchGraphTracker t(damping_off); }), "(accepted)");
+
+  TempDir tmp;
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/default.json");
+  scene["frames"] = 2;
+  const Dataset d = render(scene, tmp.path / "cube");
+  TrackOptions noisy;
+  noisy.vision_noise = 1e300;
+  EXPECT_NE(message([&] { track_dataset(d, noisy); }).find("vision_noise = 1e+300"),
+            std::string::npos);
+  TrackOptions negative;
+  negative.end_effector_noise = -1e-5;
+  EXPECT_NE(message([&] { track_dataset(d, negative); }).find("end_effector_noise"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -83,9 +83,17 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   // A number out of range says which bound, briefly.
   refused(track + "--window -1 --out " + out("x"), 2, "--window: must be finite and >= 0, got -1");
   refused(track + "--ee-sigma nan --out " + out("x"), 2,
-          "--ee-sigma: must be finite and > 0, got nan");
-  refused(track + "--ee-noise inf --out " + out("x"), 2,
-          "--ee-noise: must be finite and >= 0, got inf");
+          "--ee-sigma: must be from 1e-09 to 1000, got nan");
+  refused(track + "--ee-noise inf --out " + out("x"), 2, "--ee-noise: must be from 0 to 1, got inf");
+  // Sigmas that overflow the solver's information or no longer pull, and pose noise that puts a
+  // pose anywhere, are refused rather than tracked to a plausible-looking result.
+  refused(track + "--vision-sigma 1e-300 --out " + out("x"), 2,
+          "--vision-sigma: must be from 1e-09 to 1000, got 1e-300");
+  refused(track + "--registration-sigma 1e300 --out " + out("x"), 2, "--registration-sigma");
+  refused(track + "--damping-sigma 1e-12 --out " + out("x"), 2,
+          "--damping-sigma: must be from 1e-09 to 1000 (or 0), got 1e-12");
+  refused(track + "--vision-noise 1e300 --out " + out("x"), 2,
+          "--vision-noise: must be from 0 to 1, got 1e300");
   // Seeds out of range are refused, not clamped to the largest one.
   refused(track + "--seed -1 --out " + out("x"), 2, "--seed: must be a whole number");
   refused(track + "--seed 18446744073709551616 --out " + out("x"), 2, "--seed");
@@ -105,7 +113,7 @@ TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   };
   const std::string before = poses_text();
-  for (const std::string args :
+  for (const std::string& args :
        {"track " + copy + " -q --out " + copy,
         "eval --datasets " + data() + " " + copy + " --methods constvel -q --no-plots --out " +
             copy,
@@ -300,7 +308,9 @@ TEST_F(PatchgraphCli, AFrameThatShowsNoChangeIsNoContact) {
     const bool untouched = frame >= 10 && frame < 20;
     EXPECT_EQ(field[3], untouched ? "0" : "1") << "frame " << frame;          // contact
     EXPECT_EQ(field[15], "0") << "frame " << frame;                           // not invalid input
-    if (untouched) EXPECT_EQ(std::stod(field[9]), 0.0) << "frame " << frame;  // no inference
+    if (untouched) {
+      EXPECT_EQ(std::stod(field[9]), 0.0) << "frame " << frame;  // no inference
+    }
   }
   const auto summary = parse_json_file(out("untouched_track") + "/summary.json");
   EXPECT_EQ(summary["episodes"].get<int>(), 2);

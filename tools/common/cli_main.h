@@ -34,6 +34,21 @@ inline CLI::Validator number_check(bool allow_zero) {
 inline const CLI::Validator kNonNegative = number_check(true);
 inline const CLI::Validator kPositive = number_check(false);
 
+// A number from `low` to `high` (or exactly 0 when `allow_zero`): "--vision-sigma: must be from
+// 1e-09 to 1000, got 1e-300"; the help shows "FLOAT:1e-09 to 1000".
+inline CLI::Validator range_check(double low, double high, bool allow_zero = false) {
+  char range[96];
+  std::snprintf(range, sizeof range, "%g to %g%s", low, high, allow_zero ? " (or 0)" : "");
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        double value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "not a number: " + text;
+        if ((value >= low && value <= high) || (allow_zero && value == 0)) return {};
+        return std::string("must be from ") + range + ", got " + text;
+      },
+      range);
+}
+
 // `value` as printf's `format` gives it (a number in a message or a help text).
 inline std::string format_number(double value, const char* format = "%g") {
   char text[48];

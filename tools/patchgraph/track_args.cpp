@@ -43,24 +43,24 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
     double* value;
     const char* factor;
     double fallback;
-    const CLI::Validator& check;  // the damping prior may be 0 (off); the others may not
+    bool may_be_zero;  // the damping prior's 0 turns it off
   } sigmas[] = {
       {"--registration-sigma", &a.registration_sigma,
-       "the image-to-image and image-to-patch factors", graph.sigma_image_to_image, kPositive},
+       "the image-to-image and image-to-patch factors", graph.sigma_image_to_image, false},
       {"--velocity-sigma", &a.velocity_sigma, "the constant-velocity factor", graph.sigma_velocity,
-       kPositive},
+       false},
       {"--ee-sigma", &a.end_effector_sigma, "the end-effector prior", graph.sigma_end_effector,
-       kPositive},
+       false},
       {"--vision-sigma", &a.vision_sigma, "the vision prior on each episode's first pose",
-       graph.sigma_vision, kPositive},
+       graph.sigma_vision, false},
       {"--damping-sigma", &a.damping_sigma, "the zero-velocity (damping) prior; 0 turns it off",
-       graph.sigma_damping, kNonNegative},
+       graph.sigma_damping, true},
   };
   for (const auto& s : sigmas) {
     app.add_option(s.name, *s.value,
                    std::string("Sigma of ") + s.factor + " [m, rad] (default " +
                        format_number(s.fallback) + ")")
-        ->check(s.check);
+        ->check(range_check(kMinFactorSigma, kMaxFactorSigma, s.may_be_zero));
   }
   const std::string gate = format_number(graph.image_to_image_gate_rad);
   app.add_option("--image-to-image-gate", a.image_to_image_gate,
@@ -70,9 +70,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                      gate + ", off for --normals MODEL; 0 = off)")
       ->check(kNonNegative);
   app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
-      ->check(kNonNegative);
+      ->check(range_check(0, kMaxPoseNoise));
   app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
-      ->check(kNonNegative);
+      ->check(range_check(0, kMaxPoseNoise));
   app.add_option("--seed", a.seed,
                  "Seed of the simulated measurement noise (eval mixes it with each dataset's "
                  "folder name: results.csv's seed column)")

@@ -3,11 +3,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "pg/core/error.h"
@@ -122,6 +125,15 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   if (learned && !dataset.info().has_output("color")) {
     throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                      options.normals_name);
+  }
+  for (const auto& [name, sigma] : {std::pair{"end_effector_noise", options.end_effector_noise},
+                                    std::pair{"vision_noise", options.vision_noise}}) {
+    if (!(sigma >= 0 && sigma <= kMaxPoseNoise)) {
+      char message[120];
+      std::snprintf(message, sizeof message, "track option %s = %g: must be from 0 to %g", name,
+                    sigma, kMaxPoseNoise);
+      throw InputError(message);
+    }
   }
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;

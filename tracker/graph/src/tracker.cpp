@@ -4,6 +4,8 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
+#include <string>
 
 #include "pg/core/error.h"
 #include "pg/graph/factors.h"
@@ -51,8 +53,37 @@ Method method_from_string(const std::string& name) {
                    "' (known: constvel, imagetoimage, patchgraph, gtpatch)");
 }
 
+namespace {
+
+// `o`, once its sigmas are in range.
+GraphOptions checked(GraphOptions o) {
+  const struct {
+    const char* name;
+    double value;
+  } sigmas[] = {{"sigma_image_to_image", o.sigma_image_to_image},
+                {"sigma_image_to_patch", o.sigma_image_to_patch},
+                {"sigma_velocity", o.sigma_velocity},
+                {"sigma_end_effector", o.sigma_end_effector},
+                {"sigma_vision", o.sigma_vision},
+                {"sigma_damping", o.sigma_damping},
+                {"sigma_unconstrained", o.sigma_unconstrained}};
+  for (const auto& s : sigmas) {
+    const bool off = s.value == 0 && std::string(s.name) == "sigma_damping";
+    if (!off && !(s.value >= kMinFactorSigma && s.value <= kMaxFactorSigma)) {
+      char message[160];
+      std::snprintf(message, sizeof message, "tracker option %s = %g: must be from %g to %g%s",
+                    s.name, s.value, kMinFactorSigma, kMaxFactorSigma,
+                    std::string(s.name) == "sigma_damping" ? " (or 0: off)" : "");
+      throw InputError(message);
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
 PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& model_object)
-    : options_(std::move(options)),
+    : options_(checked(std::move(options))),
       patch_(options_.patch),
       icp_(options_.icp),
       model_icp_(options_.icp) {

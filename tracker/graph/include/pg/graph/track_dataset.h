@@ -13,11 +13,15 @@
 
 namespace pg {
 
+// Simulated pose noise above this sigma (1 m, 1 rad: a pose anywhere) is refused.
+inline constexpr double kMaxPoseNoise = 1.0;
+
 struct TrackOptions {
   GraphOptions graph;
   TrackerConfig front_end;  // depth, mask and ICP options (the ICP options go to graph.icp)
   // Simulated measurement noise (paper eq. 8 and 9): sensor poses e~ = e exp(N(0, s^2 I)) and
-  // the vision prior o~ = o exp(N(0, s^2 I)), seeded. Units [m] and [rad] alike.
+  // the vision prior o~ = o exp(N(0, s^2 I)), seeded. Units [m] and [rad] alike; from 0 to
+  // kMaxPoseNoise (track_dataset throws InputError otherwise).
   double end_effector_noise = 1e-5;
   double vision_noise = 1e-4;
   std::uint64_t seed = 0;

@@ -28,6 +28,12 @@ const char* to_string(Method method);
 Method method_from_string(const std::string& name);
 const std::vector<std::string>& method_names();
 
+// Factor sigmas [m, rad] outside this range are refused: below it the squared information
+// overflows a double's range in the solver, above it (1 km, 1000 rad) a factor no longer pulls
+// at all and leaving it out says so honestly (the damping prior's sigma may also be 0: off).
+inline constexpr double kMinFactorSigma = 1e-9;
+inline constexpr double kMaxFactorSigma = 1e3;
+
 struct GraphOptions {
   Method method = Method::kPatchGraph;
   // Factor sigmas, all six axes alike ([m] and [rad]); the paper's values.
@@ -114,6 +120,8 @@ struct TrackerEstimate {
 class PatchGraphTracker {
  public:
   // `model_object` (object frame) is required by kGroundTruthPatch and ignored otherwise.
+  // Throws InputError naming the option when a sigma is outside [kMinFactorSigma,
+  // kMaxFactorSigma] or not a number.
   explicit PatchGraphTracker(GraphOptions options, const PointCloud& model_object = {});
   ~PatchGraphTracker();
 
