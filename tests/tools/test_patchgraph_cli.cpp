@@ -83,15 +83,15 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   // A number out of range says which bound, briefly.
   refused(track + "--window -1 --out " + out("x"), 2, "--window: must be finite and >= 0, got -1");
   refused(track + "--ee-sigma nan --out " + out("x"), 2,
-          "--ee-sigma: must be from 1e-09 to 1000, got nan");
+          "--ee-sigma: must be from 1e-12 to 1000, got nan");
   refused(track + "--ee-noise inf --out " + out("x"), 2, "--ee-noise: must be from 0 to 1, got inf");
   // Sigmas that overflow the solver's information or no longer pull, and pose noise that puts a
   // pose anywhere, are refused rather than tracked to a plausible-looking result.
   refused(track + "--vision-sigma 1e-300 --out " + out("x"), 2,
-          "--vision-sigma: must be from 1e-09 to 1000, got 1e-300");
+          "--vision-sigma: must be from 1e-12 to 1000, got 1e-300");
   refused(track + "--registration-sigma 1e300 --out " + out("x"), 2, "--registration-sigma");
-  refused(track + "--damping-sigma 1e-12 --out " + out("x"), 2,
-          "--damping-sigma: must be from 1e-09 to 1000 (or 0), got 1e-12");
+  refused(track + "--damping-sigma 1e-13 --out " + out("x"), 2,
+          "--damping-sigma: must be from 1e-12 to 1000 (or 0), got 1e-13");
   refused(track + "--vision-noise 1e300 --out " + out("x"), 2,
           "--vision-noise: must be from 0 to 1, got 1e300");
   // Seeds out of range are refused, not clamped to the largest one.

@@ -35,7 +35,7 @@ inline const CLI::Validator kNonNegative = number_check(true);
 inline const CLI::Validator kPositive = number_check(false);
 
 // A number from `low` to `high` (or exactly 0 when `allow_zero`): "--vision-sigma: must be from
-// 1e-09 to 1000, got 1e-300"; the help shows "FLOAT:1e-09 to 1000".
+// 1e-12 to 1000, got 1e-300"; the help shows "FLOAT:1e-12 to 1000".
 inline CLI::Validator range_check(double low, double high, bool allow_zero = false) {
   char range[96];
   std::snprintf(range, sizeof range, "%g to %g%s", low, high, allow_zero ? " (or 0)" : "");
