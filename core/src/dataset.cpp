@@ -373,10 +373,10 @@ ImageU8 Dataset::background() const {
 }
 
 ImageF Dataset::normal(int frame) const {
-  return read_checked<float>(*this, "normal", frame, read_image_float);
+  return read_checked<float>(*this, "normal", frame, read_float_file);
 }
 ImageF Dataset::depth(int frame) const {
-  return read_checked<float>(*this, "depth", frame, read_image_float);
+  return read_checked<float>(*this, "depth", frame, read_float_file);
 }
 ImageU8 Dataset::mask(int frame) const {
   return read_checked<std::uint8_t>(*this, "mask", frame, read_image_u8);

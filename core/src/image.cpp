@@ -24,9 +24,13 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
 }
 
 template <typename T>
-Image<T> read_image(const std::string& path, OIIO::TypeDesc type) {
+Image<T> read_image(const std::string& path, OIIO::TypeDesc type, bool float_file = false) {
   auto in = open_input(path);
   const OIIO::ImageSpec& spec = in->spec();
+  if (float_file && !spec.format.is_floating_point()) {
+    throw InputError(path + ": is a " + in->format_name() + " file of " + spec.format.c_str() +
+                     " pixels, not floating-point data");
+  }
   if (spec.nchannels < 1 || spec.width < 1 || spec.height < 1) {
     throw InputError(path + ": image has no pixels");
   }
@@ -69,6 +73,10 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
 
 ImageF read_image_float(const std::string& path) {
   return read_image<float>(path, OIIO::TypeDesc::FLOAT);
+}
+
+ImageF read_float_file(const std::string& path) {
+  return read_image<float>(path, OIIO::TypeDesc::FLOAT, true);
 }
 
 ImageU8 read_image_u8(const std::string& path) {

@@ -144,6 +144,24 @@ TEST(Dataset, ReaderRejectsWrongImageSize) {
   expect_input_error([&] { d.color(1); }, "12x16x3");
 }
 
+// A PNG saved under a normal or depth image's .exr name reads (OpenImageIO goes by content) as
+// plausible numbers in [0, 1]; it is refused, naming the file, instead of tracked as normals.
+TEST(Dataset, ReaderRejectsAnEightBitFileAsNormalsOrDepth) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 2);
+  const Dataset d = Dataset::open(tmp.str("d"));
+  EXPECT_NO_THROW(d.normal(1));
+  write_image(tmp.str("n.png"), make_frame(24, 32, 1).normal);
+  fs::copy_file(tmp.str("n.png"), tmp.str("d/normal/000001.exr"),
+                fs::copy_options::overwrite_existing);
+  expect_input_error([&] { d.normal(1); }, "normal/000001.exr: is a png file of uint8 pixels");
+  write_image(tmp.str("z.png"), make_frame(24, 32, 0).depth);
+  fs::copy_file(tmp.str("z.png"), tmp.str("d/depth/000000.exr"),
+                fs::copy_options::overwrite_existing);
+  expect_input_error([&] { d.depth(0); }, "depth/000000.exr: is a png file");
+  EXPECT_NO_THROW(d.normal(0));
+}
+
 TEST(Dataset, ReaderRejectsNanPosesAndBadRows) {
   TempDir tmp;
   write_small(tmp.str("d"), 2);

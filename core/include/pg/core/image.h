@@ -33,6 +33,9 @@ using ImageU8 = Image<std::uint8_t>;
 // Throws InputError naming the path when the file is missing or unreadable.
 ImageF read_image_float(const std::string& path);
 ImageU8 read_image_u8(const std::string& path);
+// Like read_image_float, but refuses a file that does not store floating-point pixels (a
+// dataset's normal and depth images are float EXR; a PNG renamed .exr is not one).
+ImageF read_float_file(const std::string& path);
 
 // Writes by extension. Float images go to EXR as 32-bit float; to PNG/JPEG they are clamped to
 // [0, 1] and quantised to 8 bits. Throws InputError naming the path on failure.
