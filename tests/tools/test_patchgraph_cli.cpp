@@ -128,6 +128,30 @@ TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
   EXPECT_FALSE(fs::exists(copy + "/results.csv"));
 }
 
+// An output folder that cannot be made fails before the run, not after it (the dataset here has
+// a broken frame late on: that error would come first otherwise); a run that fails leaves no
+// empty output folder behind.
+TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
+  const std::string copy = data_copy("data_late_error");
+  fs::copy_file(copy + "/background.png", copy + "/normal/000050.exr",
+                fs::copy_options::overwrite_existing);
+  std::ofstream(out("a_file")) << "x";
+  const std::string unmakeable = out("a_file") + "/out";
+  for (const std::string& args :
+       {"track " + copy + " -q --out " + unmakeable,
+        "eval --datasets " + copy + " --methods constvel -q --no-plots --out " + unmakeable}) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_NE(r.out.find(unmakeable + ": cannot create the output folder"), std::string::npos)
+        << r.out;
+  }
+  fs::remove_all(out("late_error_run"));
+  const CliRun r = patchgraph("track " + copy + " -q --out " + out("late_error_run"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out("late_error_run")));
+}
+
 // Two datasets of one folder name keep their own runs (named with their parents' folders), a
 // dataset or method given twice is refused (it would count twice in the medians).
 TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {

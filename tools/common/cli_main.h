@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <utility>
 
 #include "pg/core/error.h"
 
@@ -78,6 +79,31 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
                      "; write the outputs to another folder");
   }
 }
+
+// The output folder, created before the work so that a path that cannot be one fails at once
+// rather than after a long run; removed again at the end of the scope if this created it and
+// nothing was written into it (the work failed first).
+class OutputFolder {
+ public:
+  explicit OutputFolder(std::string dir) : dir_(std::move(dir)) {
+    std::error_code ec;
+    created_ = std::filesystem::create_directories(dir_, ec);
+    if (ec || !std::filesystem::is_directory(dir_)) {
+      throw InputError(dir_ + ": cannot create the output folder" +
+                       (ec ? ": " + ec.message() : std::string(": not a folder")));
+    }
+  }
+  ~OutputFolder() {
+    std::error_code ec;
+    if (created_ && std::filesystem::is_empty(dir_, ec)) std::filesystem::remove(dir_, ec);
+  }
+  OutputFolder(const OutputFolder&) = delete;
+  OutputFolder& operator=(const OutputFolder&) = delete;
+
+ private:
+  std::string dir_;
+  bool created_ = false;
+};
 
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.

@@ -10,6 +10,7 @@
 #include <memory>
 #include <sstream>
 
+#include "../common/cli_main.h"
 #include "../common/machine_info.h"
 #include "../common/plot_script.h"
 #include "pg/core/error.h"
@@ -303,7 +304,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (const auto& s : settings) {
     if (s.normals != "gt" && outputs.size() == 1) outputs.push_back("color");
   }
-  fs::create_directories(args.out);
+  const OutputFolder out(args.out);
   const std::string head = "Command: `" + command(in, !own_scenes) + "`  \n" + machine_line() +
                            "  \nDate: " + utc_now() + "  \n" + std::to_string(args.scenes.size()) +
                            " scenes x " + std::to_string(settings.size()) +

@@ -164,6 +164,7 @@ int run_eval(const EvalArgs& args) {
                        "errors against ground truth (track runs without it)");
     }
   }
+  const OutputFolder out(args.out);
   fs::create_directories(fs::path(args.out) / "runs");
   std::vector<Row> rows;
   int done = 0;

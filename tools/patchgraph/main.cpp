@@ -23,6 +23,7 @@ int run_track(const TrackArgs& a) {
   check_output_is_not_input(a.out, a.dataset, "the dataset");  // its poses.csv would be replaced
   const Dataset dataset = Dataset::open(a.dataset);
   const TrackOptions options = make_track_options(a, dataset);
+  const OutputFolder out(a.out);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run =
       track_dataset(dataset, options, [&](int done, int) { progress.update(done); });
