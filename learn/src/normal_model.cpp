@@ -16,6 +16,12 @@ namespace pg {
 
 namespace fs = std::filesystem;
 
+std::string describe(const NetworkSpec& spec) {
+  if (spec.arch == "mlp") return "mlp (hidden " + std::to_string(spec.mlp_hidden) + ")";
+  return spec.arch + " (depth " + std::to_string(spec.depth) + ", width " +
+         std::to_string(spec.base_width) + ")";
+}
+
 namespace learn {
 
 namespace {

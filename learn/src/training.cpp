@@ -290,11 +290,24 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
         throw InputError(checkpoint + ": not a normals training checkpoint");
       }
       const nlohmann::json j = nlohmann::json::parse(text.toStringRef());
-      if (j.at("arch") != o.spec.arch || j.at("depth") != o.spec.depth ||
-          j.at("base_width") != o.spec.base_width || j.at("mlp_hidden") != o.spec.mlp_hidden ||
-          j.at("gan") != gan || j.value("gel_relative", false) != o.gel_relative) {
-        throw InputError(checkpoint + ": was trained with another network or loss (" + j.dump() +
-                         "); pass the same --arch, --depth, --width, --gan-weight, --labels");
+      NetworkSpec trained;
+      trained.arch = j.at("arch").get<std::string>();
+      trained.depth = j.at("depth").get<int>();
+      trained.base_width = j.at("base_width").get<int>();
+      trained.mlp_hidden = j.at("mlp_hidden").get<int>();
+      const bool trained_gan = j.at("gan").get<bool>();
+      const bool trained_gel = j.value("gel_relative", false);
+      if (trained.arch != o.spec.arch || trained.depth != o.spec.depth ||
+          trained.base_width != o.spec.base_width || trained.mlp_hidden != o.spec.mlp_hidden ||
+          trained_gan != gan || trained_gel != o.gel_relative) {
+        const auto what = [](const NetworkSpec& spec, bool with_gan, bool gel) {
+          return describe(spec) + (with_gan ? " with" : " without") + " the GAN loss, labels " +
+                 (gel ? "gel" : "sensor");
+        };
+        throw InputError(checkpoint + ": holds " + what(trained, trained_gan, trained_gel) +
+                         ", this run asks for " + what(o.spec, gan, o.gel_relative) +
+                         "; resume with the checkpoint's --arch, --depth, --width, --hidden, "
+                         "--gan-weight and --labels, or train into another --out");
       }
       if (j.contains("run")) check_run_settings(j.at("run"), o, checkpoint);
       history = j.at("history");

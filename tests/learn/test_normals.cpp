@@ -172,6 +172,14 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   other_data.train_data = {val_};
   EXPECT_NE(input_error_message([&] { train_normals(other_data); }).find("--data"),
             std::string::npos);
+  // Another network says which one each is, briefly (not the checkpoint's whole description).
+  TrainOptions other_net = part;
+  other_net.spec.arch = "mlp";
+  const std::string net_error = input_error_message([&] { train_normals(other_net); });
+  EXPECT_NE(net_error.find("holds " + describe(part.spec) + " with"), std::string::npos)
+      << net_error;
+  EXPECT_NE(net_error.find("asks for mlp (hidden"), std::string::npos) << net_error;
+  EXPECT_LT(net_error.size(), 400u) << net_error;
   EXPECT_EQ(fs::file_size(part.out + ".ckpt"), checkpoint_bytes);
   ASSERT_FALSE(fs::exists(part.out));
   std::vector<int> resumed;

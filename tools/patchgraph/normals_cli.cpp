@@ -97,12 +97,8 @@ int run_train_normals(const TrainNormalsArgs& a) {
   o.gel_relative = a.labels == "gel";
   std::unique_ptr<Progress> progress;
   int epoch = 0;
-  const std::string shape = o.spec.arch == "mlp"
-                                ? "hidden " + std::to_string(o.spec.mlp_hidden)
-                                : "depth " + std::to_string(o.spec.depth) + ", width " +
-                                      std::to_string(o.spec.base_width);
-  std::printf("training %s (%s) on %zu dataset(s) for %d epochs -> %s\n", o.spec.arch.c_str(),
-              shape.c_str(), o.train_data.size(), o.epochs, o.out.c_str());
+  std::printf("training %s on %zu dataset(s) for %d epochs -> %s\n", describe(o.spec).c_str(),
+              o.train_data.size(), o.epochs, o.out.c_str());
   std::fflush(stdout);
   train_normals(
       o,

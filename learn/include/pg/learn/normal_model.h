@@ -27,6 +27,8 @@ struct NetworkSpec {
   int base_width = 16;        // channels of the first layer (pix2pix: 64)
   int mlp_hidden = 32;        // mlp: width of its two hidden layers (5-32-32-3 in the paper)
 };
+// "unet (depth 5, width 16)", "mlp (hidden 32)": the network in a message.
+std::string describe(const NetworkSpec& spec);
 
 // What a model file holds besides the weights.
 struct NormalModelInfo {
