@@ -98,6 +98,16 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused(track + "--seed -1 --out " + out("x"), 2, "--seed: must be a whole number");
   refused(track + "--seed 18446744073709551616 --out " + out("x"), 2, "--seed");
   refused("train-normals --data " + data() + " --seed 1e3 --out " + out("m.pt"), 2, "--seed");
+  // A dataset given twice would count twice; a JSON file that cannot be written fails before
+  // the evaluation, not after it.
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
+  refused("eval-normals --model " + model + " --data " + data() + " " + data() + "/.", 1,
+          data() + "/.: given twice (also as " + data() + ")");
+  refused("eval-normals --model " + model + " --data " + data() + " --json " +
+              out("no_such_folder/m.json"),
+          1, "no_such_folder/m.json: cannot write: ");
+  refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
+          "given twice");
   refused("recording --images " + data() + "/color --background " + data() +
               "/background.png --static-sensor --fps 1e-300 --out " + out("rec"),
           2, "--fps");

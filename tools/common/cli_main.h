@@ -7,8 +7,10 @@
 #include <exception>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "pg/core/error.h"
 
@@ -77,6 +79,16 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
   if (std::filesystem::equivalent(out, input, ec)) {
     throw InputError("--out " + out + " is " + input_what + " " + input +
                      "; write the outputs to another folder");
+  }
+}
+
+// Throws InputError when two of `dirs` are one folder however written ("a/../b: given twice
+// (also as b)"): a dataset counted twice would weigh twice in every mean and median.
+inline void check_given_once(const std::vector<std::string>& dirs) {
+  std::map<std::string, std::string> seen;  // canonical path -> as given
+  for (const std::string& dir : dirs) {
+    const auto [it, fresh] = seen.emplace(std::filesystem::weakly_canonical(dir).string(), dir);
+    if (!fresh) throw InputError(dir + ": given twice (also as " + it->second + ")");
   }
 }
 

@@ -42,13 +42,11 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
 // where two datasets share that name, with their parents' names before it (a/x and b/x become
 // a_x and b_x). A dataset given twice (also through a folder of datasets) is an error.
 std::vector<std::string> run_names(const std::vector<std::string>& datasets) {
-  std::map<std::string, std::string> seen;  // canonical path -> as given
+  check_given_once(datasets);
   std::map<std::string, int> uses;
   std::vector<fs::path> canonical;
   for (const auto& dir : datasets) {
     canonical.push_back(fs::weakly_canonical(dir));
-    const auto [it, fresh] = seen.emplace(canonical.back().string(), dir);
-    if (!fresh) throw InputError(dir + ": given twice (also as " + it->second + ")");
     ++uses[canonical.back().filename().string()];
   }
   std::vector<std::string> names;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -94,6 +95,19 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
 
 int run_train_normals(const TrainNormalsArgs& a) {
   TrainOptions o = a.options;
+  check_given_once(o.train_data);
+  check_given_once(o.val_data);
+  for (const std::string& val : o.val_data) {
+    for (const std::string& train : o.train_data) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(val, train, ec)) {
+        std::fprintf(stderr,
+                     "warning: --val %s is also a training dataset (--data %s): its validation "
+                     "metrics are on frames the network trains on\n",
+                     val.c_str(), train.c_str());
+      }
+    }
+  }
   o.gel_relative = a.labels == "gel";
   std::unique_ptr<Progress> progress;
   int epoch = 0;
@@ -129,6 +143,13 @@ int run_train_normals(const TrainNormalsArgs& a) {
 }
 
 int run_eval_normals(const EvalNormalsArgs& a) {
+  check_given_once(a.data);
+  if (!a.json.empty()) {  // checked before the evaluation, written after it
+    const std::filesystem::path folder = std::filesystem::path(a.json).parent_path();
+    if (!folder.empty() && !std::filesystem::is_directory(folder)) {
+      throw InputError(a.json + ": cannot write: " + folder.string() + " is not a folder");
+    }
+  }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);
   nlohmann::json results = nlohmann::json::array();
