@@ -1,6 +1,7 @@
 #include "pg/core/dataset.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -313,6 +314,30 @@ void DatasetWriter::finish() {
                            std::to_string(missing - written_.begin()) + " was never written");
   }
   write_poses_csv((fs::path(dir_) / "poses.csv").string(), poses_);
+  remove_stale_frames();
+}
+
+// An earlier dataset in the same folder (a longer sequence, or other outputs) left frame files
+// this one did not overwrite: they are removed, so the folder holds one dataset. Only files named
+// as a dataset's frames (000042.png in an output's folder) go, and an output folder that is left
+// empty; anything else in the folder stays.
+void DatasetWriter::remove_stale_frames() const {
+  for (const std::string& output : dataset_output_names()) {
+    const fs::path folder = fs::path(dir_) / output;
+    std::error_code ec;
+    if (!fs::is_directory(folder, ec)) continue;
+    const bool written = info_.has_output(output);
+    for (const auto& entry : fs::directory_iterator(folder, ec)) {
+      const std::string name = entry.path().filename().string();
+      const std::string stem = entry.path().stem().string();
+      const bool frame_name =
+          stem.size() == 6 && std::all_of(stem.begin(), stem.end(), [](unsigned char c) {
+            return std::isdigit(c);
+          }) && entry.path().extension() == extension_of(output);
+      if (frame_name && (!written || std::stoi(stem) >= info_.frames)) fs::remove(entry.path(), ec);
+    }
+    if (!written && fs::is_empty(folder, ec)) fs::remove(folder, ec);
+  }
 }
 
 Dataset Dataset::open(const std::string& dir) {

@@ -135,6 +135,35 @@ TEST(Dataset, ReaderRejectsMissingFiles) {
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "poses.csv");
 }
 
+// Writing a shorter dataset with fewer outputs into the folder of an earlier one leaves one
+// dataset: the earlier frames past the new last one and its other outputs' frames are gone,
+// files that are not a dataset's frames stay.
+TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
+  TempDir tmp;
+  const std::string dir = tmp.str("d");
+  write_small(dir, 5);
+  std::ofstream(dir + "/color/notes.txt") << "mine";
+  std::ofstream(dir + "/normal/notes.txt") << "mine";
+  DatasetInfo info = small_info(2);
+  info.outputs = {"color"};
+  DatasetWriter writer(dir, info);
+  for (int i = 0; i < 2; ++i) {
+    FramePose p;
+    p.frame = i;
+    writer.write_frame(p, make_frame(24, 32, i));
+  }
+  writer.finish();
+  EXPECT_TRUE(fs::exists(dir + "/color/000001.png"));
+  EXPECT_FALSE(fs::exists(dir + "/color/000002.png"));
+  EXPECT_FALSE(fs::exists(dir + "/color/000004.png"));
+  EXPECT_TRUE(fs::exists(dir + "/color/notes.txt"));
+  EXPECT_FALSE(fs::exists(dir + "/normal/000000.exr"));
+  EXPECT_TRUE(fs::exists(dir + "/normal/notes.txt"));
+  EXPECT_FALSE(fs::exists(dir + "/depth"));
+  EXPECT_FALSE(fs::exists(dir + "/mask"));
+  EXPECT_EQ(Dataset::open(dir).frames(), 2);
+}
+
 TEST(Dataset, ReaderRejectsWrongImageSize) {
   TempDir tmp;
   write_small(tmp.str("d"), 2);

@@ -72,10 +72,13 @@ class DatasetWriter {
   // Writes DIR/background.png: what the sensor shows without contact (the reference frame a
   // real sensor's pipeline captures before touching anything).
   void write_background(const ImageU8& color);
-  // Writes poses.csv; every frame 0..frames-1 must have been written.
+  // Writes poses.csv; every frame 0..frames-1 must have been written. Then removes the frame
+  // files an earlier dataset in the folder left that this one did not overwrite (frames past its
+  // last, outputs it does not have), so that the folder holds one dataset.
   void finish();
 
  private:
+  void remove_stale_frames() const;
   std::string dir_;
   DatasetInfo info_;
   std::vector<FramePose> poses_;
