@@ -328,12 +328,11 @@ void DatasetWriter::remove_stale_frames() const {
     if (!fs::is_directory(folder, ec)) continue;
     const bool written = info_.has_output(output);
     for (const auto& entry : fs::directory_iterator(folder, ec)) {
-      const std::string name = entry.path().filename().string();
       const std::string stem = entry.path().stem().string();
       const bool frame_name =
-          stem.size() == 6 && std::all_of(stem.begin(), stem.end(), [](unsigned char c) {
-            return std::isdigit(c);
-          }) && entry.path().extension() == extension_of(output);
+          stem.size() == 6 &&
+          std::all_of(stem.begin(), stem.end(), [](unsigned char c) { return std::isdigit(c); }) &&
+          entry.path().extension() == extension_of(output);
       if (frame_name && (!written || std::stoi(stem) >= info_.frames)) fs::remove(entry.path(), ec);
     }
     if (!written && fs::is_empty(folder, ec)) fs::remove(folder, ec);

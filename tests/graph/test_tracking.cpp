@@ -209,8 +209,9 @@ TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
       << "the gate is what keeps it (without it the arm turned away)";
 }
 
-// Sigmas that overflow the solver's information (or no longer pull) and pose noise that puts a
-// pose anywhere are refused with the option's name, not tracked to a plausible-looking result.
+// Sigmas far outside what the solver is tested with (docs/stress.md: too stiff, or too weak to
+// pull) and pose noise that puts a pose anywhere are refused with the option's name, not tracked
+// to a plausible-looking result.
 TEST(TrackingBadInput, OutOfRangeSigmasAndNoiseAreRefused) {
   const auto message = [](const auto& make) -> std::string {
     try {
