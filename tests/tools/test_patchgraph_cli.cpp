@@ -156,11 +156,14 @@ TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
     EXPECT_NE(r.out.find(unmakeable + ": cannot create the output folder"), std::string::npos)
         << r.out;
   }
-  fs::remove_all(out("late_error_run"));
-  const CliRun r = patchgraph("track " + copy + " -q --out " + out("late_error_run"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
-  EXPECT_FALSE(fs::exists(out("late_error_run")));
+  for (const std::string& command :
+       {"track " + copy, "eval --methods constvel --no-plots --datasets " + copy}) {
+    fs::remove_all(out("late_error_run"));
+    const CliRun r = patchgraph(command + " -q --out " + out("late_error_run"));
+    EXPECT_EQ(r.code, 1) << command;
+    EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(out("late_error_run"))) << command;
+  }
 }
 
 // Two datasets of one folder name keep their own runs (named with their parents' folders), a

@@ -163,7 +163,6 @@ int run_eval(const EvalArgs& args) {
     }
   }
   const OutputFolder out(args.out);
-  fs::create_directories(fs::path(args.out) / "runs");
   std::vector<Row> rows;
   int done = 0;
   const int total = int(datasets.size() * methods.size());
