@@ -704,6 +704,15 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_EQ(over.code, 1) << over.out;
   EXPECT_NE(over.out.find("would be overwritten"), std::string::npos) << over.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
+  // Nor any other output folder of OUT (an earlier dataset's frames there are removed).
+  fs::remove_all(out("rec_in_mask"));
+  fs::create_directories(out("rec_in_mask"));
+  fs::copy(frames, out("rec_in_mask") + "/mask");
+  const CliRun in_mask = patchgraph("recording --images " + out("rec_in_mask") +
+                                    "/mask --background " + (dir_ / "rec_background.png").string() +
+                                    " --static-sensor -q --out " + out("rec_in_mask"));
+  EXPECT_EQ(in_mask.code, 1) << in_mask.out;
+  EXPECT_NE(in_mask.out.find("its mask folder is --images"), std::string::npos) << in_mask.out;
   // A frame that cannot be read half-way through: the error names it and no half-written
   // dataset is left behind.
   std::ofstream(frames / "capture_1030.png") << "not a png";

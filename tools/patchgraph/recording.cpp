@@ -132,9 +132,14 @@ int run_recording(const RecordingArgs& a) {
   }
   check_output_is_not_input(a.out, a.images, "--images");
   const std::vector<fs::path> files = image_files(a.images);
-  std::error_code ec;
-  if (fs::equivalent(a.images, fs::path(a.out) / "color", ec)) {
-    throw InputError(a.out + ": its color folder is --images; the frames would be overwritten");
+  // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
+  // output folders (DatasetWriter::finish): --images must be none of them.
+  for (const std::string& output : dataset_output_names()) {
+    std::error_code ec;
+    if (fs::equivalent(a.images, fs::path(a.out) / output, ec)) {
+      throw InputError(a.out + ": its " + output +
+                       " folder is --images; the frames would be overwritten or removed");
+    }
   }
   const SensorModel sensor =
       a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
