@@ -5,7 +5,6 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
-#include <string>
 
 #include "pg/core/error.h"
 #include "pg/graph/factors.h"
@@ -60,20 +59,21 @@ GraphOptions checked(GraphOptions o) {
   const struct {
     const char* name;
     double value;
-  } sigmas[] = {{"sigma_image_to_image", o.sigma_image_to_image},
-                {"sigma_image_to_patch", o.sigma_image_to_patch},
-                {"sigma_velocity", o.sigma_velocity},
-                {"sigma_end_effector", o.sigma_end_effector},
-                {"sigma_vision", o.sigma_vision},
-                {"sigma_damping", o.sigma_damping},
-                {"sigma_unconstrained", o.sigma_unconstrained}};
+    bool may_be_zero;  // the damping prior's 0 turns it off
+  } sigmas[] = {{"sigma_image_to_image", o.sigma_image_to_image, false},
+                {"sigma_image_to_patch", o.sigma_image_to_patch, false},
+                {"sigma_velocity", o.sigma_velocity, false},
+                {"sigma_end_effector", o.sigma_end_effector, false},
+                {"sigma_vision", o.sigma_vision, false},
+                {"sigma_damping", o.sigma_damping, true},
+                {"sigma_unconstrained", o.sigma_unconstrained, false}};
   for (const auto& s : sigmas) {
-    const bool off = s.value == 0 && std::string(s.name) == "sigma_damping";
-    if (!off && !(s.value >= kMinFactorSigma && s.value <= kMaxFactorSigma)) {
+    if (s.may_be_zero && s.value == 0) continue;
+    if (!(s.value >= kMinFactorSigma && s.value <= kMaxFactorSigma)) {
       char message[160];
       std::snprintf(message, sizeof message, "tracker option %s = %g: must be from %g to %g%s",
                     s.name, s.value, kMinFactorSigma, kMaxFactorSigma,
-                    std::string(s.name) == "sigma_damping" ? " (or 0: off)" : "");
+                    s.may_be_zero ? " (or 0: off)" : "");
       throw InputError(message);
     }
   }
