@@ -1,7 +1,6 @@
 #include "pg/core/dataset.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -329,11 +328,13 @@ void DatasetWriter::remove_stale_frames() const {
     const bool written = info_.has_output(output);
     for (const auto& entry : fs::directory_iterator(folder, ec)) {
       const std::string stem = entry.path().stem().string();
-      const bool frame_name =
-          stem.size() == 6 &&
-          std::all_of(stem.begin(), stem.end(), [](unsigned char c) { return std::isdigit(c); }) &&
-          entry.path().extension() == extension_of(output);
-      if (frame_name && (!written || std::stoi(stem) >= info_.frames)) fs::remove(entry.path(), ec);
+      if (stem.empty() || stem.size() > 9 || stem.find_first_not_of("0123456789") != stem.npos) {
+        continue;
+      }
+      const int frame = std::stoi(stem);
+      const bool frame_file =
+          entry.path().filename() == fs::path(dataset_frame_path(dir_, output, frame)).filename();
+      if (frame_file && (!written || frame >= info_.frames)) fs::remove(entry.path(), ec);
     }
     if (!written && fs::is_empty(folder, ec)) fs::remove(folder, ec);
   }

@@ -143,6 +143,7 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   const std::string dir = tmp.str("d");
   write_small(dir, 5);
   std::ofstream(dir + "/color/notes.txt") << "mine";
+  std::ofstream(dir + "/color/4.png") << "mine";  // a number, but not a frame file's name
   std::ofstream(dir + "/normal/notes.txt") << "mine";
   DatasetInfo info = small_info(2);
   info.outputs = {"color"};
@@ -157,6 +158,7 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   EXPECT_FALSE(fs::exists(dir + "/color/000002.png"));
   EXPECT_FALSE(fs::exists(dir + "/color/000004.png"));
   EXPECT_TRUE(fs::exists(dir + "/color/notes.txt"));
+  EXPECT_TRUE(fs::exists(dir + "/color/4.png"));
   EXPECT_FALSE(fs::exists(dir + "/normal/000000.exr"));
   EXPECT_TRUE(fs::exists(dir + "/normal/notes.txt"));
   EXPECT_FALSE(fs::exists(dir + "/depth"));

@@ -82,14 +82,18 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
   }
 }
 
-// Throws InputError when two of `dirs` are one folder however written ("a/../b: given twice
-// (also as b)"): a dataset counted twice would weigh twice in every mean and median.
-inline void check_given_once(const std::vector<std::string>& dirs) {
+// The canonical paths of `dirs`; throws InputError when two are one folder however written
+// ("a/../b: given twice (also as b)"): a dataset counted twice would weigh twice in every mean
+// and median.
+inline std::vector<std::filesystem::path> check_given_once(const std::vector<std::string>& dirs) {
+  std::vector<std::filesystem::path> canonical;
   std::map<std::string, std::string> seen;  // canonical path -> as given
   for (const std::string& dir : dirs) {
-    const auto [it, fresh] = seen.emplace(std::filesystem::weakly_canonical(dir).string(), dir);
+    canonical.push_back(std::filesystem::weakly_canonical(dir));
+    const auto [it, fresh] = seen.emplace(canonical.back().string(), dir);
     if (!fresh) throw InputError(dir + ": given twice (also as " + it->second + ")");
   }
+  return canonical;
 }
 
 // The output folder, created before the work so that a path that cannot be one fails at once

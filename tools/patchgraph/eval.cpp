@@ -42,13 +42,9 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
 // where two datasets share that name, with their parents' names before it (a/x and b/x become
 // a_x and b_x). A dataset given twice (also through a folder of datasets) is an error.
 std::vector<std::string> run_names(const std::vector<std::string>& datasets) {
-  check_given_once(datasets);
+  const std::vector<fs::path> canonical = check_given_once(datasets);
   std::map<std::string, int> uses;
-  std::vector<fs::path> canonical;
-  for (const auto& dir : datasets) {
-    canonical.push_back(fs::weakly_canonical(dir));
-    ++uses[canonical.back().filename().string()];
-  }
+  for (const fs::path& path : canonical) ++uses[path.filename().string()];
   std::vector<std::string> names;
   for (std::size_t k = 0; k < datasets.size(); ++k) {
     const std::string& dir = datasets[k];

@@ -3,14 +3,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
-#include <string>
-#include <utility>
 #include <vector>
 
 #include "pg/core/error.h"
@@ -126,15 +123,8 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                      options.normals_name);
   }
-  for (const auto& [name, sigma] : {std::pair{"end_effector_noise", options.end_effector_noise},
-                                    std::pair{"vision_noise", options.vision_noise}}) {
-    if (!(sigma >= 0 && sigma <= kMaxPoseNoise)) {
-      char message[120];
-      std::snprintf(message, sizeof message, "track option %s = %g: must be from 0 to %g", name,
-                    sigma, kMaxPoseNoise);
-      throw InputError(message);
-    }
-  }
+  check_in_range("track option end_effector_noise", options.end_effector_noise, 0, kMaxPoseNoise);
+  check_in_range("track option vision_noise", options.vision_noise, 0, kMaxPoseNoise);
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;
   TrackRun run;

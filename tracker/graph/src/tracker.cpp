@@ -4,7 +4,7 @@
 
 #include <array>
 #include <chrono>
-#include <cstdio>
+#include <string>
 
 #include "pg/core/error.h"
 #include "pg/graph/factors.h"
@@ -69,13 +69,8 @@ GraphOptions checked(GraphOptions o) {
                 {"sigma_unconstrained", o.sigma_unconstrained, false}};
   for (const auto& s : sigmas) {
     if (s.may_be_zero && s.value == 0) continue;
-    if (!(s.value >= kMinFactorSigma && s.value <= kMaxFactorSigma)) {
-      char message[160];
-      std::snprintf(message, sizeof message, "tracker option %s = %g: must be from %g to %g%s",
-                    s.name, s.value, kMinFactorSigma, kMaxFactorSigma,
-                    s.may_be_zero ? " (or 0: off)" : "");
-      throw InputError(message);
-    }
+    check_in_range(std::string("tracker option ") + s.name, s.value, kMinFactorSigma,
+                   kMaxFactorSigma, s.may_be_zero ? " (or 0: off)" : "");
   }
   return o;
 }

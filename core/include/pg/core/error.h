@@ -32,4 +32,14 @@ inline std::string excerpt(std::string_view text, std::size_t max_chars = 60) {
   return out;
 }
 
+// Throws InputError "WHAT = VALUE: must be from LOW to HIGH" (followed by `also`, e.g. " (or 0:
+// off)") unless low <= value <= high; a NaN is never in range.
+inline void check_in_range(const std::string& what, double value, double low, double high,
+                           const char* also = "") {
+  if (value >= low && value <= high) return;
+  char text[128];
+  std::snprintf(text, sizeof text, " = %g: must be from %g to %g%s", value, low, high, also);
+  throw InputError(what + text);
+}
+
 }  // namespace pg
