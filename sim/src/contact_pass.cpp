@@ -1,6 +1,7 @@
 // Steps 1-3 of the pipeline (DESIGN.md, "Renderer pipeline"): cull the objects that cannot reach
 // the gel, bound each one's footprint in the image, and find the rigid indentation per pixel,
 // by rasterizing the object's triangles near the gel or by casting rays, whichever is cheaper.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -140,8 +141,11 @@ void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vect
     for (int k = 0; k < rays.count; ++k) {
       const int i = pixels[start + k];
       rays.dir_sensor[k] = gel.dir_sensor[i];
-      rays.tnear[k] =
-          settings.slab_limited_rays ? gel.t_gel[i] - slab - extra : float(sensor.camera.near_m);
+      // Never before the camera's near plane: on a sensor of a few pixels (or a very wide field
+      // of view) a tile's margin is centimetres, more than the gel's distance.
+      rays.tnear[k] = settings.slab_limited_rays
+                          ? std::max(gel.t_gel[i] - slab - extra, float(sensor.camera.near_m))
+                          : float(sensor.camera.near_m);
     }
     for (int obj : objs) {
       const ObjectShape& shape = *objects[obj];

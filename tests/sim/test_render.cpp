@@ -357,6 +357,28 @@ TEST(RenderResolution, HalfResolutionAgreesWithDownsampledFullResolution) {
   EXPECT_LT(depth_err, 0.1 * kPress) << "largest depth difference [m]";
 }
 
+// A sensor of a few pixels, or one with a field of view near 180 degrees, has so few pixels per
+// metre of gel that a tile's margin was centimetres: the rays then started behind the camera
+// (Embree aborts on that).
+TEST(RenderResolution, TinyImagesAndWideFieldsOfViewRender) {
+  for (const int size : {8, 10, 11}) {
+    SensorModel s = flat_digit("digit");
+    s.camera = s.camera.resized(size, size);
+    const RenderedFrame f =
+        SensorRenderer(s, {sphere_shape()}, quiet_settings()).render({pressed_sphere()}, 0);
+    float deepest = 0;
+    for (float d : f.images.depth.data) deepest = std::max(deepest, d);
+    // The pixel centres (2-3 mm apart) miss the press's deepest point by up to a millimetre.
+    EXPECT_GT(deepest, 0.5 * kPress) << size << "x" << size;
+    EXPECT_LT(deepest, 1.01 * kPress) << size << "x" << size;
+  }
+  SensorModel wide = flat_digit("digit");
+  wide.camera = CameraModel::from_vertical_fov(120, 160, 3.1, wide.camera.distance_m, wide.camera.near_m);
+  const RenderedFrame f =
+      SensorRenderer(wide, {sphere_shape()}, quiet_settings()).render({pressed_sphere()}, 0);
+  for (float d : f.images.depth.data) ASSERT_TRUE(std::isfinite(d));
+}
+
 TEST(RenderBadInput, OpenMeshRendersWhereItCrossesTheGel) {
   // A single open square sheet, tilted, crossing the gel surface.
   TriangleMesh sheet;
