@@ -269,9 +269,37 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   return poses;
 }
 
+void DatasetWriter::check_folder(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  if (!fs::is_directory(dir, ec)) {
+    throw InputError(dir + ": exists and is not a folder; give a folder for the dataset");
+  }
+  if (fs::is_empty(dir, ec)) return;
+  bool dataset = false;
+  try {
+    const nlohmann::json j = parse_json_file((fs::path(dir) / "dataset.json").string());
+    dataset = j.is_object() && j.value("format", "") == "patchgraph-dataset";
+  } catch (const std::exception&) {
+    // not a dataset's description
+  }
+  if (!dataset) {
+    throw InputError(dir +
+                     ": is not empty and holds no dataset (no dataset.json of the "
+                     "patchgraph-dataset format), so writing one there could replace your files; "
+                     "give a new or empty folder, or an earlier dataset's folder to replace it");
+  }
+}
+
 DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info)
     : dir_(std::move(dir)), info_(std::move(info)), poses_(info_.frames), written_(info_.frames, 0) {
+  check_folder(dir_);
   std::error_code ec;
+  const fs::path earlier_poses = fs::path(dir_) / "poses.csv";
+  if (fs::exists(earlier_poses, ec) && !fs::remove(earlier_poses, ec)) {
+    throw InputError(earlier_poses.string() + ": cannot remove the earlier dataset's poses: " +
+                     ec.message());
+  }
   fs::create_directories(dir_, ec);
   if (ec) throw InputError(dir_ + ": cannot create the dataset folder: " + ec.message());
   for (const auto& o : info_.outputs) {
@@ -347,6 +375,12 @@ Dataset Dataset::open(const std::string& dir) {
   const std::string info_path = (fs::path(dir) / "dataset.json").string();
   d.info_ = info_from_json(parse_json_file(info_path), info_path);
   const std::string poses_path = (fs::path(dir) / "poses.csv").string();
+  // DatasetWriter writes poses.csv last (and removes an earlier dataset's first).
+  if (!fs::exists(poses_path)) {
+    throw InputError(poses_path +
+                     ": missing: the dataset was never finished (its render or import stopped "
+                     "or failed); write it again");
+  }
   d.poses_ = read_poses_csv(poses_path);
   if (int(d.poses_.size()) != d.info_.frames) {
     throw InputError(poses_path + ": has " + std::to_string(d.poses_.size()) +

@@ -6,11 +6,14 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <map>
+#include <unordered_map>
 #include <sstream>
 
 #include "mesh_formats.h"
@@ -44,6 +47,9 @@ std::string read_file(const std::string& path) {
   if (!std::filesystem::exists(status)) throw InputError(path + ": file not found");
   if (std::filesystem::is_directory(status)) {
     throw InputError(path + ": is a directory, not a mesh file");
+  }
+  if (!std::filesystem::is_regular_file(status)) {  // a device or a pipe would never end
+    throw InputError(path + ": is not a regular file (a device, pipe or socket), not a mesh file");
   }
   std::ifstream file(path, std::ios::binary);
   if (!file) throw InputError(path + ": cannot open for reading: " + std::strerror(errno));
@@ -98,7 +104,57 @@ bool is_degenerate(const TriangleMesh& mesh, const Eigen::Vector3i& triangle) {
   return (b - a).cross(c - a).norm() <= kDegenerateRelativeArea * longest_squared;
 }
 
-// Checks the reader's output, applies `scale` and drops degenerate triangles.
+int find_part(std::vector<int>& parent, int v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+
+// Turns every closed part whose triangles all face inward (clockwise seen from outside: a
+// negative signed volume) outward, as a CAD export with flipped normals has them; the renderer
+// tells inside from outside by which way a closed mesh's faces point. Returns how many parts it
+// turned. A part that is open or not consistently oriented (some directed edge used twice, or
+// without its reverse) has no inside to speak of and is left as it is.
+int orient_closed_parts_outward(TriangleMesh& mesh) {
+  const int n = static_cast<int>(mesh.vertices.size());
+  std::vector<int> parent(static_cast<size_t>(n));
+  for (int v = 0; v < n; ++v) parent[static_cast<size_t>(v)] = v;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    parent[static_cast<size_t>(find_part(parent, t[1]))] = find_part(parent, t[0]);
+    parent[static_cast<size_t>(find_part(parent, t[2]))] = find_part(parent, t[0]);
+  }
+  const auto edge_key = [](int from, int to) {
+    return (std::uint64_t(std::uint32_t(from)) << 32) | std::uint32_t(to);
+  };
+  std::unordered_map<std::uint64_t, int> directed_edges;
+  std::map<int, double> volume;  // part root -> signed volume
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) ++directed_edges[edge_key(t[k], t[(k + 1) % 3])];
+    const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(t[0])].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(t[1])].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(t[2])].cast<double>();
+    volume[find_part(parent, t[0])] += a.dot(b.cross(c));
+  }
+  std::map<int, bool> oriented;  // part root -> closed and consistently oriented
+  for (const auto& [root, v] : volume) oriented[root] = true;
+  for (const auto& [edge, count] : directed_edges) {
+    const int from = int(edge >> 32), to = int(edge & 0xffffffffu);
+    const auto reverse = directed_edges.find(edge_key(to, from));
+    if (count != 1 || reverse == directed_edges.end() || reverse->second != 1) {
+      oriented[find_part(parent, from)] = false;
+    }
+  }
+  int turned = 0;
+  for (const auto& [root, v] : volume) turned += oriented[root] && v < 0.0;
+  if (turned == 0) return 0;
+  for (Eigen::Vector3i& t : mesh.triangles) {
+    const int root = find_part(parent, t[0]);
+    if (oriented[root] && volume[root] < 0.0) std::swap(t[1], t[2]);
+  }
+  return turned;
+}
+
+// Checks the reader's output, applies `scale`, drops degenerate triangles and turns inside-out
+// closed parts outward.
 TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
                       MeshLoadReport& report) {
   if (raw.vertices.empty()) throw InputError(path + ": empty mesh: no vertices");
@@ -148,6 +204,12 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
   report.degenerate_triangles_dropped = dropped;
   if (dropped > 0) {
     std::cerr << "warning: " << path << ": dropped " << dropped << " degenerate triangles\n";
+  }
+  report.inside_out_parts_turned = orient_closed_parts_outward(mesh);
+  if (report.inside_out_parts_turned > 0) {
+    std::cerr << "warning: " << path << ": " << report.inside_out_parts_turned
+              << " closed part(s) had every triangle facing inward (clockwise seen from "
+                 "outside); turned them outward\n";
   }
   return mesh;
 }

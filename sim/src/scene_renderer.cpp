@@ -87,6 +87,21 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   const SceneObject& tracked = scene.objects[scene.tracked_object];
   RenderSummary summary;
   summary.frames = scene.frames;
+  std::vector<std::string> dirs;
+  for (int i = 0; i < renderer.sensor_count(); ++i) {
+    dirs.push_back(renderer.sensor_count() == 1
+                       ? out_dir
+                       : (fs::path(out_dir) / scene.sensors[i].name).string());
+  }
+  // Every folder is checked before any is written: a refused second one must not leave the first
+  // half replaced.
+  if (renderer.sensor_count() > 1 && fs::exists(fs::path(out_dir) / "dataset.json")) {
+    throw InputError(out_dir + ": holds a dataset; a scene of " +
+                     std::to_string(renderer.sensor_count()) +
+                     " sensors writes one dataset per sensor into their own folders under a new "
+                     "or empty folder");
+  }
+  for (const auto& dir : dirs) DatasetWriter::check_folder(dir);
   std::vector<std::unique_ptr<DatasetWriter>> writers;
   for (int i = 0; i < renderer.sensor_count(); ++i) {
     DatasetInfo info;
@@ -102,9 +117,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
     info.object_name = tracked.name;
     info.object_mesh = fs::absolute(tracked.mesh_path).lexically_normal().string();
     info.object_scale = tracked.scale;
-    const std::string dir = renderer.sensor_count() == 1
-                                ? out_dir
-                                : (fs::path(out_dir) / scene.sensors[i].name).string();
+    const std::string& dir = dirs[i];
     writers.push_back(std::make_unique<DatasetWriter>(dir, info));
     if (info.has_output("color"))
       writers.back()->write_background(renderer.sensor(i).background_color_u8());

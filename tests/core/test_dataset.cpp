@@ -166,6 +166,47 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   EXPECT_EQ(Dataset::open(dir).frames(), 2);
 }
 
+// A folder of the user's own files is not a dataset to replace: writing one into it replaced
+// their poses.csv and removed their numbered frame files.
+TEST(Dataset, WriterRefusesAFolderThatHoldsSomethingElse) {
+  TempDir tmp;
+  const std::string dir = tmp.str("mine");
+  fs::create_directories(dir + "/mask");
+  std::ofstream(dir + "/poses.csv") << "my poses\n";
+  std::ofstream(dir + "/mask/000007.png") << "my image";
+  expect_input_error([&] { DatasetWriter(dir, small_info(2)); }, "holds no dataset");
+  expect_input_error([&] { DatasetWriter::check_folder(dir); }, dir + ": is not empty");
+  EXPECT_TRUE(fs::exists(dir + "/mask/000007.png"));
+  std::ifstream in(dir + "/poses.csv");
+  std::string line;
+  std::getline(in, line);
+  EXPECT_EQ(line, "my poses");
+  // A file, or a dataset.json of another format, is refused too; an empty folder is fine.
+  std::ofstream(tmp.str("file")) << "x";
+  expect_input_error([&] { DatasetWriter::check_folder(tmp.str("file")); }, "not a folder");
+  std::ofstream(dir + "/dataset.json") << "{\"format\": \"something-else\"}";
+  expect_input_error([&] { DatasetWriter::check_folder(dir); }, "holds no dataset");
+  fs::create_directories(tmp.str("empty"));
+  EXPECT_NO_THROW(write_small(tmp.str("empty"), 2));
+}
+
+// A run that stops between the writer's start and finish() (a crash, Ctrl-C) left the new
+// dataset.json over the earlier dataset's poses and frames, which opened as a valid dataset.
+TEST(Dataset, AnUnfinishedRewriteDoesNotOpenAsADataset) {
+  TempDir tmp;
+  const std::string dir = tmp.str("d");
+  write_small(dir, 5);
+  {
+    DatasetWriter writer(dir, small_info(3));
+    FramePose p;
+    writer.write_frame(p, make_frame(24, 32, 0));
+  }  // never finished
+  expect_input_error([&] { Dataset::open(dir); }, "poses.csv: missing: the dataset was never finished");
+  // It is still a dataset's folder: writing again replaces it.
+  write_small(dir, 3);
+  EXPECT_EQ(Dataset::open(dir).frames(), 3);
+}
+
 TEST(Dataset, ReaderRejectsWrongImageSize) {
   TempDir tmp;
   write_small(tmp.str("d"), 2);

@@ -24,6 +24,16 @@ TEST(Trajectory, WaypointsInterpolateLinearlyAndBySlerp) {
   EXPECT_NEAR(a1, a2, 1e-9);
 }
 
+TEST(Trajectory, WaypointsFarApartInterpolateWithoutOverflow) {
+  // The frame differences exceed an int's range.
+  const Trajectory t = Trajectory::from_waypoints(
+      {{-2147483647, {0, 0, 0.005}, {0, 0, 0}}, {2147483647, {0, 0, 0.006}, {0, 0, 0}}});
+  EXPECT_NEAR(t.at(0).translation().z(), 0.0055, 1e-12);
+  const Trajectory u = Trajectory::from_waypoints(
+      {{-1500000000, {0, 0, 0.005}, {0, 0, 0}}, {1500000000, {0, 0, 0.006}, {0, 0, 0}}});
+  EXPECT_NEAR(u.at(0).translation().z(), 0.0055, 1e-12);
+}
+
 TEST(Trajectory, PerFramePosesHoldTheLast) {
   std::vector<SE3> poses;
   for (int i = 0; i < 5; ++i) poses.push_back(SE3::Translation({0.001 * i, 0, 0}));

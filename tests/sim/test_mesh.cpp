@@ -472,6 +472,63 @@ TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {
   ::testing::internal::GetCapturedStderr();
 }
 
+// A closed cube exported with every triangle clockwise seen from outside (CAD's flipped normals)
+// is turned outward: the renderer tells inside from outside by the faces' direction, and rendered
+// it inside-out as no contact at all. An open or inconsistently oriented part stays as it was.
+TEST_F(MeshIoTest, AnInsideOutClosedPartIsTurnedOutwardAndWarned) {
+  const std::string cube =
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
+  // Outward (counter-clockwise) faces; the inside-out file lists each with two corners swapped.
+  const std::vector<std::array<int, 3>> faces = {{1, 3, 2}, {1, 4, 3}, {5, 6, 7}, {5, 7, 8},
+                                                 {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6},
+                                                 {3, 4, 8}, {3, 8, 7}, {4, 1, 5}, {4, 5, 8}};
+  std::string outward = cube, inward = cube;
+  for (const auto& f : faces) {
+    outward += "f " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " +
+               std::to_string(f[2]) + "\n";
+    inward += "f " + std::to_string(f[0]) + " " + std::to_string(f[2]) + " " +
+              std::to_string(f[1]) + "\n";
+  }
+  const auto signed_volume = [](const TriangleMesh& m) {
+    double v = 0;
+    for (const auto& t : m.triangles) {
+      v += m.vertices[t[0]].cast<double>().dot(
+               m.vertices[t[1]].cast<double>().cross(m.vertices[t[2]].cast<double>())) /
+           6.0;
+    }
+    return v;
+  };
+  MeshLoadReport report;
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh good = load_mesh(write("outward.obj", outward), 1.0, &report);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
+  EXPECT_NEAR(signed_volume(good), 1.0, 1e-9);
+
+  const std::string path = write("inward.obj", inward);
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh turned = load_mesh(path, 1.0, &report);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.inside_out_parts_turned, 1);
+  EXPECT_NEAR(signed_volume(turned), 1.0, 1e-9);
+  EXPECT_TRUE(Contains(err, path + ": 1 closed part(s) had every triangle facing inward")) << err;
+
+  // Without its last face the cube is open: nothing to turn.
+  const std::string open = inward.substr(0, inward.rfind("f "));
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh kept = load_mesh(write("open.obj", open), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
+  EXPECT_EQ(kept.triangles[0], Eigen::Vector3i(0, 1, 2));
+}
+
+TEST_F(MeshIoTest, AFileThatIsNotARegularFileIsRefused) {
+  EXPECT_TRUE(Contains(load_error("/dev/zero.obj"), "file not found"));
+  const std::string link = (dir_ / "zero.obj").string();
+  fs::create_symlink("/dev/zero", link);
+  EXPECT_TRUE(Contains(load_error(link), "is not a regular file")) << load_error(link);
+}
+
 // --------------------------------------------------------------------- generated meshes/*.glb
 
 struct GeneratedObject {

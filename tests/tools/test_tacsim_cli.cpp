@@ -120,6 +120,32 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   EXPECT_EQ(datasets, 2);
 }
 
+// --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder, is
+// refused before anything is written; an earlier dataset is replaced.
+TEST(TacsimCli, RenderReplacesOnlyADataset) {
+  TempDir tmp;
+  const std::string mine = tmp.str("mine");
+  fs::create_directories(mine + "/color");
+  std::ofstream(mine + "/poses.csv") << "my poses\n";
+  std::ofstream(mine + "/color/000005.png") << "my image";
+  CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out " + mine);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(mine + ": is not empty and holds no dataset"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(mine + "/color/000005.png"));
+  EXPECT_EQ(fs::file_size(mine + "/poses.csv"), 9u);
+  EXPECT_FALSE(fs::exists(mine + "/dataset.json"));
+
+  const std::string d = tmp.str("d");
+  ASSERT_EQ(tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + d).code, 0);
+  r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " + d);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("holds a dataset; a scene of 2 sensors"), std::string::npos) << r.out;
+  EXPECT_EQ(Dataset::open(d).frames(), 10);  // untouched
+  r = tacsim("render " + kScenes + "examples/no_contact.json -q --outputs mask --out " + d);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(Dataset::open(d).frames(), 5);
+}
+
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   TempDir tmp;
   const CliRun r = tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));

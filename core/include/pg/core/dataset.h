@@ -65,8 +65,15 @@ std::string dataset_frame_path(const std::string& dir, const std::string& output
 // Writes a dataset. Frames may be written from several threads, in any order.
 class DatasetWriter {
  public:
-  // Creates DIR and the output folders and writes dataset.json. Throws InputError naming the path.
+  // Creates DIR and the output folders and writes dataset.json. An earlier dataset in DIR is
+  // replaced: its poses.csv goes first, so that a run that stops before finish() leaves a folder
+  // that does not open as a dataset (rather than the new dataset.json over the old frames).
+  // Throws InputError naming the path, or check_folder's.
   DatasetWriter(std::string dir, DatasetInfo info);
+  // Throws InputError unless DIR can take a new dataset: it does not exist, or is an empty folder,
+  // or holds a dataset (its dataset.json says so; finished or not). Writing into any other folder
+  // would replace and remove the user's own files of the dataset's names (poses.csv, 000007.png).
+  static void check_folder(const std::string& dir);
   // Writes the requested outputs (each must be present and of the sensor's image size).
   void write_frame(const FramePose& pose, const FrameImages& images);
   // Writes DIR/background.png: what the sensor shows without contact (the reference frame a
