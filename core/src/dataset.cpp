@@ -103,7 +103,7 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
   }
   info.fps = f.required_number_in("fps", 1e-6, 1e6);
   info.outputs = f.required<std::vector<std::string>>("outputs");
-  for (const auto& o : info.outputs) check_output_name(o, f.field("outputs"));
+  check_output_names(info.outputs, f.field("outputs"));
   info.scene = f.optional<std::string>("scene", "");
   info.seed = f.optional<std::uint64_t>("seed", 0);
   if (f.has("object")) {
@@ -134,12 +134,18 @@ const std::vector<std::string>& dataset_output_names() {
   return names;
 }
 
-void check_output_name(const std::string& name, const std::string& where) {
-  const auto& names = dataset_output_names();
-  if (std::find(names.begin(), names.end(), name) != names.end()) return;
-  std::string known;
-  for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
-  throw InputError(where + ": unknown output '" + name + "' (known: " + known + ")");
+void check_output_names(const std::vector<std::string>& names, const std::string& where) {
+  const auto& known = dataset_output_names();
+  for (auto name = names.begin(); name != names.end(); ++name) {
+    if (std::find(known.begin(), known.end(), *name) == known.end()) {
+      std::string list;
+      for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
+      throw InputError(where + ": unknown output '" + *name + "' (known: " + list + ")");
+    }
+    if (std::find(names.begin(), name, *name) != name) {
+      throw InputError(where + ": output '" + *name + "' is given twice");
+    }
+  }
 }
 
 bool DatasetInfo::has_output(const std::string& name) const {

@@ -104,7 +104,11 @@ SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
     throw InputError(where + ": give either sensor or sensor_file, not both");
   }
   if (f.has("sensor_file")) {
-    s.model = load_sensor_file(resolve(base_dir, f.required<std::string>("sensor_file")));
+    try {
+      s.model = load_sensor_file(resolve(base_dir, f.required<std::string>("sensor_file")));
+    } catch (const InputError& e) {  // the sensor file's own error, and where the scene names it
+      throw InputError(f.field("sensor_file") + ": " + e.what());
+    }
   } else if (f.has("sensor") && f.at("sensor").is_string()) {
     try {
       s.model = sensor_preset(f.required<std::string>("sensor"));
@@ -146,6 +150,20 @@ auto read_array(JsonFields& f, const std::string& key, Read read) {
   return out;
 }
 
+// Each entry's name once: `field` is the array's ("scene.json: sensors"), `key` its key.
+template <typename Entry>
+void check_unique_names(const std::vector<Entry>& entries, const std::string& field,
+                        const std::string& key, const std::string& why) {
+  for (std::size_t i = 1; i < entries.size(); ++i) {
+    for (std::size_t k = 0; k < i; ++k) {
+      if (entries[i].name == entries[k].name) {
+        throw InputError(field + "[" + std::to_string(i) + "].name: '" + entries[i].name +
+                         "' is also " + key + "[" + std::to_string(k) + "]'s name; " + why);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 Scene scene_from_json(const nlohmann::json& j, const std::string& name,
@@ -162,19 +180,14 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
       read_array(f, "sensors", [&](const nlohmann::json& s, const std::string& w, int i) {
         return read_sensor(s, w, base_dir, i);
       });
-  for (std::size_t i = 1; i < scene.sensors.size(); ++i) {
-    for (std::size_t k = 0; k < i; ++k) {
-      if (scene.sensors[i].name == scene.sensors[k].name) {
-        throw InputError(f.field("sensors") + "[" + std::to_string(i) + "].name: '" +
-                         scene.sensors[i].name + "' is also sensors[" + std::to_string(k) +
-                         "]'s name; each sensor writes to its own folder OUT/<name>/");
-      }
-    }
-  }
+  check_unique_names(scene.sensors, f.field("sensors"), "sensors",
+                     "each sensor writes to its own folder OUT/<name>/");
   scene.objects =
       read_array(f, "objects", [&](const nlohmann::json& o, const std::string& w, int i) {
         return read_object(o, w, base_dir, i);
       });
+  check_unique_names(scene.objects, f.field("objects"), "objects",
+                     "tracked_object and the dataset name the object by it");
   if (f.has("tracked_object")) {
     const std::string tracked = f.required<std::string>("tracked_object");
     const auto it = std::find_if(scene.objects.begin(), scene.objects.end(),
@@ -192,7 +205,7 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
       throw InputError(r.field("outputs") +
                        ": empty; name at least one of color, normal, depth, mask, points");
     }
-    for (const auto& o : render.outputs) check_output_name(o, r.field("outputs"));
+    check_output_names(render.outputs, r.field("outputs"));
     render.noise = r.optional<bool>("noise", render.noise);
     render.shadows = r.optional<bool>("shadows", render.shadows);
     const std::string bg = r.optional<std::string>("background", "synthetic");

@@ -51,8 +51,20 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
                                         overrides.height > 0 ? overrides.height : cam.height);
     }
   }
-  for (const auto& object : scene_.objects) {
-    shapes_.push_back(std::make_shared<ObjectShape>(load_mesh(object.mesh_path, object.scale)));
+  for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
+    const SceneObject& object = scene_.objects[i];
+    try {
+      shapes_.push_back(std::make_shared<ObjectShape>(load_mesh(object.mesh_path, object.scale)));
+    } catch (const InputError& e) {  // the mesh file's own error, and where the scene names it
+      throw InputError(scene_.path + ": objects[" + std::to_string(i) + "].mesh: " + e.what());
+    }
+  }
+  if (!scene_.render.background.empty() && !fs::exists(scene_.render.background)) {
+    const std::string where = overrides.background.empty()
+                                  ? scene_.path + ": render.background"
+                                  : std::string("background given for the scene");
+    throw InputError(where + ": " + scene_.render.background +
+                     ": no such image file (give an image, or synthetic or none)");
   }
   const RenderSettings settings = settings_for(scene_.render, scene_.render.outputs);
   for (const auto& sensor : scene_.sensors) {

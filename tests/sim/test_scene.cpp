@@ -317,6 +317,22 @@ TEST_F(SceneFileTest, SensorNamesArePlainUniqueFolderNames) {
   EXPECT_EQ(s.sensors[2].name, "sensor2");
 }
 
+// Two objects of one name made tracked_object pick the first without a word; an output listed
+// twice was written twice and listed twice in dataset.json.
+TEST_F(SceneFileTest, ObjectNamesAndOutputsAreEachGivenOnce) {
+  json j = minimal_scene();
+  j["objects"] = {{{"name", "a"}, {"mesh", "m.glb"}}, {{"name", "a"}, {"mesh", "n.glb"}}};
+  std::string path = write("objects.json", j);
+  std::string message = load_error(path);
+  EXPECT_EQ(message.rfind(path + ": objects[1].name: 'a' is also objects[0]'s name", 0), 0u)
+      << message;
+  j = minimal_scene();
+  j["render"] = {{"outputs", {"mask", "color", "mask"}}};
+  path = write("outputs.json", j);
+  message = load_error(path);
+  EXPECT_EQ(message, path + ": render.outputs: output 'mask' is given twice");
+}
+
 // The norm of [1e200, 0, 0, 0] squared overflows; such a quaternion is still a rotation (half a
 // turn about x) and must not be normalised to [0, 0, 0, 0].
 TEST_F(SceneFileTest, QuaternionsOfAnyFiniteScaleAreNormalised) {
@@ -344,8 +360,10 @@ TEST_F(SceneFileTest, NumbersBeyondADoubleAndWrongTypedPresetsNameTheFileOnce) {
   const std::string sensor = write("sensor.json", std::string(R"({"noise": {"sigma": 1e999}})"));
   json j = minimal_scene();
   j["sensors"][0] = {{"sensor_file", "sensor.json"}};
-  message = load_error(write("uses_sensor.json", j));
-  EXPECT_EQ(message.rfind(sensor + ": ", 0), 0u) << message;
+  const std::string scene = write("uses_sensor.json", j);
+  message = load_error(scene);
+  // Where the scene names the sensor file, then the sensor file's own error.
+  EXPECT_EQ(message.rfind(scene + ": sensors[0].sensor_file: " + sensor + ": ", 0), 0u) << message;
   EXPECT_NE(message.find("number overflow"), std::string::npos) << message;
 
   j["sensors"][0] = {{"sensor", {{"preset", 5}}}};

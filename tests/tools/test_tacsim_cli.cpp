@@ -146,6 +146,41 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_EQ(Dataset::open(d).frames(), 5);
 }
 
+TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
+  TempDir tmp;
+  const std::string scene = kScenes + "examples/sphere_press.json";
+  // One side alone would scale only that side's focal length: stretched pixels.
+  CliRun r = tacsim("render " + scene + " --width 240 --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--width requires --height"), std::string::npos) << r.out;
+  EXPECT_EQ(tacsim("sheet " + scene + " --height 80 --out " + tmp.str("s.png")).code, 2);
+  r = tacsim("render " + scene + " --outputs '' --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("--outputs: empty"), std::string::npos) << r.out;
+  r = tacsim("render " + scene + " --outputs mask,mask --out " + tmp.str("d"));
+  EXPECT_NE(r.out.find("--outputs: output 'mask' is given twice"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("d")));
+
+  std::ofstream(tmp.str("scene.json"))
+      << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": "missing.glb"}],
+             "render": {"background": "Synthetic"}})";
+  r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(tmp.str("scene.json") + ": objects[0].mesh: " + tmp.str("missing.glb") +
+                       ": file not found"),
+            std::string::npos)
+      << r.out;
+  std::ofstream(tmp.str("scene.json"))
+      << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
+      << R"(/meshes/cube.glb"}], "render": {"background": "Synthetic"}})";
+  r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(tmp.str("scene.json") + ": render.background: " + tmp.str("Synthetic") +
+                       ": no such image file (give an image, or synthetic or none)"),
+            std::string::npos)
+      << r.out;
+}
+
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   TempDir tmp;
   const CliRun r = tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));

@@ -34,6 +34,7 @@ struct RenderArgs {
   std::string scene, out, outputs, background, shadows, elastic;
   int threads = 0, width = 0, height = 0;
   bool quiet = false;
+  bool outputs_given = false;  // --outputs was on the command line (perhaps empty)
 };
 
 std::optional<bool> on_off(const std::string& value) {
@@ -44,7 +45,10 @@ std::optional<bool> on_off(const std::string& value) {
 int run_render(const RenderArgs& a) {
   RenderOverrides overrides;
   overrides.outputs = split_list(a.outputs);
-  for (const auto& o : overrides.outputs) check_output_name(o, "--outputs");
+  if (a.outputs_given && overrides.outputs.empty()) {
+    throw InputError("--outputs: empty; name at least one of color, normal, depth, mask, points");
+  }
+  check_output_names(overrides.outputs, "--outputs");
   overrides.width = a.width;
   overrides.height = a.height;
   overrides.background = a.background;
@@ -136,10 +140,15 @@ int main(int argc, char** argv) {
       "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
       ->check(kNonNegative);
-  cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
-      ->check(CLI::Range(8, 8192));
-  cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
-      ->check(CLI::Range(8, 8192));
+  // Together: the intrinsics scale with each side, so one alone would stretch the pixels.
+  CLI::Option* render_width =
+      cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
+          ->check(CLI::Range(8, 8192));
+  CLI::Option* render_height =
+      cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
+          ->check(CLI::Range(8, 8192));
+  render_width->needs(render_height);
+  render_height->needs(render_width);
   cmd_render->add_option("--background", render.background,
                          "Real background image for every sensor (TACTO-style blend)");
   cmd_render->add_option("--shadows", render.shadows, "Override the scene: on or off")
@@ -170,15 +179,22 @@ int main(int argc, char** argv) {
   cmd_sheet->add_option("scenes", sheet.scenes, "Scene files")->required();
   cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
   cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(kNonNegative);
-  cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")
-      ->check(CLI::Range(8, 8192));
-  cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")
-      ->check(CLI::Range(8, 8192));
+  CLI::Option* sheet_width =
+      cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")
+          ->check(CLI::Range(8, 8192));
+  CLI::Option* sheet_height =
+      cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")
+          ->check(CLI::Range(8, 8192));
+  sheet_width->needs(sheet_height);
+  sheet_height->needs(sheet_width);
   cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
 
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_sheet->parsed()) return run_sheet(sheet);
-    if (cmd_render->parsed()) return run_render(render);
+    if (cmd_render->parsed()) {
+      render.outputs_given = cmd_render->count("--outputs") > 0;
+      return run_render(render);
+    }
     if (cmd_info->parsed()) return run_info(info_dir);
     if (cmd_bench->parsed()) return run_bench(bench);
     return kExitUsage;

@@ -17,10 +17,10 @@
 
 namespace pg {
 
-// Names of the per-frame outputs, in file order, and an error if `name` is not one of them
-// (`where` names the field, e.g. "--outputs").
+// Names of the per-frame outputs, in file order, and an error if one of `names` is not one of
+// them or is given twice (`where` names the field, e.g. "--outputs").
 const std::vector<std::string>& dataset_output_names();
-void check_output_name(const std::string& name, const std::string& where);
+void check_output_names(const std::vector<std::string>& names, const std::string& where);
 
 struct FramePose {
   int frame = 0;
