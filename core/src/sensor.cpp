@@ -94,6 +94,13 @@ PointLight read_light(const nlohmann::json& j, const std::string& where) {
   JsonFields f(j, where);
   PointLight light;
   light.position_m = f.required_position("position_m");
+  // The lights shine through the gel from the camera's side; one at or beyond the gel's surface
+  // plane lights the coating from behind (an image black or nearly so, from no error at all).
+  if (!(light.position_m.z() < 0.0)) {
+    throw InputError(f.field("position_m") + ": z = " + std::to_string(light.position_m.z()) +
+                     " m puts the light on or beyond the gel's surface; lights sit behind the "
+                     "gel, on the camera's side (z < 0, e.g. the DIGIT's at -0.017)");
+  }
   light.color = f.optional<Eigen::Vector3d>("color", light.color);
   if ((light.color.array() < 0.0).any() || (light.color.array() > 1.0).any()) {
     throw InputError(f.field("color") + ": components must be in [0, 1]");

@@ -106,8 +106,13 @@ TEST(SensorConfig, ErrorsNameTheKey) {
                      {"lights[0].position_m", "missing"});
   expect_input_error(parse(R"({"lights": [{"position_m": [0,0], "color": [1,0,0]}]})"),
                      {"lights[0].position_m", "3 numbers"});
-  expect_input_error(parse(R"({"lights": [{"position_m": [0,0,0], "color": [2,0,0]}]})"),
+  expect_input_error(parse(R"({"lights": [{"position_m": [0,0,-0.01], "color": [2,0,0]}]})"),
                      {"lights[0].color"});
+  // On the gel's surface plane or beyond it, a light shines on the coating from behind.
+  expect_input_error(parse(R"({"lights": [{"position_m": [0,0,0]}]})"),
+                     {"lights[0].position_m", "behind the gel"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0.01,0,0.01]}]})"),
+                     {"lights[0].position_m", "z = 0.010000"});
   expect_input_error(parse(R"({"preset": "nope"})"), {"preset", "nope"});
   expect_input_error(parse(R"({"gel": {"elastic": {"bend_radius_m": 2}}})"),
                      {"gel.elastic.bend_radius_m"});

@@ -59,6 +59,13 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
   r = tacsim("info " + tmp.str("nothing"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("nothing"), std::string::npos) << r.out;
+  // Before the benchmark runs (the ablation's table was silently lost).
+  for (const char* mode : {"", " --ablation"}) {
+    r = tacsim(std::string("bench --quick --frames 2 --repeats 1") + mode +
+               " --markdown /proc/no/such.md");
+    EXPECT_EQ(r.code, 1) << mode;
+    EXPECT_EQ(r.out.rfind("error: /proc/no/such.md: cannot write", 0), 0u) << r.out;
+  }
 }
 
 TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <new>
 #include <string>
 #include <utility>
 #include <vector>
@@ -138,6 +139,10 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return body();
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "error: out of memory: the images, frames or threads asked for need more memory "
+                 "than is free (smaller images, fewer threads or a shorter run need less)\n");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
   }

@@ -5,9 +5,11 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <memory>
@@ -15,6 +17,7 @@
 #include <thread>
 
 #include "../common/machine_info.h"
+#include "pg/core/error.h"
 #include "pg/core/statistics.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
@@ -205,6 +208,7 @@ int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const Be
     if (!args.markdown.empty()) {
       std::ofstream file(args.markdown, preset == std::string("digit") ? std::ios::trunc : std::ios::app);
       file << out.str();
+      if (!file) throw InputError(args.markdown + ": cannot write");
     }
     out.str("");
   }
@@ -225,6 +229,10 @@ int run_bench(const BenchArgs& in) {
                                                   args.threads);
   }
   const int threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
+  // A path that cannot be written fails now, not after the whole benchmark.
+  if (!args.markdown.empty() && !std::ofstream(args.markdown)) {
+    throw InputError(args.markdown + ": cannot write (" + std::strerror(errno) + ")");
+  }
   const std::vector<Case> cases = bench_cases();
   if (args.ablation) return run_ablation(cases, args, in);
   std::ostringstream head, table;
@@ -259,10 +267,7 @@ int run_bench(const BenchArgs& in) {
   if (!args.markdown.empty()) {
     std::ofstream out(args.markdown);
     out << head.str() << table.str();
-    if (!out) {
-      std::fprintf(stderr, "error: %s: cannot write\n", args.markdown.c_str());
-      return 1;
-    }
+    if (!out) throw InputError(args.markdown + ": cannot write");
   }
   return 0;
 }
