@@ -379,6 +379,20 @@ Dataset Dataset::open(const std::string& dir) {
   Dataset d;
   d.dir_ = dir;
   const std::string info_path = (fs::path(dir) / "dataset.json").string();
+  if (!fs::exists(info_path)) {
+    // A scene of several sensors writes one dataset per sensor, in folders under its --out.
+    std::string sensors;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(dir, ec)) {
+      if (fs::exists(entry.path() / "dataset.json")) {
+        sensors += (sensors.empty() ? "" : ", ") + entry.path().filename().string();
+      }
+    }
+    if (!sensors.empty()) {
+      throw InputError(dir + ": is not a dataset, but holds datasets (one per sensor): " +
+                       sensors + "; give one of those folders");
+    }
+  }
   d.info_ = info_from_json(parse_json_file(info_path), info_path);
   const std::string poses_path = (fs::path(dir) / "poses.csv").string();
   // DatasetWriter writes poses.csv last (and removes an earlier dataset's first).

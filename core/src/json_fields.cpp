@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 #include "pg/core/se3.h"
@@ -27,19 +28,31 @@ void line_and_column(const std::string& text, std::size_t byte, int& line, int& 
   }
 }
 
-// nlohmann's message without its "[json.exception.out_of_range.406] " tag.
-std::string without_tag(const std::string& what) {
-  const auto tag_end = what.find("] ");
-  return what.rfind("[json.exception.", 0) == 0 && tag_end != std::string::npos
-             ? what.substr(tag_end + 2)
-             : what;
-}
-
 }  // namespace
 
 nlohmann::json parse_json_text(const std::string& text, const std::string& name) {
+  // A key given twice in one object: nlohmann keeps the last without a word, so a scene's second
+  // "frames" would silently win over its first.
+  std::vector<std::set<std::string>> keys;  // of the objects being parsed, innermost last
+  std::string duplicate;
+  const nlohmann::json::parser_callback_t check_keys =
+      [&](int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        using Event = nlohmann::json::parse_event_t;
+        if (event == Event::object_start) keys.emplace_back();
+        if (event == Event::object_end && !keys.empty()) keys.pop_back();
+        if (event == Event::key && !keys.empty() && duplicate.empty() &&
+            !keys.back().insert(parsed.get<std::string>()).second) {
+          duplicate = parsed.get<std::string>();
+        }
+        return true;
+      };
   try {
-    return nlohmann::json::parse(text);
+    nlohmann::json j = nlohmann::json::parse(text, check_keys);
+    if (!duplicate.empty()) {
+      throw InputError(name + ": key \"" + duplicate +
+                       "\" is given twice in one object (only one value can hold)");
+    }
+    return j;
   } catch (const nlohmann::json::parse_error& e) {
     int line = 0, column = 0;
     line_and_column(text, e.byte, line, column);
@@ -52,8 +65,15 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& name)
   } catch (const nlohmann::json::exception& e) {
     // Not a syntax error but, e.g., "number overflow parsing '1e400'" (out_of_range.406): a
     // number beyond the range of a double, which nlohmann reports without the file or position.
-    throw InputError(name + ": malformed JSON: " + excerpt(without_tag(e.what()), 80));
+    throw InputError(name + ": malformed JSON: " + excerpt(without_json_tag(e.what()), 80));
   }
+}
+
+std::string without_json_tag(const std::string& what) {
+  const auto tag_end = what.find("] ");
+  return what.rfind("[json.exception.", 0) == 0 && tag_end != std::string::npos
+             ? what.substr(tag_end + 2)
+             : what;
 }
 
 nlohmann::json parse_json_file(const std::string& path) {
@@ -103,6 +123,21 @@ void JsonFields::type_error(const std::string& key, const char* expected,
   throw InputError(field(key) + ": expected " + expected + ", got " + json_type_name(v));
 }
 
+void JsonFields::check_number_array(const std::string& key, const char* expected,
+                                    const nlohmann::json& v, std::size_t n) const {
+  if (!v.is_array()) type_error(key, expected, v);
+  if (v.size() != n) {
+    throw InputError(field(key) + ": expected " + expected + ", got " + std::to_string(v.size()) +
+                     (v.size() == 1 ? " element" : " elements"));
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!v[i].is_number()) {
+      throw InputError(field(key) + ": expected " + expected + ", element " + std::to_string(i) +
+                       " is " + json_type_name(v[i]));
+    }
+  }
+}
+
 template <>
 double JsonFields::convert<double>(const nlohmann::json& v, const std::string& key) const {
   if (!v.is_number()) type_error(key, "a number", v);
@@ -144,12 +179,9 @@ std::string JsonFields::convert<std::string>(const nlohmann::json& v,
 template <>
 Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
                                                      const std::string& key) const {
-  if (!v.is_array() || v.size() != 3) type_error(key, "an array of 3 numbers", v);
+  check_number_array(key, "an array of 3 numbers", v, 3);
   Eigen::Vector3d out;
-  for (int i = 0; i < 3; ++i) {
-    if (!v[i].is_number()) type_error(key, "an array of 3 numbers", v);
-    out[i] = v[i].get<double>();
-  }
+  for (int i = 0; i < 3; ++i) out[i] = v[i].get<double>();
   if (!out.allFinite()) throw InputError(field(key) + ": expected finite numbers");
   return out;
 }
@@ -157,13 +189,9 @@ Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
 template <>
 Eigen::Quaterniond JsonFields::convert<Eigen::Quaterniond>(const nlohmann::json& v,
                                                            const std::string& key) const {
-  const char* expected = "an array of 4 numbers [x, y, z, w]";
-  if (!v.is_array() || v.size() != 4) type_error(key, expected, v);
+  check_number_array(key, "an array of 4 numbers [x, y, z, w]", v, 4);
   Eigen::Vector4d xyzw;
-  for (int i = 0; i < 4; ++i) {
-    if (!v[i].is_number()) type_error(key, expected, v);
-    xyzw[i] = v[i].get<double>();
-  }
+  for (int i = 0; i < 4; ++i) xyzw[i] = v[i].get<double>();
   Eigen::Quaterniond q;
   if (!unit_quaternion(xyzw, q)) throw InputError(field(key) + ": must be finite and non-zero");
   return q;

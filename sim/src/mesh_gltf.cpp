@@ -11,6 +11,7 @@
 
 #include "mesh_formats.h"
 #include "pg/core/error.h"
+#include "pg/core/json_fields.h"
 #include "pg/core/se3.h"
 #include "pg/sim/mesh.h"
 
@@ -230,7 +231,11 @@ RawMesh read_gltf(const std::string& path, bool binary) {
   std::string error, warning;
   const bool ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
                          : loader.LoadASCIIFromFile(&model, &error, &warning, path);
-  if (!ok) throw FormatError("glTF parse error: " + (error.empty() ? warning : error));
+  if (!ok) {
+    std::string what = without_json_tag(error.empty() ? warning : error);
+    while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();
+    throw FormatError("glTF parse error: " + what);
+  }
 
   std::vector<int> roots;
   if (!model.scenes.empty()) {

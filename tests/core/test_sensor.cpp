@@ -149,5 +149,29 @@ TEST(JsonFile, NumberOverflowAndDirectoriesNameTheFile) {
   expect_input_error([] { parse_json_file("/"); }, {"/: is a directory, not a JSON file"});
 }
 
+// nlohmann keeps a repeated key's last value without a word: a scene's second "frames" won.
+TEST(JsonFile, AKeyGivenTwiceInOneObjectIsRefused) {
+  expect_input_error([] { parse_json_text(R"({"frames": 3, "fps": 30, "frames": 2})", "s.json"); },
+                     {"s.json: key \"frames\" is given twice in one object"});
+  expect_input_error(
+      [] { parse_json_text(R"({"a": {"x": 1}, "b": [{"y": 1, "y": 2}]})", "s.json"); },
+      {"key \"y\" is given twice"});
+  // The same key in different objects is fine.
+  const nlohmann::json j = parse_json_text(R"({"a": {"x": 1}, "b": {"x": 2}, "x": [{"x": 3}]})", "s.json");
+  EXPECT_EQ(j["b"]["x"], 2);
+  EXPECT_EQ(j["x"][0]["x"], 3);
+}
+
+// Which part of an array of numbers is wrong, not "expected an array of 3 numbers, got an array".
+TEST(JsonFile, AWrongArrayOfNumbersSaysWhatIsWrong) {
+  auto parse = [](const char* text) {
+    return [text] { sensor_from_json(nlohmann::json::parse(text), "cfg.json"); };
+  };
+  expect_input_error(parse(R"({"lights": [{"position_m": [0, -0.01]}]})"),
+                     {"lights[0].position_m: expected an array of 3 numbers, got 2 elements"});
+  expect_input_error(parse(R"({"lights": [{"position_m": ["0", 0, -0.01]}]})"),
+                     {"lights[0].position_m: expected an array of 3 numbers, element 0 is a string"});
+}
+
 }  // namespace
 }  // namespace pg

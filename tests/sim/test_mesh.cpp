@@ -432,6 +432,10 @@ TEST_F(MeshIoTest, ParseErrorsNameTheFileAndLine) {
                        "ends early"));
   EXPECT_TRUE(Contains(load_error(write("junk.stl", std::string(100, 'x'))), "neither binary STL"));
   EXPECT_TRUE(Contains(load_error(write("junk.glb", "not a glb at all")), "glTF"));
+  // A .gltf that is not JSON: the JSON parser's message, without its internal tag.
+  message = load_error(write("junk.gltf", "solid not json"));
+  EXPECT_TRUE(Contains(message, "junk.gltf: glTF parse error: ")) << message;
+  EXPECT_FALSE(Contains(message, "[json.exception")) << message;
 }
 
 // A garbage file's "word" is quoted back in the message: cut short and made printable, not echoed

@@ -125,6 +125,11 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
     }
   }
   EXPECT_EQ(datasets, 2);
+  const CliRun info = tacsim("info " + tmp.str("d"));
+  EXPECT_EQ(info.code, 1);
+  EXPECT_NE(info.out.find(tmp.str("d") + ": is not a dataset, but holds datasets (one per sensor): "),
+            std::string::npos)
+      << info.out;
 }
 
 // --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder, is

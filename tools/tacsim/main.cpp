@@ -100,7 +100,7 @@ int run_info(const std::string& dir) {
   std::printf("dataset   %s\n", dir.c_str());
   std::printf("sensor    %s, %dx%d px, fx %.2f px\n", info.sensor.name.c_str(), info.width(),
               info.height(), info.sensor.camera.fx);
-  std::printf("frames    %d at %.1f fps (%d with contact", info.frames, info.fps, contact);
+  std::printf("frames    %d at %g fps (%d with contact", info.frames, info.fps, contact);
   if (contact_unknown > 0) std::printf(", %d not known", contact_unknown);
   std::printf(")\n");
   if (object_known < info.frames) {

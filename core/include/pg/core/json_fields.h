@@ -27,6 +27,9 @@ constexpr double kMaxPositionM = 1e3;
 nlohmann::json parse_json_file(const std::string& path);
 // Same for text already in memory; `name` stands for the file in messages.
 nlohmann::json parse_json_text(const std::string& text, const std::string& name);
+// nlohmann's message without its "[json.exception.parse_error.101] " tag (also in the messages
+// of libraries that parse with it, e.g. tinygltf).
+std::string without_json_tag(const std::string& what);
 
 std::string json_type_name(const nlohmann::json& j);
 
@@ -64,6 +67,9 @@ class JsonFields {
   T convert(const nlohmann::json& v, const std::string& key) const;
   [[noreturn]] void type_error(const std::string& key, const char* expected,
                                const nlohmann::json& v) const;
+  // Throws, saying what is wrong, unless `v` is an array of `n` numbers.
+  void check_number_array(const std::string& key, const char* expected, const nlohmann::json& v,
+                          std::size_t n) const;
 
   const nlohmann::json& j_;
   std::string where_;
