@@ -68,6 +68,12 @@ TEST(Tracking, UnobservableDirectionsAreReported) {
   for (const auto& f : s.frames) three += f.unconstrained_directions == 3;
   EXPECT_GE(s.summary.degenerate_frames, s.summary.contact_frames - 2);
   EXPECT_GE(three, s.summary.contact_frames - 2);
+  EXPECT_EQ(s.summary.unconstrained_direction_frames[3], three);
+  int counted = 0;
+  for (int n : s.summary.unconstrained_direction_frames) counted += n;
+  EXPECT_EQ(counted, s.summary.contact_frames);
+  EXPECT_EQ(s.summary.contact_frames - s.summary.unconstrained_direction_frames[0],
+            s.summary.degenerate_frames);
   const Dataset dc = render(parse_json_file(kRepo + "/scenes/default.json"), tmp.path / "cube");
   const TrackRun c = track_dataset(dc, TrackOptions());
   EXPECT_GT(c.summary.contact_frames, 50);

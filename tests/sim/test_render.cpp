@@ -1,9 +1,11 @@
 // Renderer accuracy against analytic shapes, the work-skipping paths against brute force, colour
 // properties, determinism, resolution consistency and bad input.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <random>
 
 #include "pg/core/error.h"
@@ -420,6 +422,28 @@ TEST(RenderBadInput, MissingBackgroundImageNamesThePath) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("/no/such/bg.jpg"), std::string::npos);
   }
+}
+
+// A background of another shape was stretched to the sensor's without a word.
+TEST(RenderBadInput, ABackgroundOfAnotherShapeIsRefused) {
+  const std::string path = (std::filesystem::temp_directory_path() /
+                            ("pg_test_landscape_bg_" + std::to_string(::getpid()) + ".png"))
+                               .string();
+  write_image(path, ImageU8(160, 120, 3));  // landscape, the DIGIT is 120x160
+  RenderSettings s;
+  s.background = path;
+  try {
+    SensorRenderer r(sensor_preset("digit"), {sphere_shape()}, s);
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(path + ": background image is 160x120, not of the "
+                                                "sensor's shape (120x160 or a multiple)"),
+              std::string::npos)
+        << e.what();
+  }
+  write_image(path, ImageU8(240, 320, 3));  // twice the sensor's size: fine
+  EXPECT_NO_THROW(SensorRenderer(sensor_preset("digit"), {sphere_shape()}, s));
+  std::filesystem::remove(path);
 }
 
 TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {

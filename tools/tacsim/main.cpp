@@ -43,6 +43,7 @@ std::optional<bool> on_off(const std::string& value) {
 }
 
 int run_render(const RenderArgs& a) {
+  if (a.out.empty()) throw InputError("--out: empty; give the dataset's folder");
   RenderOverrides overrides;
   overrides.outputs = split_list(a.outputs);
   if (a.outputs_given && overrides.outputs.empty()) {
@@ -169,7 +170,9 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
       ->check(kNonNegative);
   cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
-  cmd_bench->add_flag("--quick", bench.quick, "Fewer frames, for a smoke test");
+  cmd_bench->add_flag("--quick", bench.quick,
+                      "A smoke test: at most 200 frames and 3 repeats whatever --frames and "
+                      "--repeats say");
   cmd_bench->add_flag("--ablation", bench.ablation,
                       "Switch each of the renderer's skips off in turn and report its cost ratio");
 

@@ -248,6 +248,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.rejected_normal_frames += f.rejected_normals > 0;
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
+    if (f.contact) ++s.unconstrained_direction_frames[std::clamp(f.unconstrained_directions, 0, 6)];
   }
   // Over the frames with ground truth; NaN (null in summary.json) when there are none.
   const double known = s.ground_truth_frames > 0 ? s.ground_truth_frames : std::nan("");
@@ -316,6 +317,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"rejected_normal_frames", s.rejected_normal_frames},
       {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
+      {"unconstrained_direction_frames", s.unconstrained_direction_frames},
       {"translation_rmse_m", s.translation_rmse_m},
       {"rotation_rmse_rad", s.rotation_rmse_rad},
       {"final_translation_error_m", s.final_translation_error_m},

@@ -1,6 +1,7 @@
 #pragma once
 // Tracking a rendered (or recorded) dataset end to end: normals -> contact cloud -> PatchGraph,
 // with the paper's simulated measurement noise, and the errors against ground truth.
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -92,6 +93,10 @@ struct TrackSummary {
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
   // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
   int degenerate_frames = 0;
+  // Contact frames by how many directions their image-to-patch registration left unconstrained
+  // (0 to 6; frames without that registration count as 0): a sphere's three rotations, an edge's
+  // slide (1) or its slide and turn (2, where the estimate follows only the motion priors).
+  std::array<int, 7> unconstrained_direction_frames{};
   // Errors against ground truth: RMSE over the frames that have it, final = the last frame's;
   // NaN where there is none.
   double translation_rmse_m = 0;
