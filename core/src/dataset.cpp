@@ -303,8 +303,8 @@ DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info)
   std::error_code ec;
   const fs::path earlier_poses = fs::path(dir_) / "poses.csv";
   if (fs::exists(earlier_poses, ec) && !fs::remove(earlier_poses, ec)) {
-    throw InputError(earlier_poses.string() + ": cannot remove the earlier dataset's poses: " +
-                     ec.message());
+    throw InputError(earlier_poses.string() +
+                     ": cannot remove the earlier dataset's poses: " + ec.message());
   }
   fs::create_directories(dir_, ec);
   if (ec) throw InputError(dir_ + ": cannot create the dataset folder: " + ec.message());
@@ -389,8 +389,8 @@ Dataset Dataset::open(const std::string& dir) {
       }
     }
     if (!sensors.empty()) {
-      throw InputError(dir + ": is not a dataset, but holds datasets (one per sensor): " +
-                       sensors + "; give one of those folders");
+      throw InputError(dir + ": is not a dataset, but holds datasets (one per sensor): " + sensors +
+                       "; give one of those folders");
     }
   }
   d.info_ = info_from_json(parse_json_file(info_path), info_path);

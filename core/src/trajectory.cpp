@@ -41,8 +41,8 @@ SE3 Trajectory::at(int frame) const {
   const auto next = std::upper_bound(frames_.begin(), frames_.end(), frame) - frames_.begin();
   const auto prev = next - 1;
   // In double: waypoints a billion frames either side of 0 would overflow int differences.
-  const double s = (double(frame) - double(frames_[prev])) /
-                   (double(frames_[next]) - double(frames_[prev]));
+  const double s =
+      (double(frame) - double(frames_[prev])) / (double(frames_[next]) - double(frames_[prev]));
   return interpolate(poses_[prev], poses_[next], s);
 }
 

@@ -13,8 +13,8 @@
 #include <iostream>
 #include <iterator>
 #include <map>
-#include <unordered_map>
 #include <sstream>
+#include <unordered_map>
 
 #include "mesh_formats.h"
 #include "pg/core/error.h"

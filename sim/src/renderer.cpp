@@ -157,10 +157,10 @@ void SensorRenderer::State::prepare() {
     // It is scaled to the sensor's image, not cropped: another shape would stretch it.
     const double aspect = double(real.width) / real.height, wanted = double(w) / h;
     if (std::abs(aspect / wanted - 1.0) > 0.02) {
-      throw InputError(settings.background + ": background image is " +
-                       std::to_string(real.width) + "x" + std::to_string(real.height) +
-                       ", not of the sensor's shape (" + std::to_string(w) + "x" +
-                       std::to_string(h) + " or a multiple): it is scaled to fit, not cropped");
+      throw InputError(settings.background + ": background image is " + std::to_string(real.width) +
+                       "x" + std::to_string(real.height) + ", not of the sensor's shape (" +
+                       std::to_string(w) + "x" + std::to_string(h) +
+                       " or a multiple): it is scaled to fit, not cropped");
     }
     ImageF rgb(real.width, real.height, 3);
     for (int y = 0; y < real.height; ++y)

@@ -201,7 +201,8 @@ TEST(Dataset, AnUnfinishedRewriteDoesNotOpenAsADataset) {
     FramePose p;
     writer.write_frame(p, make_frame(24, 32, 0));
   }  // never finished
-  expect_input_error([&] { Dataset::open(dir); }, "poses.csv: missing: the dataset was never finished");
+  expect_input_error([&] { Dataset::open(dir); },
+                     "poses.csv: missing: the dataset was never finished");
   // It is still a dataset's folder: writing again replaces it.
   write_small(dir, 3);
   EXPECT_EQ(Dataset::open(dir).frames(), 3);

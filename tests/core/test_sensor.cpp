@@ -157,7 +157,8 @@ TEST(JsonFile, AKeyGivenTwiceInOneObjectIsRefused) {
       [] { parse_json_text(R"({"a": {"x": 1}, "b": [{"y": 1, "y": 2}]})", "s.json"); },
       {"key \"y\" is given twice"});
   // The same key in different objects is fine.
-  const nlohmann::json j = parse_json_text(R"({"a": {"x": 1}, "b": {"x": 2}, "x": [{"x": 3}]})", "s.json");
+  const nlohmann::json j =
+      parse_json_text(R"({"a": {"x": 1}, "b": {"x": 2}, "x": [{"x": 3}]})", "s.json");
   EXPECT_EQ(j["b"]["x"], 2);
   EXPECT_EQ(j["x"][0]["x"], 3);
 }
@@ -169,8 +170,9 @@ TEST(JsonFile, AWrongArrayOfNumbersSaysWhatIsWrong) {
   };
   expect_input_error(parse(R"({"lights": [{"position_m": [0, -0.01]}]})"),
                      {"lights[0].position_m: expected an array of 3 numbers, got 2 elements"});
-  expect_input_error(parse(R"({"lights": [{"position_m": ["0", 0, -0.01]}]})"),
-                     {"lights[0].position_m: expected an array of 3 numbers, element 0 is a string"});
+  expect_input_error(
+      parse(R"({"lights": [{"position_m": ["0", 0, -0.01]}]})"),
+      {"lights[0].position_m: expected an array of 3 numbers, element 0 is a string"});
 }
 
 }  // namespace

@@ -375,7 +375,8 @@ TEST(RenderResolution, TinyImagesAndWideFieldsOfViewRender) {
     EXPECT_LT(deepest, 1.01 * kPress) << size << "x" << size;
   }
   SensorModel wide = flat_digit("digit");
-  wide.camera = CameraModel::from_vertical_fov(120, 160, 3.1, wide.camera.distance_m, wide.camera.near_m);
+  wide.camera =
+      CameraModel::from_vertical_fov(120, 160, 3.1, wide.camera.distance_m, wide.camera.near_m);
   const RenderedFrame f =
       SensorRenderer(wide, {sphere_shape()}, quiet_settings()).render({pressed_sphere()}, 0);
   for (float d : f.images.depth.data) ASSERT_TRUE(std::isfinite(d));

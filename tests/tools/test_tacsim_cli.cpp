@@ -127,8 +127,9 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   EXPECT_EQ(datasets, 2);
   const CliRun info = tacsim("info " + tmp.str("d"));
   EXPECT_EQ(info.code, 1);
-  EXPECT_NE(info.out.find(tmp.str("d") + ": is not a dataset, but holds datasets (one per sensor): "),
-            std::string::npos)
+  EXPECT_NE(
+      info.out.find(tmp.str("d") + ": is not a dataset, but holds datasets (one per sensor): "),
+      std::string::npos)
       << info.out;
 }
 
@@ -148,7 +149,9 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_FALSE(fs::exists(mine + "/dataset.json"));
 
   const std::string d = tmp.str("d");
-  ASSERT_EQ(tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + d).code, 0);
+  ASSERT_EQ(
+      tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + d).code,
+      0);
   r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " + d);
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("holds a dataset; a scene of 2 sensors"), std::string::npos) << r.out;
