@@ -137,6 +137,26 @@ TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
   EXPECT_EQ(poses_text(), before);
   EXPECT_FALSE(fs::exists(copy + "/summary.json"));
   EXPECT_FALSE(fs::exists(copy + "/results.csv"));
+  // Nor another dataset (its ground truth would become the estimates), nor a file inside an
+  // input (a model over a dataset's poses.csv, results over the model they evaluate).
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
+  for (const std::string& args :
+       {"track " + data() + " -q --out " + copy,
+        "train-normals --data " + copy + " --arch mlp --epochs 1 -q --out " + copy + "/poses.csv",
+        "train-normals --data " + data() + " --arch mlp --epochs 1 -q --out " + copy + "/m.pt",
+        "eval-normals --model " + model + " --data " + copy + " -q --json " + copy + "/poses.csv",
+        "eval-normals --model " + model + " --data " + data() + " -q --json " + copy + "/r.json",
+        "eval-normals --model " + model + " --data " + data() + " -q --json " + model}) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, 1) << args;
+    EXPECT_TRUE(r.out.find("holds a dataset") != std::string::npos ||
+                r.out.find(" is inside the dataset ") != std::string::npos ||
+                r.out.find("--json " + model + " is --model") != std::string::npos)
+        << r.out;
+  }
+  EXPECT_TRUE(poses_text() == before) << "the dataset's poses.csv was replaced";
+  EXPECT_FALSE(fs::exists(copy + "/m.pt"));
+  EXPECT_GT(fs::file_size(model), 1000u);
 }
 
 // An output folder that cannot be made fails before the run, not after it (the dataset here has
@@ -723,6 +743,16 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_EQ(half.code, 1) << half.out;
   EXPECT_NE(half.out.find("capture_1030.png"), std::string::npos) << half.out;
   EXPECT_FALSE(fs::exists(out("rec_half")));
+  // A frame of another size half-way through, into an earlier dataset: refused before anything
+  // is written (it left neither the earlier dataset nor the new one).
+  write_image((frames / "capture_1030.png").string(), ImageU8(60, 80, 3));
+  const CliRun late = patchgraph("recording --images " + frames.string() + " --background " +
+                                 (dir_ / "rec_background.png").string() +
+                                 " --static-sensor -q --out " + out("rec"));
+  EXPECT_EQ(late.code, 1) << late.out;
+  EXPECT_NE(late.out.find("capture_1030.png: 60x80 px, but the sensor is"), std::string::npos)
+      << late.out;
+  EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

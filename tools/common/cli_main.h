@@ -2,6 +2,7 @@
 // Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage, 3 an accuracy
 // gate missed (patchgraph track/eval --max-translation/--max-rotation).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -53,6 +54,11 @@ inline CLI::Validator range_check(double low, double high, bool allow_zero = fal
       range);
 }
 
+// Worker threads: 0 for all cores, else at most this many (tens of thousands of threads on a
+// 2-core machine are a hang, not a setting).
+constexpr int kMaxThreads = 256;
+inline const CLI::Validator kThreads = range_check(1, kMaxThreads, true);
+
 // `value` as printf's `format` gives it (a number in a message or a help text).
 inline std::string format_number(double value, const char* format = "%g") {
   char text[48];
@@ -71,15 +77,36 @@ inline const CLI::Validator kSeed(
     },
     "SEED");
 
-// Throws InputError when the output folder `out` is the input folder `input` (the option
-// `input_what`): writing there would overwrite or mix into what is read. A folder that does not
-// exist yet is never the input.
+// Throws InputError when the output `out` (the option `out_what`: a folder or a file) is the
+// input `input` (`input_what`) or lies inside it: writing there would overwrite or mix into what
+// is read (a model written over a dataset's poses.csv, a JSON over the model it evaluates). A path
+// that does not exist yet is compared by where it would be.
 inline void check_output_is_not_input(const std::string& out, const std::string& input,
-                                      const std::string& input_what) {
+                                      const std::string& input_what,
+                                      const std::string& out_what = "--out") {
+  namespace fs = std::filesystem;
   std::error_code ec;
-  if (std::filesystem::equivalent(out, input, ec)) {
-    throw InputError("--out " + out + " is " + input_what + " " + input +
-                     "; write the outputs to another folder");
+  const fs::path o = fs::weakly_canonical(out, ec), i = fs::weakly_canonical(input, ec);
+  if (o.empty() || i.empty()) return;
+  const auto [i_end, o_at] = std::mismatch(i.begin(), i.end(), o.begin(), o.end());
+  if (i_end == i.end()) {  // o is i, or below it
+    throw InputError(out_what + " " + out + (o == i ? " is " : " is inside ") + input_what + " " +
+                     input + "; write the outputs to another folder");
+  }
+}
+
+// Throws InputError when the output folder `out` holds a dataset (its dataset.json): a track's
+// poses.csv would replace the dataset's ground truth. With `is_file`, `out` is a file and its
+// folder must hold none (a model or results saved as a dataset's poses.csv).
+inline void check_output_is_no_dataset(const std::string& out, bool is_file = false,
+                                       const std::string& out_what = "--out") {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path folder = is_file ? fs::absolute(out, ec).parent_path() : fs::path(out);
+  if (fs::exists(folder / "dataset.json", ec)) {
+    throw InputError(out_what + " " + out + (is_file ? " is in a folder that holds" : " holds") +
+                     " a dataset (dataset.json), whose files it could replace: write the outputs "
+                     "to another folder");
   }
 }
 
@@ -103,6 +130,7 @@ inline std::vector<std::filesystem::path> check_given_once(const std::vector<std
 class OutputFolder {
  public:
   explicit OutputFolder(std::string dir) : dir_(std::move(dir)) {
+    check_output_is_no_dataset(dir_);
     std::error_code ec;
     created_ = std::filesystem::create_directories(dir_, ec);
     if (ec || !std::filesystem::is_directory(dir_)) {

@@ -148,7 +148,7 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--frames", bench.frames, "Frames per scene (default: all)")
       ->check(kNonNegative);
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
-      ->check(kNonNegative);
+      ->check(kThreads);
   cmd_bench->add_flag("--quick", bench.quick, "2 scenes x 60 frames, 6 settings (smoke test)");
   cmd_bench->add_flag("--no-plot", bench.no_plot, "Skip the matplotlib plot");
   cmd_bench->add_flag("--quiet,-q", bench.quiet, "No progress lines");

@@ -59,17 +59,17 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                   "pixel's undeformed gel; the datasets must share one gel shape and camera)")
       ->check(CLI::IsMember({"sensor", "gel"}));
   cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
-      ->check(kNonNegative);
+      ->check(range_check(0, 64));
   cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
-      ->check(CLI::Range(0.0, 0.9));
+      ->check(range_check(0, 0.9));
   cmd->add_option("--offset-jitter", o.offset_jitter,
                   "Augmentation: each colour channel shifted by up to +- this many levels (a "
                   "brightness drift since the reference image; default 0)")
-      ->check(CLI::Range(0.0, 64.0));
+      ->check(range_check(0, 64));
   cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation")
       ->check(kSeed);
   cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
-      ->check(kNonNegative);
+      ->check(kThreads);
   cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
       ->check(kPositive);
   cmd->add_flag("--resume", o.resume,
@@ -84,7 +84,7 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   cmd->add_option("--model,-m", a.model, "Model file (from train-normals)")->required();
   cmd->add_option("--data", a.data, "Dataset folders (color, normal, mask outputs)")->required();
   cmd->add_option("--json", a.json, "Also write the results to this JSON file");
-  cmd->add_option("--threads", a.threads, "Torch threads (default 1)")->check(kNonNegative);
+  cmd->add_option("--threads", a.threads, "Torch threads (default 1)")->check(kThreads);
   cmd->add_option("--phases", a.phases,
                   "Average the model over the frame shifted by a pixel: 1 (default), 2 or 4 "
                   "passes (as track --normals-phases)")
@@ -97,6 +97,16 @@ int run_train_normals(const TrainNormalsArgs& a) {
   TrainOptions o = a.options;
   check_given_once(o.train_data);
   check_given_once(o.val_data);
+  for (const auto* datasets : {&o.train_data, &o.val_data}) {
+    for (const std::string& dir : *datasets) {
+      check_output_is_not_input(o.out, dir, "the dataset");
+      check_output_is_not_input(o.out + ".ckpt", dir, "the dataset", "--out's checkpoint");
+    }
+  }
+  check_output_is_no_dataset(o.out, true);
+  if (std::filesystem::is_directory(o.out)) {  // found now, not after the training
+    throw InputError("--out " + o.out + ": is a folder; give the model file's name");
+  }
   for (const std::string& val : o.val_data) {
     for (const std::string& train : o.train_data) {
       std::error_code ec;
@@ -149,6 +159,12 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     if (!folder.empty() && !std::filesystem::is_directory(folder)) {
       throw InputError(a.json + ": cannot write: " + folder.string() + " is not a folder");
     }
+    if (std::filesystem::is_directory(a.json)) {
+      throw InputError("--json " + a.json + ": is a folder; give the JSON file's name");
+    }
+    check_output_is_not_input(a.json, a.model, "--model", "--json");
+    check_output_is_no_dataset(a.json, true, "--json");
+    for (const std::string& dir : a.data) check_output_is_not_input(a.json, dir, "the dataset", "--json");
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);

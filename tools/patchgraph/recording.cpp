@@ -40,10 +40,10 @@ std::vector<fs::path> image_files(const std::string& dir) {
   return files;
 }
 
-// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, and
-// `factor` x `factor` pixel blocks are averaged (rounded to the nearest level).
-ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int factor) {
-  const ImageU8 raw = read_image_u8(path);
+// Throws InputError naming the file unless an image of this shape is a frame of the sensor:
+// RGB (or RGBA) at the camera's size times `factor`.
+void check_frame_shape(const std::string& path, const ImageShape& raw, const CameraModel& camera,
+                       int factor) {
   if (raw.channels != 3 && raw.channels != 4) {
     throw InputError(path + ": " + std::to_string(raw.channels) +
                      " channels; a tactile sensor's frame is RGB");
@@ -60,6 +60,13 @@ ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int fac
                      (factor > 1 ? " (x" + std::to_string(factor) + " with --downsample)" : "") +
                      hint + " (--sensor, --sensor-file)");
   }
+}
+
+// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, and
+// `factor` x `factor` pixel blocks are averaged (rounded to the nearest level).
+ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int factor) {
+  const ImageU8 raw = read_image_u8(path);
+  check_frame_shape(path, {raw.width, raw.height, raw.channels}, camera, factor);
   ImageU8 out(camera.width, camera.height, 3);
   const int n = factor * factor;
   for (int y = 0; y < out.height; ++y) {
@@ -116,7 +123,7 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   cmd->add_option("--fps", a.fps,
                   "Frame rate: the time column with --static-sensor (default 60); with --poses "
                   "it is the time column's and --fps, if given, must agree")
-      ->check(CLI::Range(1e-6, 1e6));  // the range dataset.json's fps is read in
+      ->check(range_check(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
       ->check(CLI::Range(1, 16));
   cmd->add_option("--object", a.object, "Name of the object, for the outputs");
@@ -161,7 +168,12 @@ int run_recording(const RecordingArgs& a) {
       poses[i].contact_known = false;
     }
   }
-  // Read everything that can fail before writing anything.
+  // Read everything that can fail before writing anything: every frame's header (a frame of
+  // another size half-way through would otherwise leave an earlier dataset in --out replaced by
+  // half a new one), the background and the first frame whole.
+  for (const fs::path& file : files) {
+    check_frame_shape(file.string(), read_image_shape(file.string()), sensor.camera, a.downsample);
+  }
   const ImageU8 background = sensor_image(a.background, sensor.camera, a.downsample);
   FrameImages images;
   images.color = sensor_image(files.front().string(), sensor.camera, a.downsample);

@@ -21,7 +21,7 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Normals source: gt (the dataset's normal images) or a model file from "
                  "train-normals (applied to the colour images)");
   app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
-      ->check(kPositive);
+      ->check(range_check(1, kMaxThreads));
   app.add_option("--normals-phases", a.normals_phases,
                  "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "
                  "4 passes per frame, less error for more time")

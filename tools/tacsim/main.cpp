@@ -140,7 +140,7 @@ int main(int argc, char** argv) {
       "--outputs", render.outputs,
       "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
-      ->check(kNonNegative);
+      ->check(kThreads);
   // Together: the intrinsics scale with each side, so one alone would stretch the pixels.
   CLI::Option* render_width =
       cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--repeats", bench.repeats, "Timed runs per case (median reported)")
       ->check(kPositive);
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
-      ->check(kNonNegative);
+      ->check(kThreads);
   cmd_bench->add_option("--markdown", bench.markdown, "Also write the table to this file");
   cmd_bench->add_flag("--quick", bench.quick,
                       "A smoke test: at most 200 frames and 3 repeats whatever --frames and "
