@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <tuple>
 
 #include "../common/test_support.h"
 
@@ -16,6 +17,33 @@ namespace fs = std::filesystem;
 using testing_support::TempDir;
 
 using testing_support::split_csv_line;
+
+// The cache knew a render by its scene file's name only: a second scene of that name (or the
+// scene edited) was benchmarked on the first one's render.
+TEST(PatchgraphBench, TwoScenesOfOneNameGetTheirOwnRenders) {
+  TempDir tmp;
+  const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
+  for (const auto& [folder, object, z] :
+       {std::tuple<const char*, const char*, double>{"a", "sphere_r6mm", 0.005},
+        {"b", "cube", 0.0095}}) {
+    fs::create_directories(tmp.path / folder);
+    std::ofstream(tmp.path / folder / "s.json")
+        << R"({"frames": 4, "sensors": [{}], "objects": [{"name": ")" << object
+        << R"(", "mesh": ")" << meshes << object << R"(.glb", "pose": {"position": [0, 0, )" << z
+        << "]}}]}";
+  }
+  const auto r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench --quick -q --no-plot --scenes " + tmp.str("a/s.json") + " " +
+                           tmp.str("b/s.json") + " --out " + tmp.str("b"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream runs(tmp.str("b/runs.csv"));
+  std::string line;
+  std::getline(runs, line);
+  std::map<std::string, int> objects;
+  while (std::getline(runs, line)) ++objects[split_csv_line(line).at(2)];
+  EXPECT_EQ(objects.size(), 2u) << "objects tracked: one per scene";
+  EXPECT_EQ(objects["sphere_r6mm"], objects["cube"]);
+}
 
 TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   TempDir tmp;

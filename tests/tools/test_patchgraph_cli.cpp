@@ -188,6 +188,24 @@ TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
 
 // Two datasets of one folder name keep their own runs (named with their parents' folders), a
 // dataset or method given twice is refused (it would count twice in the medians).
+// A dataset folder named with a comma or a quote: results.csv quotes the cell (RFC 4180) instead
+// of shifting every later column, and the plots still read it.
+TEST_F(PatchgraphCli, EvalQuotesOddNamesInResultsCsv) {
+  const std::string odd = out("odd/x,\"y\"");
+  fs::remove_all(out("odd"));
+  fs::create_directories(out("odd"));
+  fs::copy(data(), odd, fs::copy_options::recursive);
+  const CliRun r = patchgraph("eval --datasets '" + odd + "' --methods constvel -q --out " +
+                              out("odd_eval"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("plot not made"), std::string::npos) << r.out;
+  std::ifstream results(out("odd_eval") + "/results.csv");
+  std::string header, row;
+  ASSERT_TRUE(std::getline(results, header));
+  ASSERT_TRUE(std::getline(results, row));
+  EXPECT_EQ(row.rfind("\"" + out("odd/x,\"\"y\"\"") + "\",cube,constvel,", 0), 0u) << row;
+}
+
 TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {
   fs::create_directories(out("names/p1"));
   fs::create_directories(out("names/p2"));

@@ -59,6 +59,22 @@ inline CLI::Validator range_check(double low, double high, bool allow_zero = fal
 constexpr int kMaxThreads = 256;
 inline const CLI::Validator kThreads = range_check(1, kMaxThreads, true);
 
+// A CSV cell (RFC 4180): quoted, with its quotes doubled, when it holds a comma, a quote or a line
+// break (a dataset folder named "a,b" otherwise shifted every later column).
+inline std::string csv_field(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+// A markdown table cell: a '|' escaped, line breaks as spaces.
+inline std::string markdown_cell(std::string text) {
+  std::string out;
+  for (char c : text) out += c == '|' ? std::string("\\|") : c == '\n' || c == '\r' ? " " : std::string(1, c);
+  return out;
+}
+
 // `value` as printf's `format` gives it (a number in a message or a help text).
 inline std::string format_number(double value, const char* format = "%g") {
   char text[48];
@@ -172,7 +188,10 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
                  "error: out of memory: the images, frames or threads asked for need more memory "
                  "than is free (smaller images, fewer threads or a shorter run need less)\n");
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    // LibTorch's errors carry a C++ backtrace after their message: keep the message.
+    std::string what = e.what();
+    what = what.substr(0, std::min(what.find("\nframe #"), what.find("\nException raised from")));
+    std::fprintf(stderr, "error: %s\n", what.c_str());
   }
   return kExitFailure;
 }

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <sstream>
 
@@ -111,11 +112,19 @@ std::vector<std::string> default_scenes(bool quick) {
   return out;
 }
 
-// The scene rendered at the resolution into the cache (reused when it is there already).
+// The scene rendered at the resolution into the cache (reused when it is there already). The
+// cache entry's name carries a hash of the scene file's path and contents: two scenes of one
+// name, or a scene edited since, render anew instead of reusing another render.
 std::string cached_dataset(const std::string& scene_path, int width, int height, int frames,
                            const std::vector<std::string>& outputs, const std::string& cache) {
-  const std::string name = fs::path(scene_path).stem().string() + "_" + std::to_string(width) +
-                           "x" + std::to_string(height) + "_" +
+  std::ifstream in(scene_path, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  char hash[20];
+  std::snprintf(hash, sizeof hash, "%08llx",
+                (unsigned long long)(sequence_seed(0, fs::weakly_canonical(scene_path).string() +
+                                                          "\n" + text) >> 32));
+  const std::string name = fs::path(scene_path).stem().string() + "_" + hash + "_" +
+                           std::to_string(width) + "x" + std::to_string(height) + "_" +
                            (frames > 0 ? std::to_string(frames) : std::string("all"));
   const std::string dir = (fs::path(cache) / name).string();
   if (fs::is_regular_file(fs::path(dir) / "poses.csv")) {
@@ -134,7 +143,8 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
   overrides.outputs = outputs;
   overrides.width = width;
   overrides.height = height;
-  fs::remove_all(dir);
+  // Rendered again into the folder of an unfinished or incomplete render; a folder of anything
+  // else is refused (DatasetWriter::check_folder), not deleted.
   render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir);
   return dir;
 }
@@ -225,7 +235,8 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
     const Setting& s = r.setting;
-    out << s.name() << "," << s.knob << "," << s.value << "," << s.method << "," << s.normals << ","
+    out << csv_field(s.name()) << "," << s.knob << "," << csv_field(s.value) << "," << s.method
+        << "," << csv_field(s.normals) << ","
         << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
         << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
         << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.contact_core << ","
@@ -244,7 +255,8 @@ void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
   for (const Row& r : rows) {
     for (const RunResult& run : r.runs) {
       const TrackSummary& s = run.summary;
-      out << r.setting.name() << "," << run.scene << "," << run.object << "," << s.frames << ","
+      out << csv_field(r.setting.name()) << "," << csv_field(run.scene) << ","
+          << csv_field(run.object) << "," << s.frames << ","
           << s.final_translation_error_m << "," << s.final_rotation_error_rad << ","
           << s.translation_rmse_m << "," << s.rotation_rmse_rad << "," << s.median_frame_ms << ","
           << s.rejected_registrations << "\n";
