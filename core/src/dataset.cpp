@@ -188,8 +188,10 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::string line;
   const bool has_line = static_cast<bool>(std::getline(in, line));
-  // A file saved on Windows ends its lines with "\r\n"; the rows drop the '\r' below.
+  // A file saved on Windows ends its lines with "\r\n"; the rows drop the '\r' below. A
+  // spreadsheet's UTF-8 byte-order mark before the header is dropped too.
   if (!line.empty() && line.back() == '\r') line.pop_back();
+  if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
   if (!has_line || line != kPosesHeader) {
     throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) +
                      "', found '" + excerpt(line) + "'");
@@ -225,8 +227,11 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
       }
       char* end = nullptr;
       v[c] = std::strtod(cell.c_str(), &end);
-      if (cell.empty() || end != cell.c_str() + cell.size()) {
-        throw InputError(where + ": '" + excerpt(cell) + "' is not a number");
+      // Decimal numbers only: strtod also reads hexadecimal ("0x10" as 16 m) and skips spaces.
+      const bool decimal = !cell.empty() && cell.find_first_of("xXpP \t") == std::string::npos;
+      if (!decimal || end != cell.c_str() + cell.size()) {
+        throw InputError(where + ": " + column_name(c) + ": '" + excerpt(cell) +
+                         "' is not a decimal number");
       }
       if (!std::isfinite(v[c])) {
         throw InputError(where + ": non-finite value in column " + std::to_string(c + 1) + " (" +
@@ -266,6 +271,14 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
       throw InputError(where + ": expected frame " + std::to_string(poses.size()));
     }
     p.time_s = v[1];
+    // Rows in the order the frames were taken (a sorted or shuffled file is not); a clock too
+    // coarse to tell two frames apart may repeat a time.
+    if (!poses.empty() && p.time_s < poses.back().time_s) {
+      std::ostringstream msg;
+      msg << where << ": time " << p.time_s << " s is before the previous row's "
+          << poses.back().time_s << " s: the rows must be in the order the frames were taken";
+      throw InputError(msg.str());
+    }
     p.T_world_object = SE3(qo, Eigen::Vector3d(v[2], v[3], v[4]));
     p.T_world_sensor = SE3(qs, Eigen::Vector3d(v[9], v[10], v[11]));
     if (v[16] != 0.0 && v[16] != 1.0) throw InputError(where + ": contact must be 0, 1 or empty");

@@ -389,7 +389,22 @@ TEST(Dataset, ARecordingMayLeaveTheObjectPoseAndTheContactUnknown) {
   }();
   empty_sensor.erase(sensor_x, empty_sensor.find(',', sensor_x) - sensor_x);
   std::ofstream(csv) << header << "\n" << empty_sensor << "\n" << row1 << "\n" << row2 << "\n";
-  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 2: '' is not a number");
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 2: sensor_x: '' is not a decimal number");
+  // strtod's hexadecimal ("0x10" read as 16 m) is not a number of this format either.
+  std::string hex = row0;
+  hex.replace(sensor_x, hex.find(',', sensor_x) - sensor_x, "0x10");
+  std::ofstream(csv) << header << "\n" << hex << "\n" << row1 << "\n" << row2 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 2: sensor_x: '0x10' is not a decimal number");
+  // Time never goes back; a spreadsheet's byte-order mark before the header is fine.
+  std::ofstream(csv) << "\xEF\xBB\xBF" << header << "\n" << row0 << "\n" << row1 << "\n" << row2 << "\n";
+  EXPECT_EQ(Dataset::open(tmp.str("d")).frames(), 3);
+  std::ofstream(csv) << header << "\n" << row0 << "\n"
+                     << "1,-0.5" << row1.substr(row1.find(',', row1.find(',') + 1)) << "\n"
+                     << row2 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 3: time -0.5 s is before the previous row's");
 }
 
 TEST(Dataset, ReaderRejectsBadInfo) {

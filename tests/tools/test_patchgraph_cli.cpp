@@ -184,6 +184,18 @@ TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
     EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
     EXPECT_FALSE(fs::exists(out("late_error_run"))) << command;
   }
+  // An eval that fails on a later dataset keeps the runs finished before it, in results.csv.
+  fs::remove_all(out("late_error_eval"));
+  const CliRun r = patchgraph("eval --methods constvel --no-plots -q --datasets " + data() + " " +
+                              copy + " --out " + out("late_error_eval"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("results.csv holds the 1 run(s) finished before it"), std::string::npos)
+      << r.out;
+  std::ifstream results(out("late_error_eval") + "/results.csv");
+  int lines = 0;
+  for (std::string line; std::getline(results, line);) ++lines;
+  EXPECT_EQ(lines, 2);
 }
 
 // Two datasets of one folder name keep their own runs (named with their parents' folders), a

@@ -163,29 +163,37 @@ int run_eval(const EvalArgs& args) {
   std::vector<Row> rows;
   int done = 0;
   const int total = int(datasets.size() * methods.size());
-  for (std::size_t k = 0; k < opened.size(); ++k) {
-    const Dataset& dataset = opened[k];
-    const std::string& dir = dataset.dir();
-    // The run's name: the dataset's folder name unless two datasets share it.
-    const std::uint64_t seed = sequence_seed(args.track.seed, names[k]);
-    for (const auto& m : methods) {
-      TrackArgs a = args.track;
-      a.method = m;
-      a.seed = seed;
-      const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
-      const std::string name = names[k] + "_" + m;
-      write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
-      rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
-      ++done;
-      if (!args.track.quiet) {
-        std::fprintf(stderr, "[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n", done, total,
-                     name.c_str(), dataset.info().object_name.c_str(),
-                     run.summary.final_translation_error_m * 1e3,
-                     run.summary.final_rotation_error_rad, run.summary.hz);
+  const std::string results = (fs::path(args.out) / "results.csv").string();
+  try {
+    for (std::size_t k = 0; k < opened.size(); ++k) {
+      const Dataset& dataset = opened[k];
+      const std::string& dir = dataset.dir();
+      // The run's name: the dataset's folder name unless two datasets share it.
+      const std::uint64_t seed = sequence_seed(args.track.seed, names[k]);
+      for (const auto& m : methods) {
+        TrackArgs a = args.track;
+        a.method = m;
+        a.seed = seed;
+        const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
+        const std::string name = names[k] + "_" + m;
+        write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
+        rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
+        ++done;
+        if (!args.track.quiet) {
+          std::fprintf(stderr, "[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n", done, total,
+                       name.c_str(), dataset.info().object_name.c_str(),
+                       run.summary.final_translation_error_m * 1e3,
+                       run.summary.final_rotation_error_rad, run.summary.hz);
+        }
       }
     }
+  } catch (const InputError& e) {
+    // A dataset that fails half-way (a damaged frame file) keeps the runs finished before it.
+    if (rows.empty()) throw;
+    write_results_csv(results, rows);
+    throw InputError(std::string(e.what()) + "\n(eval stopped there; " + results + " holds the " +
+                     std::to_string(rows.size()) + " run(s) finished before it)");
   }
-  const std::string results = (fs::path(args.out) / "results.csv").string();
   write_results_csv(results, rows);
   const std::vector<Group> groups = group_runs(rows, methods);
   const std::string md = summary_markdown(groups);
