@@ -432,6 +432,23 @@ TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
   EXPECT_LT(angle, 30.0);
 }
 
+// Settings that leave the registrations or the contact unused say so (the track was the motion
+// priors' alone, with exit 0 and no word).
+TEST_F(PatchgraphCli, ATrackWithoutRegistrationsOrContactWarns) {
+  std::ofstream(out("one_iteration.json")) << R"({"icp": {"max_iterations": 1}})";
+  std::ofstream(out("no_contact.json")) << R"({"mask": {"relative_depth": 1}})";
+  CliRun r = patchgraph("track " + data() + " -q --config " + out("one_iteration.json") +
+                        " --out " + out("warn_a"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("registrations did not converge in"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " -q --config " + out("no_contact.json") + " --out " +
+                 out("warn_b"));
+  EXPECT_NE(r.out.find("the tracker found contact in 0"), std::string::npos) << r.out;
+  r = patchgraph("track " + data() + " -q --out " + out("warn_c"));
+  EXPECT_EQ(r.out.find("did not converge"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("found contact in"), std::string::npos) << r.out;
+}
+
 TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   const CliRun r = patchgraph("track " + data() + " -q --out " + out("track"));
   ASSERT_EQ(r.code, 0) << r.out;

@@ -73,6 +73,11 @@ TEST(TrackerConfig, ErrorsNameTheFileAndField) {
             std::string::npos)
       << error_of(R"({"depth": {"integration": "poisson"}})");
   EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
+  // Below a micrometre the voxel grid's keys overflowed: tracking lost, with no error.
+  EXPECT_NE(error_of(R"({"icp": {"voxel_size_m": 1e-20}})")
+                .find("icp.voxel_size_m: must be 0 (off) or from 1e-6 to 1 m"),
+            std::string::npos)
+      << error_of(R"({"icp": {"voxel_size_m": 1e-20}})");
 }
 
 }  // namespace

@@ -41,6 +41,24 @@ int run_track(const TrackArgs& a) {
     std::fprintf(stderr, "warning: tracking was reported lost in %d frame(s) (errors.csv)\n",
                  s.lost_frames);
   }
+  // More than in any benchmark run (at most a quarter of the contact frames): the registrations
+  // hardly ever count (too few points or matches, or --config's iteration limit or convergence
+  // thresholds), so the track is the motion priors'.
+  if (s.unconverged_registrations > s.contact_frames / 2) {
+    std::fprintf(stderr,
+                 "warning: %d registrations did not converge in %d contact frames; those frames "
+                 "follow the motion priors (errors.csv: unconverged_registrations; --config's "
+                 "icp.max_iterations and convergence thresholds)\n",
+                 s.unconverged_registrations, s.contact_frames);
+  }
+  int marked_contact = 0;
+  for (const FramePose& p : dataset.poses()) marked_contact += p.contact_known && p.contact;
+  if (s.contact_frames < marked_contact / 2) {
+    std::fprintf(stderr,
+                 "warning: the dataset marks %d frame(s) as in contact, the tracker found contact "
+                 "in %d (the contact mask's settings, mask.* in --config, or the normals)\n",
+                 marked_contact, s.contact_frames);
+  }
   if (s.overridden_registrations > 0) {
     std::fprintf(stderr,
                  "warning: the solved poses overrode %d accepted registration(s): the motion "

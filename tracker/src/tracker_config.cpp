@@ -78,6 +78,9 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
       f.number_in("convergence_rotation_rad", 0.0, 1.0, o.convergence_rotation_rad);
   o.min_points = int_in(f, "min_points", 6, 100000000, o.min_points);
   o.voxel_size_m = f.number_in("voxel_size_m", 0.0, 1.0, o.voxel_size_m);
+  if (o.voxel_size_m != 0.0 && o.voxel_size_m < 1e-6) {  // a micrometre: the grid's keys overflow
+    throw InputError(f.field("voxel_size_m") + ": must be 0 (off) or from 1e-6 to 1 m");
+  }
   o.coarse_points = int_in(f, "coarse_points", 0, 100000000, o.coarse_points);
   o.coarse_step_m = f.number_in("coarse_step_m", 0.0, 1.0, o.coarse_step_m);
   o.min_eigenvalue_ratio = f.number_in("min_eigenvalue_ratio", 0.0, 1.0, o.min_eigenvalue_ratio);
