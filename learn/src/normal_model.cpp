@@ -130,7 +130,8 @@ ImageF true_normals(const Dataset& dataset, int frame) {
       const std::size_t pixel = k / 3;
       throw InputError(dataset_frame_path(dataset.dir(), "normal", frame) + ": pixel (" +
                        std::to_string(pixel % n.width) + ", " + std::to_string(pixel / n.width) +
-                       ") is not finite; ground truth for training and evaluation must be");
+                       ") is not finite; the ground-truth normals training and evaluation compare "
+                       "with must be finite");
     }
   }
   return n;
@@ -174,7 +175,10 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
 }
 
 Generator load_model(const std::string& path, NormalModelInfo& info) {
-  if (!fs::is_regular_file(path)) throw InputError(path + ": model file not found");
+  if (!fs::exists(path)) throw InputError(path + ": model file not found");
+  if (!fs::is_regular_file(path)) {
+    throw InputError(path + ": is not a model file (a folder, device or pipe)");
+  }
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(path);

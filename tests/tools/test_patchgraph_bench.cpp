@@ -100,5 +100,20 @@ TEST(PatchgraphBench, UnknownNormalsSourceFailsBeforeTracking) {
   EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
 }
 
+TEST(PatchgraphBench, ASceneOrNormalsSourceGivenTwiceIsRefused) {
+  TempDir tmp;
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json";
+  auto r =
+      testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --scenes " + scene + " " +
+                                                        scene + " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("given twice"), std::string::npos) << r.out;
+  r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals gt gt --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--normals: gt given twice"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+}
+
 }  // namespace
 }  // namespace pg

@@ -664,6 +664,40 @@ TEST_F(PatchgraphCli, AccuracyGateFailsARunWithExitCode3) {
 // A real sensor's frames, as a user has them: a folder of images under their own names, the
 // no-contact image, and (for a sensor held still) no poses at all. `recording` makes a dataset of
 // them that `track --normals MODEL` reads; at twice the size, --downsample 2 averages them back.
+// Frames named without zero padding are taken in name order, which a warning points out; hidden
+// files (a copy tool's "._frame1.png") are no frames; poses that begin after frame 0 are refused
+// at the import, not only when the dataset is tracked.
+TEST_F(PatchgraphCli, ARecordingTakesItsFramesInNameOrderAndSaysWhenNumbersAreUnpadded) {
+  const fs::path frames = dir_ / "unpadded";
+  fs::remove_all(frames);
+  fs::create_directories(frames);
+  const Dataset d = Dataset::open(data());
+  for (int i = 1; i <= 10; ++i) {
+    write_image((frames / ("frame" + std::to_string(i) + ".png")).string(), d.color(i));
+  }
+  std::ofstream(frames / "._frame1.png") << "resource fork";
+  CliRun r = patchgraph("recording --images " + frames.string() + " --background " + data() +
+                        "/background.png --static-sensor -q --out " + out("unpadded_rec"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("frame10.png comes before frame2.png"), std::string::npos) << r.out;
+  EXPECT_EQ(Dataset::open(out("unpadded_rec")).frames(), 10);
+  // Object poses from frame 3 on.
+  std::vector<FramePose> poses(d.poses().begin() + 1, d.poses().begin() + 11);
+  for (int i = 0; i < 10; ++i) {
+    poses[i].frame = i;
+    poses[i].object_known = i >= 3;
+  }
+  write_poses_csv(out("late_poses.csv"), poses);
+  r = patchgraph("recording --images " + frames.string() + " --background " + data() +
+                 "/background.png --poses " + out("late_poses.csv") + " -q --out " +
+                 out("late_rec"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("late_poses.csv: line 2: no object pose at frame 0, but frame 3"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(out("late_rec")));
+}
+
 TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   const Dataset rendered = Dataset::open(data());
   const fs::path frames = dir_ / "rec_frames";

@@ -13,6 +13,7 @@
 #include "pg/core/error.h"
 #include "pg/core/image.h"
 #include "pg/core/sensor.h"
+#include "pg/graph/track_dataset.h"
 
 namespace pg {
 
@@ -27,16 +28,58 @@ bool is_image_file(const fs::path& path) {
          ext == ".tiff";
 }
 
+// Whether a comes before b with the numbers in the names compared as numbers ("frame2" before
+// "frame10").
+bool natural_less(const std::string& a, const std::string& b) {
+  std::size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (std::isdigit(static_cast<unsigned char>(a[i])) &&
+        std::isdigit(static_cast<unsigned char>(b[j]))) {
+      std::size_t ie = i, je = j;
+      while (ie < a.size() && std::isdigit(static_cast<unsigned char>(a[ie]))) ++ie;
+      while (je < b.size() && std::isdigit(static_cast<unsigned char>(b[je]))) ++je;
+      const std::string na = a.substr(i, ie - i), nb = b.substr(j, je - j);
+      const std::size_t za = na.find_first_not_of('0'), zb = nb.find_first_not_of('0');
+      const std::string ta = za == std::string::npos ? "" : na.substr(za);
+      const std::string tb = zb == std::string::npos ? "" : nb.substr(zb);
+      if (ta.size() != tb.size()) return ta.size() < tb.size();
+      if (ta != tb) return ta < tb;
+      i = ie, j = je;
+    } else {
+      if (a[i] != b[j]) return a[i] < b[j];
+      ++i, ++j;
+    }
+  }
+  return a.size() - i < b.size() - j;
+}
+
+// The frame files of DIR in name order; hidden files (a copy tool's "._frame.png") are not
+// frames. Warns when the names' numbers are not zero-padded, so that name order is not their
+// numbers' order ("frame10" before "frame2").
 std::vector<fs::path> image_files(const std::string& dir) {
   if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (--images)");
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir)) {
-    if (entry.is_regular_file() && is_image_file(entry.path())) files.push_back(entry.path());
+    const bool hidden = entry.path().filename().string().rfind('.', 0) == 0;
+    if (!hidden && entry.is_regular_file() && is_image_file(entry.path())) {
+      files.push_back(entry.path());
+    }
   }
   if (files.empty()) {
     throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (--images)");
   }
   std::sort(files.begin(), files.end());
+  for (std::size_t i = 1; i < files.size(); ++i) {
+    const std::string earlier = files[i - 1].filename().string(),
+                      later = files[i].filename().string();
+    if (natural_less(later, earlier)) {
+      std::fprintf(stderr,
+                   "warning: %s: the frames are taken in name order, in which %s comes before "
+                   "%s; if that is not the order they were taken in, pad the numbers with zeros\n",
+                   dir.c_str(), earlier.c_str(), later.c_str());
+      break;
+    }
+  }
   return files;
 }
 
@@ -160,6 +203,7 @@ int run_recording(const RecordingArgs& a) {
                        " holds " + std::to_string(frames) + " frames");
     }
     fps = frame_rate(poses, a.poses, a.fps);
+    object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
   } else {
     for (int i = 0; i < frames; ++i) {
       poses[i].frame = i;

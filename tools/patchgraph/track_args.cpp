@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 
 #include "../common/cli_main.h"
@@ -32,7 +33,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "averaged for --normals MODEL)");
   app.add_option("--window", a.window, "Frames in the fixed-lag window; 0 = batch (default 5)")
       ->check(kNonNegative);
-  app.add_option("--keyframe-interval", a.keyframe_interval, "Frames between patch key frames")
+  app.add_option("--keyframe-interval", a.keyframe_interval,
+                 "Frames between patch key frames (default " +
+                     std::to_string(TrackArgs().keyframe_interval) + ")")
       ->check(kPositive);
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
@@ -69,13 +72,17 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                              "(default ") +
                      gate + ", off for --normals MODEL; 0 = off)")
       ->check(kNonNegative);
-  app.add_option("--ee-noise", a.end_effector_noise, "Sigma of the sensor pose noise [m, rad]")
+  app.add_option("--ee-noise", a.end_effector_noise,
+                 "Sigma of the sensor pose noise [m, rad] (default " +
+                     format_number(TrackArgs().end_effector_noise) + ")")
       ->check(range_check(0, kMaxPoseNoise));
-  app.add_option("--vision-noise", a.vision_noise, "Sigma of the vision prior noise [m, rad]")
+  app.add_option("--vision-noise", a.vision_noise,
+                 "Sigma of the vision prior noise [m, rad] (default " +
+                     format_number(TrackArgs().vision_noise) + ")")
       ->check(range_check(0, kMaxPoseNoise));
   app.add_option("--seed", a.seed,
-                 "Seed of the simulated measurement noise (eval mixes it with each dataset's "
-                 "folder name: results.csv's seed column)")
+                 "Seed of the simulated measurement noise (default 0; eval mixes it with each "
+                 "dataset's folder name: results.csv's seed column)")
       ->check(kSeed);
   app.add_flag("--compare-batch", a.compare_batch,
                "Afterwards re-solve the whole sequence at once and report the difference");
@@ -178,7 +185,16 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
       throw InputError(dataset.dir() +
                        "/dataset.json: object.mesh is empty; gtpatch needs the mesh");
     }
-    const SurfaceSamples s = sample_surface(load_mesh(info.object_mesh, info.object_scale), 1e-4);
+    // A relative path is the dataset folder's (as a scene's paths are its file's).
+    const std::filesystem::path mesh =
+        std::filesystem::path(dataset.dir()) / std::filesystem::path(info.object_mesh);
+    TriangleMesh model;
+    try {
+      model = load_mesh(mesh.lexically_normal().string(), info.object_scale);
+    } catch (const InputError& e) {
+      throw InputError(dataset.dir() + "/dataset.json: object.mesh: " + e.what());
+    }
+    const SurfaceSamples s = sample_surface(model, 1e-4);
     o.model_object.points = s.points;
     o.model_object.normals = s.normals;
   }

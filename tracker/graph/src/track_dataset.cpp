@@ -56,23 +56,6 @@ bool is_dropout(const ImageU8& color) {
   return true;
 }
 
-// Where the object's frame comes from: the dataset's pose at frame 0, or, in a recording with no
-// object pose at all, the sensor's frame at frame 0. A recording that has poses from some later
-// frame on cannot be started consistently: an error.
-bool object_frame_is_sensor(const Dataset& dataset) {
-  const auto& poses = dataset.poses();
-  const auto known =
-      std::find_if(poses.begin(), poses.end(), [](const FramePose& p) { return p.object_known; });
-  if (known == poses.end()) return true;
-  if (known != poses.begin()) {
-    throw InputError(dataset.dir() + "/poses.csv: line 2: no object pose at frame 0, but frame " +
-                     std::to_string(known->frame) +
-                     " has one; the tracker starts at frame 0, so give the object's pose there "
-                     "(later rows may leave it empty), or leave it empty in every row (the "
-                     "object's frame is then the sensor's at frame 0)");
-  }
-  return false;
-}
 
 // A colour frame no different from the no-contact reference beyond the camera's noise: fewer
 // than `min_pixels` pixels whose 3x3 mean difference exceeds kChangeLevels in a channel. The
@@ -113,6 +96,20 @@ bool shows_no_change(const ImageU8& color, const ImageU8& background, int min_pi
 
 }  // namespace
 
+bool object_frame_is_sensor(const std::vector<FramePose>& poses, const std::string& poses_csv) {
+  const auto known =
+      std::find_if(poses.begin(), poses.end(), [](const FramePose& p) { return p.object_known; });
+  if (known == poses.end()) return true;
+  if (known != poses.begin()) {
+    throw InputError(poses_csv + ": line 2: no object pose at frame 0, but frame " +
+                     std::to_string(known->frame) +
+                     " has one; the tracker starts at frame 0, so give the object's pose there "
+                     "(later rows may leave it empty), or leave it empty in every row (the "
+                     "object's frame is then the sensor's at frame 0)");
+  }
+  return false;
+}
+
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress) {
   const bool learned = bool(options.normals);
@@ -130,7 +127,8 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   ContactCloudBuilder builder(dataset.info().sensor, options.front_end.contact_cloud());
-  const bool sensor_frame = object_frame_is_sensor(dataset);
+  const bool sensor_frame =
+      object_frame_is_sensor(dataset.poses(), dataset.dir() + "/poses.csv");
   const ImageU8 background = learned ? dataset.background() : ImageU8();
   Gaussian noise(options.seed);
   ContactFrame contact;

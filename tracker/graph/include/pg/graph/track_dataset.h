@@ -120,6 +120,11 @@ struct TrackRun {
   std::unique_ptr<PatchGraphTracker> tracker;
 };
 
+// Where the object's frame comes from: the pose at frame 0 (false), or, in a recording with no
+// object pose at all, the sensor's frame at frame 0 (true). Poses that begin after frame 0 cannot
+// start a track consistently: InputError naming `poses_csv`.
+bool object_frame_is_sensor(const std::vector<FramePose>& poses, const std::string& poses_csv);
+
 // Reads the dataset's normal images ("gt" normals), or its colour images through
 // options.normals, frame by frame. Throws InputError when the dataset lacks that output or a
 // frame is unreadable.
