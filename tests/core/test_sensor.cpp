@@ -147,6 +147,7 @@ TEST(JsonFile, NumberOverflowAndDirectoriesNameTheFile) {
     EXPECT_LT(std::string(e.what()).size(), 200u) << "the number is quoted whole";
   }
   expect_input_error([] { parse_json_file("/"); }, {"/: is a directory, not a JSON file"});
+  expect_input_error([] { parse_json_file("/dev/zero"); }, {"/dev/zero: is not a regular file"});
 }
 
 // nlohmann keeps a repeated key's last value without a word: a scene's second "frames" won.

@@ -349,6 +349,23 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   EXPECT_EQ(summary["image_to_image_gate_rad"].get<double>(), 0.0);
 }
 
+// Without background.png the no-contact reference the network reads each frame against is a
+// frame poses.csv marks as without contact: which one is said.
+TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
+  const std::string copy = data_copy("data_no_background");
+  fs::remove(copy + "/background.png");
+  std::vector<FramePose> poses = Dataset::open(copy).poses();
+  poses[7].contact = false;
+  write_poses_csv(copy + "/poses.csv", poses);
+  const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
+                              out("track_no_background"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("note: no background.png: frame 7, the first that poses.csv marks as "
+                       "without contact, is the no-contact reference image"),
+            std::string::npos)
+      << r.out;
+}
+
 // A camera dropout (a black or white frame) is no image of the gel: with learned normals it is
 // unreadable (reported, the episode goes on), not a contact over the whole image.
 TEST_F(PatchgraphCli, ADroppedColourFrameIsUnreadableNotAContact) {

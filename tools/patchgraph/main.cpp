@@ -23,6 +23,20 @@ int run_track(const TrackArgs& a) {
   check_output_is_not_input(a.out, a.dataset, "the dataset");  // its poses.csv would be replaced
   const Dataset dataset = Dataset::open(a.dataset);
   const TrackOptions options = make_track_options(a, dataset);
+  if (a.normals != "gt" &&
+      !std::filesystem::exists(std::filesystem::path(a.dataset) / "background.png")) {
+    // The network reads each frame minus this reference: a frame wrongly marked without contact
+    // would skew every estimate, so the choice is shown.
+    for (const FramePose& p : dataset.poses()) {
+      if (p.contact_known && !p.contact) {
+        std::printf(
+            "note: no background.png: frame %d, the first that poses.csv marks as "
+            "without contact, is the no-contact reference image\n",
+            p.frame);
+        break;
+      }
+    }
+  }
   const OutputFolder out(a.out);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run =
