@@ -398,9 +398,13 @@ TEST(Dataset, ARecordingMayLeaveTheObjectPoseAndTheContactUnknown) {
   expect_input_error([&] { Dataset::open(tmp.str("d")); },
                      "line 2: sensor_x: '0x10' is not a decimal number");
   // Time never goes back; a spreadsheet's byte-order mark before the header is fine.
-  std::ofstream(csv) << "\xEF\xBB\xBF" << header << "\n" << row0 << "\n" << row1 << "\n" << row2 << "\n";
+  std::ofstream(csv) << "\xEF\xBB\xBF" << header << "\n"
+                     << row0 << "\n"
+                     << row1 << "\n"
+                     << row2 << "\n";
   EXPECT_EQ(Dataset::open(tmp.str("d")).frames(), 3);
-  std::ofstream(csv) << header << "\n" << row0 << "\n"
+  std::ofstream(csv) << header << "\n"
+                     << row0 << "\n"
                      << "1,-0.5" << row1.substr(row1.find(',', row1.find(',') + 1)) << "\n"
                      << row2 << "\n";
   expect_input_error([&] { Dataset::open(tmp.str("d")); },

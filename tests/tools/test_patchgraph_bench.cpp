@@ -28,9 +28,8 @@ TEST(PatchgraphBench, TwoScenesOfOneNameGetTheirOwnRenders) {
         {"b", "cube", 0.0095}}) {
     fs::create_directories(tmp.path / folder);
     std::ofstream(tmp.path / folder / "s.json")
-        << R"({"frames": 4, "sensors": [{}], "objects": [{"name": ")" << object
-        << R"(", "mesh": ")" << meshes << object << R"(.glb", "pose": {"position": [0, 0, )" << z
-        << "]}}]}";
+        << R"({"frames": 4, "sensors": [{}], "objects": [{"name": ")" << object << R"(", "mesh": ")"
+        << meshes << object << R"(.glb", "pose": {"position": [0, 0, )" << z << "]}}]}";
   }
   const auto r = testing_support::run_command(
       PATCHGRAPH_PATH, "bench --quick -q --no-plot --scenes " + tmp.str("a/s.json") + " " +

@@ -207,8 +207,8 @@ TEST_F(PatchgraphCli, EvalQuotesOddNamesInResultsCsv) {
   fs::remove_all(out("odd"));
   fs::create_directories(out("odd"));
   fs::copy(data(), odd, fs::copy_options::recursive);
-  const CliRun r = patchgraph("eval --datasets '" + odd + "' --methods constvel -q --out " +
-                              out("odd_eval"));
+  const CliRun r =
+      patchgraph("eval --datasets '" + odd + "' --methods constvel -q --out " + out("odd_eval"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out.find("plot not made"), std::string::npos) << r.out;
   std::ifstream results(out("odd_eval") + "/results.csv");

@@ -71,7 +71,8 @@ inline std::string csv_field(const std::string& text) {
 // A markdown table cell: a '|' escaped, line breaks as spaces.
 inline std::string markdown_cell(std::string text) {
   std::string out;
-  for (char c : text) out += c == '|' ? std::string("\\|") : c == '\n' || c == '\r' ? " " : std::string(1, c);
+  for (char c : text)
+    out += c == '|' ? std::string("\\|") : c == '\n' || c == '\r' ? " " : std::string(1, c);
   return out;
 }
 

@@ -29,10 +29,10 @@ inline bool run_plot_script(const std::string& script, const std::string& out_di
       WEXITSTATUS(status) == 0) {
     return true;
   }
-  const std::string why = spawned != 0 ? std::string("cannot start ") + python + ": " +
-                                             std::strerror(spawned)
-                          : WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
-                                              : std::string("killed by a signal");
+  const std::string why =
+      spawned != 0        ? std::string("cannot start ") + python + ": " + std::strerror(spawned)
+      : WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
+                          : std::string("killed by a signal");
   std::fprintf(stderr,
                "warning: plot not made (%s %s %s: %s; its error is above, if any; the plots need "
                "python3-matplotlib)\n",

@@ -122,7 +122,8 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
   char hash[20];
   std::snprintf(hash, sizeof hash, "%08llx",
                 (unsigned long long)(sequence_seed(0, fs::weakly_canonical(scene_path).string() +
-                                                          "\n" + text) >> 32));
+                                                          "\n" + text) >>
+                                     32));
   const std::string name = fs::path(scene_path).stem().string() + "_" + hash + "_" +
                            std::to_string(width) + "x" + std::to_string(height) + "_" +
                            (frames > 0 ? std::to_string(frames) : std::string("all"));
@@ -236,10 +237,10 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   for (const Row& r : rows) {
     const Setting& s = r.setting;
     out << csv_field(s.name()) << "," << s.knob << "," << csv_field(s.value) << "," << s.method
-        << "," << csv_field(s.normals) << ","
-        << s.width << "," << s.height << "," << s.keyframe_interval << "," << s.window << ","
-        << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
-        << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.contact_core << ","
+        << "," << csv_field(s.normals) << "," << s.width << "," << s.height << ","
+        << s.keyframe_interval << "," << s.window << "," << s.registration_information << ","
+        << s.icp_iterations << "," << s.max_correspondence_m << "," << s.voxel_m << ","
+        << s.icp_symmetric << "," << s.contact_core << ","
         << (s.parity_integration == 1 ? "parity" : "averaged") << "," << s.image_to_image_gate
         << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad
         << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
@@ -256,10 +257,9 @@ void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
     for (const RunResult& run : r.runs) {
       const TrackSummary& s = run.summary;
       out << csv_field(r.setting.name()) << "," << csv_field(run.scene) << ","
-          << csv_field(run.object) << "," << s.frames << ","
-          << s.final_translation_error_m << "," << s.final_rotation_error_rad << ","
-          << s.translation_rmse_m << "," << s.rotation_rmse_rad << "," << s.median_frame_ms << ","
-          << s.rejected_registrations << "\n";
+          << csv_field(run.object) << "," << s.frames << "," << s.final_translation_error_m << ","
+          << s.final_rotation_error_rad << "," << s.translation_rmse_m << "," << s.rotation_rmse_rad
+          << "," << s.median_frame_ms << "," << s.rejected_registrations << "\n";
     }
   }
   if (!out) throw InputError(path + ": cannot write");

@@ -81,8 +81,7 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
          "lost_frames,degenerate_frames,seed,run\n";
   for (const auto& r : rows) {
     out << csv_field(r.dataset) << "," << csv_field(r.object) << "," << r.method << ","
-        << r.s.frames << ","
-        << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
+        << r.s.frames << "," << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
@@ -127,11 +126,11 @@ std::string summary_markdown(const std::vector<Group>& groups) {
   for (const Group& g : groups) {
     const auto& t = g.translation;
     const auto& rot = g.rotation;
-    std::snprintf(line, sizeof(line),
-                  "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
-                  markdown_cell(g.object).c_str(), g.method.c_str(), t.size(), quantile(t, 0.5) * 1e3,
-                  quantile(t, 0.25) * 1e3, quantile(t, 0.75) * 1e3, quantile(rot, 0.5),
-                  quantile(rot, 0.25), quantile(rot, 0.75), quantile(g.ms, 0.5));
+    std::snprintf(
+        line, sizeof(line), "| %s | %s | %zu | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) | %.2f |\n",
+        markdown_cell(g.object).c_str(), g.method.c_str(), t.size(), quantile(t, 0.5) * 1e3,
+        quantile(t, 0.25) * 1e3, quantile(t, 0.75) * 1e3, quantile(rot, 0.5), quantile(rot, 0.25),
+        quantile(rot, 0.75), quantile(g.ms, 0.5));
     md << line;
   }
   return md.str();

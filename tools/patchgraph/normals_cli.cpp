@@ -68,8 +68,7 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->check(range_check(0, 64));
   cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation")
       ->check(kSeed);
-  cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")
-      ->check(kThreads);
+  cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")->check(kThreads);
   cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
       ->check(kPositive);
   cmd->add_flag("--resume", o.resume,
@@ -164,7 +163,8 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     }
     check_output_is_not_input(a.json, a.model, "--model", "--json");
     check_output_is_no_dataset(a.json, true, "--json");
-    for (const std::string& dir : a.data) check_output_is_not_input(a.json, dir, "the dataset", "--json");
+    for (const std::string& dir : a.data)
+      check_output_is_not_input(a.json, dir, "the dataset", "--json");
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);

@@ -56,7 +56,6 @@ bool is_dropout(const ImageU8& color) {
   return true;
 }
 
-
 // A colour frame no different from the no-contact reference beyond the camera's noise: fewer
 // than `min_pixels` pixels whose 3x3 mean difference exceeds kChangeLevels in a channel. The
 // mean of nine pixels of noise sigma 7 (the renderer's) has a sigma of 2.3 levels, so 10 levels
@@ -127,8 +126,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   ContactCloudBuilder builder(dataset.info().sensor, options.front_end.contact_cloud());
-  const bool sensor_frame =
-      object_frame_is_sensor(dataset.poses(), dataset.dir() + "/poses.csv");
+  const bool sensor_frame = object_frame_is_sensor(dataset.poses(), dataset.dir() + "/poses.csv");
   const ImageU8 background = learned ? dataset.background() : ImageU8();
   Gaussian noise(options.seed);
   ContactFrame contact;
