@@ -136,6 +136,9 @@ const std::vector<std::string>& dataset_output_names() {
 
 void check_output_names(const std::vector<std::string>& names, const std::string& where) {
   const auto& known = dataset_output_names();
+  if (names.empty()) {  // a dataset of poses alone, which nothing can track
+    throw InputError(where + ": empty; name at least one of color, normal, depth, mask, points");
+  }
   for (auto name = names.begin(); name != names.end(); ++name) {
     if (std::find(known.begin(), known.end(), *name) == known.end()) {
       std::string list;

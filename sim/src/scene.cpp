@@ -201,10 +201,6 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
     JsonFields r(f.at("render"), f.field("render"));
     auto& render = scene.render;
     render.outputs = r.optional<std::vector<std::string>>("outputs", render.outputs);
-    if (render.outputs.empty()) {  // a dataset of poses alone, which nothing can track
-      throw InputError(r.field("outputs") +
-                       ": empty; name at least one of color, normal, depth, mask, points");
-    }
     check_output_names(render.outputs, r.field("outputs"));
     render.noise = r.optional<bool>("noise", render.noise);
     render.shadows = r.optional<bool>("shadows", render.shadows);

@@ -141,6 +141,17 @@ inline std::vector<std::filesystem::path> check_given_once(const std::vector<std
   return canonical;
 }
 
+// Throws InputError when a name of the option `option` is given twice ("--methods: patchgraph
+// given twice"): its runs would count twice in every median.
+inline void check_names_given_once(const std::vector<std::string>& names,
+                                   const std::string& option) {
+  for (auto name = names.begin(); name != names.end(); ++name) {
+    if (std::find(names.begin(), name, *name) != name) {
+      throw InputError(option + ": " + *name + " given twice");
+    }
+  }
+}
+
 // The output folder, created before the work so that a path that cannot be one fails at once
 // rather than after a long run; removed again at the end of the scope if this created it and
 // nothing was written into it (the work failed first).

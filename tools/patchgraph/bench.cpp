@@ -305,12 +305,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   if (!own_scenes) args.scenes = default_scenes(args.quick);
   // Given twice, a scene or normals source would count twice in every median.
   check_given_once(args.scenes);
-  for (std::size_t i = 0; i < args.normals.size(); ++i) {
-    if (std::find(args.normals.begin(), args.normals.begin() + i, args.normals[i]) !=
-        args.normals.begin() + i) {
-      throw InputError("--normals: " + args.normals[i] + " given twice");
-    }
-  }
+  check_names_given_once(args.normals, "--normals");
   if (args.quick && args.frames == 0) args.frames = 60;
   if (args.cache.empty()) args.cache = (fs::path(args.out) / "cache").string();
   std::unique_ptr<tbb::global_control> limit;

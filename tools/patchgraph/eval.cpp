@@ -141,12 +141,8 @@ std::string summary_markdown(const std::vector<Group>& groups) {
 int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
-  for (std::size_t i = 0; i < methods.size(); ++i) {  // fail before any work
-    method_from_string(methods[i]);
-    if (std::find(methods.begin(), methods.begin() + i, methods[i]) != methods.begin() + i) {
-      throw InputError("--methods: " + methods[i] + " given twice");
-    }
-  }
+  for (const std::string& m : methods) method_from_string(m);  // fail before any work
+  check_names_given_once(methods, "--methods");
   const std::vector<std::string> names = run_names(datasets);
   std::vector<Dataset> opened;                          // all checked before any work
   for (const auto& dir : datasets) {

@@ -46,10 +46,7 @@ int run_render(const RenderArgs& a) {
   if (a.out.empty()) throw InputError("--out: empty; give the dataset's folder");
   RenderOverrides overrides;
   overrides.outputs = split_list(a.outputs);
-  if (a.outputs_given && overrides.outputs.empty()) {
-    throw InputError("--outputs: empty; name at least one of color, normal, depth, mask, points");
-  }
-  check_output_names(overrides.outputs, "--outputs");
+  if (a.outputs_given) check_output_names(overrides.outputs, "--outputs");
   overrides.width = a.width;
   overrides.height = a.height;
   overrides.background = a.background;

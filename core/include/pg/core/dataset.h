@@ -17,8 +17,8 @@
 
 namespace pg {
 
-// Names of the per-frame outputs, in file order, and an error if one of `names` is not one of
-// them or is given twice (`where` names the field, e.g. "--outputs").
+// Names of the per-frame outputs, in file order, and an error if `names` is empty or one of them
+// is not one of these or is given twice (`where` names the field, e.g. "--outputs").
 const std::vector<std::string>& dataset_output_names();
 void check_output_names(const std::vector<std::string>& names, const std::string& where);
 
