@@ -28,29 +28,21 @@ bool is_image_file(const fs::path& path) {
          ext == ".tiff";
 }
 
-// Whether a comes before b with the numbers in the names compared as numbers ("frame2" before
-// "frame10").
-bool natural_less(const std::string& a, const std::string& b) {
-  std::size_t i = 0, j = 0;
-  while (i < a.size() && j < b.size()) {
-    if (std::isdigit(static_cast<unsigned char>(a[i])) &&
-        std::isdigit(static_cast<unsigned char>(b[j]))) {
-      std::size_t ie = i, je = j;
-      while (ie < a.size() && std::isdigit(static_cast<unsigned char>(a[ie]))) ++ie;
-      while (je < b.size() && std::isdigit(static_cast<unsigned char>(b[je]))) ++je;
-      const std::string na = a.substr(i, ie - i), nb = b.substr(j, je - j);
-      const std::size_t za = na.find_first_not_of('0'), zb = nb.find_first_not_of('0');
-      const std::string ta = za == std::string::npos ? "" : na.substr(za);
-      const std::string tb = zb == std::string::npos ? "" : nb.substr(zb);
-      if (ta.size() != tb.size()) return ta.size() < tb.size();
-      if (ta != tb) return ta < tb;
-      i = ie, j = je;
-    } else {
-      if (a[i] != b[j]) return a[i] < b[j];
-      ++i, ++j;
+// The name with each run of digits left-padded with zeros to 20: its text order is the order of
+// the numbers in it ("frame2" before "frame10").
+std::string numbers_padded(const std::string& name) {
+  std::string out, digits;
+  for (std::size_t k = 0; k <= name.size(); ++k) {
+    if (k < name.size() && std::isdigit(static_cast<unsigned char>(name[k]))) {
+      digits += name[k];
+      continue;
     }
+    if (!digits.empty())
+      out += std::string(digits.size() < 20 ? 20 - digits.size() : 0, '0') + digits;
+    digits.clear();
+    if (k < name.size()) out += name[k];
   }
-  return a.size() - i < b.size() - j;
+  return out;
 }
 
 // The frame files of DIR in name order; hidden files (a copy tool's "._frame.png") are not
@@ -72,7 +64,7 @@ std::vector<fs::path> image_files(const std::string& dir) {
   for (std::size_t i = 1; i < files.size(); ++i) {
     const std::string earlier = files[i - 1].filename().string(),
                       later = files[i].filename().string();
-    if (natural_less(later, earlier)) {
+    if (numbers_padded(later) < numbers_padded(earlier)) {
       std::fprintf(stderr,
                    "warning: %s: the frames are taken in name order, in which %s comes before "
                    "%s; if that is not the order they were taken in, pad the numbers with zeros\n",
