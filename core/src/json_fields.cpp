@@ -127,19 +127,22 @@ void JsonFields::type_error(const std::string& key, const char* expected,
   throw InputError(field(key) + ": expected " + expected + ", got " + json_type_name(v));
 }
 
-void JsonFields::check_number_array(const std::string& key, const char* expected,
-                                    const nlohmann::json& v, std::size_t n) const {
+Eigen::VectorXd JsonFields::number_array(const std::string& key, const char* expected,
+                                         const nlohmann::json& v, std::size_t n) const {
   if (!v.is_array()) type_error(key, expected, v);
   if (v.size() != n) {
     throw InputError(field(key) + ": expected " + expected + ", got " + std::to_string(v.size()) +
                      (v.size() == 1 ? " element" : " elements"));
   }
+  Eigen::VectorXd out(n);
   for (std::size_t i = 0; i < n; ++i) {
     if (!v[i].is_number()) {
       throw InputError(field(key) + ": expected " + expected + ", element " + std::to_string(i) +
                        " is " + json_type_name(v[i]));
     }
+    out[Eigen::Index(i)] = v[i].get<double>();
   }
+  return out;
 }
 
 template <>
@@ -183,9 +186,7 @@ std::string JsonFields::convert<std::string>(const nlohmann::json& v,
 template <>
 Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
                                                      const std::string& key) const {
-  check_number_array(key, "an array of 3 numbers", v, 3);
-  Eigen::Vector3d out;
-  for (int i = 0; i < 3; ++i) out[i] = v[i].get<double>();
+  const Eigen::Vector3d out = number_array(key, "an array of 3 numbers", v, 3);
   if (!out.allFinite()) throw InputError(field(key) + ": expected finite numbers");
   return out;
 }
@@ -193,9 +194,7 @@ Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
 template <>
 Eigen::Quaterniond JsonFields::convert<Eigen::Quaterniond>(const nlohmann::json& v,
                                                            const std::string& key) const {
-  check_number_array(key, "an array of 4 numbers [x, y, z, w]", v, 4);
-  Eigen::Vector4d xyzw;
-  for (int i = 0; i < 4; ++i) xyzw[i] = v[i].get<double>();
+  const Eigen::Vector4d xyzw = number_array(key, "an array of 4 numbers [x, y, z, w]", v, 4);
   Eigen::Quaterniond q;
   if (!unit_quaternion(xyzw, q)) throw InputError(field(key) + ": must be finite and non-zero");
   return q;

@@ -121,6 +121,17 @@ int run_info(const std::string& dir) {
   return kExitOk;
 }
 
+// --width and --height, which go together: the intrinsics scale with each side, so one alone
+// would stretch the pixels.
+void add_image_size_options(CLI::App& cmd, int& width, int& height, const std::string& what) {
+  CLI::Option* w = cmd.add_option("--width", width, "Override " + what + " width [px]")
+                       ->check(CLI::Range(8, 8192));
+  CLI::Option* h = cmd.add_option("--height", height, "Override " + what + " height [px]")
+                       ->check(CLI::Range(8, 8192));
+  w->needs(h);
+  h->needs(w);
+}
+
 }  // namespace
 }  // namespace pg
 
@@ -138,15 +149,7 @@ int main(int argc, char** argv) {
       "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
       ->check(kThreads);
-  // Together: the intrinsics scale with each side, so one alone would stretch the pixels.
-  CLI::Option* render_width =
-      cmd_render->add_option("--width", render.width, "Override the sensors' image width [px]")
-          ->check(CLI::Range(8, 8192));
-  CLI::Option* render_height =
-      cmd_render->add_option("--height", render.height, "Override the sensors' image height [px]")
-          ->check(CLI::Range(8, 8192));
-  render_width->needs(render_height);
-  render_height->needs(render_width);
+  add_image_size_options(*cmd_render, render.width, render.height, "the sensors' image");
   cmd_render->add_option("--background", render.background,
                          "Real background image for every sensor (TACTO-style blend)");
   cmd_render->add_option("--shadows", render.shadows, "Override the scene: on or off")
@@ -179,14 +182,7 @@ int main(int argc, char** argv) {
   cmd_sheet->add_option("scenes", sheet.scenes, "Scene files")->required();
   cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
   cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(kNonNegative);
-  CLI::Option* sheet_width =
-      cmd_sheet->add_option("--width", sheet.width, "Override the image width [px]")
-          ->check(CLI::Range(8, 8192));
-  CLI::Option* sheet_height =
-      cmd_sheet->add_option("--height", sheet.height, "Override the image height [px]")
-          ->check(CLI::Range(8, 8192));
-  sheet_width->needs(sheet_height);
-  sheet_height->needs(sheet_width);
+  add_image_size_options(*cmd_sheet, sheet.width, sheet.height, "the image");
   cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
 
   return run_cli(app, argc, argv, [&]() -> int {

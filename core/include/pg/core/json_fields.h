@@ -67,9 +67,9 @@ class JsonFields {
   T convert(const nlohmann::json& v, const std::string& key) const;
   [[noreturn]] void type_error(const std::string& key, const char* expected,
                                const nlohmann::json& v) const;
-  // Throws, saying what is wrong, unless `v` is an array of `n` numbers.
-  void check_number_array(const std::string& key, const char* expected, const nlohmann::json& v,
-                          std::size_t n) const;
+  // The numbers of `v`, an array of `n` numbers; else throws, saying what is wrong.
+  Eigen::VectorXd number_array(const std::string& key, const char* expected,
+                               const nlohmann::json& v, std::size_t n) const;
 
   const nlohmann::json& j_;
   std::string where_;
