@@ -3,6 +3,9 @@
 #include <ceres/manifold_test_utils.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <memory>
 #include <random>
 
 #include "pg/graph/factors.h"
@@ -104,8 +107,23 @@ TEST(Factors, ZeroAtTheTruthWithJacobiansMatchingNumericOnes) {
     check_factor(ImageToImageFactor::create(T_prev_cur, S), {bo0.v, be0.v, bo1.v, be1.v});
     // Eq. 6: the patch registration measures T_object_sensor.
     check_factor(ImageToPatchFactor::create(o1.inverse() * e1, S), {bo1.v, be1.v});
-    // Eq. 7.
+    // Eq. 7, and the damping prior (o0 = o0: no motion).
     check_factor(ConstantVelocityFactor::create(S), {bo0.v, bo1.v, bo2.v});
+    check_factor(VelocityDampingFactor::create(S), {bo0.v, bo0.v});
+    // Both in the frame of a moving sensor E_t: x_t = E_t^-1 o_t moves at constant velocity, and
+    // stands still for the damping prior, while o_t itself does neither.
+    const SE3 E0 = random_pose(rng), E1 = random_pose(rng), E2 = random_pose(rng);
+    const SE3 x0 = random_pose(rng), x1 = x0 * step, x2 = x1 * step;
+    Block held0(E0 * x0), held1(E1 * x1), held2(E2 * x2), still1(E1 * x0);
+    check_factor(ConstantVelocityFactor::create(S, {E0.inverse(), E1.inverse(), E2.inverse()}),
+                 {held0.v, held1.v, held2.v});
+    check_factor(VelocityDampingFactor::create(S, {E0.inverse(), E1.inverse()}),
+                 {held0.v, still1.v});
+    std::unique_ptr<ceres::CostFunction> world(ConstantVelocityFactor::create(S));
+    const std::vector<double*> held = {held0.v, held1.v, held2.v};
+    double moved = 0;
+    for (double r : evaluate(*world, held)) moved = std::max(moved, std::abs(r));
+    EXPECT_GT(moved, 1.0) << "the sensor's motion is not a constant velocity in the world";
     // Eq. 8 and 9.
     check_factor(PosePriorFactor::create(e1, S), {be1.v});
   }

@@ -80,6 +80,7 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
                                    "--damping-sigma", "--image-to-image-gate"}) {
     refused(track + option + " -1 --out " + out("x"), 2, option);
   }
+  refused(track + "--motion-frame hand --out " + out("x"), 2, "--motion-frame");
   // A number out of range says which bound, briefly.
   refused(track + "--window -1 --out " + out("x"), 2, "--window: must be finite and >= 0, got -1");
   refused(track + "--ee-sigma nan --out " + out("x"), 2,
@@ -329,6 +330,29 @@ TEST_F(PatchgraphCli, DampingSigmaWeighsTheDampingPrior) {
   };
   EXPECT_GT(rmse("damping_tight"), 10 * rmse("damping_default"));
   EXPECT_LT(rmse("damping_off"), 5 * rmse("damping_default"));
+}
+
+// The motion priors' frame is an option, recorded in the summary; on the default scene's still
+// sensor the two frames track alike (tests/graph: Tracking.AnObjectHeldInAShakingHand... for a
+// moving one).
+TEST_F(PatchgraphCli, MotionFrameIsAnOptionInTheSummary) {
+  for (const char* frame : {"sensor", "world", ""}) {
+    const std::string name = std::string("motion_") + frame;
+    const std::string option = *frame ? std::string(" --motion-frame ") + frame : "";
+    const CliRun r = patchgraph("track " + data() + " -q" + option + " --out " + out(name));
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  const auto summary = [&](const std::string& frame) {
+    return parse_json_file(out("motion_" + frame) + "/summary.json");
+  };
+  EXPECT_EQ(summary("")["motion_frame"], "sensor") << "the default";
+  EXPECT_EQ(summary("world")["motion_frame"], "world");
+  for (const char* error : {"final_translation_error_m", "translation_rmse_m"}) {
+    EXPECT_NEAR(summary("world")[error].get<double>(), summary("sensor")[error].get<double>(), 2e-5)
+        << error;
+  }
+  EXPECT_NEAR(summary("world")["rotation_rmse_rad"].get<double>(),
+              summary("sensor")["rotation_rmse_rad"].get<double>(), 1e-3);
 }
 
 const std::string kDefaultModel = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";

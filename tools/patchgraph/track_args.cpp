@@ -37,6 +37,11 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Frames between patch key frames (default " +
                      std::to_string(TrackArgs().keyframe_interval) + ")")
       ->check(kPositive);
+  app.add_option("--motion-frame", a.motion_frame,
+                 "Frame of the motion priors while in contact: sensor (default; the object is "
+                 "held and moves with the sensor) or world (the sensor moves over a fixed "
+                 "object); the same for a still sensor")
+      ->check(CLI::IsMember({"sensor", "world"}));
   app.add_flag("--no-registration-information", a.no_registration_information,
                "Fixed sigmas for registration factors instead of the ICP Hessian's shape");
   // The factor sigmas; help shows GraphOptions' defaults (the paper's values), kept when unset.
@@ -140,6 +145,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
   o.graph.method = method_from_string(a.method);
   o.graph.window = a.window;
   o.graph.patch.keyframe_interval = a.keyframe_interval;
+  o.graph.motion_frame = motion_frame_from_string(a.motion_frame);
   o.graph.registration_information = !a.no_registration_information;
   if (a.registration_sigma > 0) {
     o.graph.sigma_image_to_image = o.graph.sigma_image_to_patch = a.registration_sigma;

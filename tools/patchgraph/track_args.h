@@ -17,6 +17,7 @@ struct TrackArgs {
   std::string config;  // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;
+  std::string motion_frame = "sensor";  // GraphOptions::motion_frame
   bool no_registration_information = false;
   // Factor sigmas; 0 keeps GraphOptions' own (the paper's values).
   double registration_sigma = 0, velocity_sigma = 0, end_effector_sigma = 0, vision_sigma = 0;

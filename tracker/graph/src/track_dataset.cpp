@@ -324,6 +324,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"median_normals_ms", s.median_normals_ms},
       {"window", run.tracker->options().window},
       {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
+      {"motion_frame", to_string(run.tracker->options().motion_frame)},
       {"registration_information", run.tracker->options().registration_information},
       {"image_to_image_gate_rad", run.tracker->options().image_to_image_gate_rad},
       {"icp_symmetric", run.tracker->options().icp.symmetric},

@@ -52,6 +52,16 @@ Method method_from_string(const std::string& name) {
                    "' (known: constvel, imagetoimage, patchgraph, gtpatch)");
 }
 
+const char* to_string(MotionFrame frame) {
+  return frame == MotionFrame::kSensor ? "sensor" : "world";
+}
+
+MotionFrame motion_frame_from_string(const std::string& name) {
+  if (name == "sensor") return MotionFrame::kSensor;
+  if (name == "world") return MotionFrame::kWorld;
+  throw InputError("unknown motion frame '" + name + "' (known: sensor, world)");
+}
+
 namespace {
 
 // `o`, once its sigmas are in range.
@@ -229,13 +239,27 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
                 : t >= 1  ? pose_from_block(frames_[t - 1].e)
                           : SE3(),
                 f.e);
-  const SE3 o_init =
-      t >= 2     ? predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o))
-      : t == 1   ? pose_from_block(frames_[0].o)
-      : prior_ok ? input.T_world_object_prior
-                 : SE3();
-  pose_to_block(o_init, f.o);
+  f.T_sensor_world = pose_from_block(f.e).inverse();
   f.contact = !current_cloud_.empty();
+  // A missing measurement says nothing about the contact: the episode goes on.
+  f.held = f.contact || (input.measurement_missing && in_episode_);
+  SE3 o_init = prior_ok ? input.T_world_object_prior : SE3();
+  if (t >= 1 && sensor_frame_motion(f, frames_[t - 1])) {
+    // Held: the object's pose in the sensor's frame is predicted (the last relative motion
+    // repeated, when there is one) and placed at this frame's sensor pose, so the hand's own
+    // motion, accelerations included, is followed exactly.
+    const auto in_sensor = [](const Frame& g) { return g.T_sensor_world * pose_from_block(g.o); };
+    const Frame& p1 = frames_[t - 1];
+    const SE3 x = t >= 2 && sensor_frame_motion(p1, frames_[t - 2])
+                      ? predict(in_sensor(frames_[t - 2]), in_sensor(p1))
+                      : in_sensor(p1);
+    o_init = f.T_sensor_world.inverse() * x;
+  } else if (t >= 2) {
+    o_init = predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o));
+  } else if (t == 1) {
+    o_init = pose_from_block(frames_[0].o);
+  }
+  pose_to_block(o_init, f.o);
   frames_.push_back(f);
   Frame& cur = frames_.back();
 
@@ -270,8 +294,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     patch_.reset();
     last_keyframe_ = -1;
   }
-  // A missing measurement says nothing about the contact: the episode goes on.
-  if (!input.measurement_missing) in_episode_ = cur.contact;
+  in_episode_ = cur.held;
 
   // Registrations (eq. 5 and 6) at the predicted poses.
   const std::size_t first_registration = factors_.size();
@@ -393,7 +416,11 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         Frame& b = frames_[fac.frames[1]];
         add_block(a.o, fac.frames[0]);
         add_block(b.o, fac.frames[1]);
-        problem.AddResidualBlock(VelocityDampingFactor::create(fac.sqrt_info), nullptr, a.o, b.o);
+        const bool in_sensor = sensor_frame_motion(b, a);
+        problem.AddResidualBlock(
+            VelocityDampingFactor::create(fac.sqrt_info, {motion_frame_inverse(a, in_sensor),
+                                                          motion_frame_inverse(b, in_sensor)}),
+            nullptr, a.o, b.o);
         break;
       }
       case FactorKind::kVelocity: {
@@ -402,8 +429,12 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         add_block(a.o, fac.frames[0]);
         add_block(b.o, fac.frames[1]);
         add_block(c.o, fac.frames[2]);
-        problem.AddResidualBlock(ConstantVelocityFactor::create(fac.sqrt_info), nullptr, a.o, b.o,
-                                 c.o);
+        const bool in_sensor = sensor_frame_motion(b, a) && sensor_frame_motion(c, b);
+        problem.AddResidualBlock(
+            ConstantVelocityFactor::create(fac.sqrt_info, {motion_frame_inverse(a, in_sensor),
+                                                           motion_frame_inverse(b, in_sensor),
+                                                           motion_frame_inverse(c, in_sensor)}),
+            nullptr, a.o, b.o, c.o);
         break;
       }
     }

@@ -7,6 +7,8 @@
 // (r in the right tangent space of T_meas, [rho; phi]).
 #include <ceres/autodiff_cost_function.h>
 
+#include <array>
+
 #include "pg/graph/pose_block.h"
 
 namespace pg {
@@ -57,37 +59,59 @@ struct ImageToPatchFactor {
   }
 };
 
-// Eq. 7, constant velocity: the body-frame motion o_{t-2} -> o_{t-1} repeats as o_{t-1} -> o_t,
-// r = S log((o_{t-2}^-1 o_{t-1})^-1 (o_{t-1}^-1 o_t)).
+// The motion priors below hold the object's pose x = F^-1 o in a reference frame F: the world
+// (F = identity, as in the paper), or, while the object is held in contact, the sensor at its
+// measured pose: in in-hand manipulation the object moves with the hand, and its motion relative
+// to the hand is what is smooth; in the world frame these priors resist every acceleration of
+// the hand. The two are the same for a still sensor (GraphOptions::motion_frame). The measured
+// sensor pose stands for the estimated one: the end-effector prior holds them within its sigma
+// (1e-5), a thousandth of these priors' own, and the factors stay functions of the object poses
+// alone.
+namespace detail {
+template <typename T>
+SE3T<T> in_frame(const SE3& T_frame_world, const T* o) {
+  return T_frame_world.cast<T>() * pose_from_block(o);
+}
+}  // namespace detail
+
+// Eq. 7, constant velocity: the body-frame motion x_{t-2} -> x_{t-1} repeats as x_{t-1} -> x_t,
+// r = S log((x_{t-2}^-1 x_{t-1})^-1 (x_{t-1}^-1 x_t)).
 struct ConstantVelocityFactor {
   Matrix6d sqrt_info;
-
+  std::array<SE3, 3> T_frame_world;  // F^-1 of each pose, oldest first
   template <typename T>
   bool operator()(const T* o0, const T* o1, const T* o2, T* r) const {
-    const SE3T<T> a = pose_from_block(o0), b = pose_from_block(o1), c = pose_from_block(o2);
+    const SE3T<T> a = detail::in_frame(T_frame_world[0], o0);
+    const SE3T<T> b = detail::in_frame(T_frame_world[1], o1);
+    const SE3T<T> c = detail::in_frame(T_frame_world[2], o2);
     detail::whiten(sqrt_info, (a.inverse() * b).inverse() * (b.inverse() * c), r);
     return true;
   }
-  static ceres::CostFunction* create(const Matrix6d& sqrt_info) {
+  static ceres::CostFunction* create(const Matrix6d& sqrt_info,
+                                     const std::array<SE3, 3>& T_frame_world = {}) {
     return new ceres::AutoDiffCostFunction<ConstantVelocityFactor, 6, 7, 7, 7>(
-        new ConstantVelocityFactor{sqrt_info});
+        new ConstantVelocityFactor{sqrt_info, T_frame_world});
   }
 };
 
-// Not in the paper: a weak zero-velocity prior, r = S log(o_{t-1}^-1 o_t). Along directions no
+// Not in the paper: a weak zero-velocity prior, r = S log(x_{t-1}^-1 x_t). Along directions no
 // measurement sees (an edge's axis, a sphere's rotation) the velocity prior alone would let any
 // velocity that once entered continue for ever; this one lets it decay instead.
 struct VelocityDampingFactor {
   Matrix6d sqrt_info;
-
+  std::array<SE3, 2> T_frame_world;
   template <typename T>
   bool operator()(const T* o0, const T* o1, T* r) const {
-    detail::whiten(sqrt_info, pose_from_block(o0).inverse() * pose_from_block(o1), r);
+    detail::whiten(
+        sqrt_info,
+        detail::in_frame(T_frame_world[0], o0).inverse() * detail::in_frame(T_frame_world[1], o1),
+        r);
     return true;
   }
-  static ceres::CostFunction* create(const Matrix6d& sqrt_info) {
+  static ceres::CostFunction* create(const Matrix6d& sqrt_info,
+                                     const std::array<SE3, 2>& T_frame_world = {}) {
     return new ceres::AutoDiffCostFunction<VelocityDampingFactor, 6, 7, 7>(
-        new VelocityDampingFactor{sqrt_info});
+        new VelocityDampingFactor{sqrt_info, T_frame_world});
   }
 };
 
