@@ -371,6 +371,37 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   // (docs/learned_normals.md).
   EXPECT_EQ(summary["icp_symmetric"], false);
   EXPECT_EQ(summary["image_to_image_gate_rad"].get<double>(), 0.0);
+  // The front end's settings for learned normals are in the summary in --config's format (they
+  // are not the built-in defaults), and a run given them as --config is the same run.
+  const auto& config = summary["config"];
+  EXPECT_EQ(config["mask"]["relative_depth"].get<double>(), 0.2);
+  EXPECT_EQ(config["depth"]["integration"], "averaged");
+  EXPECT_EQ(config["icp"]["symmetric"], false);
+  const std::string config_file = out("track_unet_config.json");
+  std::ofstream(config_file) << config.dump(2);
+  const CliRun again = patchgraph("track " + data() + " -q --normals " + kDefaultModel +
+                                  " --config " + config_file + " --out " + out("track_unet_again"));
+  ASSERT_EQ(again.code, 0) << again.out;
+  const auto rerun = parse_json_file(out("track_unet_again") + "/summary.json");
+  EXPECT_EQ(rerun["config"], config);
+  for (const char* error : {"final_translation_error_m", "final_rotation_error_rad"}) {
+    EXPECT_EQ(rerun[error].get<double>(), summary[error].get<double>()) << error;
+  }
+}
+
+// summary.json records the factor sigmas and the simulated noise a run used.
+TEST_F(PatchgraphCli, TheSummaryRecordsSigmasAndNoise) {
+  const CliRun r = patchgraph("track " + data() +
+                              " -q --velocity-sigma 0.02 --ee-noise 2e-5 --vision-noise 0 --out " +
+                              out("settings"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto summary = parse_json_file(out("settings") + "/summary.json");
+  EXPECT_EQ(summary["sigmas"]["velocity"].get<double>(), 0.02);
+  EXPECT_EQ(summary["sigmas"]["image_to_patch"].get<double>(), 1e-3) << "the paper's";
+  EXPECT_EQ(summary["sigmas"]["damping"].get<double>(), 1e-2) << "the default";
+  EXPECT_EQ(summary["ee_noise"].get<double>(), 2e-5);
+  EXPECT_EQ(summary["vision_noise"].get<double>(), 0.0);
+  EXPECT_EQ(summary["config"]["mask"]["relative_depth"].get<double>(), 0.0) << "gt normals";
 }
 
 // Without background.png the no-contact reference the network reads each frame against is a

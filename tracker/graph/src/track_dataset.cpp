@@ -194,6 +194,9 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
   run.summary = summarize(run.frames, to_string(graph.method));
   run.summary.normals = options.normals_name;
   run.summary.seed = options.seed;
+  run.summary.front_end = options.front_end;
+  run.summary.end_effector_noise = options.end_effector_noise;
+  run.summary.vision_noise = options.vision_noise;
   run.summary.object_frame = sensor_frame ? "sensor at frame 0" : "dataset";
   if (options.compare_batch) {
     run.tracker->solve_batch();
@@ -294,6 +297,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
+  const GraphOptions& graph = run.tracker->options();
   nlohmann::json summary = {
       {"dataset", dataset.dir()},
       {"object", dataset.info().object_name},
@@ -322,12 +326,25 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       {"median_frame_ms", s.median_frame_ms},
       {"hz", s.hz},
       {"median_normals_ms", s.median_normals_ms},
-      {"window", run.tracker->options().window},
-      {"keyframe_interval", run.tracker->options().patch.keyframe_interval},
-      {"motion_frame", to_string(run.tracker->options().motion_frame)},
-      {"registration_information", run.tracker->options().registration_information},
-      {"image_to_image_gate_rad", run.tracker->options().image_to_image_gate_rad},
-      {"icp_symmetric", run.tracker->options().icp.symmetric},
+      {"window", graph.window},
+      {"keyframe_interval", graph.patch.keyframe_interval},
+      {"motion_frame", to_string(graph.motion_frame)},
+      {"registration_information", graph.registration_information},
+      {"image_to_image_gate_rad", graph.image_to_image_gate_rad},
+      {"icp_symmetric", graph.icp.symmetric},
+      {"sigmas",
+       {{"image_to_image", graph.sigma_image_to_image},
+        {"image_to_patch", graph.sigma_image_to_patch},
+        {"velocity", graph.sigma_velocity},
+        {"end_effector", graph.sigma_end_effector},
+        {"vision", graph.sigma_vision},
+        {"damping", graph.sigma_damping},
+        {"unconstrained", graph.sigma_unconstrained}}},
+      {"ee_noise", s.end_effector_noise},
+      {"vision_noise", s.vision_noise},
+      // The front end's options in --config's format: `--config` with this object as the file
+      // reruns with them (with learned normals they are not the built-in defaults).
+      {"config", tracker_config_to_json(s.front_end)},
       {"patch_points", run.tracker->patch().cloud_object().size()},
   };
   if (s.window_vs_batch_translation_rms_m >= 0) {

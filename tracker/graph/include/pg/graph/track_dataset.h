@@ -108,6 +108,10 @@ struct TrackSummary {
   double hz = 0;  // 1000 / median_frame_ms
   std::string normals = "gt";
   double median_normals_ms = 0;
+  // The settings the run used beyond the graph's own (PatchGraphTracker::options()): the front
+  // end's depth, mask and ICP options (what --config takes) and the simulated pose noise.
+  TrackerConfig front_end;
+  double end_effector_noise = 0, vision_noise = 0;
   // With compare_batch: the batch solution's errors against ground truth, and the RMS distance
   // between the fixed-lag and the batch trajectories (-1 when not compared).
   double batch_translation_rmse_m = -1, batch_rotation_rmse_rad = -1;
