@@ -489,6 +489,15 @@ TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) 
   EXPECT_NE(r.out.find("takes 120x160 images"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("has 60x80"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(out("track_small") + "/summary.json"));
+  // eval checks every dataset before its first run: none is tracked, no results written.
+  const CliRun e =
+      patchgraph("eval -q --no-plots --methods patchgraph --normals " + kDefaultModel +
+                 " --datasets " + data() + " " + out("small") + " --out " + out("eval_small"));
+  EXPECT_EQ(e.code, 1);
+  EXPECT_NE(e.out.find(out("small")), std::string::npos) << e.out;
+  EXPECT_NE(e.out.find("has 60x80"), std::string::npos) << e.out;
+  EXPECT_FALSE(fs::exists(out("eval_small") + "/runs")) << e.out;
+  EXPECT_FALSE(fs::exists(out("eval_small") + "/results.csv"));
 }
 
 TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {

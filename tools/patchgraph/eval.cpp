@@ -144,10 +144,13 @@ int run_eval(const EvalArgs& args) {
   for (const std::string& m : methods) method_from_string(m);  // fail before any work
   check_names_given_once(methods, "--methods");
   const std::vector<std::string> names = run_names(datasets);
-  std::vector<Dataset> opened;                          // all checked before any work
+  // One model for every run; every dataset checked against it before any work.
+  const std::shared_ptr<const NormalEstimator> model = load_normals_model(args.track);
+  std::vector<Dataset> opened;  // all checked before any work
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(Dataset::open(dir));
+    check_normals_input(model.get(), opened.back());
     if (opened.back().frames() > 0 && !opened.back().poses().back().object_known) {
       throw InputError(dir +
                        "/poses.csv: no object pose at the last frame; eval compares final "
@@ -169,7 +172,7 @@ int run_eval(const EvalArgs& args) {
         TrackArgs a = args.track;
         a.method = m;
         a.seed = seed;
-        const TrackRun run = track_dataset(dataset, make_track_options(a, dataset));
+        const TrackRun run = track_dataset(dataset, make_track_options(a, dataset, model));
         const std::string name = names[k] + "_" + m;
         write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
         rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});

@@ -126,17 +126,29 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   return ok;
 }
 
-TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset) {
+std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& a) {
+  if (a.normals == "gt") return nullptr;
+  auto model =
+      std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
+  model->set_phases(a.normals_phases);
+  return model;
+}
+
+void check_normals_input(const NormalEstimator* model, const Dataset& dataset) {
+  if (!model) return;
+  if (!dataset.info().has_output("color")) {
+    throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
+                     model->path());
+  }
+  model->check_sensor(dataset.info().sensor, dataset.dir());
+}
+
+TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
+                                std::shared_ptr<const NormalEstimator> model) {
   TrackOptions o;
   if (a.normals != "gt") {
-    auto model =
-        std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
-    model->set_phases(a.normals_phases);
-    if (!dataset.info().has_output("color")) {
-      throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
-                       a.normals);
-    }
-    model->check_sensor(dataset.info().sensor, dataset.dir());
+    if (!model) model = load_normals_model(a);
+    check_normals_input(model.get(), dataset);
     o.normals = [model](const ImageU8& color, const ImageU8& reference) {
       return model->predict(color, reference);
     };

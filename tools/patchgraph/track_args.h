@@ -2,9 +2,11 @@
 // Options shared by `patchgraph track` and `patchgraph eval`.
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <memory>
 #include <string>
 
 #include "pg/graph/track_dataset.h"
+#include "pg/learn/normal_model.h"
 
 namespace pg {
 
@@ -34,8 +36,15 @@ struct TrackArgs {
 };
 
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
+// The --normals MODEL of `args` loaded, with its threads and phases; null for "gt".
+std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& args);
+// Checks that `dataset` has what `model` reads (colour images of the model's size); nothing for
+// null (ground-truth normals, which track_dataset checks). Throws InputError naming the dataset.
+void check_normals_input(const NormalEstimator* model, const Dataset& dataset);
 // Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
-TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset);
+// `model`: --normals MODEL already loaded (eval's runs share one); null loads it.
+TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
+                                std::shared_ptr<const NormalEstimator> model = nullptr);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line
 // to stderr naming `what` and the bound for each bound it misses. True when within the gate.
