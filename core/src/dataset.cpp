@@ -425,7 +425,10 @@ Dataset Dataset::open(const std::string& dir) {
   for (const auto& o : d.info_.outputs) {
     for (int i = 0; i < d.info_.frames; ++i) {
       const std::string path = dataset_frame_path(dir, o, i);
-      if (!fs::is_regular_file(path)) throw InputError(path + ": missing frame file");
+      if (!fs::is_regular_file(path)) {
+        throw InputError(path + (fs::exists(path) ? ": not a file (a frame file is expected here)"
+                                                  : ": missing frame file"));
+      }
     }
   }
   return d;

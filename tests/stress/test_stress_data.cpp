@@ -104,6 +104,9 @@ TEST_F(StressData, MissingImageIsNamed) {
   const std::string dir = copy();
   fs::remove(dataset_frame_path(dir, "normal", 7));
   expect_input_error([&] { Dataset::open(dir); }, {"normal/000007.exr", "missing frame file"});
+  fs::create_directory(dataset_frame_path(dir, "normal", 7));  // a folder in its place
+  expect_input_error([&] { Dataset::open(dir); },
+                     {"normal/000007.exr", "not a file (a frame file is expected here)"});
 }
 
 TEST_F(StressData, CorruptedImageIsNamedWhenTracking) {
