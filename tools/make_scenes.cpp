@@ -501,6 +501,28 @@ ordered_json two_digits_pinch_json() {
   return scene_json(30, std::move(sensors), std::move(object), scene_seed("two_digits_pinch"));
 }
 
+// The demo's cube motion against the sensor, with the cube held by a sensor that swings by
+// 20 mm and rocks by 0.5 rad about its z axis and 0.6 rad about x twice a second (a waypoint
+// every 3 frames): in-hand manipulation with a moving hand ("held_by").
+ordered_json held_in_hand_json(const fs::path& root) {
+  SceneSpec spec = default_spec(root);
+  spec.file = "scenes/examples/held_in_hand.json";
+  spec.seed = scene_seed("held_in_hand");
+  ordered_json j = sequence_json(spec, root);
+  ordered_json waypoints = ordered_json::array();
+  for (int f = 0; f <= spec.frames; f += 3) {
+    const double w = 2 * kPi * f / 30.0;
+    const Vector3d t(round_to(0.02 * std::sin(w), 1e7), round_to(0.01 * (1 - std::cos(w)), 1e7),
+                     0.0);
+    const Vector3d rpy(round_to(0.3 * (1 - std::cos(w)), 1e6), 0.0,
+                       round_to(0.5 * std::sin(w), 1e6));
+    waypoints.push_back({{"frame", f}, {"position", vec_json(t)}, {"rpy", vec_json(rpy)}});
+  }
+  j["sensors"][0]["trajectory"] = {{"waypoints", waypoints}};
+  j["objects"][0]["held_by"] = j["sensors"][0]["name"];
+  return j;
+}
+
 // ------------------------------------------------------------------------- learned-normals data
 
 // The learned-normals training and validation sets (the paper's Table I, and the default
@@ -666,6 +688,8 @@ std::vector<Output> make_all(const fs::path& root) {
                             root, "pinch slide", 0.8 * kMm));
   outputs.push_back(checked("scenes/examples/no_contact.json", no_contact_json(root), root,
                             "hover", -5.0 * kMm, /*expect_contact=*/false));
+  outputs.push_back(checked("scenes/examples/held_in_hand.json", held_in_hand_json(root), root,
+                            "corner rock, swinging hand", demo.depth));
   struct NormalsSet {
     const char* object;
     const char* mesh;

@@ -31,7 +31,17 @@ Trajectory Trajectory::from_poses(const std::vector<SE3>& poses) {
   return t;
 }
 
+Trajectory Trajectory::carried_by(const Trajectory& parent) const {
+  Trajectory t = *this;
+  t.parent_ = std::make_shared<const Trajectory>(parent);
+  return t;
+}
+
 SE3 Trajectory::at(int frame) const {
+  return parent_ ? parent_->at(frame) * own_at(frame) : own_at(frame);
+}
+
+SE3 Trajectory::own_at(int frame) const {
   if (poses_.empty()) return SE3::Identity();
   if (per_frame_) {
     return poses_[std::clamp<std::size_t>(std::max(frame, 0), 0, poses_.size() - 1)];

@@ -125,14 +125,26 @@ SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
   return s;
 }
 
+// `sensors`: the scene's, for "held_by".
 SceneObject read_object(const nlohmann::json& j, const std::string& where,
-                        const std::string& base_dir, int index) {
+                        const std::string& base_dir, int index,
+                        const std::vector<SceneSensor>& sensors) {
   JsonFields f(j, where);
   SceneObject o;
   o.name = f.optional<std::string>("name", "object" + std::to_string(index));
   o.mesh_path = resolve(base_dir, f.required<std::string>("mesh"));
   o.scale = f.number_in("scale", 1e-6, 1e6, 1.0);
   o.T_world_object = read_motion(f);
+  if (f.has("held_by")) {
+    // Its pose or trajectory is then in that sensor's frame, and it moves with the sensor.
+    const std::string holder = f.required<std::string>("held_by");
+    const auto it = std::find_if(sensors.begin(), sensors.end(),
+                                 [&](const SceneSensor& s) { return s.name == holder; });
+    if (it == sensors.end()) {
+      throw InputError(f.field("held_by") + ": no sensor is named '" + holder + "'");
+    }
+    o.T_world_object = o.T_world_object.carried_by(it->T_world_sensor);
+  }
   f.finish();
   return o;
 }
@@ -184,7 +196,7 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
                      "each sensor writes to its own folder OUT/<name>/");
   scene.objects =
       read_array(f, "objects", [&](const nlohmann::json& o, const std::string& w, int i) {
-        return read_object(o, w, base_dir, i);
+        return read_object(o, w, base_dir, i, scene.sensors);
       });
   check_unique_names(scene.objects, f.field("objects"), "objects",
                      "tracked_object and the dataset name the object by it");

@@ -386,6 +386,33 @@ TEST_F(SceneFileTest, WaypointsInterpolateLinearlyAndBySlerp) {
   expect_near(t.at(20), {0.01, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 2}));  // and the last
 }
 
+// An object "held_by" a sensor has its pose in that sensor's frame and moves with it; a name
+// that is no sensor's is refused with the field.
+TEST_F(SceneFileTest, AHeldObjectMovesWithItsSensor) {
+  json j = minimal_scene();
+  j["sensors"] = {json{{"name", "fixed"}},
+                  json{{"name", "hand"},
+                       {"trajectory",
+                        {{"waypoints",
+                          {waypoint(0, {0, 0, 0}, {0, 0, 0}),
+                           waypoint(10, {0.1, 0.02, 0}, {0.3, 0, kPi / 2})}}}}}};
+  j["objects"][0]["held_by"] = "hand";
+  j["objects"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0.01}, {0, 0, 0}),
+                                                waypoint(10, {0.002, 0, 0.01}, {0, 0.1, 0})};
+  const Scene scene = load_scene(write("scene.json", j));
+  const Trajectory& hand = scene.sensors[1].T_world_sensor;
+  for (int frame : {-1, 0, 3, 7, 10, 12}) {
+    const SE3 relative = hand.at(frame).inverse() * scene.objects[0].T_world_object.at(frame);
+    const double s = std::clamp(frame / 10.0, 0.0, 1.0);
+    expect_near(relative, {0.002 * s, 0, 0.01}, quaternion_from_rpy({0, 0.1 * s, 0}), 1e-12);
+  }
+  EXPECT_GT(scene.objects[0].T_world_object.at(10).translation().x(), 0.09) << "moved with it";
+  j["objects"][0]["held_by"] = "hnad";
+  EXPECT_NE(
+      load_error(write("scene.json", j)).find("objects[0].held_by: no sensor is named 'hnad'"),
+      std::string::npos);
+}
+
 // --------------------------------------------------------------------------- committed scenes
 
 // Every .json under scenes/ is a scene, except sensor files in scenes/sensors/.
