@@ -389,6 +389,25 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   }
 }
 
+// A sensor pose that jumps 1 m for one frame (a glitch in poses.csv) is warned about, naming the
+// frames; the default scene's own still sensor is not.
+TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
+  const CliRun still = patchgraph("track " + data() + " -q --out " + out("no_jump"));
+  ASSERT_EQ(still.code, 0) << still.out;
+  EXPECT_EQ(still.out.find("sensor pose jumps"), std::string::npos) << still.out;
+  const std::string copy = data_copy("data_sensor_glitch");
+  std::vector<FramePose> poses = Dataset::open(copy).poses();
+  poses[30].T_world_sensor =
+      SE3::Translation(Eigen::Vector3d(1.0, 0, 0)) * poses[30].T_world_sensor;
+  write_poses_csv(copy + "/poses.csv", poses);
+  const CliRun glitch = patchgraph("track " + copy + " -q --out " + out("glitch"));
+  ASSERT_EQ(glitch.code, 0) << glitch.out;
+  EXPECT_NE(glitch.out.find("warning: the sensor pose jumps by more than 50 mm or 0.5 rad from one "
+                            "frame to the next 2 time(s), first from frame 29 to 30 (1000.0 mm"),
+            std::string::npos)
+      << glitch.out;
+}
+
 // summary.json records the factor sigmas and the simulated noise a run used.
 TEST_F(PatchgraphCli, TheSummaryRecordsSigmasAndNoise) {
   const CliRun r = patchgraph("track " + data() +
