@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -204,7 +205,7 @@ void mark_pareto(std::vector<Row>& rows) {
   }
 }
 
-TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed) {
+TrackArgs args_for(const Setting& s, std::uint64_t seed) {
   TrackArgs a;
   a.seed = seed;
   a.method = s.method;
@@ -213,7 +214,17 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t
   a.keyframe_interval = s.keyframe_interval;
   a.no_registration_information = !s.registration_information;
   if (!s.image_to_image_gate) a.image_to_image_gate = 0;
-  TrackOptions o = make_track_options(a, dataset);
+  return a;
+}
+
+// The --normals models, each loaded once, by path.
+using Models = std::map<std::string, std::shared_ptr<const NormalEstimator>>;
+
+TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed,
+                         const Models& models) {
+  const auto model = models.find(s.normals);
+  TrackOptions o = make_track_options(args_for(s, seed), dataset,
+                                      model == models.end() ? nullptr : model->second);
   o.front_end.icp.max_iterations = s.icp_iterations;
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;
@@ -327,11 +338,13 @@ int run_track_bench(const TrackBenchArgs& in) {
                            "median per-frame update time, its final errors and its RMSE.\n\n";
   // Every setting's options once, on the first scene, before any tracking: a bad normals source
   // (or any other option) fails now rather than after the sweep's first scene.
+  Models models;
   {
     const Dataset first = Dataset::open(cached_dataset(
         args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
     for (auto& s : settings) {
-      const TrackOptions o = options_for(s, first, 0);
+      if (!models.count(s.normals)) models[s.normals] = load_normals_model(args_for(s, 0));
+      const TrackOptions o = options_for(s, first, 0, models);
       s.icp_symmetric = o.front_end.icp.symmetric;
       s.parity_integration = o.front_end.depth.integration == DepthIntegration::kParity;
     }
@@ -348,7 +361,7 @@ int run_track_bench(const TrackBenchArgs& in) {
           cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
       const Dataset dataset = Dataset::open(dir);
       const TrackRun run =
-          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name)));
+          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name), models));
       row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
       ++done;
       if (!args.quiet) {
