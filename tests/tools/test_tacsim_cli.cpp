@@ -84,6 +84,26 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
   EXPECT_NE(info.out.find("60x80"), std::string::npos) << info.out;
 }
 
+// `info --check` reads every frame file: a truncated one, which `info` alone (and opening the
+// dataset) takes for present, is named with exit 1; an intact dataset reports what it read.
+TEST(TacsimCli, InfoCheckReadsEveryFrame) {
+  TempDir tmp;
+  const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out " +
+                          tmp.str("d") + " --width 60 --height 80 --outputs color,normal,points");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun intact = tacsim("info --check " + tmp.str("d"));
+  EXPECT_EQ(intact.code, 0) << intact.out;
+  // 10 frames x 3 outputs, and background.png.
+  EXPECT_NE(intact.out.find("checked   31 frame files: each reads, at 60x80"), std::string::npos)
+      << intact.out;
+  const std::string victim = dataset_frame_path(tmp.str("d"), "normal", 4);
+  fs::resize_file(victim, fs::file_size(victim) / 2);
+  EXPECT_EQ(tacsim("info " + tmp.str("d")).code, 0) << "the file exists";
+  const CliRun damaged = tacsim("info --check " + tmp.str("d"));
+  EXPECT_EQ(damaged.code, 1) << damaged.out;
+  EXPECT_NE(damaged.out.find("normal/000004.exr"), std::string::npos) << damaged.out;
+}
+
 // dataset.json describes the frames: the sensor's noise sigma is 0 when the scene renders
 // without noise, its model's sigma when with.
 TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {

@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -84,7 +85,29 @@ int run_render(const RenderArgs& a) {
   return kExitOk;
 }
 
-int run_info(const std::string& dir) {
+// Reads every frame of every output, as tracking or training would: a damaged, truncated or
+// wrong-sized file throws InputError naming it; so does background.png. Returns the number of
+// files read.
+long decode_every_frame(const Dataset& d) {
+  long files = 0;
+  for (const std::string& output : d.info().outputs) {
+    for (int i = 0; i < d.frames(); ++i) {
+      if (output == "color") d.color(i);
+      if (output == "normal") d.normal(i);
+      if (output == "depth") d.depth(i);
+      if (output == "mask") d.mask(i);
+      if (output == "points") d.contact_points(i);
+      ++files;
+    }
+  }
+  if (std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png")) {
+    d.background();
+    ++files;
+  }
+  return files;
+}
+
+int run_info(const std::string& dir, bool check) {
   const Dataset d = Dataset::open(dir);
   const DatasetInfo& info = d.info();
   int contact = 0, contact_unknown = 0, object_known = 0;
@@ -117,6 +140,12 @@ int run_info(const std::string& dir) {
     std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
   } else {
     std::printf("scene     none (a recording)\n");
+  }
+  if (check) {
+    std::fflush(stdout);
+    const long files = decode_every_frame(d);
+    std::printf("checked   %ld frame files: each reads, at %dx%d\n", files, info.width(),
+                info.height());
   }
   return kExitOk;
 }
@@ -161,6 +190,10 @@ int main(int argc, char** argv) {
   std::string info_dir;
   CLI::App* cmd_info = app.add_subcommand("info", "Describe a dataset folder");
   cmd_info->add_option("dataset", info_dir, "Dataset folder")->required();
+  bool info_check = false;
+  cmd_info->add_flag("--check", info_check,
+                     "Also read every frame file (without: only that each exists), naming the "
+                     "first that does not decode or has the wrong size");
 
   BenchArgs bench;
   CLI::App* cmd_bench = app.add_subcommand("bench", "Benchmark the renderer (frames/s per case)");
@@ -191,7 +224,7 @@ int main(int argc, char** argv) {
       render.outputs_given = cmd_render->count("--outputs") > 0;
       return run_render(render);
     }
-    if (cmd_info->parsed()) return run_info(info_dir);
+    if (cmd_info->parsed()) return run_info(info_dir, info_check);
     if (cmd_bench->parsed()) return run_bench(bench);
     return kExitUsage;
   });
