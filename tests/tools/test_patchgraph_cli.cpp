@@ -52,6 +52,15 @@ class PatchgraphCli : public ::testing::Test {
     fs::copy(data(), copy, fs::copy_options::recursive);
     return copy;
   }
+  // data_copy(name) with its poses.csv rewritten after `edit`.
+  static std::string data_copy_with_poses(
+      const std::string& name, const std::function<void(std::vector<FramePose>&)>& edit) {
+    const std::string copy = data_copy(name);
+    std::vector<FramePose> poses = read_poses_csv(copy + "/poses.csv");
+    edit(poses);
+    write_poses_csv(copy + "/poses.csv", poses);
+    return copy;
+  }
   static fs::path dir_;
 };
 fs::path PatchgraphCli::dir_;
@@ -395,11 +404,11 @@ TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
   const CliRun still = patchgraph("track " + data() + " -q --out " + out("no_jump"));
   ASSERT_EQ(still.code, 0) << still.out;
   EXPECT_EQ(still.out.find("sensor pose jumps"), std::string::npos) << still.out;
-  const std::string copy = data_copy("data_sensor_glitch");
-  std::vector<FramePose> poses = Dataset::open(copy).poses();
-  poses[30].T_world_sensor =
-      SE3::Translation(Eigen::Vector3d(1.0, 0, 0)) * poses[30].T_world_sensor;
-  write_poses_csv(copy + "/poses.csv", poses);
+  const std::string copy =
+      data_copy_with_poses("data_sensor_glitch", [](std::vector<FramePose>& poses) {
+        poses[30].T_world_sensor =
+            SE3::Translation(Eigen::Vector3d(1.0, 0, 0)) * poses[30].T_world_sensor;
+      });
   const CliRun glitch = patchgraph("track " + copy + " -q --out " + out("glitch"));
   ASSERT_EQ(glitch.code, 0) << glitch.out;
   EXPECT_NE(glitch.out.find("warning: the sensor pose jumps by more than 50 mm or 0.5 rad from one "
@@ -426,11 +435,9 @@ TEST_F(PatchgraphCli, TheSummaryRecordsSigmasAndNoise) {
 // Without background.png the no-contact reference the network reads each frame against is a
 // frame poses.csv marks as without contact: which one is said.
 TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
-  const std::string copy = data_copy("data_no_background");
+  const std::string copy = data_copy_with_poses(
+      "data_no_background", [](std::vector<FramePose>& poses) { poses[7].contact = false; });
   fs::remove(copy + "/background.png");
-  std::vector<FramePose> poses = Dataset::open(copy).poses();
-  poses[7].contact = false;
-  write_poses_csv(copy + "/poses.csv", poses);
   const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
                               out("track_no_background"));
   ASSERT_EQ(r.code, 0) << r.out;
@@ -633,13 +640,13 @@ TEST_F(PatchgraphCli, CorruptNormalsAreReportedAndAnUnreadableFrameKeepsTheEpiso
   EXPECT_LT(summary["final_translation_error_m"].get<double>(), 1e-3);
 }
 
-// A copy of the suite's dataset whose poses.csv leaves the object's pose empty in the frames
+// An edit of poses.csv (data_copy_with_poses) that leaves the object's pose empty in the frames
 // `keep` rejects, as a recording without ground truth would.
-std::string without_object_poses(const std::string& copy, const std::function<bool(int)>& keep) {
-  std::vector<FramePose> poses = read_poses_csv(copy + "/poses.csv");
-  for (FramePose& p : poses) p.object_known = keep(p.frame);
-  write_poses_csv(copy + "/poses.csv", poses);
-  return copy;
+std::function<void(std::vector<FramePose>&)> without_object_poses(
+    const std::function<bool(int)>& keep) {
+  return [keep](std::vector<FramePose>& poses) {
+    for (FramePose& p : poses) p.object_known = keep(p.frame);
+  };
 }
 
 // The largest error of the object's motion since frame 0 in the world frame, estimated against
@@ -666,7 +673,7 @@ TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
   ASSERT_EQ(full.code, 0) << full.out;
 
   const std::string first =
-      without_object_poses(data_copy("gt_first"), [](int frame) { return frame == 0; });
+      data_copy_with_poses("gt_first", without_object_poses([](int frame) { return frame == 0; }));
   const CliRun r = patchgraph("track " + first + " -q --out " + out("gt_first_track"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("no object pose at the last frame"), std::string::npos) << r.out;
@@ -689,7 +696,8 @@ TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
   EXPECT_EQ(summary["object_frame"], "dataset");
   EXPECT_EQ(summary["invalid_input_frames"].get<int>(), 0);
 
-  const std::string none = without_object_poses(data_copy("gt_none"), [](int) { return false; });
+  const std::string none =
+      data_copy_with_poses("gt_none", without_object_poses([](int) { return false; }));
   const CliRun n = patchgraph("track " + none + " -q --out " + out("gt_none_track"));
   ASSERT_EQ(n.code, 0) << n.out;
   EXPECT_NE(n.out.find("the dataset has no object poses"), std::string::npos) << n.out;
@@ -722,7 +730,8 @@ TEST_F(PatchgraphCli, ARecordingWithoutObjectPosesIsTracked) {
   }
   EXPECT_GT(rocked, 0.2);
 
-  const std::string late = without_object_poses(data_copy("gt_late"), [](int f) { return f >= 5; });
+  const std::string late =
+      data_copy_with_poses("gt_late", without_object_poses([](int f) { return f >= 5; }));
   const CliRun l = patchgraph("track " + late + " -q --out " + out("gt_late_track"));
   EXPECT_EQ(l.code, 1) << l.out;
   EXPECT_NE(l.out.find("poses.csv: line 2: no object pose at frame 0, but frame 5"),
