@@ -405,8 +405,9 @@ Dataset Dataset::open(const std::string& dir) {
       }
     }
     if (!sensors.empty()) {
-      throw InputError(dir + ": is not a dataset, but holds datasets (one per sensor): " + sensors +
-                       "; give one of those folders");
+      throw InputError(
+          dir + ": is not a dataset, but holds datasets (one per sensor): " + sensors +
+          "; give one of those folders (patchgraph track takes several, to track them together)");
     }
   }
   d.info_ = info_from_json(parse_json_file(info_path), info_path);

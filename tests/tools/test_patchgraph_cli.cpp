@@ -441,7 +441,8 @@ TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
   const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
                               out("track_no_background"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("note: no background.png: frame 7, the first that poses.csv marks as "
+  EXPECT_NE(r.out.find("note: " + copy +
+                       " has no background.png: frame 7, the first that poses.csv marks as "
                        "without contact, is the no-contact reference image"),
             std::string::npos)
       << r.out;
@@ -577,14 +578,16 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   std::getline(errors, header);
   const std::string last_columns =
       ",unconstrained_directions,contact_points,contact_core,unconverged_registrations,"
-      "overridden_registrations,invalid_input,image_to_image_dropped,rejected_normals";
+      "overridden_registrations,invalid_input,image_to_image_dropped,rejected_normals,"
+      "contact_sensors";
   ASSERT_GT(header.size(), last_columns.size());
   EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
   int lines = 0, core_frames = 0;
   for (std::string line; std::getline(errors, line); ++lines) {
     const std::vector<std::string> field = split_csv_line(line);
-    ASSERT_EQ(field.size(), 18u) << line;
+    ASSERT_EQ(field.size(), 19u) << line;
     const bool contact = field[3] == "1";
+    EXPECT_EQ(field[18], contact ? "1" : "0") << line;
     const int points = std::stoi(field[11]), core = std::stoi(field[12]);
     EXPECT_EQ(points > 0, contact) << line;
     EXPECT_TRUE(core == 0 || (core == 1 && points > 0)) << line;
@@ -604,6 +607,42 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   EXPECT_EQ(ungated["image_to_image_gate_rad"].get<double>(), 0.0);
   EXPECT_EQ(ungated["image_to_image_dropped"].get<int>(), 0);
   EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
+}
+
+// Several sensors' datasets of one sequence are tracked together: one summary naming them, every
+// sensor's patch in patch.ply; the render's folder of them says how.
+TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
+  const std::string render = out("regrasp");
+  const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                                        "/scenes/examples/two_digits_regrasp.json -q --outputs "
+                                        "normal --out " +
+                                        render);
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string below = render + "/digit_below", side = render + "/digit_side";
+  const CliRun both = patchgraph("track " + below + " " + side + " -q --out " + out("both"));
+  ASSERT_EQ(both.code, 0) << both.out;
+  EXPECT_NE(both.out.find("patchgraph on " + below + " + " + side +
+                          " (cube): 60 frames, 60 with "
+                          "contact, 1 episode(s)"),
+            std::string::npos)
+      << both.out;
+  ASSERT_EQ(patchgraph("track " + below + " -q --out " + out("below")).code, 0);
+  const auto summary = parse_json_file(out("both") + "/summary.json");
+  const auto alone = parse_json_file(out("below") + "/summary.json");
+  EXPECT_EQ(summary["sensors"], 2);
+  EXPECT_EQ(summary["datasets"], nlohmann::json({below, side}));
+  EXPECT_EQ(alone["sensors"], 1);
+  EXPECT_GT(summary["patch_points"].get<int>(), alone["patch_points"].get<int>() * 3 / 2)
+      << "both faces";
+  // The side sensor is off from frame 25 to 41, clear of the cube from 30 to 36.
+  const int touches = errors_column_sum(out("both"), "contact_sensors");
+  EXPECT_GE(touches, 60 + 25 + 18);
+  EXPECT_LE(touches, 60 + 60 - 7);
+  const CliRun folder = patchgraph("track " + render + " -q --out " + out("folder"));
+  EXPECT_EQ(folder.code, 1) << folder.out;
+  EXPECT_NE(folder.out.find("patchgraph track takes several, to track them together"),
+            std::string::npos)
+      << folder.out;
 }
 
 // Corrupt normal files: a few NaN pixels are counted, filled and warned about; frames of NaN

@@ -1,9 +1,10 @@
 // patchgraph: the tracker's command line.
-//   patchgraph track DATASET --method M --normals gt --out OUT
+//   patchgraph track DATASET [DATASET...] --method M --normals gt --out OUT
 //   patchgraph eval --datasets DIR... --methods M... --out OUT
 //   patchgraph train-normals --data DIR... --arch unet|resnet|mlp --out MODEL
 //   patchgraph eval-normals --model MODEL --data DIR...
 //   patchgraph bench [--quick] --out OUT
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -23,7 +24,8 @@ namespace {
 // A sensor pose that moves further from one frame to the next than a hand does (5 cm: 3 m/s at
 // 60 fps) is likelier a glitch in the poses. The tracker takes them as given (a held object's
 // estimate follows the sensor, --motion-frame sensor): say so.
-void warn_about_sensor_jumps(const std::vector<FramePose>& poses) {
+void warn_about_sensor_jumps(const Dataset& dataset) {
+  const std::vector<FramePose>& poses = dataset.poses();
   constexpr double kJumpM = 0.05, kJumpRad = 0.5;
   int jumps = 0, first = -1;
   for (std::size_t i = 1; i < poses.size(); ++i) {
@@ -41,25 +43,36 @@ void warn_about_sensor_jumps(const std::vector<FramePose>& poses) {
   std::fprintf(stderr,
                "warning: the sensor pose jumps by more than %.0f mm or %.1f rad from one frame to "
                "the next %d time(s), first from frame %d to %d (%.1f mm, %.3f rad): a glitch in "
-               "poses.csv? The tracker takes the sensor poses as given\n",
-               kJumpM * 1e3, kJumpRad, jumps, first - 1, first,
+               "%s/poses.csv? The tracker takes the sensor poses as given\n",
+               kJumpM * 1e3, kJumpRad, jumps, first - 1, first, dataset.dir().c_str(),
                translation_distance(before, after) * 1e3, rotation_distance(before, after));
 }
 
 int run_track(const TrackArgs& a) {
-  check_output_is_not_input(a.out, a.dataset, "the dataset");  // its poses.csv would be replaced
-  const Dataset dataset = Dataset::open(a.dataset);
-  const TrackOptions options = make_track_options(a, dataset);
-  if (a.normals != "gt" &&
-      !std::filesystem::exists(std::filesystem::path(a.dataset) / "background.png")) {
+  std::vector<Dataset> datasets;
+  for (const std::string& dir : a.datasets) {
+    check_output_is_not_input(a.out, dir, "the dataset");  // its poses.csv would be replaced
+    datasets.push_back(Dataset::open(dir));
+  }
+  std::vector<const Dataset*> sensors;
+  for (const Dataset& d : datasets) sensors.push_back(&d);
+  const Dataset& dataset = datasets[0];
+  const std::shared_ptr<const NormalEstimator> model = load_normals_model(a);
+  for (const Dataset& d : datasets) check_normals_input(model.get(), d);
+  const TrackOptions options = make_track_options(a, dataset, model);
+  for (const Dataset& d : datasets) {
+    if (a.normals == "gt" ||
+        std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png")) {
+      continue;
+    }
     // The network reads each frame minus this reference: a frame wrongly marked without contact
     // would skew every estimate, so the choice is shown.
-    for (const FramePose& p : dataset.poses()) {
+    for (const FramePose& p : d.poses()) {
       if (p.contact_known && !p.contact) {
         std::printf(
-            "note: no background.png: frame %d, the first that poses.csv marks as "
+            "note: %s has no background.png: frame %d, the first that poses.csv marks as "
             "without contact, is the no-contact reference image\n",
-            p.frame);
+            d.dir().c_str(), p.frame);
         break;
       }
     }
@@ -67,11 +80,13 @@ int run_track(const TrackArgs& a) {
   const OutputFolder out(a.out);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run =
-      track_dataset(dataset, options, [&](int done, int) { progress.update(done); });
-  write_track_outputs(run, dataset, a.out);
+      track_dataset(sensors, options, [&](int done, int) { progress.update(done); });
+  write_track_outputs(run, sensors, a.out);
   const TrackSummary& s = run.summary;
+  std::string names;
+  for (const std::string& dir : a.datasets) names += (names.empty() ? "" : " + ") + dir;
   std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
-              a.dataset.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
+              names.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
               s.episodes);
   std::fflush(stdout);  // the warnings below (stderr) follow this line in a shared log too
   if (s.rejected_registrations > 0) {
@@ -92,15 +107,20 @@ int run_track(const TrackArgs& a) {
                  "icp.max_iterations and convergence thresholds)\n",
                  s.unconverged_registrations, s.contact_frames);
   }
-  int marked_contact = 0;
-  for (const FramePose& p : dataset.poses()) marked_contact += p.contact_known && p.contact;
+  int marked_contact = 0;  // frames some dataset marks as in contact
+  for (int i = 0; i < dataset.frames(); ++i) {
+    marked_contact += std::any_of(datasets.begin(), datasets.end(), [&](const Dataset& d) {
+      const FramePose& p = d.poses()[std::size_t(i)];
+      return p.contact_known && p.contact;
+    });
+  }
   if (s.contact_frames < marked_contact / 2) {
     std::fprintf(stderr,
                  "warning: the dataset marks %d frame(s) as in contact, the tracker found contact "
                  "in %d (the contact mask's settings, mask.* in --config, or the normals)\n",
                  marked_contact, s.contact_frames);
   }
-  warn_about_sensor_jumps(dataset.poses());
+  for (const Dataset& d : datasets) warn_about_sensor_jumps(d);
   if (s.overridden_registrations > 0) {
     std::fprintf(stderr,
                  "warning: the solved poses overrode %d accepted registration(s): the motion "
@@ -163,8 +183,7 @@ int run_track(const TrackArgs& a) {
     std::printf("of which normals from the model: median %.3f ms\n", s.median_normals_ms);
   }
   std::fflush(stdout);
-  if (!within_accuracy_gate(a, a.dataset, s.final_translation_error_m,
-                            s.final_rotation_error_rad)) {
+  if (!within_accuracy_gate(a, names, s.final_translation_error_m, s.final_rotation_error_rad)) {
     return kExitAccuracy;
   }
   return kExitOk;
@@ -179,8 +198,12 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
 
   TrackArgs track;
-  CLI::App* cmd_track = app.add_subcommand("track", "Track the object of one dataset");
-  cmd_track->add_option("dataset", track.dataset, "Dataset folder (from tacsim render)")
+  CLI::App* cmd_track = app.add_subcommand(
+      "track", "Track the object of one dataset (or of several sensors' datasets together)");
+  cmd_track
+      ->add_option("dataset", track.datasets,
+                   "Dataset folder (from tacsim render); several: the sensors of one "
+                   "sequence on one object, tracked together (the first is the primary)")
       ->required();
   cmd_track->add_option("--out,-o", track.out, "Output folder")->required();
   add_track_options(*cmd_track, track);

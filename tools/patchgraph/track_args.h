@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pg/graph/track_dataset.h"
 #include "pg/learn/normal_model.h"
@@ -11,7 +12,9 @@
 namespace pg {
 
 struct TrackArgs {
-  std::string dataset, out;
+  // `track`'s datasets: one, or several sensors' of one sequence (the first is the primary).
+  std::vector<std::string> datasets;
+  std::string out;
   std::string method = "patchgraph";
   std::string normals = "gt";  // or a model file from train-normals
   int normals_threads = 1;

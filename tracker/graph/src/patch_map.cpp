@@ -1,7 +1,5 @@
 #include "pg/graph/patch_map.h"
 
-#include "pg/core/point_io.h"
-
 namespace pg {
 
 void PatchMap::reset() {
@@ -48,10 +46,6 @@ void PatchMap::set_model(const PointCloud& model_object) {
   fused_ = model_object;
   tree_ = std::make_unique<PointCloudTree>(fused_);
   keyframes_ = 0;
-}
-
-void PatchMap::save_ply(const std::string& path) const {
-  write_ply(path, fused_.points, &fused_.normals);
 }
 
 }  // namespace pg

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -11,6 +13,7 @@
 #include <vector>
 
 #include "pg/core/error.h"
+#include "pg/core/point_io.h"
 #include "pg/core/statistics.h"
 #include "pg/tracker/contact_cloud.h"
 
@@ -109,60 +112,134 @@ bool object_frame_is_sensor(const std::vector<FramePose>& poses, const std::stri
   return false;
 }
 
+namespace {
+
+// Object poses two datasets of one sequence may give apart (a recording's two logs of one
+// motion capture may round differently; renders agree exactly).
+constexpr double kSameObjectM = 1e-6, kSameObjectRad = 1e-5;
+
+// Checks that `datasets` can be tracked together: as many frames, the same object pose wherever
+// two give one.
+void check_same_sequence(const std::vector<const Dataset*>& datasets) {
+  const Dataset& primary = *datasets[0];
+  for (std::size_t k = 1; k < datasets.size(); ++k) {
+    const Dataset& other = *datasets[k];
+    if (other.frames() != primary.frames()) {
+      throw InputError(other.dir() + ": " + std::to_string(other.frames()) + " frames, but " +
+                       primary.dir() + " has " + std::to_string(primary.frames()) +
+                       "; the sensors of one sequence are tracked frame by frame together");
+    }
+    for (int i = 0; i < other.frames(); ++i) {
+      const FramePose& a = primary.poses()[std::size_t(i)];
+      const FramePose& b = other.poses()[std::size_t(i)];
+      if (!a.object_known || !b.object_known) continue;
+      const double apart_m = translation_distance(a.T_world_object, b.T_world_object);
+      const double apart_rad = rotation_distance(a.T_world_object, b.T_world_object);
+      if (apart_m > kSameObjectM || apart_rad > kSameObjectRad) {
+        char apart[96];
+        std::snprintf(apart, sizeof apart, "%.3g mm / %.3g rad", apart_m * 1e3, apart_rad);
+        throw InputError(other.dir() + "/poses.csv: line " + std::to_string(i + 2) + " (frame " +
+                         std::to_string(i) + "): the object pose is " + apart + " from " +
+                         primary.dir() +
+                         "/poses.csv's: not the same object, or not the same world frame");
+      }
+    }
+  }
+}
+
+// What one sensor's dataset needs beyond the tracker: its contact clouds and, for learned
+// normals, its no-contact reference.
+struct SensorFeed {
+  SensorFeed(const Dataset& d, const TrackerConfig& config, bool learned)
+      : dataset(&d),
+        builder(d.info().sensor, config.contact_cloud()),
+        background(learned ? d.background() : ImageU8()) {}
+  const Dataset* dataset;
+  ContactCloudBuilder builder;
+  ImageU8 background;
+  ContactFrame contact;
+};
+
+}  // namespace
+
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress) {
+  return track_dataset(std::vector<const Dataset*>{&dataset}, options, progress);
+}
+
+TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
+                       const std::function<void(int, int)>& progress) {
+  if (datasets.empty()) throw std::invalid_argument("track_dataset: no dataset");
   const bool learned = bool(options.normals);
-  if (!learned && !dataset.info().has_output("normal")) {
-    throw InputError(dataset.dir() + ": dataset has no 'normal' output, needed for --normals gt");
+  for (const Dataset* d : datasets) {
+    if (!learned && !d->info().has_output("normal")) {
+      throw InputError(d->dir() + ": dataset has no 'normal' output, needed for --normals gt");
+    }
+    if (learned && !d->info().has_output("color")) {
+      throw InputError(d->dir() + ": dataset has no 'color' output, needed for --normals " +
+                       options.normals_name);
+    }
   }
-  if (learned && !dataset.info().has_output("color")) {
-    throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
-                     options.normals_name);
-  }
+  check_same_sequence(datasets);
   check_in_range("track option end_effector_noise", options.end_effector_noise, 0, kMaxPoseNoise);
   check_in_range("track option vision_noise", options.vision_noise, 0, kMaxPoseNoise);
+  const Dataset& dataset = *datasets[0];
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
-  ContactCloudBuilder builder(dataset.info().sensor, options.front_end.contact_cloud());
+  std::deque<SensorFeed> feeds;  // (a builder does not move)
+  for (const Dataset* d : datasets) feeds.emplace_back(*d, options.front_end, learned);
   const bool sensor_frame = object_frame_is_sensor(dataset.poses(), dataset.dir() + "/poses.csv");
-  const ImageU8 background = learned ? dataset.background() : ImageU8();
   Gaussian noise(options.seed);
-  ContactFrame contact;
   for (int i = 0; i < dataset.frames(); ++i) {
     const FramePose& gt = dataset.poses()[i];
     // Decoding the image files is not part of the timed update.
-    ImageF normals;
-    ImageU8 color;
-    if (learned) {
-      color = dataset.color(i);
-    } else {
-      normals = dataset.normal(i);
+    std::vector<ImageF> normals(feeds.size());
+    std::vector<ImageU8> colors(feeds.size());
+    for (std::size_t k = 0; k < feeds.size(); ++k) {
+      if (learned) {
+        colors[k] = feeds[k].dataset->color(i);
+      } else {
+        normals[k] = feeds[k].dataset->normal(i);
+      }
     }
     TrackerInput input;
     input.T_world_sensor_measured = noise.perturb(gt.T_world_sensor, options.end_effector_noise);
     input.T_world_object_prior = noise.perturb(gt.T_world_object, options.vision_noise);
     if (sensor_frame && i == 0) input.T_world_object_prior = input.T_world_sensor_measured;
     input.object_prior_given = gt.object_known || (sensor_frame && i == 0);
+    input.other_sensors.resize(feeds.size() - 1);
+    for (std::size_t k = 1; k < feeds.size(); ++k) {
+      input.other_sensors[k - 1].T_world_sensor_measured = noise.perturb(
+          feeds[k].dataset->poses()[std::size_t(i)].T_world_sensor, options.end_effector_noise);
+    }
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;
-    if (learned && is_dropout(color)) {
-      builder.build_unreadable(contact);  // nothing to estimate normals from
-    } else if (learned && shows_no_change(color, background, builder.min_contact_pixels())) {
-      builder.build_untouched(contact);  // nothing pressed: no normals to estimate
-    } else {
-      if (learned) {
-        normals = options.normals(color, background);
-        normals_ms =
-            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
-                .count();
-      }
-      builder.build(normals, contact);
-    }
-    set_measurement(contact, input);
-    const TrackerEstimate est = run.tracker->add(input);
     FrameResult r;
+    for (std::size_t k = 0; k < feeds.size(); ++k) {
+      SensorFeed& feed = feeds[k];
+      if (learned && is_dropout(colors[k])) {
+        feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
+      } else if (learned &&
+                 shows_no_change(colors[k], feed.background, feed.builder.min_contact_pixels())) {
+        feed.builder.build_untouched(feed.contact);  // nothing pressed: no normals to estimate
+      } else {
+        if (learned) {
+          const auto model_start = std::chrono::steady_clock::now();
+          normals[k] = options.normals(colors[k], feed.background);
+          normals_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
+                                                                  model_start)
+                            .count();
+        }
+        feed.builder.build(normals[k], feed.contact);
+      }
+      SensorInput& sensor = k == 0 ? input : input.other_sensors[k - 1];
+      set_measurement(feed.contact, sensor);
+      r.rejected_normals += feed.contact.rejected_normals;
+      r.contact_points += int(sensor.cloud_sensor.size());
+    }
+    const TrackerEstimate est = run.tracker->add(input);
     r.frame_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     r.normals_ms = normals_ms;
@@ -176,6 +253,7 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.rotation_error_rad =
         gt.object_known ? rotation_distance(est.T_world_object, gt.T_world_object) : std::nan("");
     r.contact = est.contact;
+    r.contact_sensors = est.contact_sensors;
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
     r.image_to_image_dropped = est.image_to_image_dropped;
@@ -183,15 +261,17 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
     r.unconverged_registrations = est.unconverged_registrations;
     r.overridden_registrations = est.overridden_registrations;
     r.invalid_input = est.invalid_input;
-    r.rejected_normals = contact.rejected_normals;
     r.tracking_lost = est.tracking_lost;
     r.unconstrained_directions = est.contact ? est.unconstrained_directions : 0;
-    r.contact_points = int(input.cloud_sensor.size());
-    r.contact_core = r.contact_points > 0 && contact.core;
+    r.contact_core =
+        r.contact_points > 0 && std::all_of(feeds.begin(), feeds.end(), [](const SensorFeed& feed) {
+          return feed.contact.status != ContactStatus::kContact || feed.contact.core;
+        });
     run.frames.push_back(r);
     if (progress) progress(i + 1, dataset.frames());
   }
   run.summary = summarize(run.frames, to_string(graph.method));
+  run.summary.sensors = int(datasets.size());
   run.summary.normals = options.normals_name;
   run.summary.seed = options.seed;
   run.summary.front_end = options.front_end;
@@ -263,6 +343,12 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
 }
 
 void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir) {
+  write_track_outputs(run, std::vector<const Dataset*>{&dataset}, out_dir);
+}
+
+void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>& datasets,
+                         const std::string& out_dir) {
+  const Dataset& dataset = *datasets.at(0);
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec) throw InputError(out_dir + ": cannot create the output folder: " + ec.message());
@@ -280,7 +366,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
             "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
-            "invalid_input,image_to_image_dropped,rejected_normals\n";
+            "invalid_input,image_to_image_dropped,rejected_normals,contact_sensors\n";
   for (const auto& f : run.frames) {
     errors << f.frame << ",";
     if (f.ground_truth) {
@@ -293,13 +379,25 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
            << f.normals_ms << "," << f.unconstrained_directions << "," << f.contact_points << ","
            << f.contact_core << "," << f.unconverged_registrations << ","
            << f.overridden_registrations << "," << f.invalid_input << ","
-           << f.image_to_image_dropped << "," << f.rejected_normals << "\n";
+           << f.image_to_image_dropped << "," << f.rejected_normals << "," << f.contact_sensors
+           << "\n";
   }
   if (!errors) throw InputError(errors_path + ": cannot write");
   const TrackSummary& s = run.summary;
   const GraphOptions& graph = run.tracker->options();
+  // Every sensor's patch, in the object frame (gtpatch's is the one model).
+  const PatchGraphTracker& tracker = *run.tracker;
+  PointCloud patch = tracker.patch(0).cloud_object();
+  for (int k = 1; k < tracker.sensors() && graph.method != Method::kGroundTruthPatch; ++k) {
+    const PointCloud& more = tracker.patch(k).cloud_object();
+    for (std::size_t i = 0; i < more.size(); ++i) patch.push_back(more.points[i], more.normals[i]);
+  }
+  std::vector<std::string> dirs;
+  for (const Dataset* d : datasets) dirs.push_back(d->dir());
   nlohmann::json summary = {
       {"dataset", dataset.dir()},
+      {"datasets", dirs},
+      {"sensors", s.sensors},
       {"object", dataset.info().object_name},
       {"method", s.method},
       {"seed", s.seed},
@@ -345,7 +443,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
       // The front end's options in --config's format: `--config` with this object as the file
       // reruns with them (with learned normals they are not the built-in defaults).
       {"config", tracker_config_to_json(s.front_end)},
-      {"patch_points", run.tracker->patch().cloud_object().size()},
+      {"patch_points", patch.size()},
   };
   if (s.window_vs_batch_translation_rms_m >= 0) {
     summary["batch_translation_rmse_m"] = s.batch_translation_rmse_m;
@@ -355,7 +453,7 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
   }
   const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
   std::ofstream(summary_path) << summary.dump(2) << "\n";
-  run.tracker->patch().save_ply((fs::path(out_dir) / "patch.ply").string());
+  write_ply((fs::path(out_dir) / "patch.ply").string(), patch.points, &patch.normals);
 }
 
 }  // namespace pg

@@ -2,6 +2,9 @@
 
 #include <ceres/ceres.h>
 
+#include <Eigen/QR>
+#include <Eigen/SVD>
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <string>
@@ -32,6 +35,33 @@ int copy_finite_points(const PointCloud& in, PointCloud& out) {
 
 // o_t = o_{t-1} (o_{t-2}^-1 o_{t-1}): the last body-frame motion repeated.
 SE3 predict(const SE3& o_prev2, const SE3& o_prev) { return o_prev * (o_prev2.inverse() * o_prev); }
+
+// How many dimensions the spans of `twists` (each a basis of the directions one registration
+// left free, as twists [rho; phi] about the same frame's origin) have in common: the directions
+// none of them constrains. Rotations are weighed at 1 cm (a fingertip contact's size), so
+// that a turn and a slide compare at the scale where they move the contact alike.
+int common_free_directions(const std::vector<Matrix6Xd>& twists) {
+  const Vector6d weights = (Vector6d() << 1, 1, 1, 1e-2, 1e-2, 1e-2).finished();
+  Eigen::MatrixXd common = weights.asDiagonal() * twists[0];
+  for (std::size_t k = 1; k < twists.size() && common.cols() > 0; ++k) {
+    if (twists[k].cols() == 0) return 0;
+    // Orthonormal bases of both spans; their common directions are the principal angles of 0,
+    // singular values of Q1^T Q2 of 1.
+    const Eigen::MatrixXd q1 = Eigen::HouseholderQR<Eigen::MatrixXd>(common).householderQ() *
+                               Eigen::MatrixXd::Identity(6, common.cols());
+    const Eigen::MatrixXd next = weights.asDiagonal() * twists[k];
+    const Eigen::MatrixXd q2 = Eigen::HouseholderQR<Eigen::MatrixXd>(next).householderQ() *
+                               Eigen::MatrixXd::Identity(6, next.cols());
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(q1.transpose() * q2, Eigen::ComputeThinU);
+    int shared = 0;
+    // Within about 3 degrees of each other.
+    while (shared < svd.singularValues().size() && svd.singularValues()[shared] > 0.9986) {
+      ++shared;
+    }
+    common = q1 * svd.matrixU().leftCols(shared);
+  }
+  return int(common.cols());
+}
 
 }  // namespace
 
@@ -88,16 +118,25 @@ GraphOptions checked(GraphOptions o) {
 }  // namespace
 
 PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& model_object)
-    : options_(checked(std::move(options))),
-      patch_(options_.patch),
-      icp_(options_.icp),
-      model_icp_(options_.icp) {
+    : options_(checked(std::move(options))), icp_(options_.icp), model_icp_(options_.icp) {
   model_icp_.options().symmetric = false;
+  sensors_.resize(1);
+  sensors_[0].patch = PatchMap(options_.patch);
   if (options_.method == Method::kGroundTruthPatch) {
     if (model_object.empty()) {
       throw std::invalid_argument("PatchGraphTracker: gtpatch needs the object model's points");
     }
-    patch_.set_model(model_object);
+    sensors_[0].patch.set_model(model_object);
+  }
+}
+
+void PatchGraphTracker::add_sensors(std::size_t count) {
+  while (sensors_.size() < count) {
+    SensorTrack& s = sensors_.emplace_back();
+    s.patch = PatchMap(options_.patch);
+    if (options_.method == Method::kGroundTruthPatch) {
+      s.patch.set_model(sensors_[0].patch.cloud_object());
+    }
   }
 }
 
@@ -136,8 +175,9 @@ bool PatchGraphTracker::gate_image_to_image(std::size_t first_registration) {
   // answer T_previous_current.
   const Frame& p = frames_[factors_[to_patch].frames[0] - 1];
   const SE3 from_patch = factors_[to_patch].measured.inverse();
-  const SE3 from_previous = factors_[to_previous].measured.inverse() *
-                            (pose_from_block(p.e).inverse() * pose_from_block(p.o));
+  const SE3 from_previous =
+      factors_[to_previous].measured.inverse() *
+      (pose_from_block(p.sensors[factors_[to_previous].sensor].e).inverse() * pose_from_block(p.o));
   if (rotation_distance(from_previous, from_patch) <= options_.image_to_image_gate_rad) {
     return false;
   }
@@ -155,49 +195,56 @@ bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
   SE3 solved;
   if (fac.kind == FactorKind::kImageToPatch) {
     const Frame& f = frames_[fac.frames[0]];
-    solved = pose_from_block(f.o).inverse() * pose_from_block(f.e);
+    solved = pose_from_block(f.o).inverse() * pose_from_block(f.sensors[fac.sensor].e);
   } else {
     const Frame& p = frames_[fac.frames[0]];
     const Frame& c = frames_[fac.frames[1]];
-    solved = (pose_from_block(p.e).inverse() * pose_from_block(p.o)) *
-             (pose_from_block(c.e).inverse() * pose_from_block(c.o)).inverse();
+    solved = (pose_from_block(p.sensors[fac.sensor].e).inverse() * pose_from_block(p.o)) *
+             (pose_from_block(c.sensors[fac.sensor].e).inverse() * pose_from_block(c.o)).inverse();
   }
   return translation_distance(solved, fac.measured) > options_.max_registration_residual_m ||
          rotation_distance(solved, fac.measured) > options_.max_registration_residual_rad;
 }
 
-PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(Frame& f, TrackerEstimate& est) {
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(int k, TrackerEstimate& est) {
   const int t = int(frames_.size()) - 1;
-  if (!previous_tree_ || t < 1 || !frames_[t - 1].contact) return Outcome::kNotTried;
+  const SensorTrack& s = sensors_[std::size_t(k)];
+  if (!s.previous_tree || t < 1 || !frames_[t - 1].sensors[k].contact) return Outcome::kNotTried;
   const Frame& p = frames_[t - 1];
+  const Frame& f = frames_[t];
   // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
-  const SE3 T_sp_o = pose_from_block(p.e).inverse() * pose_from_block(p.o);
-  const SE3 T_sc_o = pose_from_block(f.e).inverse() * pose_from_block(f.o);
+  const SE3 T_sp_o = pose_from_block(p.sensors[k].e).inverse() * pose_from_block(p.o);
+  const SE3 T_sc_o = pose_from_block(f.sensors[k].e).inverse() * pose_from_block(f.o);
   const SE3 guess = T_sp_o * T_sc_o.inverse();
-  const IcpResult r = icp_.align(current_cloud_, *previous_tree_, guess);
-  return add_registration(FactorKind::kImageToImage, {t - 1, t, -1}, r, guess,
+  const IcpResult r = icp_.align(s.cloud, *s.previous_tree, guess);
+  return add_registration(FactorKind::kImageToImage, {t - 1, t, -1}, k, r, guess,
                           options_.sigma_image_to_image, est);
 }
 
-PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(Frame& f, TrackerEstimate& est) {
-  if (patch_.empty()) return Outcome::kNotTried;
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(
+    int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists) {
+  const SensorTrack& s = sensors_[std::size_t(k)];
+  if (s.patch.empty()) return Outcome::kNotTried;
   const int t = int(frames_.size()) - 1;
-  const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.e);
+  const Frame& f = frames_[t];
+  const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.sensors[k].e);
   PointToPlaneIcp& icp = options_.method == Method::kGroundTruthPatch ? model_icp_ : icp_;
-  const IcpResult r = icp.align(current_cloud_, patch_.tree(), guess);
+  const IcpResult r = icp.align(s.cloud, s.patch.tree(), guess);
   // What the contact let the registration see, whether or not its answer is used (a failed
   // one, with too few points or matches, never analysed its Hessian).
   if (r.status == IcpStatus::kConverged || r.status == IcpStatus::kMaxIterations) {
     est.unconstrained_directions = r.degeneracy.unconstrained;
+    if (sensors_.size() > 1) free_twists.push_back(r.degeneracy.unconstrained_twists_at_origin());
   }
-  return add_registration(FactorKind::kImageToPatch, {t, -1, -1}, r, guess,
+  return add_registration(FactorKind::kImageToPatch, {t, -1, -1}, k, r, guess,
                           options_.sigma_image_to_patch, est);
 }
 
 PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
                                                                std::array<int, 3> frames,
-                                                               const IcpResult& r, const SE3& guess,
-                                                               double sigma, TrackerEstimate& est) {
+                                                               int sensor, const IcpResult& r,
+                                                               const SE3& guess, double sigma,
+                                                               TrackerEstimate& est) {
   if (!r.converged) {
     ++est.unconverged_registrations;
     // At the iteration limit the clouds still matched (every point an inlier, as a registration
@@ -209,14 +256,17 @@ PatchGraphTracker::Outcome PatchGraphTracker::add_registration(FactorKind kind,
     ++est.rejected_registrations;
     return Outcome::kFailed;
   }
-  Factor factor{
-      kind, {frames[0], frames[1], frames[2]}, r.T_target_source, registration_sqrt_info(r, sigma)};
+  Factor factor{kind,
+                {frames[0], frames[1], frames[2]},
+                sensor,
+                r.T_target_source,
+                registration_sqrt_info(r, sigma)};
   factors_.push_back(factor);
   (kind == FactorKind::kImageToPatch ? est.image_to_patch : est.image_to_image) = true;
   return Outcome::kAccepted;
 }
 
-void set_measurement(const ContactFrame& contact, TrackerInput& input) {
+void set_measurement(const ContactFrame& contact, SensorInput& input) {
   input.cloud_sensor.clear();
   if (contact.status == ContactStatus::kContact) input.cloud_sensor = contact.cloud_sensor;
   input.measurement_missing = contact.status == ContactStatus::kUnreadable;
@@ -226,60 +276,90 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   const auto start = std::chrono::steady_clock::now();
   TrackerEstimate est;
   const int t = int(frames_.size());
+  const std::size_t n_sensors = 1 + input.other_sensors.size();
+  if (t == 0) add_sensors(n_sensors);
+  if (n_sensors != sensors_.size()) {
+    throw std::invalid_argument("PatchGraphTracker::add: frame " + std::to_string(t) + " has " +
+                                std::to_string(n_sensors) + " sensor(s), the first frame had " +
+                                std::to_string(sensors_.size()));
+  }
+  const auto sensor_input = [&](std::size_t k) -> const SensorInput& {
+    return k == 0 ? input : input.other_sensors[k - 1];
+  };
   // A non-finite measurement (a live pipeline's glitch; datasets are checked when read) is
   // dropped and reported: inside the window one NaN would poison every later estimate.
-  const bool sensor_ok = is_finite(input.T_world_sensor_measured);
   const bool prior_ok = input.object_prior_given && is_finite(input.T_world_object_prior);
-  const int dropped_points = copy_finite_points(input.cloud_sensor, current_cloud_);
-  if (input.measurement_missing) current_cloud_.clear();  // its cloud, if any, is not used
-  est.invalid_input = !sensor_ok || (input.object_prior_given && !prior_ok) || dropped_points > 0 ||
-                      input.measurement_missing;
+  est.invalid_input = input.object_prior_given && !prior_ok;
   Frame f;
-  pose_to_block(sensor_ok ? input.T_world_sensor_measured
-                : t >= 1  ? pose_from_block(frames_[t - 1].e)
-                          : SE3(),
-                f.e);
-  f.T_sensor_world = pose_from_block(f.e).inverse();
-  f.contact = !current_cloud_.empty();
+  f.sensors.resize(n_sensors);
+  std::vector<bool> sensor_ok(n_sensors);
+  bool missing = false;
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    const SensorInput& in = sensor_input(k);
+    SensorTrack& track = sensors_[k];
+    SensorState& state = f.sensors[k];
+    sensor_ok[k] = is_finite(in.T_world_sensor_measured);
+    const int dropped_points = copy_finite_points(in.cloud_sensor, track.cloud);
+    if (in.measurement_missing) track.cloud.clear();  // its cloud, if any, is not used
+    est.invalid_input =
+        est.invalid_input || !sensor_ok[k] || dropped_points > 0 || in.measurement_missing;
+    pose_to_block(sensor_ok[k] ? in.T_world_sensor_measured
+                  : t >= 1     ? pose_from_block(frames_[t - 1].sensors[k].e)
+                               : SE3(),
+                  state.e);
+    state.T_sensor_world = pose_from_block(state.e).inverse();
+    state.contact = !track.cloud.empty();
+    f.contact = f.contact || state.contact;
+    est.contact_sensors += state.contact;
+    missing = missing || in.measurement_missing;
+  }
   // A missing measurement says nothing about the contact: the episode goes on.
-  f.held = f.contact || (input.measurement_missing && in_episode_);
+  f.held = f.contact || (missing && in_episode_);
   SE3 o_init = prior_ok ? input.T_world_object_prior : SE3();
   if (t >= 1 && sensor_frame_motion(f, frames_[t - 1])) {
     // Held: the object's pose in the sensor's frame is predicted (the last relative motion
     // repeated, when there is one) and placed at this frame's sensor pose, so the hand's own
     // motion, accelerations included, is followed exactly.
-    const auto in_sensor = [](const Frame& g) { return g.T_sensor_world * pose_from_block(g.o); };
+    const auto in_sensor = [](const Frame& g) {
+      return g.sensors[0].T_sensor_world * pose_from_block(g.o);
+    };
     const Frame& p1 = frames_[t - 1];
     const SE3 x = t >= 2 && sensor_frame_motion(p1, frames_[t - 2])
                       ? predict(in_sensor(frames_[t - 2]), in_sensor(p1))
                       : in_sensor(p1);
-    o_init = f.T_sensor_world.inverse() * x;
+    o_init = f.sensors[0].T_sensor_world.inverse() * x;
   } else if (t >= 2) {
     o_init = predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o));
   } else if (t == 1) {
     o_init = pose_from_block(frames_[0].o);
   }
   pose_to_block(o_init, f.o);
-  frames_.push_back(f);
+  frames_.push_back(std::move(f));
   Frame& cur = frames_.back();
 
-  // Priors: the end-effector measurement every frame (eq. 8), the velocity prior (eq. 7), and
+  // Priors: the end-effector measurements every frame (eq. 8), the velocity prior (eq. 7), and
   // the vision prior on the first pose of each contact episode (eq. 9) and of the sequence.
-  if (sensor_ok) {
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    if (!sensor_ok[k]) continue;
     factors_.push_back({FactorKind::kEndEffector,
                         {t, -1, -1},
-                        input.T_world_sensor_measured,
+                        int(k),
+                        sensor_input(k).T_world_sensor_measured,
                         isotropic_sqrt_info(options_.sigma_end_effector)});
   }
   if (t >= 2) {
     factors_.push_back({FactorKind::kVelocity,
                         {t - 2, t - 1, t},
+                        0,
                         SE3(),
                         isotropic_sqrt_info(options_.sigma_velocity)});
   }
   if (t >= 1 && options_.sigma_damping > 0) {
-    factors_.push_back(
-        {FactorKind::kDamping, {t - 1, t, -1}, SE3(), isotropic_sqrt_info(options_.sigma_damping)});
+    factors_.push_back({FactorKind::kDamping,
+                        {t - 1, t, -1},
+                        0,
+                        SE3(),
+                        isotropic_sqrt_info(options_.sigma_damping)});
   }
   est.contact = cur.contact;
   est.new_episode = cur.contact && !in_episode_;
@@ -287,38 +367,57 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     pose_to_block(input.T_world_object_prior, cur.o);
     factors_.push_back({FactorKind::kVision,
                         {t, -1, -1},
+                        0,
                         input.T_world_object_prior,
                         isotropic_sqrt_info(options_.sigma_vision)});
   }
-  if (est.new_episode && options_.method == Method::kPatchGraph) {
-    patch_.reset();
-    last_keyframe_ = -1;
+  // Sensors that touch again while another held the object (an episode goes on while one
+  // lifts off): they first try the patch they built before, which ties the estimate back to
+  // what they saw then (the others may not see every direction), and start a fresh one if they
+  // touch elsewhere (below).
+  std::vector<bool> rejoining(n_sensors, false);
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    SensorTrack& track = sensors_[k];
+    if (options_.method == Method::kPatchGraph &&
+        (est.new_episode || (cur.sensors[k].contact && !track.in_episode))) {
+      rejoining[k] = !est.new_episode && !track.patch.empty();
+      if (!rejoining[k]) {
+        track.patch.reset();
+        track.last_keyframe = -1;
+      }
+    }
+    track.in_episode =
+        cur.sensors[k].contact || (sensor_input(k).measurement_missing && track.in_episode);
   }
   in_episode_ = cur.held;
 
-  // Registrations (eq. 5 and 6) at the predicted poses.
+  // Registrations (eq. 5 and 6) at the predicted poses, sensor by sensor.
   const std::size_t first_registration = factors_.size();
   // The anchor: image-to-patch where the method has it. Image-to-image alone follows the motion
   // from a wrong pose as happily as from the right one (after a jump, say), so it cannot tell
   // whether tracking holds.
-  Outcome anchor = Outcome::kNotTried;
-  if (cur.contact) {
+  std::vector<Outcome> anchors(n_sensors, Outcome::kNotTried);
+  std::vector<Matrix6Xd> free_twists;  // of each image-to-patch registration that got that far
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    if (!cur.sensors[k].contact) continue;
+    const std::size_t first_of_sensor = factors_.size();
     const Method m = options_.method;
     Outcome to_previous = Outcome::kNotTried, to_patch = Outcome::kNotTried;
     if (m == Method::kImageToImage || m == Method::kPatchGraph) {
-      to_previous = register_to_previous(cur, est);
+      to_previous = register_to_previous(int(k), est);
     }
     if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) {
-      to_patch = register_to_patch(cur, est);
+      to_patch = register_to_patch(int(k), est, free_twists);
     }
-    anchor = m == Method::kImageToImage ? to_previous : to_patch;
-    // When both registrations were accepted (a factor each from first_registration on), the
-    // gate may leave the image-to-image one out.
-    if (gate_image_to_image(first_registration)) {
+    anchors[k] = m == Method::kImageToImage ? to_previous : to_patch;
+    // When both registrations were accepted (a factor each from first_of_sensor on), the gate
+    // may leave the image-to-image one out.
+    if (gate_image_to_image(first_of_sensor)) {
       est.image_to_image = false;
       est.image_to_image_dropped = true;
     }
   }
+  if (free_twists.size() > 1) est.unconstrained_directions = common_free_directions(free_twists);
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
   solve(first, options_.solver_iterations);
@@ -330,39 +429,56 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   for (std::size_t k = first_registration; k < factors_.size(); ++k) {
     if (!registration_disagrees(factors_[k])) continue;
     ++est.overridden_registrations;
-    if (factors_[k].kind == anchor_kind) anchor = Outcome::kFailed;
+    if (factors_[k].kind == anchor_kind)
+      anchors[std::size_t(factors_[k].sensor)] = Outcome::kFailed;
   }
-  // Lost: contact, but for lost_after_frames frames the anchor failed to match, was rejected or
-  // was overridden.
-  const bool anchor_failed = anchor == Outcome::kFailed;
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    if (!rejoining[k] || anchors[k] == Outcome::kAccepted) continue;
+    // It touched elsewhere than before: a fresh patch from here (not a failure).
+    sensors_[k].patch.reset();
+    sensors_[k].last_keyframe = -1;
+    anchors[k] = Outcome::kNotTried;
+  }
+  // The frame's anchor failed when every sensor's that was tried failed: to match, as a
+  // plausible jump, or against the solution.
+  const bool anchor_failed = std::any_of(anchors.begin(), anchors.end(),
+                                         [](Outcome a) { return a == Outcome::kFailed; }) &&
+                             std::all_of(anchors.begin(), anchors.end(), [](Outcome a) {
+                               return a == Outcome::kFailed || a == Outcome::kNotTried;
+                             });
+  // Lost: contact, but for lost_after_frames frames the anchor failed.
   if (cur.contact) {
     unregistered_frames_ = anchor_failed && !est.new_episode ? unregistered_frames_ + 1 : 0;
     est.tracking_lost = options_.method != Method::kConstVel && options_.lost_after_frames > 0 &&
                         unregistered_frames_ >= options_.lost_after_frames;
   }
 
-  // Key frame: fuse the cloud into the patch with the solved pose, unless the patch registration
-  // failed: after a jump, say, the cloud would be fused at a wrong pose, and every later
-  // registration would agree with the polluted patch instead of reporting the loss. The next
-  // frame whose registration holds takes its place.
   Frame& solved = frames_.back();
-  if (options_.method == Method::kPatchGraph && solved.contact && !anchor_failed &&
-      (last_keyframe_ < 0 || t - last_keyframe_ >= options_.patch.keyframe_interval)) {
-    patch_.add_keyframe(current_cloud_,
-                        pose_from_block(solved.o).inverse() * pose_from_block(solved.e));
-    last_keyframe_ = t;
-    est.keyframe = true;
-  }
-  // This frame's cloud becomes the next frame's image-to-image target.
-  if (solved.contact &&
-      (options_.method == Method::kImageToImage || options_.method == Method::kPatchGraph)) {
-    previous_tree_ = std::make_unique<PointCloudTree>(current_cloud_);
-  } else {
-    previous_tree_.reset();
+  for (std::size_t k = 0; k < n_sensors; ++k) {
+    SensorTrack& track = sensors_[k];
+    const bool contact = solved.sensors[k].contact;
+    // Key frame: fuse the cloud into the sensor's patch with the solved pose, unless its patch
+    // registration failed: after a jump, say, the cloud would be fused at a wrong pose, and
+    // every later registration would agree with the polluted patch instead of reporting the
+    // loss. The next frame whose registration holds takes its place.
+    if (options_.method == Method::kPatchGraph && contact && anchors[k] != Outcome::kFailed &&
+        (track.last_keyframe < 0 || t - track.last_keyframe >= options_.patch.keyframe_interval)) {
+      track.patch.add_keyframe(
+          track.cloud, pose_from_block(solved.o).inverse() * pose_from_block(solved.sensors[k].e));
+      track.last_keyframe = t;
+      est.keyframe = true;
+    }
+    // This frame's cloud becomes the next frame's image-to-image target.
+    if (contact &&
+        (options_.method == Method::kImageToImage || options_.method == Method::kPatchGraph)) {
+      track.previous_tree = std::make_unique<PointCloudTree>(track.cloud);
+    } else {
+      track.previous_tree.reset();
+    }
   }
 
   est.T_world_object = pose_from_block(solved.o);
-  est.T_world_sensor = pose_from_block(solved.e);
+  est.T_world_sensor = pose_from_block(solved.sensors[0].e);
   est.solve_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return est;
@@ -385,11 +501,12 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
     const int newest = std::max({fac.frames[0], fac.frames[1], fac.frames[2]});
     if (newest < first_frame) break;
     Frame& a = frames_[fac.frames[0]];
+    double* a_e = a.sensors[fac.sensor].e;
     switch (fac.kind) {
       case FactorKind::kEndEffector:
-        add_block(a.e, fac.frames[0]);
+        add_block(a_e, fac.frames[0]);
         problem.AddResidualBlock(PosePriorFactor::create(fac.measured, fac.sqrt_info), nullptr,
-                                 a.e);
+                                 a_e);
         break;
       case FactorKind::kVision:
         add_block(a.o, fac.frames[0]);
@@ -398,18 +515,19 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         break;
       case FactorKind::kImageToPatch:
         add_block(a.o, fac.frames[0]);
-        add_block(a.e, fac.frames[0]);
+        add_block(a_e, fac.frames[0]);
         problem.AddResidualBlock(ImageToPatchFactor::create(fac.measured, fac.sqrt_info), nullptr,
-                                 a.o, a.e);
+                                 a.o, a_e);
         break;
       case FactorKind::kImageToImage: {
         Frame& b = frames_[fac.frames[1]];
+        double* b_e = b.sensors[fac.sensor].e;
         add_block(a.o, fac.frames[0]);
-        add_block(a.e, fac.frames[0]);
+        add_block(a_e, fac.frames[0]);
         add_block(b.o, fac.frames[1]);
-        add_block(b.e, fac.frames[1]);
+        add_block(b_e, fac.frames[1]);
         problem.AddResidualBlock(ImageToImageFactor::create(fac.measured, fac.sqrt_info), nullptr,
-                                 a.o, a.e, b.o, b.e);
+                                 a.o, a_e, b.o, b_e);
         break;
       }
       case FactorKind::kDamping: {

@@ -6,7 +6,6 @@
 #include <cstdint>
 #include <map>
 #include <memory>
-#include <string>
 
 #include "pg/tracker/kd_tree.h"
 #include "pg/tracker/point_cloud.h"
@@ -35,9 +34,6 @@ class PatchMap {
   const PointCloud& cloud_object() const { return fused_; }
   int keyframes() const { return keyframes_; }
   const PatchMapOptions& options() const { return options_; }
-
-  // Binary PLY with normals (object frame). Throws InputError naming the path.
-  void save_ply(const std::string& path) const;
 
  private:
   // Running sums of every key frame's points and normals per voxel of a grid fixed in the object

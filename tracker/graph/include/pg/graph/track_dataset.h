@@ -44,7 +44,8 @@ struct FrameResult {
   bool ground_truth = true;        // false: the dataset has no object pose at this frame
   double translation_error_m = 0;  // NaN without ground truth
   double rotation_error_rad = 0;
-  bool contact = false;  // the frame's cloud was used
+  bool contact = false;     // the frame's cloud was used (any sensor's)
+  int contact_sensors = 0;  // how many sensors touched
   bool new_episode = false;
   bool image_to_patch = false;
   bool image_to_image_dropped = false;  // TrackerEstimate::image_to_image_dropped
@@ -61,8 +62,9 @@ struct FrameResult {
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
   int unconstrained_directions = 0;
-  // Points of the frame's contact cloud (0 without contact), and whether they are the contact's
-  // core only (ContactFrame::core: the pixels deeper than mask.core_relative_depth of the deepest).
+  // Points of the frame's contact cloud (0 without contact; every sensor's together), and whether
+  // they are the contact's core only (ContactFrame::core: the pixels deeper than
+  // mask.core_relative_depth of the deepest; with several sensors, every touching one's).
   int contact_points = 0;
   bool contact_core = false;
   double frame_ms = 0;    // normals -> cloud -> registrations -> graph update
@@ -73,6 +75,7 @@ struct TrackSummary {
   std::string method;
   std::uint64_t seed = 0;  // of the simulated sensor-pose and vision-prior noise
   int frames = 0;
+  int sensors = 1;  // datasets tracked together
   // Where the object's frame comes from: "dataset" (the vision prior at frame 0) or "sensor at
   // frame 0" (a recording without object poses: poses are relative to the sensor's start).
   std::string object_frame = "dataset";
@@ -134,12 +137,22 @@ bool object_frame_is_sensor(const std::vector<FramePose>& poses, const std::stri
 // frame is unreadable.
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
+// The same for several sensors touching one object in one sequence (a scene with several
+// sensors renders a dataset for each), tracked together (TrackerInput::other_sensors): the first
+// is the primary (its poses.csv gives the ground truth and the vision prior, its frame is the
+// motion frame). Every dataset must have as many frames, and where two give the object's pose
+// it must be the same (InputError naming the file and frame otherwise).
+TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
+                       const std::function<void(int, int)>& progress = nullptr);
 
 // The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
 
-// OUT/poses.csv (the dataset's pose columns, estimated), OUT/errors.csv, OUT/summary.json,
-// OUT/patch.ply. Throws InputError naming the path.
+// OUT/poses.csv (the dataset's pose columns, estimated; the primary's with several sensors),
+// OUT/errors.csv, OUT/summary.json, OUT/patch.ply (every sensor's patch, object frame). Throws
+// InputError naming the path.
+void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>& datasets,
+                         const std::string& out_dir);
 void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir);
 
 }  // namespace pg

@@ -97,14 +97,10 @@ struct GraphOptions {
   IcpOptions icp;
 };
 
-struct TrackerInput {
+// One sensor's measurement of a frame.
+struct SensorInput {
   PointCloud cloud_sensor;      // the contact's points in the sensor frame; empty: no contact
   SE3 T_world_sensor_measured;  // e~_t: the end-effector pose measurement
-  SE3 T_world_object_prior;     // o~_t: the vision prior, used at the start of a contact episode
-  // False when there is no vision prior for this frame (a recording without the object's pose
-  // here): a contact episode starting at it starts from the motion priors' prediction (with a
-  // fresh patch as always), and frame 0 at the identity. Not an invalid input.
-  bool object_prior_given = true;
   // The tactile image could not be read (ContactStatus::kUnreadable): whether the object touches
   // is unknown. The cloud is ignored and the frame is predicted by the motion priors, but a
   // contact episode in progress continues (its patch kept, no new vision prior) instead of
@@ -112,26 +108,46 @@ struct TrackerInput {
   bool measurement_missing = false;
 };
 
-// Sets the input's measurement from a frame's contact: its cloud, none, or missing.
-void set_measurement(const ContactFrame& contact, TrackerInput& input);
+// A frame's measurements: the first sensor's (this object's SensorInput part), any further
+// sensors touching the same object, and the vision prior.
+struct TrackerInput : SensorInput {
+  SE3 T_world_object_prior;  // o~_t: the vision prior, used at the start of a contact episode
+  // False when there is no vision prior for this frame (a recording without the object's pose
+  // here): a contact episode starting at it starts from the motion priors' prediction (with a
+  // fresh patch as always), and frame 0 at the identity. Not an invalid input.
+  bool object_prior_given = true;
+  // Further sensors on the same object (fingertips of one hand: a pinch, a grasp), the same ones
+  // in the same order every frame. Each has its own sensor pose, end-effector prior,
+  // registrations and local patch (its part of the object's surface); they share the object's
+  // pose. The object is in contact while any of them touches it, so one finger carries the
+  // episode while another lifts off and touches again (its patch then starts afresh). The
+  // motion frame (GraphOptions::motion_frame) is the first sensor's.
+  std::vector<SensorInput> other_sensors;
+};
+
+// Sets a sensor's measurement from a frame's contact: its cloud, none, or missing.
+void set_measurement(const ContactFrame& contact, SensorInput& input);
 
 struct TrackerEstimate {
   SE3 T_world_object;
-  SE3 T_world_sensor;
-  bool contact = false;
+  SE3 T_world_sensor;                   // the first sensor's
+  bool contact = false;                 // any sensor touches
+  int contact_sensors = 0;              // how many sensors touch
   bool new_episode = false;             // a contact episode started at this frame
   bool image_to_image = false;          // an image-to-image factor was added
   bool image_to_patch = false;          // an image-to-patch factor was added
   bool image_to_image_dropped = false;  // disagreed with image-to-patch (see GraphOptions)
   bool keyframe = false;                // the cloud was fused into the patch
-  int unconstrained_directions = 0;     // of the image-to-patch registration (if it got that far)
+  // Of the image-to-patch registration, if it got that far; with several sensors, the directions
+  // none of their registrations constrains.
+  int unconstrained_directions = 0;
   int rejected_registrations = 0;       // converged, but too far from the prediction
   int unconverged_registrations = 0;    // ICP failed (too few points or matches, iteration limit)
   int overridden_registrations = 0;     // accepted, but the solution disagrees (see GraphOptions)
   bool tracking_lost = false;           // see GraphOptions::lost_after_frames
   // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
-  // pose then holds the previous frame's, the object pose the prediction); or the measurement was
-  // missing (TrackerInput::measurement_missing).
+  // pose then holds the previous frame's, the object pose the prediction); or a measurement was
+  // missing (SensorInput::measurement_missing).
   bool invalid_input = false;
   double solve_ms = 0;  // graph update time
 };
@@ -144,6 +160,8 @@ class PatchGraphTracker {
   explicit PatchGraphTracker(GraphOptions options, const PointCloud& model_object = {});
   ~PatchGraphTracker();
 
+  // The first frame fixes how many sensors there are; a later frame with another count throws
+  // std::invalid_argument.
   TrackerEstimate add(const TrackerInput& input);
 
   // The estimate of every frame so far: the window's latest solution, frozen before it.
@@ -151,17 +169,31 @@ class PatchGraphTracker {
   // Re-solves the whole sequence with every factor kept (the batch reference for the window).
   void solve_batch(int iterations = 50);
 
-  const PatchMap& patch() const { return patch_; }
+  int sensors() const { return int(sensors_.size()); }
+  // Sensor k's local patch (object frame); for gtpatch, the object model.
+  const PatchMap& patch(int sensor = 0) const { return sensors_[std::size_t(sensor)].patch; }
   const GraphOptions& options() const { return options_; }
   int frames() const { return int(frames_.size()); }
 
  private:
-  struct Frame {
-    double o[kPoseBlockSize];  // T_world_object
+  struct SensorState {
     double e[kPoseBlockSize];  // T_world_sensor
     bool contact = false;
-    bool held = false;   // in a contact episode (contact, or in one and the measurement missing)
     SE3 T_sensor_world;  // the inverse of the sensor pose given (the previous one when missing)
+  };
+  struct Frame {
+    double o[kPoseBlockSize];  // T_world_object
+    std::vector<SensorState> sensors;
+    bool contact = false;  // any sensor touches
+    bool held = false;     // in a contact episode (contact, or in one and a measurement missing)
+  };
+  // What the tracker keeps per sensor between frames.
+  struct SensorTrack {
+    PatchMap patch;
+    int last_keyframe = -1;
+    bool in_episode = false;  // this sensor's own contact (or missing measurement within it)
+    std::unique_ptr<PointCloudTree> previous_tree;  // the previous frame's cloud, for eq. 5
+    PointCloud cloud;                               // this frame's
   };
   enum class FactorKind {
     kImageToImage,
@@ -174,6 +206,7 @@ class PatchGraphTracker {
   struct Factor {
     FactorKind kind;
     int frames[3] = {-1, -1, -1};  // absolute frame indices, oldest first; the last is the newest
+    int sensor = 0;                // whose pose and measurement (registrations, end-effector prior)
     SE3 measured;
     Matrix6d sqrt_info;
   };
@@ -185,10 +218,14 @@ class PatchGraphTracker {
     kFailed,        // too few points or matches, an implausible jump, or overridden
   };
   void solve(int first_frame, int iterations);
-  Outcome register_to_patch(Frame& f, TrackerEstimate& est);
-  Outcome register_to_previous(Frame& f, TrackerEstimate& est);
-  Outcome add_registration(FactorKind kind, std::array<int, 3> frames, const IcpResult& r,
-                           const SE3& guess, double sigma, TrackerEstimate& est);
+  // Sensor k's registrations of this frame's cloud; register_to_patch adds the directions it
+  // left free (twists about the object's origin) to `free_twists`.
+  Outcome register_to_patch(int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists);
+  Outcome register_to_previous(int k, TrackerEstimate& est);
+  Outcome add_registration(FactorKind kind, std::array<int, 3> frames, int sensor,
+                           const IcpResult& r, const SE3& guess, double sigma,
+                           TrackerEstimate& est);
+  void add_sensors(std::size_t count);
   Matrix6d registration_sqrt_info(const IcpResult& r, double sigma) const;
   bool plausible(const IcpResult& r, const SE3& guess) const;
   // Whether the motion from frame `before` to `after` is held in the sensor's frame: both in a
@@ -198,7 +235,7 @@ class PatchGraphTracker {
   }
   // F^-1 of a motion prior's frame F at frame g (factors.h): its sensor's or the world's.
   static SE3 motion_frame_inverse(const Frame& g, bool in_sensor) {
-    return in_sensor ? g.T_sensor_world : SE3();
+    return in_sensor ? g.sensors[0].T_sensor_world : SE3();
   }
   bool registration_disagrees(const Factor& factor) const;
   // Removes this frame's image-to-image factor (from first_registration on) when it and the
@@ -207,7 +244,7 @@ class PatchGraphTracker {
   bool gate_image_to_image(std::size_t first_registration);
 
   GraphOptions options_;
-  PatchMap patch_;
+  std::vector<SensorTrack> sensors_;  // at least one
   PointToPlaneIcp icp_;
   // gtpatch's registrations against the object model: with the model's normals alone. The
   // model's normals are its faces' (sharp at every edge), the clouds' the sensor's (smoothed over
@@ -218,9 +255,6 @@ class PatchGraphTracker {
   std::vector<Factor> factors_;
   bool in_episode_ = false;
   int unregistered_frames_ = 0;  // consecutive contact frames whose anchor failed
-  int last_keyframe_ = -1;
-  std::unique_ptr<PointCloudTree> previous_tree_;  // the previous frame's cloud, for eq. 5
-  PointCloud current_cloud_;
 };
 
 }  // namespace pg
