@@ -184,5 +184,31 @@ TEST(Degeneracy, CloudDegeneracyCountsWhatEachShapeLeavesFree) {
   EXPECT_LT(off_span(turn, N), 1e-3);
 }
 
+// Several sensors on one object: what none of their contacts constrains. A face under the object
+// and one at its side (normals z and x, 1 cm apart) leave only the slide along y between them;
+// two opposite faces (a pinch) the same three directions as one; a corner nothing.
+TEST(Degeneracy, CommonDirectionsAreWhatNoContactConstrains) {
+  const auto face = [](const Eigen::Vector3d& centre, const Eigen::Vector3d& normal) {
+    const Eigen::Vector3d u = normal.unitOrthogonal(), v = normal.cross(u);
+    PointCloud cloud;
+    for (int a = -15; a <= 15; ++a) {
+      for (int b = -15; b <= 15; ++b) {
+        cloud.push_back((centre + 1e-4 * (a * u + b * v)).cast<float>(), (-normal).cast<float>());
+      }
+    }
+    return analyse_cloud_degeneracy(cloud, kRatio).unconstrained_twists_at_origin();
+  };
+  const Matrix6Xd below = face({0, 0, -0.01}, Eigen::Vector3d::UnitZ());
+  const Matrix6Xd side = face({0.01, 0, 0}, -Eigen::Vector3d::UnitX());
+  const Matrix6Xd above = face({0, 0, 0.01}, -Eigen::Vector3d::UnitZ());
+  ASSERT_EQ(below.cols(), 3);
+  EXPECT_EQ(common_unconstrained_directions({below}), 3);
+  EXPECT_EQ(common_unconstrained_directions({below, side}), 1);
+  EXPECT_EQ(common_unconstrained_directions({below, above}), 3);
+  EXPECT_EQ(common_unconstrained_directions({below, side, above}), 1);
+  EXPECT_EQ(common_unconstrained_directions({below, Matrix6Xd(6, 0)}), 0);
+  EXPECT_EQ(common_unconstrained_directions({}), 6);
+}
+
 }  // namespace
 }  // namespace pg

@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
@@ -220,6 +221,30 @@ Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scal
   }
   for (int j = 0; j < k; ++j) step -= basis[j] * basis[j].dot(m.cwiseProduct(step));
   return step;
+}
+
+int common_unconstrained_directions(const std::vector<Matrix6Xd>& twists) {
+  if (twists.empty()) return 6;
+  const Vector6d weights = (Vector6d() << 1, 1, 1, 1e-2, 1e-2, 1e-2).finished();
+  Eigen::MatrixXd common = weights.asDiagonal() * twists[0];
+  for (std::size_t k = 1; k < twists.size() && common.cols() > 0; ++k) {
+    if (twists[k].cols() == 0) return 0;
+    // Orthonormal bases of both spans; their common directions are the principal angles of 0,
+    // singular values of Q1^T Q2 of 1.
+    const Eigen::MatrixXd q1 = Eigen::HouseholderQR<Eigen::MatrixXd>(common).householderQ() *
+                               Eigen::MatrixXd::Identity(6, common.cols());
+    const Eigen::MatrixXd next = weights.asDiagonal() * twists[k];
+    const Eigen::MatrixXd q2 = Eigen::HouseholderQR<Eigen::MatrixXd>(next).householderQ() *
+                               Eigen::MatrixXd::Identity(6, next.cols());
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(q1.transpose() * q2, Eigen::ComputeThinU);
+    int shared = 0;
+    // Within about 3 degrees of each other.
+    while (shared < svd.singularValues().size() && svd.singularValues()[shared] > 0.9986) {
+      ++shared;
+    }
+    common = q1 * svd.matrixU().leftCols(shared);
+  }
+  return int(common.cols());
 }
 
 }  // namespace pg

@@ -2,8 +2,6 @@
 
 #include <ceres/ceres.h>
 
-#include <Eigen/QR>
-#include <Eigen/SVD>
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -35,33 +33,6 @@ int copy_finite_points(const PointCloud& in, PointCloud& out) {
 
 // o_t = o_{t-1} (o_{t-2}^-1 o_{t-1}): the last body-frame motion repeated.
 SE3 predict(const SE3& o_prev2, const SE3& o_prev) { return o_prev * (o_prev2.inverse() * o_prev); }
-
-// How many dimensions the spans of `twists` (each a basis of the directions one registration
-// left free, as twists [rho; phi] about the same frame's origin) have in common: the directions
-// none of them constrains. Rotations are weighed at 1 cm (a fingertip contact's size), so
-// that a turn and a slide compare at the scale where they move the contact alike.
-int common_free_directions(const std::vector<Matrix6Xd>& twists) {
-  const Vector6d weights = (Vector6d() << 1, 1, 1, 1e-2, 1e-2, 1e-2).finished();
-  Eigen::MatrixXd common = weights.asDiagonal() * twists[0];
-  for (std::size_t k = 1; k < twists.size() && common.cols() > 0; ++k) {
-    if (twists[k].cols() == 0) return 0;
-    // Orthonormal bases of both spans; their common directions are the principal angles of 0,
-    // singular values of Q1^T Q2 of 1.
-    const Eigen::MatrixXd q1 = Eigen::HouseholderQR<Eigen::MatrixXd>(common).householderQ() *
-                               Eigen::MatrixXd::Identity(6, common.cols());
-    const Eigen::MatrixXd next = weights.asDiagonal() * twists[k];
-    const Eigen::MatrixXd q2 = Eigen::HouseholderQR<Eigen::MatrixXd>(next).householderQ() *
-                               Eigen::MatrixXd::Identity(6, next.cols());
-    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(q1.transpose() * q2, Eigen::ComputeThinU);
-    int shared = 0;
-    // Within about 3 degrees of each other.
-    while (shared < svd.singularValues().size() && svd.singularValues()[shared] > 0.9986) {
-      ++shared;
-    }
-    common = q1 * svd.matrixU().leftCols(shared);
-  }
-  return int(common.cols());
-}
 
 }  // namespace
 
@@ -417,7 +388,8 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       est.image_to_image_dropped = true;
     }
   }
-  if (free_twists.size() > 1) est.unconstrained_directions = common_free_directions(free_twists);
+  if (free_twists.size() > 1)
+    est.unconstrained_directions = common_unconstrained_directions(free_twists);
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
   solve(first, options_.solver_iterations);

@@ -12,6 +12,7 @@
 // term then contributes at most about 1 per direction, and an eigenvalue of the scaled Hessian
 // below a ratio of the largest means the data leave that direction free.
 #include <Eigen/Core>
+#include <vector>
 
 #include "pg/core/se3.h"
 #include "pg/tracker/point_cloud.h"
@@ -67,5 +68,12 @@ Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c
 // position and yaw. With the slivers left in, an edge's slide would cancel the measured turn
 // about the edge: 20 mrad of turn traded for 2.4 mm of slide in one step.
 Vector6d constrained_step(const DegeneracyReport& report, const Vector6d& g_scaled);
+
+// How many dimensions the spans of `twists` have in common, each a basis of the directions one
+// registration left free (unconstrained_twists_at_origin) about the same frame's origin: what
+// none of them constrains (several sensors on one object). Rotations are weighed at 1 cm (a
+// fingertip contact's size), so that a turn and a slide compare where they move the contact
+// alike; spans within about 3 degrees of each other count as common. 6 for no twists.
+int common_unconstrained_directions(const std::vector<Matrix6Xd>& twists);
 
 }  // namespace pg
