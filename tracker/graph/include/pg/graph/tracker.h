@@ -120,8 +120,9 @@ struct TrackerInput : SensorInput {
   // in the same order every frame. Each has its own sensor pose, end-effector prior,
   // registrations and local patch (its part of the object's surface); they share the object's
   // pose. The object is in contact while any of them touches it, so one finger carries the
-  // episode while another lifts off and touches again (its patch then starts afresh). The
-  // motion frame (GraphOptions::motion_frame) is the first sensor's.
+  // episode while another lifts off and touches again (it then registers against the patch it
+  // built before, or starts a fresh one if it touches elsewhere). The motion frame
+  // (GraphOptions::motion_frame) is the first sensor's.
   std::vector<SensorInput> other_sensors;
 };
 
