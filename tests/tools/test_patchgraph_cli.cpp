@@ -412,7 +412,9 @@ TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
   const CliRun glitch = patchgraph("track " + copy + " -q --out " + out("glitch"));
   ASSERT_EQ(glitch.code, 0) << glitch.out;
   EXPECT_NE(glitch.out.find("warning: the sensor pose jumps by more than 50 mm or 0.5 rad from one "
-                            "frame to the next 2 time(s), first from frame 29 to 30 (1000.0 mm"),
+                            "frame to the next 2 time(s), first from frame 29 to 30 (1000.0 mm, "
+                            "0.000 rad): a glitch in " +
+                            copy + "/poses.csv?"),
             std::string::npos)
       << glitch.out;
 }

@@ -44,8 +44,9 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
                "warning: the sensor pose jumps by more than %.0f mm or %.1f rad from one frame to "
                "the next %d time(s), first from frame %d to %d (%.1f mm, %.3f rad): a glitch in "
                "%s/poses.csv? The tracker takes the sensor poses as given\n",
-               kJumpM * 1e3, kJumpRad, jumps, first - 1, first, dataset.dir().c_str(),
-               translation_distance(before, after) * 1e3, rotation_distance(before, after));
+               kJumpM * 1e3, kJumpRad, jumps, first - 1, first,
+               translation_distance(before, after) * 1e3, rotation_distance(before, after),
+               dataset.dir().c_str());
 }
 
 int run_track(const TrackArgs& a) {
