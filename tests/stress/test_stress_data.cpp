@@ -200,6 +200,42 @@ TEST(StressDataInMemory, NonFiniteTrackerInputs) {
   EXPECT_LT(run.last().translation_error_m, 5e-3);
 }
 
+// A second sensor's bad inputs (several sensors on one object): a second sensor seeing what the
+// first sees, whose pose is NaN for three frames, whose cloud has NaN points for three, whose
+// images are missing for five and which lets go for ten. Each is reported and left out; the first
+// sensor holds the object throughout (one episode) and the track stays as good as it was.
+TEST(StressDataInMemory, ASecondSensorsBadInputsLeaveTheTrackAlone) {
+  const ClosedLoop& loop = cube_loop();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  StressHooks hooks;
+  hooks.corrupt_input = [&](int frame, TrackerInput& in) {
+    SensorInput second = in;  // the first sensor's part
+    if (frame >= 20 && frame < 23) second.T_world_sensor_measured = SE3::Translation({nan, 0, 0});
+    if (frame >= 30 && frame < 33 && !second.cloud_sensor.empty()) {
+      for (std::size_t i = 0; i < second.cloud_sensor.size(); i += 5) {
+        second.cloud_sensor.points[i].z() = NAN;
+      }
+    }
+    if (frame >= 40 && frame < 45) second.measurement_missing = true;
+    if (frame >= 60 && frame < 70) second.cloud_sensor.clear();
+    in.other_sensors = {second};
+  };
+  const std::vector<SE3> poses = cube_rocking(90);
+  const StressRun alone = loop.track(poses, {}, {});
+  const StressRun run = loop.track(poses, {}, hooks);
+  run.print("ASecondSensorsBadInputs");
+  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+  EXPECT_EQ(run.episodes, 1);
+  EXPECT_EQ(run.lost_frames, 0);
+  for (int f : {20, 22, 30, 32, 40, 44}) EXPECT_TRUE(run.frames[f].estimate.invalid_input) << f;
+  for (int f : {10, 25, 35, 50, 65}) EXPECT_FALSE(run.frames[f].estimate.invalid_input) << f;
+  EXPECT_EQ(run.frames[65].estimate.contact_sensors, 1);
+  EXPECT_EQ(run.frames[75].estimate.contact_sensors, 2);
+  EXPECT_LT(run.max_translation_error_m(), 2 * alone.max_translation_error_m() + 1e-4);
+  EXPECT_LT(run.last().translation_error_m, 1e-3);
+  EXPECT_LT(run.last().rotation_error_rad, 0.02);
+}
+
 // No vision prior at all (non-finite at the first frame): the tracker starts from the identity,
 // reports it, and tracks the motion relative to that start without diverging.
 TEST(StressDataInMemory, NoVisionPriorAtTheStart) {
