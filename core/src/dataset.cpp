@@ -390,11 +390,48 @@ void DatasetWriter::remove_stale_frames() const {
   }
 }
 
+void write_sensor_index(const std::string& dir, const std::vector<std::string>& names) {
+  const std::string path = (fs::path(dir) / kSensorIndexFile).string();
+  std::ofstream out(path);
+  out << nlohmann::json({{"sensors", names}}).dump(2) << "\n";
+  if (!out) throw InputError(path + ": cannot write");
+}
+
+std::vector<std::string> sensor_dataset_dirs(const std::string& dir) {
+  if (fs::is_regular_file(fs::path(dir) / "dataset.json")) return {dir};
+  const std::string path = (fs::path(dir) / kSensorIndexFile).string();
+  if (!fs::is_regular_file(path)) return {};
+  const nlohmann::json j = parse_json_file(path);
+  JsonFields f(j, path);
+  const auto names = f.required<std::vector<std::string>>("sensors");
+  f.finish();
+  if (names.empty()) throw InputError(path + ": sensors: empty");
+  std::vector<std::string> dirs;
+  for (const std::string& name : names) {
+    if (name.empty() || name == "." || name == ".." ||
+        name.find_first_of("/\\") != std::string::npos) {
+      throw InputError(path + ": sensors: '" + name + "' is not a folder name");
+    }
+    dirs.push_back((fs::path(dir) / name).string());
+  }
+  return dirs;
+}
+
 Dataset Dataset::open(const std::string& dir) {
   if (!fs::is_directory(dir)) throw InputError(dir + ": dataset folder not found");
   Dataset d;
   d.dir_ = dir;
   const std::string info_path = (fs::path(dir) / "dataset.json").string();
+  if (!fs::exists(info_path) && fs::exists(fs::path(dir) / kSensorIndexFile)) {
+    std::string sensors;
+    for (const std::string& sub : sensor_dataset_dirs(dir)) {
+      sensors += (sensors.empty() ? "" : ", ") + fs::path(sub).filename().string();
+    }
+    throw InputError(dir + ": is not a dataset, but a render of several sensors (" +
+                     kSensorIndexFile + "): " + sensors +
+                     "; give one of those folders (patchgraph track takes " + dir +
+                     " itself, to track them together)");
+  }
   if (!fs::exists(info_path)) {
     // A scene of several sensors writes one dataset per sensor, in folders under its --out.
     std::string sensors;

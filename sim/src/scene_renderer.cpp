@@ -165,6 +165,11 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
     }
   });
   for (auto& w : writers) w->finish();
+  if (renderer.sensor_count() > 1) {
+    std::vector<std::string> names;
+    for (const auto& sensor : scene.sensors) names.push_back(sensor.name);
+    write_sensor_index(out_dir, names);
+  }
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.contact_frames = contact_frames;
   summary.clamped_frames = clamped_frames;

@@ -4,6 +4,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
@@ -535,6 +536,35 @@ TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {
   fs::remove(tmp.str("b") + "/background.png");
   expect_input_error([&] { b.background(); }, "no frame that poses.csv marks as without");
   EXPECT_THROW(w.write_background(ImageU8(10, 10, 3)), InputError);
+}
+
+// A render of several sensors lists their folders in sensors.json; a malformed list is an error
+// naming the file and the field, never a folder outside the render.
+TEST(Dataset, ASensorIndexListsTheSensorsFolders) {
+  TempDir tmp;
+  const std::string dir = tmp.str("render");
+  fs::create_directories(dir);
+  EXPECT_TRUE(sensor_dataset_dirs(dir).empty()) << "neither a dataset nor a render of sensors";
+  write_sensor_index(dir, {"left", "right"});
+  EXPECT_EQ(sensor_dataset_dirs(dir), (std::vector<std::string>{dir + "/left", dir + "/right"}));
+  const auto refused = [&](const std::string& text) {
+    std::ofstream(dir + "/sensors.json") << text;
+    try {
+      sensor_dataset_dirs(dir);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  for (const char* text :
+       {R"({"sensors": "left"})", R"({"sensors": []})", R"({"sensors": ["left"], "extra": 1})",
+        R"({"sensors": ["../x"]})", R"({"sensors": ["a/b"]})", R"({"sensors": [".."]})"}) {
+    const std::string message = refused(text);
+    EXPECT_NE(message.find(dir + "/sensors.json"), std::string::npos) << text << ": " << message;
+  }
+  EXPECT_NE(refused(R"({"sensors": ["left"], "extra": 1})").find("extra"), std::string::npos);
+  EXPECT_NE(refused(R"({"sensors": ["../x"]})").find("'../x' is not a folder name"),
+            std::string::npos);
 }
 
 }  // namespace

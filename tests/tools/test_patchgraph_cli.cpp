@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <utility>
@@ -612,7 +613,7 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
 }
 
 // Several sensors' datasets of one sequence are tracked together: one summary naming them, every
-// sensor's patch in patch.ply; the render's folder of them says how.
+// sensor's patch in patch.ply; the render's folder of them stands for them.
 TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   const std::string render = out("regrasp");
   const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
@@ -640,11 +641,14 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   const int touches = errors_column_sum(out("both"), "contact_sensors");
   EXPECT_GE(touches, 60 + 25 + 18);
   EXPECT_LE(touches, 60 + 60 - 7);
+  // The render's folder stands for its sensors, in the scene's order (its sensors.json).
   const CliRun folder = patchgraph("track " + render + " -q --out " + out("folder"));
-  EXPECT_EQ(folder.code, 1) << folder.out;
-  EXPECT_NE(folder.out.find("patchgraph track takes several, to track them together"),
-            std::string::npos)
-      << folder.out;
+  ASSERT_EQ(folder.code, 0) << folder.out;
+  EXPECT_EQ(parse_json_file(out("folder") + "/summary.json")["datasets"],
+            nlohmann::json({below, side}));
+  std::ifstream a(out("folder") + "/poses.csv"), b(out("both") + "/poses.csv");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(a), {}),
+            std::string(std::istreambuf_iterator<char>(b), {}));
 }
 
 // Corrupt normal files: a few NaN pixels are counted, filled and warned about; frames of NaN

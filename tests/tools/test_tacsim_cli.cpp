@@ -132,12 +132,17 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   const CliRun r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask,points --out " +
                           tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;
+  // The sensors' folders, listed in the scene's order in sensors.json.
+  const std::vector<std::string> dirs = sensor_dataset_dirs(tmp.str("d"));
+  EXPECT_EQ(dirs, (std::vector<std::string>{tmp.str("d") + "/digit_bottom",
+                                            tmp.str("d") + "/digit_top"}));
   int datasets = 0;
-  for (const auto& entry : fs::directory_iterator(tmp.path / "d")) {
-    const Dataset d = Dataset::open(entry.path().string());
+  for (const std::string& dir : dirs) {
+    const fs::path entry = dir;  // (named as in a directory listing, for the messages below)
+    const Dataset d = Dataset::open(dir);
     ++datasets;
     for (int i = 0; i < d.frames(); ++i) {
-      EXPECT_TRUE(d.poses()[i].contact) << entry.path() << " frame " << i;
+      EXPECT_TRUE(d.poses()[i].contact) << entry << " frame " << i;
       // The pinched cube's contact points lie on its faces (|coordinate| = 10 mm on one axis).
       const auto pts = d.contact_points(i);
       ASSERT_GT(pts.size(), 20u);
@@ -147,9 +152,12 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   EXPECT_EQ(datasets, 2);
   const CliRun info = tacsim("info " + tmp.str("d"));
   EXPECT_EQ(info.code, 1);
-  EXPECT_NE(
-      info.out.find(tmp.str("d") + ": is not a dataset, but holds datasets (one per sensor): "),
-      std::string::npos)
+  EXPECT_NE(info.out.find(tmp.str("d") +
+                          ": is not a dataset, but a render of several sensors "
+                          "(sensors.json): digit_bottom, digit_top; give one of those "
+                          "folders (patchgraph track takes " +
+                          tmp.str("d") + " itself"),
+            std::string::npos)
       << info.out;
 }
 

@@ -51,9 +51,12 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
 
 int run_track(const TrackArgs& a) {
   std::vector<Dataset> datasets;
-  for (const std::string& dir : a.datasets) {
-    check_output_is_not_input(a.out, dir, "the dataset");  // its poses.csv would be replaced
-    datasets.push_back(Dataset::open(dir));
+  for (const std::string& given : a.datasets) {
+    check_output_is_not_input(a.out, given, "the dataset");  // its poses.csv would be replaced
+    // A render of several sensors stands for its sensors' datasets, in the scene's order.
+    std::vector<std::string> dirs = sensor_dataset_dirs(given);
+    if (dirs.empty()) dirs = {given};  // Dataset::open says what it lacks
+    for (const std::string& dir : dirs) datasets.push_back(Dataset::open(dir));
   }
   std::vector<const Dataset*> sensors;
   for (const Dataset& d : datasets) sensors.push_back(&d);
@@ -85,7 +88,7 @@ int run_track(const TrackArgs& a) {
   write_track_outputs(run, sensors, a.out);
   const TrackSummary& s = run.summary;
   std::string names;
-  for (const std::string& dir : a.datasets) names += (names.empty() ? "" : " + ") + dir;
+  for (const Dataset& d : datasets) names += (names.empty() ? "" : " + ") + d.dir();
   std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
               names.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
               s.episodes);
@@ -203,8 +206,9 @@ int main(int argc, char** argv) {
       "track", "Track the object of one dataset (or of several sensors' datasets together)");
   cmd_track
       ->add_option("dataset", track.datasets,
-                   "Dataset folder (from tacsim render); several: the sensors of one "
-                   "sequence on one object, tracked together (the first is the primary)")
+                   "Dataset folder (from tacsim render); several, or a render of several "
+                   "sensors: the sensors of one sequence on one object, tracked together (the "
+                   "first is the primary)")
       ->required();
   cmd_track->add_option("--out,-o", track.out, "Output folder")->required();
   add_track_options(*cmd_track, track);

@@ -120,6 +120,15 @@ class Dataset {
   std::vector<FramePose> poses_;
 };
 
+// A scene of several sensors renders one dataset per sensor, DIR/<name>/, and lists their names
+// in the scene's order in DIR/sensors.json: {"sensors": ["digit_bottom", "digit_top"]}.
+inline constexpr const char* kSensorIndexFile = "sensors.json";
+void write_sensor_index(const std::string& dir, const std::vector<std::string>& names);
+// The dataset folders DIR stands for: DIR itself when it holds a dataset (dataset.json), the
+// sensors' folders of DIR/sensors.json in its order, else none. Throws InputError naming
+// sensors.json and the field when it is malformed.
+std::vector<std::string> sensor_dataset_dirs(const std::string& dir);
+
 void write_poses_csv(const std::string& path, const std::vector<FramePose>& poses);
 std::vector<FramePose> read_poses_csv(const std::string& path);
 
