@@ -651,6 +651,35 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
             std::string(std::istreambuf_iterator<char>(b), {}));
 }
 
+// eval runs a render of several sensors (its sensors.json) as one sequence, the sensors together,
+// beside single-sensor datasets in the same folder.
+TEST_F(PatchgraphCli, EvalTracksARenderOfSeveralSensorsAsOneSequence) {
+  const std::string root = out("eval_sensors");
+  fs::remove_all(root);
+  fs::create_directories(root);
+  fs::copy(data(), root + "/cube", fs::copy_options::recursive);
+  const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                                        "/scenes/examples/two_digits_regrasp.json -q --outputs "
+                                        "normal --out " +
+                                        root + "/grasp");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const CliRun e = patchgraph("eval --datasets " + root + " --methods patchgraph --no-plots -q " +
+                              "--out " + out("eval_sensors_out"));
+  ASSERT_EQ(e.code, 0) << e.out;
+  std::ifstream results(out("eval_sensors_out") + "/results.csv");
+  std::string line;
+  std::getline(results, line);
+  std::vector<std::string> rows;
+  while (std::getline(results, line)) rows.push_back(split_csv_line(line)[0]);
+  EXPECT_EQ(rows, (std::vector<std::string>{root + "/cube", root + "/grasp"}));
+  EXPECT_EQ(
+      parse_json_file(out("eval_sensors_out") + "/runs/grasp_patchgraph/summary.json")["sensors"],
+      2);
+  EXPECT_EQ(
+      parse_json_file(out("eval_sensors_out") + "/runs/cube_patchgraph/summary.json")["sensors"],
+      1);
+}
+
 // Corrupt normal files: a few NaN pixels are counted, filled and warned about; frames of NaN
 // normals say nothing about the contact, so the episode goes on through them (its patch kept, no
 // new vision prior) instead of ending and restarting as at a real break in the contact.

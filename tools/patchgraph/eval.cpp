@@ -18,18 +18,21 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// The sequences to run: each root that is one (a dataset, or a render of several sensors with
+// its sensors.json), else the sequences one level down in it, in name order.
 std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) {
   std::vector<std::string> out;
   for (const auto& root : roots) {
-    if (fs::is_regular_file(fs::path(root) / "dataset.json")) {
+    if (!sensor_dataset_dirs(root).empty()) {
       out.push_back(root);
       continue;
     }
     if (!fs::is_directory(root)) throw InputError(root + ": not a dataset or a folder of datasets");
     std::vector<std::string> found;
     for (const auto& entry : fs::directory_iterator(root)) {
-      if (fs::is_regular_file(entry.path() / "dataset.json"))
+      if (!sensor_dataset_dirs(entry.path().string()).empty()) {
         found.push_back(entry.path().string());
+      }
     }
     if (found.empty()) throw InputError(root + ": holds no dataset (no */dataset.json)");
     std::sort(found.begin(), found.end());
@@ -146,13 +149,18 @@ int run_eval(const EvalArgs& args) {
   const std::vector<std::string> names = run_names(datasets);
   // One model for every run; every dataset checked against it before any work.
   const std::shared_ptr<const NormalEstimator> model = load_normals_model(args.track);
-  std::vector<Dataset> opened;  // all checked before any work
+  // Each sequence's datasets (one per sensor), all checked before any work.
+  std::vector<std::vector<Dataset>> opened;
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
-    opened.push_back(Dataset::open(dir));
-    check_normals_input(model.get(), opened.back());
-    if (opened.back().frames() > 0 && !opened.back().poses().back().object_known) {
-      throw InputError(dir +
+    opened.emplace_back();
+    for (const std::string& sensor : sensor_dataset_dirs(dir)) {
+      opened.back().push_back(Dataset::open(sensor));
+      check_normals_input(model.get(), opened.back().back());
+    }
+    const Dataset& primary = opened.back().front();
+    if (primary.frames() > 0 && !primary.poses().back().object_known) {
+      throw InputError(primary.dir() +
                        "/poses.csv: no object pose at the last frame; eval compares final "
                        "errors against ground truth (track runs without it)");
     }
@@ -164,17 +172,19 @@ int run_eval(const EvalArgs& args) {
   const std::string results = (fs::path(args.out) / "results.csv").string();
   try {
     for (std::size_t k = 0; k < opened.size(); ++k) {
-      const Dataset& dataset = opened[k];
-      const std::string& dir = dataset.dir();
+      std::vector<const Dataset*> sensors;
+      for (const Dataset& d : opened[k]) sensors.push_back(&d);
+      const Dataset& dataset = *sensors[0];
+      const std::string& dir = datasets[k];
       // The run's name: the dataset's folder name unless two datasets share it.
       const std::uint64_t seed = sequence_seed(args.track.seed, names[k]);
       for (const auto& m : methods) {
         TrackArgs a = args.track;
         a.method = m;
         a.seed = seed;
-        const TrackRun run = track_dataset(dataset, make_track_options(a, dataset, model));
+        const TrackRun run = track_dataset(sensors, make_track_options(a, dataset, model));
         const std::string name = names[k] + "_" + m;
-        write_track_outputs(run, dataset, (fs::path(args.out) / "runs" / name).string());
+        write_track_outputs(run, sensors, (fs::path(args.out) / "runs" / name).string());
         rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
         ++done;
         if (!args.track.quiet) {

@@ -217,7 +217,10 @@ int main(int argc, char** argv) {
   EvalArgs eval;
   CLI::App* cmd_eval =
       app.add_subcommand("eval", "Run methods x datasets and summarise the errors");
-  cmd_eval->add_option("--datasets", eval.datasets, "Dataset folders, or folders of datasets")
+  cmd_eval
+      ->add_option("--datasets", eval.datasets,
+                   "Dataset folders (a render of several sensors: its sensors together), "
+                   "or folders of them")
       ->required();
   cmd_eval->add_option("--methods", eval.methods, "Methods (default: all four)");
   cmd_eval->add_option("--out,-o", eval.out, "Output folder")->required();
