@@ -99,6 +99,18 @@ TEST(PatchgraphBench, UnknownNormalsSourceFailsBeforeTracking) {
   EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
 }
 
+// bench times one sensor's tracking: a scene of several sensors is refused, naming it.
+TEST(PatchgraphBench, ASceneOfSeveralSensorsIsRefused) {
+  TempDir tmp;
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/examples/two_digits_regrasp.json";
+  const auto r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench -q --no-plot --quick --scenes " + scene + " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(scene + ": sensors: 2 sensors; bench times one sensor's tracking"),
+            std::string::npos)
+      << r.out;
+}
+
 TEST(PatchgraphBench, ASceneOrNormalsSourceGivenTwiceIsRefused) {
   TempDir tmp;
   const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json";

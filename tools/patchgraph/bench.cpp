@@ -140,6 +140,11 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
     }
   }
   Scene scene = load_scene(scene_path);
+  if (scene.sensors.size() > 1) {
+    throw InputError(scene_path + ": sensors: " + std::to_string(scene.sensors.size()) +
+                     " sensors; bench times one sensor's tracking (render the scene with tacsim "
+                     "and run patchgraph track or eval on it for the sensors together)");
+  }
   if (frames > 0) scene.frames = std::min(scene.frames, frames);
   RenderOverrides overrides;
   overrides.outputs = outputs;
