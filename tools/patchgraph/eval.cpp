@@ -153,11 +153,7 @@ int run_eval(const EvalArgs& args) {
   std::vector<std::vector<Dataset>> opened;
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
-    opened.emplace_back();
-    for (const std::string& sensor : sensor_dataset_dirs(dir)) {
-      opened.back().push_back(Dataset::open(sensor));
-      check_normals_input(model.get(), opened.back().back());
-    }
+    opened.push_back(open_sequence(dir, model.get()));
     const Dataset& primary = opened.back().front();
     if (primary.frames() > 0 && !primary.poses().back().object_known) {
       throw InputError(primary.dir() +
@@ -172,8 +168,7 @@ int run_eval(const EvalArgs& args) {
   const std::string results = (fs::path(args.out) / "results.csv").string();
   try {
     for (std::size_t k = 0; k < opened.size(); ++k) {
-      std::vector<const Dataset*> sensors;
-      for (const Dataset& d : opened[k]) sensors.push_back(&d);
+      const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
       const Dataset& dataset = *sensors[0];
       const std::string& dir = datasets[k];
       // The run's name: the dataset's folder name unless two datasets share it.

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <utility>
 #include <vector>
 
 #include "../common/cli_main.h"
@@ -50,19 +51,15 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
 }
 
 int run_track(const TrackArgs& a) {
+  const std::shared_ptr<const NormalEstimator> model = load_normals_model(a);
   std::vector<Dataset> datasets;
   for (const std::string& given : a.datasets) {
     check_output_is_not_input(a.out, given, "the dataset");  // its poses.csv would be replaced
     // A render of several sensors stands for its sensors' datasets, in the scene's order.
-    std::vector<std::string> dirs = sensor_dataset_dirs(given);
-    if (dirs.empty()) dirs = {given};  // Dataset::open says what it lacks
-    for (const std::string& dir : dirs) datasets.push_back(Dataset::open(dir));
+    for (Dataset& d : open_sequence(given, model.get())) datasets.push_back(std::move(d));
   }
-  std::vector<const Dataset*> sensors;
-  for (const Dataset& d : datasets) sensors.push_back(&d);
+  const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
   const Dataset& dataset = datasets[0];
-  const std::shared_ptr<const NormalEstimator> model = load_normals_model(a);
-  for (const Dataset& d : datasets) check_normals_input(model.get(), d);
   const TrackOptions options = make_track_options(a, dataset, model);
   for (const Dataset& d : datasets) {
     if (a.normals == "gt" ||

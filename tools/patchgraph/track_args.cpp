@@ -143,6 +143,23 @@ void check_normals_input(const NormalEstimator* model, const Dataset& dataset) {
   model->check_sensor(dataset.info().sensor, dataset.dir());
 }
 
+std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model) {
+  std::vector<std::string> dirs = sensor_dataset_dirs(dir);
+  if (dirs.empty()) dirs = {dir};  // Dataset::open says what it lacks
+  std::vector<Dataset> datasets;
+  for (const std::string& d : dirs) {
+    datasets.push_back(Dataset::open(d));
+    check_normals_input(model, datasets.back());
+  }
+  return datasets;
+}
+
+std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& datasets) {
+  std::vector<const Dataset*> out;
+  for (const Dataset& d : datasets) out.push_back(&d);
+  return out;
+}
+
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
                                 std::shared_ptr<const NormalEstimator> model) {
   TrackOptions o;

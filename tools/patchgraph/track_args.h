@@ -44,6 +44,11 @@ std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& args)
 // Checks that `dataset` has what `model` reads (colour images of the model's size); nothing for
 // null (ground-truth normals, which track_dataset checks). Throws InputError naming the dataset.
 void check_normals_input(const NormalEstimator* model, const Dataset& dataset);
+// The datasets of one sequence: DIR's own, or a render of several sensors' (its sensors.json, in
+// that order), each opened and checked against `model` (null: ground-truth normals). Throws
+// InputError naming what is missing or malformed.
+std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model);
+std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& datasets);
 // Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
 // `model`: --normals MODEL already loaded (eval's runs share one); null loads it.
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
