@@ -641,6 +641,12 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   const int touches = errors_column_sum(out("both"), "contact_sensors");
   EXPECT_GE(touches, 60 + 25 + 18);
   EXPECT_LE(touches, 60 + 60 - 7);
+  // One sensor given twice (also through the render's folder) would count double.
+  const CliRun twice = patchgraph("track " + render + " " + side + " -q --out " + out("twice"));
+  EXPECT_EQ(twice.code, 1) << twice.out;
+  EXPECT_NE(twice.out.find(side + ": given twice (also as " + side + ")"), std::string::npos)
+      << twice.out;
+  EXPECT_FALSE(fs::exists(out("twice")));
   // The render's folder stands for its sensors, in the scene's order (its sensors.json).
   const CliRun folder = patchgraph("track " + render + " -q --out " + out("folder"));
   ASSERT_EQ(folder.code, 0) << folder.out;

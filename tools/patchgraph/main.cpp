@@ -58,6 +58,9 @@ int run_track(const TrackArgs& a) {
     // A render of several sensors stands for its sensors' datasets, in the scene's order.
     for (Dataset& d : open_sequence(given, model.get())) datasets.push_back(std::move(d));
   }
+  std::vector<std::string> dirs;
+  for (const Dataset& d : datasets) dirs.push_back(d.dir());
+  check_given_once(dirs);  // one sensor's measurements twice would count double
   const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
   const Dataset& dataset = datasets[0];
   const TrackOptions options = make_track_options(a, dataset, model);
