@@ -147,8 +147,8 @@ void check_same_sequence(const std::vector<const Dataset*>& datasets) {
   }
 }
 
-// What one sensor's dataset needs beyond the tracker: its contact clouds and, for learned
-// normals, its no-contact reference.
+// What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
+// for learned normals, its no-contact reference.
 struct SensorFeed {
   SensorFeed(const Dataset& d, const TrackerConfig& config, bool learned)
       : dataset(&d),
@@ -157,6 +157,8 @@ struct SensorFeed {
   const Dataset* dataset;
   ContactCloudBuilder builder;
   ImageU8 background;
+  ImageU8 color;   // this frame's, for learned normals
+  ImageF normals;  // this frame's: the dataset's, or the model's from `color`
   ContactFrame contact;
 };
 
@@ -195,13 +197,11 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   for (int i = 0; i < dataset.frames(); ++i) {
     const FramePose& gt = dataset.poses()[i];
     // Decoding the image files is not part of the timed update.
-    std::vector<ImageF> normals(feeds.size());
-    std::vector<ImageU8> colors(feeds.size());
-    for (std::size_t k = 0; k < feeds.size(); ++k) {
+    for (SensorFeed& feed : feeds) {
       if (learned) {
-        colors[k] = feeds[k].dataset->color(i);
+        feed.color = feed.dataset->color(i);
       } else {
-        normals[k] = feeds[k].dataset->normal(i);
+        feed.normals = feed.dataset->normal(i);
       }
     }
     TrackerInput input;
@@ -219,20 +219,20 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     FrameResult r;
     for (std::size_t k = 0; k < feeds.size(); ++k) {
       SensorFeed& feed = feeds[k];
-      if (learned && is_dropout(colors[k])) {
+      if (learned && is_dropout(feed.color)) {
         feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
       } else if (learned &&
-                 shows_no_change(colors[k], feed.background, feed.builder.min_contact_pixels())) {
+                 shows_no_change(feed.color, feed.background, feed.builder.min_contact_pixels())) {
         feed.builder.build_untouched(feed.contact);  // nothing pressed: no normals to estimate
       } else {
         if (learned) {
           const auto model_start = std::chrono::steady_clock::now();
-          normals[k] = options.normals(colors[k], feed.background);
+          feed.normals = options.normals(feed.color, feed.background);
           normals_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
                                                                   model_start)
                             .count();
         }
-        feed.builder.build(normals[k], feed.contact);
+        feed.builder.build(feed.normals, feed.contact);
       }
       SensorInput& sensor = k == 0 ? input : input.other_sensors[k - 1];
       set_measurement(feed.contact, sensor);
