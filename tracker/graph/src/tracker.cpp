@@ -286,19 +286,28 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   }
   // A missing measurement says nothing about the contact: the episode goes on.
   f.held = f.contact || (missing && in_episode_);
+  f.carrier = t >= 1 ? frames_[t - 1].carrier : 0;
+  if (!f.sensors[std::size_t(f.carrier)].contact) {
+    for (std::size_t k = 0; k < n_sensors; ++k) {
+      if (f.sensors[k].contact) {
+        f.carrier = int(k);
+        break;
+      }
+    }
+  }
   SE3 o_init = prior_ok ? input.T_world_object_prior : SE3();
   if (t >= 1 && sensor_frame_motion(f, frames_[t - 1])) {
     // Held: the object's pose in the sensor's frame is predicted (the last relative motion
     // repeated, when there is one) and placed at this frame's sensor pose, so the hand's own
     // motion, accelerations included, is followed exactly.
-    const auto in_sensor = [](const Frame& g) {
-      return g.sensors[0].T_sensor_world * pose_from_block(g.o);
+    const auto in_sensor = [&f](const Frame& g) {
+      return g.sensors[std::size_t(f.carrier)].T_sensor_world * pose_from_block(g.o);
     };
     const Frame& p1 = frames_[t - 1];
     const SE3 x = t >= 2 && sensor_frame_motion(p1, frames_[t - 2])
                       ? predict(in_sensor(frames_[t - 2]), in_sensor(p1))
                       : in_sensor(p1);
-    o_init = f.sensors[0].T_sensor_world.inverse() * x;
+    o_init = f.sensors[std::size_t(f.carrier)].T_sensor_world.inverse() * x;
   } else if (t >= 2) {
     o_init = predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o));
   } else if (t == 1) {
@@ -508,8 +517,9 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         add_block(b.o, fac.frames[1]);
         const bool in_sensor = sensor_frame_motion(b, a);
         problem.AddResidualBlock(
-            VelocityDampingFactor::create(fac.sqrt_info, {motion_frame_inverse(a, in_sensor),
-                                                          motion_frame_inverse(b, in_sensor)}),
+            VelocityDampingFactor::create(fac.sqrt_info,
+                                          {motion_frame_inverse(a, in_sensor, b.carrier),
+                                           motion_frame_inverse(b, in_sensor, b.carrier)}),
             nullptr, a.o, b.o);
         break;
       }
@@ -521,9 +531,10 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         add_block(c.o, fac.frames[2]);
         const bool in_sensor = sensor_frame_motion(b, a) && sensor_frame_motion(c, b);
         problem.AddResidualBlock(
-            ConstantVelocityFactor::create(fac.sqrt_info, {motion_frame_inverse(a, in_sensor),
-                                                           motion_frame_inverse(b, in_sensor),
-                                                           motion_frame_inverse(c, in_sensor)}),
+            ConstantVelocityFactor::create(fac.sqrt_info,
+                                           {motion_frame_inverse(a, in_sensor, c.carrier),
+                                            motion_frame_inverse(b, in_sensor, c.carrier),
+                                            motion_frame_inverse(c, in_sensor, c.carrier)}),
             nullptr, a.o, b.o, c.o);
         break;
       }

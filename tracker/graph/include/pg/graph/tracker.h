@@ -122,7 +122,9 @@ struct TrackerInput : SensorInput {
   // pose. The object is in contact while any of them touches it, so one finger carries the
   // episode while another lifts off and touches again (it then registers against the patch it
   // built before, or starts a fresh one if it touches elsewhere). The motion frame
-  // (GraphOptions::motion_frame) is the first sensor's.
+  // (GraphOptions::motion_frame) is that of the sensor carrying the object: the one that carried
+  // it in the previous frame while it still touches, else the first touching one. A finger that
+  // lets go and moves away takes no prior with it, whichever order the sensors come in.
   std::vector<SensorInput> other_sensors;
 };
 
@@ -187,6 +189,7 @@ class PatchGraphTracker {
     std::vector<SensorState> sensors;
     bool contact = false;  // any sensor touches
     bool held = false;     // in a contact episode (contact, or in one and a measurement missing)
+    int carrier = 0;       // the sensor whose frame holds the motion priors (TrackerInput)
   };
   // What the tracker keeps per sensor between frames.
   struct SensorTrack {
@@ -234,9 +237,10 @@ class PatchGraphTracker {
   bool sensor_frame_motion(const Frame& after, const Frame& before) const {
     return options_.motion_frame == MotionFrame::kSensor && after.held && before.held;
   }
-  // F^-1 of a motion prior's frame F at frame g (factors.h): its sensor's or the world's.
-  static SE3 motion_frame_inverse(const Frame& g, bool in_sensor) {
-    return in_sensor ? g.sensors[0].T_sensor_world : SE3();
+  // F^-1 of a motion prior's frame F at frame g (factors.h): sensor `carrier`'s or the world's.
+  // A prior spanning several frames takes its newest frame's carrier for all of them.
+  static SE3 motion_frame_inverse(const Frame& g, bool in_sensor, int carrier) {
+    return in_sensor ? g.sensors[std::size_t(carrier)].T_sensor_world : SE3();
   }
   bool registration_disagrees(const Factor& factor) const;
   // Removes this frame's image-to-image factor (from first_registration on) when it and the
