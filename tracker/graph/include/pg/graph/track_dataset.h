@@ -140,8 +140,9 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
 // The same for several sensors touching one object in one sequence (a scene with several
 // sensors renders a dataset for each), tracked together (TrackerInput::other_sensors): the first
 // is the primary (its poses.csv gives the ground truth and the vision prior; the motion frame is
-// the carrying sensor's, TrackerInput::other_sensors). Every dataset must have as many frames, and where two give the object's pose
-// it must be the same (InputError naming the file and frame otherwise).
+// the carrying sensor's, TrackerInput::other_sensors). Every dataset must have as many frames, and
+// where two give the object's pose it must be the same (InputError naming the file and frame
+// otherwise).
 TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 
