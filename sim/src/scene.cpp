@@ -92,6 +92,11 @@ void check_folder_name(const std::string& name, const std::string& where) {
                      "' is not a plain folder name (letters, digits, '_', '-', '.'; not '.' or "
                      "'..'): it names the sensor's output folder");
   }
+  if (name == kSensorIndexFile) {
+    throw InputError(where + ": '" + name +
+                     "' is the render's index of its sensors (written next " +
+                     "to their folders); name the sensor otherwise");
+  }
 }
 
 SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,

@@ -305,6 +305,12 @@ TEST_F(SceneFileTest, SensorNamesArePlainUniqueFolderNames) {
   std::string message = load_error(path);
   EXPECT_EQ(message.rfind(path + ": sensors[2].name: 'left' is also sensors[0]'s name", 0), 0u)
       << message;
+  // The render's index of its sensors sits next to their folders.
+  j["sensors"] = {{{"name", "left"}}, {{"name", "sensors.json"}}};
+  path = write("index_name.json", j);
+  message = load_error(path);
+  EXPECT_EQ(message.rfind(path + ": sensors[1].name: 'sensors.json' is the render's index", 0), 0u)
+      << message;
   // A default name ("sensor<i>") clashes like any other.
   j["sensors"] = {json::object(), {{"name", "sensor0"}}};
   message = load_error(write("default_clash.json", j));

@@ -5,11 +5,14 @@
 //   tacsim sheet SCENES --out PNG   a contact sheet of one frame per scene
 #include <tbb/global_control.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
@@ -62,11 +65,20 @@ int run_render(const RenderArgs& a) {
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
   const RenderSummary s =
       render_scene_to_dataset(renderer, a.out, [&](int done, int) { progress.update(done); });
-  const auto& cam = renderer.sensor(0).sensor().camera;
+  // Each sensor's image size ("120x160", or "120x160 + 240x320" for sensors of two sizes).
+  std::vector<std::string> seen;
+  std::string sizes;
+  for (int k = 0; k < renderer.sensor_count(); ++k) {
+    const auto& cam = renderer.sensor(k).sensor().camera;
+    const std::string size = std::to_string(cam.width) + "x" + std::to_string(cam.height);
+    if (std::find(seen.begin(), seen.end(), size) != seen.end()) continue;
+    sizes += (seen.empty() ? "" : " + ") + size;
+    seen.push_back(size);
+  }
   std::printf(
-      "rendered %d frames x %d sensor(s) at %dx%d in %.2f s (%.1f frames/s, with image "
-      "writing) -> %s\n",
-      s.frames, renderer.sensor_count(), cam.width, cam.height, s.seconds,
+      "rendered %d frames x %d sensor(s) at %s in %.2f s (%.1f frames/s, with image writing) -> "
+      "%s\n",
+      s.frames, renderer.sensor_count(), sizes.c_str(), s.seconds,
       s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
   std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
