@@ -8,6 +8,7 @@ PatchGraph paper's Fig. 6. OUT/trajectories_<object>.png: estimated (light) agai
 object position and orientation per axis for the first sequence of each object, like Fig. 5.
 """
 import csv
+import json
 import math
 import os
 import sys
@@ -68,22 +69,40 @@ def pose_series(path):
     return t, pos, rpy
 
 
+def ground_truth_series(run, dataset):
+    # The run's datasets (a render of several sensors: one per sensor, from its summary.json)
+    # in order; the first whose poses.csv gives the object's pose.
+    dirs = [dataset]
+    try:
+        with open(os.path.join(run, "summary.json")) as f:
+            dirs = json.load(f).get("datasets") or dirs
+    except (OSError, ValueError):
+        pass
+    for d in dirs:
+        path = os.path.join(d, "poses.csv")
+        if os.path.exists(path):
+            series = pose_series(path)
+            if series[0]:
+                return series
+    return None
+
+
 def trajectories(out, rows):
-    seen = set()
+    plotted = set()
     for r in rows:
-        if r["object"] in seen or r["method"] != "patchgraph":
+        if r["object"] in plotted or r["method"] != "patchgraph":
             continue
-        seen.add(r["object"])
         if r.get("run"):
             run = os.path.join(out, r["run"])
         else:  # results.csv of an older eval: runs named after the dataset's folder
             run = os.path.join(out, "runs", os.path.basename(r["dataset"].rstrip("/")) + "_patchgraph")
         est = os.path.join(run, "poses.csv")
-        gt = os.path.join(r["dataset"], "poses.csv")
-        if not (os.path.exists(est) and os.path.exists(gt)):
-            continue
+        truth = ground_truth_series(run, r["dataset"]) if os.path.exists(est) else None
+        if truth is None:
+            continue  # the object's next sequence, if any
+        plotted.add(r["object"])
         t, p_est, r_est = pose_series(est)
-        t_gt, p_gt, r_gt = pose_series(gt)
+        t_gt, p_gt, r_gt = truth
         fig, (ax_r, ax_t) = plt.subplots(1, 2, figsize=(10, 3.5))
         for k, (c, name) in enumerate(zip(["#e67e22", "#8e44ad", "#27ae60"], "xyz")):
             ax_r.plot(t_gt, r_gt[k], color=c, lw=2, label=f"{name} true")
@@ -100,6 +119,7 @@ def trajectories(out, rows):
         fig.tight_layout()
         fig.savefig(os.path.join(out, f"trajectories_{r['object']}.png"), dpi=120)
         plt.close(fig)
+    return sorted(plotted)
 
 
 def main():
@@ -110,8 +130,11 @@ def main():
     if not rows:
         sys.exit(f"{out}/results.csv: no runs")
     boxplots(out, rows)
-    trajectories(out, rows)
-    print(f"wrote {out}/boxplots.png and {out}/trajectories_*.png")
+    plotted = trajectories(out, rows)
+    if plotted:
+        print(f"wrote {out}/boxplots.png and " + ", ".join(f"trajectories_{o}.png" for o in plotted))
+    else:
+        print(f"wrote {out}/boxplots.png (no trajectory plot: no patchgraph run with ground truth)")
 
 
 if __name__ == "__main__":

@@ -407,12 +407,20 @@ std::vector<std::string> sensor_dataset_dirs(const std::string& dir) {
   f.finish();
   if (names.empty()) throw InputError(path + ": sensors: empty");
   std::vector<std::string> dirs;
-  for (const std::string& name : names) {
-    if (name.empty() || name == "." || name == ".." ||
-        name.find_first_of("/\\") != std::string::npos) {
-      throw InputError(path + ": sensors: '" + name + "' is not a folder name");
+  for (auto name = names.begin(); name != names.end(); ++name) {
+    if (name->empty() || *name == "." || *name == ".." ||
+        name->find_first_of("/\\") != std::string::npos) {
+      throw InputError(path + ": sensors: '" + *name + "' is not a folder name");
     }
-    dirs.push_back((fs::path(dir) / name).string());
+    if (std::find(names.begin(), name, *name) != name) {
+      throw InputError(path + ": sensors: '" + *name +
+                       "' listed twice (one sensor's measurements would count double)");
+    }
+    dirs.push_back((fs::path(dir) / *name).string());
+    if (!fs::is_directory(dirs.back())) {
+      throw InputError(path + ": sensors: '" + *name + "': no such folder next to it (" +
+                       dirs.back() + ")");
+    }
   }
   return dirs;
 }

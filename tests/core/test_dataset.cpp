@@ -546,7 +546,11 @@ TEST(Dataset, ASensorIndexListsTheSensorsFolders) {
   fs::create_directories(dir);
   EXPECT_TRUE(sensor_dataset_dirs(dir).empty()) << "neither a dataset nor a render of sensors";
   write_sensor_index(dir, {"left", "right"});
+  fs::create_directories(dir + "/left");
+  fs::create_directories(dir + "/right");
   EXPECT_EQ(sensor_dataset_dirs(dir), (std::vector<std::string>{dir + "/left", dir + "/right"}));
+  fs::remove(dir + "/left");
+  fs::remove(dir + "/right");
   const auto refused = [&](const std::string& text) {
     std::ofstream(dir + "/sensors.json") << text;
     try {
@@ -565,6 +569,14 @@ TEST(Dataset, ASensorIndexListsTheSensorsFolders) {
   EXPECT_NE(refused(R"({"sensors": ["left"], "extra": 1})").find("extra"), std::string::npos);
   EXPECT_NE(refused(R"({"sensors": ["../x"]})").find("'../x' is not a folder name"),
             std::string::npos);
+  // A sensor listed twice would count double; a listed folder must be there.
+  fs::create_directories(dir + "/left");
+  EXPECT_EQ(refused(R"({"sensors": ["left", "left"]})"),
+            dir +
+                "/sensors.json: sensors: 'left' listed twice (one sensor's measurements would "
+                "count double)");
+  EXPECT_EQ(refused(R"({"sensors": ["left", "right"]})"),
+            dir + "/sensors.json: sensors: 'right': no such folder next to it (" + dir + "/right)");
 }
 
 }  // namespace

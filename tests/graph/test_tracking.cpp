@@ -337,6 +337,38 @@ TEST(Tracking, SensorsOfDifferentSequencesAreRefused) {
   EXPECT_NE(apart.find(other.dir() + "/poses.csv: line 2 (frame 0): the object pose is 0.1 mm"),
             std::string::npos)
       << apart;
+  // Frames at other times: another rate, or one frame late.
+  scene = parse_json_file(kRepo + "/scenes/default.json");
+  scene["fps"] = 30;
+  const Dataset slower = render(scene, tmp.path / "slower");
+  EXPECT_NE(message([&] {
+              track_dataset({&cube, &slower}, TrackOptions());
+            }).find(slower.dir() + "/dataset.json: fps 30, but " + cube.dir() + " has 60"),
+            std::string::npos);
+  const auto copy_with_poses = [&](const std::string& name,
+                                   const std::function<void(FramePose&)>& change) {
+    const fs::path dir = tmp.path / name;
+    fs::copy(cube.dir(), dir, fs::copy_options::recursive);
+    std::vector<FramePose> poses = cube.poses();
+    for (FramePose& p : poses) change(p);
+    write_poses_csv((dir / "poses.csv").string(), poses);
+    return Dataset::open(dir.string());
+  };
+  const Dataset late = copy_with_poses("late", [](FramePose& p) { p.time_s += 1.0 / 60; });
+  const std::string late_message = message([&] { track_dataset({&cube, &late}, TrackOptions()); });
+  EXPECT_NE(late_message.find(late.dir() +
+                              "/poses.csv: line 2 (frame 0): time 0.0166666667 s, "
+                              "but " +
+                              cube.dir() + "/poses.csv has 0 s there"),
+            std::string::npos)
+      << late_message;
+  // The ground truth comes from whichever sensor's dataset gives the object's pose.
+  const Dataset blind = copy_with_poses("blind", [](FramePose& p) { p.object_known = false; });
+  const TrackRun blind_first = track_dataset({&blind, &cube}, TrackOptions());
+  EXPECT_EQ(blind_first.summary.ground_truth_frames, cube.frames());
+  EXPECT_LT(blind_first.summary.translation_rmse_m, 0.5e-3);
+  EXPECT_EQ(sequence_poses({&blind, &cube})[7].T_world_object.translation(),
+            cube.poses()[7].T_world_object.translation());
   PatchGraphTracker tracker(GraphOptions{});
   TrackerInput two;
   two.other_sensors.resize(1);

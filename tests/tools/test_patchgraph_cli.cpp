@@ -641,10 +641,17 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   const int touches = errors_column_sum(out("both"), "contact_sensors");
   EXPECT_GE(touches, 60 + 25 + 18);
   EXPECT_LE(touches, 60 + 60 - 7);
+  // The render's folder is no place for a track's outputs.
+  const CliRun into = patchgraph("track " + below + " " + side + " -q --out " + render);
+  EXPECT_EQ(into.code, 1) << into.out;
+  EXPECT_NE(into.out.find("--out " + render + " holds a render of several sensors (sensors.json)"),
+            std::string::npos)
+      << into.out;
+  EXPECT_FALSE(fs::exists(render + "/poses.csv"));
   // One sensor given twice (also through the render's folder) would count double.
   const CliRun twice = patchgraph("track " + render + " " + side + " -q --out " + out("twice"));
   EXPECT_EQ(twice.code, 1) << twice.out;
-  EXPECT_NE(twice.out.find(side + ": given twice (also as " + side + ")"), std::string::npos)
+  EXPECT_NE(twice.out.find(side + ": given twice (also through " + render + ")"), std::string::npos)
       << twice.out;
   EXPECT_FALSE(fs::exists(out("twice")));
   // The render's folder stands for its sensors, in the scene's order (its sensors.json).
@@ -684,6 +691,38 @@ TEST_F(PatchgraphCli, EvalTracksARenderOfSeveralSensorsAsOneSequence) {
   EXPECT_EQ(
       parse_json_file(out("eval_sensors_out") + "/runs/cube_patchgraph/summary.json")["sensors"],
       1);
+  // The trajectory plot of a render of several sensors: its ground truth from its datasets.
+  const CliRun plotted = patchgraph("eval --datasets " + root + "/grasp --methods patchgraph -q " +
+                                    "--out " + out("eval_sensors_plot"));
+  ASSERT_EQ(plotted.code, 0) << plotted.out;
+  EXPECT_NE(plotted.out.find("trajectories_cube.png"), std::string::npos) << plotted.out;
+  EXPECT_TRUE(fs::exists(out("eval_sensors_plot") + "/trajectories_cube.png"));
+  // A render whose sensors are not of one sequence, or name one folder twice, is refused before
+  // any run (the cube's would have come first).
+  const std::string bad = out("eval_sensors_bad");
+  fs::remove_all(bad);
+  fs::create_directories(bad + "/mixed");
+  fs::create_directory_symlink(root + "/cube", bad + "/mixed/a");
+  fs::create_directory_symlink(root + "/grasp/digit_side", bad + "/mixed/b");
+  write_sensor_index(bad + "/mixed", {"a", "b"});
+  fs::copy(root + "/cube", bad + "/cube", fs::copy_options::recursive);
+  CliRun refused = patchgraph("eval --datasets " + bad + " --methods constvel -q --out " +
+                              out("eval_sensors_bad_out"));
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find(bad + "/mixed/b/poses.csv: line 2 (frame 0): the object pose is"),
+            std::string::npos)
+      << refused.out;
+  EXPECT_FALSE(fs::exists(out("eval_sensors_bad_out")));
+  fs::remove(bad + "/mixed/b");
+  fs::create_directory_symlink(root + "/cube", bad + "/mixed/b");
+  refused = patchgraph("eval --datasets " + bad + " --methods constvel -q --out " +
+                       out("eval_sensors_bad_out"));
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find(bad + "/mixed/b: given twice (also as " + bad + "/mixed/a) in " + bad +
+                             "/mixed/sensors.json"),
+            std::string::npos)
+      << refused.out;
+  EXPECT_FALSE(fs::exists(out("eval_sensors_bad_out")));
 }
 
 // Corrupt normal files: a few NaN pixels are counted, filled and warned about; frames of NaN

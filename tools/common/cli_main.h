@@ -113,8 +113,9 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
 }
 
 // Throws InputError when the output folder `out` holds a dataset (its dataset.json): a track's
-// poses.csv would replace the dataset's ground truth. With `is_file`, `out` is a file and its
-// folder must hold none (a model or results saved as a dataset's poses.csv).
+// poses.csv would replace the dataset's ground truth; or a render of several sensors (its
+// sensors.json), whose folder would mix a track's files with the sensors'. With `is_file`, `out` is
+// a file and its folder must hold none (a model or results saved as a dataset's poses.csv).
 inline void check_output_is_no_dataset(const std::string& out, bool is_file = false,
                                        const std::string& out_what = "--out") {
   namespace fs = std::filesystem;
@@ -124,6 +125,11 @@ inline void check_output_is_no_dataset(const std::string& out, bool is_file = fa
     throw InputError(out_what + " " + out + (is_file ? " is in a folder that holds" : " holds") +
                      " a dataset (dataset.json), whose files it could replace: write the outputs "
                      "to another folder");
+  }
+  if (fs::exists(folder / "sensors.json", ec)) {
+    throw InputError(out_what + " " + out + (is_file ? " is in a folder that holds" : " holds") +
+                     " a render of several sensors (sensors.json): write the outputs to another "
+                     "folder");
   }
 }
 

@@ -154,11 +154,13 @@ int run_eval(const EvalArgs& args) {
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(open_sequence(dir, model.get()));
-    const Dataset& primary = opened.back().front();
-    if (primary.frames() > 0 && !primary.poses().back().object_known) {
-      throw InputError(primary.dir() +
-                       "/poses.csv: no object pose at the last frame; eval compares final "
-                       "errors against ground truth (track runs without it)");
+    const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
+    const std::vector<FramePose> truth = sequence_poses(sensors);
+    if (!truth.empty() && !truth.back().object_known) {
+      throw InputError(sensors[0]->dir() + "/poses.csv" +
+                       (sensors.size() > 1 ? " (and the other sensors')" : "") +
+                       ": no object pose at the last frame; eval compares final errors against "
+                       "ground truth (track runs without it)");
     }
   }
   const OutputFolder out(args.out);

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <utility>
 #include <vector>
 
@@ -53,15 +54,24 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
 int run_track(const TrackArgs& a) {
   const std::shared_ptr<const NormalEstimator> model = load_normals_model(a);
   std::vector<Dataset> datasets;
+  // One sensor's measurements twice would count double: each folder once, however reached.
+  std::map<std::string, std::string> seen;  // canonical folder -> the argument that gave it
   for (const std::string& given : a.datasets) {
     check_output_is_not_input(a.out, given, "the dataset");  // its poses.csv would be replaced
     // A render of several sensors stands for its sensors' datasets, in the scene's order.
-    for (Dataset& d : open_sequence(given, model.get())) datasets.push_back(std::move(d));
+    for (Dataset& d : open_sequence(given, model.get())) {
+      const auto [it, fresh] =
+          seen.emplace(std::filesystem::weakly_canonical(d.dir()).string(), given);
+      if (!fresh) {
+        throw InputError(d.dir() + ": given twice (" +
+                         (it->second == d.dir() ? "also as " : "also through ") + it->second +
+                         (given == d.dir() ? ")" : "; this time through " + given + ")"));
+      }
+      datasets.push_back(std::move(d));
+    }
   }
-  std::vector<std::string> dirs;
-  for (const Dataset& d : datasets) dirs.push_back(d.dir());
-  check_given_once(dirs);  // one sensor's measurements twice would count double
   const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
+  check_same_sequence(sensors);  // before the output folder is made
   const Dataset& dataset = datasets[0];
   const TrackOptions options = make_track_options(a, dataset, model);
   for (const Dataset& d : datasets) {

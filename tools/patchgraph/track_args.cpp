@@ -135,7 +135,14 @@ std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& a) {
 }
 
 void check_normals_input(const NormalEstimator* model, const Dataset& dataset) {
-  if (!model) return;
+  if (!model) {
+    if (!dataset.info().has_output("normal")) {
+      throw InputError(dataset.dir() +
+                       ": dataset has no 'normal' output, needed for --normals gt (--normals MODEL "
+                       "estimates them from its colour images)");
+    }
+    return;
+  }
   if (!dataset.info().has_output("color")) {
     throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
                      model->path());
@@ -150,6 +157,15 @@ std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator
   for (const std::string& d : dirs) {
     datasets.push_back(Dataset::open(d));
     check_normals_input(model, datasets.back());
+  }
+  if (datasets.size() > 1) {
+    try {
+      check_given_once(dirs);  // two names of sensors.json may link to one folder
+    } catch (const InputError& e) {
+      throw InputError(std::string(e.what()) + " in " +
+                       (std::filesystem::path(dir) / kSensorIndexFile).string());
+    }
+    check_same_sequence(dataset_pointers(datasets));
   }
   return datasets;
 }

@@ -41,12 +41,13 @@ struct TrackArgs {
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // The --normals MODEL of `args` loaded, with its threads and phases; null for "gt".
 std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& args);
-// Checks that `dataset` has what `model` reads (colour images of the model's size); nothing for
-// null (ground-truth normals, which track_dataset checks). Throws InputError naming the dataset.
+// Checks that `dataset` has what `model` reads (colour images of the model's size), or for null
+// (ground-truth normals) its normal images. Throws InputError naming the dataset.
 void check_normals_input(const NormalEstimator* model, const Dataset& dataset);
 // The datasets of one sequence: DIR's own, or a render of several sensors' (its sensors.json, in
-// that order), each opened and checked against `model` (null: ground-truth normals). Throws
-// InputError naming what is missing or malformed.
+// that order), each opened and checked against `model` (null: ground-truth normals), and
+// checked to be one sequence (check_same_sequence), all before any work. Throws InputError
+// naming what is missing or malformed.
 std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model);
 std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& datasets);
 // Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.

@@ -118,8 +118,14 @@ namespace {
 // motion capture may round differently; renders agree exactly).
 constexpr double kSameObjectM = 1e-6, kSameObjectRad = 1e-5;
 
-// Checks that `datasets` can be tracked together: as many frames, the same object pose wherever
-// two give one.
+std::string number(double v) {
+  char s[32];
+  std::snprintf(s, sizeof s, "%.9g", v);
+  return s;
+}
+
+}  // namespace
+
 void check_same_sequence(const std::vector<const Dataset*>& datasets) {
   const Dataset& primary = *datasets[0];
   for (std::size_t k = 1; k < datasets.size(); ++k) {
@@ -129,9 +135,23 @@ void check_same_sequence(const std::vector<const Dataset*>& datasets) {
                        primary.dir() + " has " + std::to_string(primary.frames()) +
                        "; the sensors of one sequence are tracked frame by frame together");
     }
+    const double fps = primary.info().fps;
+    if (std::abs(other.info().fps - fps) > 1e-9 * fps) {
+      throw InputError(other.dir() + "/dataset.json: fps " + number(other.info().fps) + ", but " +
+                       primary.dir() + " has " + number(fps) +
+                       "; the sensors of one sequence are tracked frame by frame together");
+    }
     for (int i = 0; i < other.frames(); ++i) {
       const FramePose& a = primary.poses()[std::size_t(i)];
       const FramePose& b = other.poses()[std::size_t(i)];
+      // Two cameras' clocks may disagree a little; half a frame apart is another frame.
+      if (!(std::abs(a.time_s - b.time_s) < 0.5 / fps)) {
+        throw InputError(other.dir() + "/poses.csv: line " + std::to_string(i + 2) + " (frame " +
+                         std::to_string(i) + "): time " + number(b.time_s) + " s, but " +
+                         primary.dir() + "/poses.csv has " + number(a.time_s) +
+                         " s there; the sensors of one sequence must give their frames at the "
+                         "same times (within half a frame)");
+      }
       if (!a.object_known || !b.object_known) continue;
       const double apart_m = translation_distance(a.T_world_object, b.T_world_object);
       const double apart_rad = rotation_distance(a.T_world_object, b.T_world_object);
@@ -146,6 +166,21 @@ void check_same_sequence(const std::vector<const Dataset*>& datasets) {
     }
   }
 }
+
+std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& datasets) {
+  std::vector<FramePose> poses = datasets[0]->poses();
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    for (std::size_t k = 1; k < datasets.size() && !poses[i].object_known; ++k) {
+      const FramePose& other = datasets[k]->poses()[i];
+      if (!other.object_known) continue;
+      poses[i].T_world_object = other.T_world_object;
+      poses[i].object_known = true;
+    }
+  }
+  return poses;
+}
+
+namespace {
 
 // What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
 // for learned normals, its no-contact reference.
@@ -192,10 +227,14 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   std::deque<SensorFeed> feeds;  // (a builder does not move)
   for (const Dataset* d : datasets) feeds.emplace_back(*d, options.front_end, learned);
-  const bool sensor_frame = object_frame_is_sensor(dataset.poses(), dataset.dir() + "/poses.csv");
+  // The object's pose from whichever dataset gives it (they agree where several do).
+  const std::vector<FramePose> truth = sequence_poses(datasets);
+  const bool sensor_frame =
+      object_frame_is_sensor(truth, dataset.dir() + "/poses.csv" +
+                                        (datasets.size() > 1 ? " (and the other sensors')" : ""));
   Gaussian noise(options.seed);
   for (int i = 0; i < dataset.frames(); ++i) {
-    const FramePose& gt = dataset.poses()[i];
+    const FramePose& gt = truth[std::size_t(i)];
     // Decoding the image files is not part of the timed update.
     for (SensorFeed& feed : feeds) {
       if (learned) {

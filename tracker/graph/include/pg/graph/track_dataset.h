@@ -139,12 +139,19 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 // The same for several sensors touching one object in one sequence (a scene with several
 // sensors renders a dataset for each), tracked together (TrackerInput::other_sensors): the first
-// is the primary (its poses.csv gives the ground truth and the vision prior; the motion frame is
-// the carrying sensor's, TrackerInput::other_sensors). Every dataset must have as many frames, and
-// where two give the object's pose it must be the same (InputError naming the file and frame
-// otherwise).
+// is the primary (its sensor pose and poses.csv columns are the outputs'; the motion frame is the
+// carrying sensor's, TrackerInput::other_sensors). The ground truth and vision prior are the
+// object poses of sequence_poses(); check_same_sequence() must hold.
 TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
+
+// Throws InputError (naming the file, line or field) unless `datasets` (one per sensor) can be
+// tracked together: as many frames, the same fps, each frame at the same time (within half a
+// frame) and the same object pose (1e-6 m, 1e-5 rad) wherever two give one.
+void check_same_sequence(const std::vector<const Dataset*>& datasets);
+// The first dataset's poses, with the object's pose taken from another dataset at frames where
+// the first gives none: the sequence's ground truth and vision prior.
+std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& datasets);
 
 // The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
