@@ -508,12 +508,41 @@ ImageU8 Dataset::background() const {
     check_image(path, image, info_.width(), info_.height(), 3);
     return image;
   }
-  for (const FramePose& p : poses_) {
-    if (p.contact_known && !p.contact) return color(p.frame);
+  const std::vector<int> frames = reference_frames();
+  if (frames.empty()) {
+    throw InputError(dir_ +
+                     ": no background.png and no frame that poses.csv marks as without "
+                     "contact to use as the no-contact reference image");
   }
-  throw InputError(dir_ +
-                   ": no background.png and no frame that poses.csv marks as without "
-                   "contact to use as the no-contact reference image");
+  // Per pixel and channel the median, not the mean: the camera's noise is clipped at 0 and 255,
+  // so where the gel saturates a channel the frames' mean sits below the noise-free value, a
+  // brightness drift the network reads as slopes (eval-normals: contact angle 1.65 deg with the
+  // median of 15 frames, 2.98 with their mean, 2.83 with one frame, 1.68 with the noise-free
+  // image; docs/learned_normals.md).
+  std::vector<ImageU8> images;
+  for (int f : frames) images.push_back(color(f));
+  ImageU8 median = images[0];
+  std::vector<std::uint8_t> values(images.size());
+  const std::size_t mid = values.size() / 2;
+  for (std::size_t i = 0; i < median.data.size(); ++i) {
+    for (std::size_t k = 0; k < images.size(); ++k) values[k] = images[k].data[i];
+    std::nth_element(values.begin(), values.begin() + mid, values.end());
+    int m = values[mid];
+    if (values.size() % 2 == 0) {  // the two middle values' mean, rounded up
+      m = (m + *std::max_element(values.begin(), values.begin() + mid) + 1) / 2;
+    }
+    median.data[i] = std::uint8_t(m);
+  }
+  return median;
+}
+
+std::vector<int> Dataset::reference_frames() const {
+  std::vector<int> frames;
+  for (const FramePose& p : poses_) {
+    if (int(frames.size()) == kMaxReferenceFrames) break;
+    if (p.contact_known && !p.contact) frames.push_back(p.frame);
+  }
+  return frames;
 }
 
 ImageF Dataset::normal(int frame) const {

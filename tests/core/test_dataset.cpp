@@ -510,13 +510,19 @@ TEST(Image, ErrorsNameThePath) {
   expect_input_error([&] { read_image_u8(tmp.str()); }, "is a directory, not an image file");
 }
 
-TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheFirstFrameWithoutContact) {
+TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheMedianOfFramesWithoutContact) {
   TempDir tmp;
-  // Frames 0, 2, 4 have contact: without background.png, frame 1 is the reference.
+  // Frames 0, 2, 4 have contact: without background.png, frames 1 and 3 make the reference, the
+  // mean of the two middle values of an even count.
   write_small(tmp.str("a"), 5);
   const Dataset a = Dataset::open(tmp.str("a"));
-  EXPECT_EQ(a.background().data, a.color(1).data);
-  // A frame whose contact is not known is not taken: frame 3 is.
+  EXPECT_EQ(a.reference_frames(), (std::vector<int>{1, 3}));
+  const ImageU8 one = a.color(1), three = a.color(3), two_mean = a.background();
+  ASSERT_NE(one.data, three.data);
+  for (std::size_t i = 0; i < two_mean.data.size(); ++i) {
+    ASSERT_EQ(two_mean.data[i], (one.data[i] + three.data[i] + 1) / 2) << "byte " << i;
+  }
+  // A frame whose contact is not known is not taken: frame 3 alone is.
   std::vector<FramePose> poses = read_poses_csv(tmp.str("a/poses.csv"));
   poses[1].contact_known = false;
   write_poses_csv(tmp.str("a/poses.csv"), poses);

@@ -445,10 +445,36 @@ TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
                               out("track_no_background"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("note: " + copy +
-                       " has no background.png: frame 7, the first that poses.csv marks as "
+                       " has no background.png: frame 7, the one frame that poses.csv marks as "
                        "without contact, is the no-contact reference image"),
             std::string::npos)
       << r.out;
+  // With several such frames their median is the reference: less of the camera's noise.
+  const std::string several =
+      data_copy_with_poses("data_no_background_3", [](std::vector<FramePose>& poses) {
+        for (int f : {7, 8, 40}) poses[std::size_t(f)].contact = false;
+      });
+  fs::remove(several + "/background.png");
+  const Dataset d = Dataset::open(several);
+  EXPECT_EQ(d.reference_frames(), (std::vector<int>{7, 8, 40}));
+  const ImageU8 median = d.background();
+  const ImageU8 a = d.color(7), b = d.color(8), c = d.color(40);
+  int differs = 0;
+  for (std::size_t i = 0; i < median.data.size(); ++i) {
+    const int lo = std::min({a.data[i], b.data[i], c.data[i]});
+    const int hi = std::max({a.data[i], b.data[i], c.data[i]});
+    ASSERT_EQ(median.data[i], a.data[i] + b.data[i] + c.data[i] - lo - hi) << "byte " << i;
+    differs += median.data[i] != a.data[i];
+  }
+  EXPECT_GT(differs, int(median.data.size()) / 10) << "not just the first frame";
+  const CliRun three = patchgraph("track " + several + " -q --normals " + kDefaultModel +
+                                  " --out " + out("track_no_background_3"));
+  ASSERT_EQ(three.code, 0) << three.out;
+  EXPECT_NE(three.out.find("note: " + several +
+                           " has no background.png: the median of 3 frames that poses.csv marks "
+                           "as without contact (7 to 40) is the no-contact reference image"),
+            std::string::npos)
+      << three.out;
 }
 
 // A camera dropout (a black or white frame) is no image of the gel: with learned normals it is

@@ -81,14 +81,18 @@ int run_track(const TrackArgs& a) {
     }
     // The network reads each frame minus this reference: a frame wrongly marked without contact
     // would skew every estimate, so the choice is shown.
-    for (const FramePose& p : d.poses()) {
-      if (p.contact_known && !p.contact) {
-        std::printf(
-            "note: %s has no background.png: frame %d, the first that poses.csv marks as "
-            "without contact, is the no-contact reference image\n",
-            d.dir().c_str(), p.frame);
-        break;
-      }
+    const std::vector<int> frames = d.reference_frames();
+    if (frames.size() == 1) {
+      std::printf(
+          "note: %s has no background.png: frame %d, the one frame that poses.csv marks as "
+          "without contact, is the no-contact reference image (with several, their median "
+          "would hold less camera noise)\n",
+          d.dir().c_str(), frames[0]);
+    } else if (frames.size() > 1) {
+      std::printf(
+          "note: %s has no background.png: the median of %zu frames that poses.csv marks as "
+          "without contact (%d to %d) is the no-contact reference image\n",
+          d.dir().c_str(), frames.size(), frames.front(), frames.back());
     }
   }
   const OutputFolder out(a.out);

@@ -110,9 +110,15 @@ class Dataset {
   ImageF depth(int frame) const;
   ImageU8 mask(int frame) const;
   std::vector<Eigen::Vector3f> contact_points(int frame) const;
-  // The no-contact reference colour image: DIR/background.png, or else the first frame that
-  // poses.csv marks as without contact. Throws InputError when there is neither.
+  // The no-contact reference colour image: DIR/background.png, or else the per-pixel median of
+  // reference_frames() (of an even count, the two middle values' mean). Throws InputError when
+  // there is neither.
   ImageU8 background() const;
+  // Without background.png, the frames whose median is the no-contact reference: the first
+  // kMaxReferenceFrames that poses.csv marks as without contact. One frame would carry its camera
+  // noise into every difference image the learned normals read (docs/learned_normals.md).
+  std::vector<int> reference_frames() const;
+  static constexpr int kMaxReferenceFrames = 32;
 
  private:
   std::string dir_;
