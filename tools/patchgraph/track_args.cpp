@@ -135,19 +135,8 @@ std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& a) {
 }
 
 void check_normals_input(const NormalEstimator* model, const Dataset& dataset) {
-  if (!model) {
-    if (!dataset.info().has_output("normal")) {
-      throw InputError(dataset.dir() +
-                       ": dataset has no 'normal' output, needed for --normals gt (--normals MODEL "
-                       "estimates them from its colour images)");
-    }
-    return;
-  }
-  if (!dataset.info().has_output("color")) {
-    throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
-                     model->path());
-  }
-  model->check_sensor(dataset.info().sensor, dataset.dir());
+  check_normals_source(dataset, model ? model->path() : "gt");
+  if (model) model->check_sensor(dataset.info().sensor, dataset.dir());
 }
 
 std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model) {

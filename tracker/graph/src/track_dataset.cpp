@@ -126,6 +126,18 @@ std::string number(double v) {
 
 }  // namespace
 
+void check_normals_source(const Dataset& dataset, const std::string& normals) {
+  if (normals == "gt" && !dataset.info().has_output("normal")) {
+    throw InputError(dataset.dir() +
+                     ": dataset has no 'normal' output, needed for --normals gt (--normals MODEL "
+                     "estimates them from its colour images)");
+  }
+  if (normals != "gt" && !dataset.info().has_output("color")) {
+    throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +
+                     normals);
+  }
+}
+
 void check_same_sequence(const std::vector<const Dataset*>& datasets) {
   const Dataset& primary = *datasets[0];
   for (std::size_t k = 1; k < datasets.size(); ++k) {
@@ -208,15 +220,7 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
                        const std::function<void(int, int)>& progress) {
   if (datasets.empty()) throw std::invalid_argument("track_dataset: no dataset");
   const bool learned = bool(options.normals);
-  for (const Dataset* d : datasets) {
-    if (!learned && !d->info().has_output("normal")) {
-      throw InputError(d->dir() + ": dataset has no 'normal' output, needed for --normals gt");
-    }
-    if (learned && !d->info().has_output("color")) {
-      throw InputError(d->dir() + ": dataset has no 'color' output, needed for --normals " +
-                       options.normals_name);
-    }
-  }
+  for (const Dataset* d : datasets) check_normals_source(*d, learned ? options.normals_name : "gt");
   check_same_sequence(datasets);
   check_in_range("track option end_effector_noise", options.end_effector_noise, 0, kMaxPoseNoise);
   check_in_range("track option vision_noise", options.vision_noise, 0, kMaxPoseNoise);

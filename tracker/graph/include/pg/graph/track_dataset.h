@@ -145,6 +145,9 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
 TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 
+// Throws InputError naming the dataset unless it holds the images tracking reads: its normal
+// images for `normals` "gt", else its colour images for the model `normals` names.
+void check_normals_source(const Dataset& dataset, const std::string& normals);
 // Throws InputError (naming the file, line or field) unless `datasets` (one per sensor) can be
 // tracked together: as many frames, the same fps, each frame at the same time (within half a
 // frame) and the same object pose (1e-6 m, 1e-5 rad) wherever two give one.
