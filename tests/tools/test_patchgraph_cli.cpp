@@ -438,23 +438,27 @@ TEST_F(PatchgraphCli, TheSummaryRecordsSigmasAndNoise) {
 // Without background.png the no-contact reference the network reads each frame against is a
 // frame poses.csv marks as without contact: which one is said.
 TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
-  const std::string copy = data_copy_with_poses(
-      "data_no_background", [](std::vector<FramePose>& poses) { poses[7].contact = false; });
-  fs::remove(copy + "/background.png");
-  const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
-                              out("track_no_background"));
-  ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("note: " + copy +
-                       " has no background.png: frame 7, the one frame that poses.csv marks as "
-                       "without contact, is the no-contact reference image"),
-            std::string::npos)
-      << r.out;
+  // A copy without background.png whose `frames` poses.csv marks as without contact.
+  const auto without_background = [&](const std::string& name, std::vector<int> frames) {
+    const std::string copy = data_copy_with_poses(name, [&](std::vector<FramePose>& poses) {
+      for (int f : frames) poses[std::size_t(f)].contact = false;
+    });
+    fs::remove(copy + "/background.png");
+    return copy;
+  };
+  // Tracks `copy` and expects the note naming its reference.
+  const auto expect_note = [&](const std::string& copy, const std::string& note) {
+    const CliRun r = patchgraph("track " + copy + " -q --normals " + kDefaultModel + " --out " +
+                                out("track_" + fs::path(copy).filename().string()));
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_NE(r.out.find("note: " + copy + " has no background.png: " + note), std::string::npos)
+        << r.out;
+  };
+  expect_note(without_background("data_no_background", {7}),
+              "frame 7, the one frame that poses.csv marks as without contact, is the "
+              "no-contact reference image");
   // With several such frames their median is the reference: less of the camera's noise.
-  const std::string several =
-      data_copy_with_poses("data_no_background_3", [](std::vector<FramePose>& poses) {
-        for (int f : {7, 8, 40}) poses[std::size_t(f)].contact = false;
-      });
-  fs::remove(several + "/background.png");
+  const std::string several = without_background("data_no_background_3", {7, 8, 40});
   const Dataset d = Dataset::open(several);
   EXPECT_EQ(d.reference_frames(), (std::vector<int>{7, 8, 40}));
   const ImageU8 median = d.background();
@@ -467,14 +471,9 @@ TEST_F(PatchgraphCli, TheReferenceFrameTakenForAMissingBackgroundIsNamed) {
     differs += median.data[i] != a.data[i];
   }
   EXPECT_GT(differs, int(median.data.size()) / 10) << "not just the first frame";
-  const CliRun three = patchgraph("track " + several + " -q --normals " + kDefaultModel +
-                                  " --out " + out("track_no_background_3"));
-  ASSERT_EQ(three.code, 0) << three.out;
-  EXPECT_NE(three.out.find("note: " + several +
-                           " has no background.png: the median of 3 frames that poses.csv marks "
-                           "as without contact (7 to 40) is the no-contact reference image"),
-            std::string::npos)
-      << three.out;
+  expect_note(several,
+              "the median of 3 frames that poses.csv marks as without contact (7 to 40) is the "
+              "no-contact reference image");
 }
 
 // A camera dropout (a black or white frame) is no image of the gel: with learned normals it is
