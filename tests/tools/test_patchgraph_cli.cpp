@@ -689,6 +689,70 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
             std::string(std::istreambuf_iterator<char>(b), {}));
 }
 
+// Each sensor may have its own normals model (--normals A,B in the sequence's order): sensors of
+// different image sizes, or real sensors each with its own illumination.
+TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {
+  nlohmann::json scene =
+      parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/two_digits_regrasp.json");
+  scene["sensors"][1]["sensor"] = "digit_240x320";
+  scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/cube.glb";
+  const std::string scene_file = out("mixed_sizes.json");
+  std::ofstream(scene_file) << scene.dump(2);
+  const std::string render = out("mixed_sizes");
+  const CliRun rendered =
+      run(TACSIM_PATH, "render " + scene_file + " -q --outputs color,normal,mask --out " + render);
+  ASSERT_EQ(rendered.code, 0) << rendered.out;
+  const std::string below = render + "/digit_below", side = render + "/digit_side";
+  // A model for the side sensor's 240x320 images: small and briefly trained (the test is which
+  // model reads which sensor, not how well).
+  const std::string side_model = out("side_model.pt");
+  const CliRun trained =
+      patchgraph("train-normals --data " + side +
+                 " --depth 2 --width 4 --epochs 1 --threads 1 -q --out " + side_model);
+  ASSERT_EQ(trained.code, 0) << trained.out;
+  // One model for both: the side sensor's images are not its size.
+  CliRun r = patchgraph("track " + render + " -q --normals " + kDefaultModel + " --out " +
+                        out("mixed_one"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(side), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("has 240x320"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out("mixed_one")));
+  // One each, in the sensors' order: each reads its own sensor's frames.
+  const std::string each = kDefaultModel + "," + side_model;
+  r = patchgraph("track " + render + " -q --normals " + each + " --out " + out("mixed_each"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto summary = parse_json_file(out("mixed_each") + "/summary.json");
+  EXPECT_EQ(summary["normals"], each);
+  EXPECT_EQ(summary["sensors"], 2);
+  EXPECT_GT(errors_column_sum(out("mixed_each"), "contact_sensors"), 60) << "the side sensor's";
+  // Swapped, the below sensor's 120x160 images are not the side model's size.
+  r = patchgraph("track " + render + " -q --normals " + side_model + "," + kDefaultModel +
+                 " --out " + out("mixed_swapped"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(below + " has 120x160"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out("mixed_swapped")));
+  // One model, or one per sensor; no empty name, no gt beside a model.
+  for (const auto& [normals, message] : std::vector<std::pair<std::string, std::string>>{
+           {each + "," + side_model, "--normals: 3 models for 2 sensor(s) (" + below + ", " + side +
+                                         "); give one model for every sensor, or one "
+                                         "per sensor in that order"},
+           {kDefaultModel + ",", "an empty model name in the list"},
+           {"gt," + side_model, "gt is for every sensor or none"}}) {
+    r = patchgraph("track " + render + " -q --normals " + normals + " --out " + out("mixed_bad"));
+    EXPECT_EQ(r.code, 1) << normals << ": " << r.out;
+    EXPECT_NE(r.out.find(message), std::string::npos) << normals << ": " << r.out;
+    EXPECT_FALSE(fs::exists(out("mixed_bad")));
+  }
+  // eval takes the list the same way, for each sequence's sensors.
+  const CliRun e = patchgraph("eval --datasets " + render + " --methods constvel --no-plots -q " +
+                              "--normals " + each + " --out " + out("mixed_eval"));
+  ASSERT_EQ(e.code, 0) << e.out;
+  const auto evaluated =
+      parse_json_file(out("mixed_eval") + "/runs/mixed_sizes_constvel/summary.json");
+  EXPECT_EQ(evaluated["normals"], each);
+  EXPECT_EQ(evaluated["sensors"], 2);
+}
+
 // eval runs a render of several sensors (its sensors.json) as one sequence, the sensors together,
 // beside single-sensor datasets in the same folder.
 TEST_F(PatchgraphCli, EvalTracksARenderOfSeveralSensorsAsOneSequence) {

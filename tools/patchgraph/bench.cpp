@@ -222,14 +222,12 @@ TrackArgs args_for(const Setting& s, std::uint64_t seed) {
   return a;
 }
 
-// The --normals models, each loaded once, by path.
-using Models = std::map<std::string, std::shared_ptr<const NormalEstimator>>;
+// The --normals models, each source loaded once, by its name.
+using Models = std::map<std::string, NormalsModels>;
 
 TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed,
                          const Models& models) {
-  const auto model = models.find(s.normals);
-  TrackOptions o = make_track_options(args_for(s, seed), dataset,
-                                      model == models.end() ? nullptr : model->second);
+  TrackOptions o = make_track_options(args_for(s, seed), dataset, models.at(s.normals));
   o.front_end.icp.max_iterations = s.icp_iterations;
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;
@@ -348,7 +346,10 @@ int run_track_bench(const TrackBenchArgs& in) {
     const Dataset first = Dataset::open(cached_dataset(
         args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
     for (auto& s : settings) {
-      if (!models.count(s.normals)) models[s.normals] = load_normals_model(args_for(s, 0));
+      if (!models.count(s.normals)) {
+        models[s.normals] = load_normals_models(args_for(s, 0));
+        check_normals_models(models[s.normals], {&first});
+      }
       const TrackOptions o = options_for(s, first, 0, models);
       s.icp_symmetric = o.front_end.icp.symmetric;
       s.parity_integration = o.front_end.depth.integration == DepthIntegration::kParity;

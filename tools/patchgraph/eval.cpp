@@ -147,14 +147,15 @@ int run_eval(const EvalArgs& args) {
   for (const std::string& m : methods) method_from_string(m);  // fail before any work
   check_names_given_once(methods, "--methods");
   const std::vector<std::string> names = run_names(datasets);
-  // One model for every run; every dataset checked against it before any work.
-  const std::shared_ptr<const NormalEstimator> model = load_normals_model(args.track);
-  // Each sequence's datasets (one per sensor), all checked before any work.
+  // The models, loaded once for every run; each sequence's datasets (one per sensor) checked
+  // against them before any work.
+  const NormalsModels models = load_normals_models(args.track);
   std::vector<std::vector<Dataset>> opened;
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
-    opened.push_back(open_sequence(dir, model.get()));
+    opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
+    check_normals_models(models, sensors);
     const std::vector<FramePose> truth = sequence_poses(sensors);
     if (!truth.empty() && !truth.back().object_known) {
       throw InputError(sensors[0]->dir() + "/poses.csv" +
@@ -179,7 +180,7 @@ int run_eval(const EvalArgs& args) {
         TrackArgs a = args.track;
         a.method = m;
         a.seed = seed;
-        const TrackRun run = track_dataset(sensors, make_track_options(a, dataset, model));
+        const TrackRun run = track_dataset(sensors, make_track_options(a, dataset, models));
         const std::string name = names[k] + "_" + m;
         write_track_outputs(run, sensors, (fs::path(args.out) / "runs" / name).string());
         rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});

@@ -52,14 +52,14 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
 }
 
 int run_track(const TrackArgs& a) {
-  const std::shared_ptr<const NormalEstimator> model = load_normals_model(a);
+  const NormalsModels models = load_normals_models(a);
   std::vector<Dataset> datasets;
   // One sensor's measurements twice would count double: each folder once, however reached.
   std::map<std::string, std::string> seen;  // canonical folder -> the argument that gave it
   for (const std::string& given : a.datasets) {
     check_output_is_not_input(a.out, given, "the dataset");  // its poses.csv would be replaced
     // A render of several sensors stands for its sensors' datasets, in the scene's order.
-    for (Dataset& d : open_sequence(given, model.get())) {
+    for (Dataset& d : open_sequence(given)) {
       const auto [it, fresh] =
           seen.emplace(std::filesystem::weakly_canonical(d.dir()).string(), given);
       if (!fresh) {
@@ -71,9 +71,10 @@ int run_track(const TrackArgs& a) {
     }
   }
   const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
-  check_same_sequence(sensors);  // before the output folder is made
+  check_normals_models(models, sensors);  // before the output folder is made
+  check_same_sequence(sensors);
   const Dataset& dataset = datasets[0];
-  const TrackOptions options = make_track_options(a, dataset, model);
+  const TrackOptions options = make_track_options(a, dataset, models);
   for (const Dataset& d : datasets) {
     if (a.normals == "gt" ||
         std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png")) {

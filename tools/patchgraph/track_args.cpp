@@ -3,7 +3,10 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
+#include <sstream>
+#include <stdexcept>
 
 #include "../common/cli_main.h"
 #include "pg/core/error.h"
@@ -19,8 +22,10 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                    "constvel, imagetoimage, patchgraph (default), gtpatch");
   }
   app.add_option("--normals", a.normals,
-                 "Normals source: gt (the dataset's normal images) or a model file from "
-                 "train-normals (applied to the colour images)");
+                 "Normals source: gt (the dataset's normal images), a model file from "
+                 "train-normals (applied to the colour images), or one model per sensor in the "
+                 "sequence's order, separated by commas (sensors of different sizes or "
+                 "illumination)");
   app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
       ->check(range_check(1, kMaxThreads));
   app.add_option("--normals-phases", a.normals_phases,
@@ -126,27 +131,65 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   return ok;
 }
 
-std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& a) {
-  if (a.normals == "gt") return nullptr;
-  auto model =
-      std::make_shared<NormalEstimator>(NormalEstimator::load(a.normals, a.normals_threads));
-  model->set_phases(a.normals_phases);
-  return model;
+NormalsModels load_normals_models(const TrackArgs& a) {
+  if (a.normals == "gt") return {};
+  std::vector<std::string> paths;
+  std::stringstream list(a.normals);
+  for (std::string path; std::getline(list, path, ',');) paths.push_back(path);
+  if (!a.normals.empty() && a.normals.back() == ',') paths.emplace_back();
+  std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
+  NormalsModels models;
+  for (const std::string& path : paths) {
+    if (path.empty() || path == "gt") {
+      throw InputError(
+          "--normals " + a.normals + ": " +
+          (path.empty() ? "an empty model name in the list" : "gt is for every sensor or none") +
+          "; give gt, one model file for every sensor, or one per sensor in the "
+          "sequence's order, separated by commas");
+    }
+    auto& model = loaded[path];
+    if (!model) {
+      auto estimator =
+          std::make_shared<NormalEstimator>(NormalEstimator::load(path, a.normals_threads));
+      estimator->set_phases(a.normals_phases);
+      model = estimator;
+    }
+    models.push_back(model);
+  }
+  return models;
 }
 
-void check_normals_input(const NormalEstimator* model, const Dataset& dataset) {
-  check_normals_source(dataset, model ? model->path() : "gt");
-  if (model) model->check_sensor(dataset.info().sensor, dataset.dir());
+const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_t sensor) {
+  if (models.empty()) return nullptr;
+  if (models.size() == 1) return models[0].get();
+  if (sensor >= models.size()) {
+    throw std::logic_error("normals_model_for: no model for sensor " + std::to_string(sensor) +
+                           " (check_normals_models first)");
+  }
+  return models[sensor].get();
 }
 
-std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model) {
+void check_normals_models(const NormalsModels& models,
+                          const std::vector<const Dataset*>& datasets) {
+  if (models.size() > 1 && models.size() != datasets.size()) {
+    std::string names;
+    for (const Dataset* d : datasets) names += (names.empty() ? "" : ", ") + d->dir();
+    throw InputError("--normals: " + std::to_string(models.size()) + " models for " +
+                     std::to_string(datasets.size()) + " sensor(s) (" + names +
+                     "); give one model for every sensor, or one per sensor in that order");
+  }
+  for (std::size_t k = 0; k < datasets.size(); ++k) {
+    const NormalEstimator* model = normals_model_for(models, k);
+    check_normals_source(*datasets[k], model ? model->path() : "gt");
+    if (model) model->check_sensor(datasets[k]->info().sensor, datasets[k]->dir());
+  }
+}
+
+std::vector<Dataset> open_sequence(const std::string& dir) {
   std::vector<std::string> dirs = sensor_dataset_dirs(dir);
   if (dirs.empty()) dirs = {dir};  // Dataset::open says what it lacks
   std::vector<Dataset> datasets;
-  for (const std::string& d : dirs) {
-    datasets.push_back(Dataset::open(d));
-    check_normals_input(model, datasets.back());
-  }
+  for (const std::string& d : dirs) datasets.push_back(Dataset::open(d));
   if (datasets.size() > 1) {
     try {
       check_given_once(dirs);  // two names of sensors.json may link to one folder
@@ -166,13 +209,12 @@ std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& dataset
 }
 
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
-                                std::shared_ptr<const NormalEstimator> model) {
+                                const NormalsModels& models) {
   TrackOptions o;
   if (a.normals != "gt") {
-    if (!model) model = load_normals_model(a);
-    check_normals_input(model.get(), dataset);
-    o.normals = [model](const ImageU8& color, const ImageU8& reference) {
-      return model->predict(color, reference);
+    if (models.empty()) throw std::logic_error("make_track_options: --normals not loaded");
+    o.normals = [models](std::size_t sensor, const ImageU8& color, const ImageU8& reference) {
+      return normals_model_for(models, sensor)->predict(color, reference);
     };
     o.normals_name = a.normals;
   }

@@ -1,6 +1,7 @@
 #pragma once
 // Options shared by `patchgraph track` and `patchgraph eval`.
 #include <CLI/CLI.hpp>
+#include <cstddef>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -16,7 +17,9 @@ struct TrackArgs {
   std::vector<std::string> datasets;
   std::string out;
   std::string method = "patchgraph";
-  std::string normals = "gt";  // or a model file from train-normals
+  // "gt", a model file from train-normals for every sensor, or one per sensor in the sequence's
+  // order, comma-separated (load_normals_models).
+  std::string normals = "gt";
   int normals_threads = 1;
   int normals_phases = 1;  // NormalEstimator::set_phases
   std::string config;  // tracker config JSON (depth, mask, icp options)
@@ -39,21 +42,27 @@ struct TrackArgs {
 };
 
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
-// The --normals MODEL of `args` loaded, with its threads and phases; null for "gt".
-std::shared_ptr<const NormalEstimator> load_normals_model(const TrackArgs& args);
-// Checks that `dataset` has what `model` reads (colour images of the model's size), or for null
-// (ground-truth normals) its normal images. Throws InputError naming the dataset.
-void check_normals_input(const NormalEstimator* model, const Dataset& dataset);
+// The --normals models: none for "gt", one for every sensor, or one per sensor in the order of
+// the sequence's datasets ("below.pt,side.pt"; a file named twice is loaded once).
+using NormalsModels = std::vector<std::shared_ptr<const NormalEstimator>>;
+// --normals of `args` loaded, with its threads and phases. Throws InputError for an empty name
+// in the list, "gt" beside a model, or a file that does not load (naming it).
+NormalsModels load_normals_models(const TrackArgs& args);
+// The model that reads sensor `sensor`'s images: the one model, or that sensor's; null for none.
+const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_t sensor);
+// Checks that `models` fit `datasets` (one sequence's sensors, in order): none, one, or one per
+// dataset, and that each dataset has what its model reads (colour images of the model's size;
+// without a model, its normal images). Throws InputError naming the dataset, or --normals.
+void check_normals_models(const NormalsModels& models, const std::vector<const Dataset*>& datasets);
 // The datasets of one sequence: DIR's own, or a render of several sensors' (its sensors.json, in
-// that order), each opened and checked against `model` (null: ground-truth normals), and
-// checked to be one sequence (check_same_sequence), all before any work. Throws InputError
-// naming what is missing or malformed.
-std::vector<Dataset> open_sequence(const std::string& dir, const NormalEstimator* model);
+// that order), each opened, and checked to be one sequence (check_same_sequence), all before any
+// work. Throws InputError naming what is missing or malformed.
+std::vector<Dataset> open_sequence(const std::string& dir);
 std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& datasets);
-// Checks --normals and --method, loads --config and, for gtpatch, the dataset's object mesh.
-// `model`: --normals MODEL already loaded (eval's runs share one); null loads it.
+// Checks --method, loads --config and, for gtpatch, the primary dataset's object mesh. `models`:
+// --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
-                                std::shared_ptr<const NormalEstimator> model = nullptr);
+                                const NormalsModels& models);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line
 // to stderr naming `what` and the bound for each bound it misses. True when within the gate.

@@ -270,7 +270,7 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
       } else {
         if (learned) {
           const auto model_start = std::chrono::steady_clock::now();
-          feed.normals = options.normals(feed.color, feed.background);
+          feed.normals = options.normals(k, feed.color, feed.background);
           normals_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
                                                                   model_start)
                             .count();

@@ -2,6 +2,7 @@
 // Tracking a rendered (or recorded) dataset end to end: normals -> contact cloud -> PatchGraph,
 // with the paper's simulated measurement noise, and the errors against ground truth.
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -31,10 +32,11 @@ struct TrackOptions {
   // report how far the fixed-lag estimates are from it.
   bool compare_batch = false;
   // Where the normals come from: null = the dataset's ground-truth normal images ("gt"); else a
-  // function of the frame's colour image and the dataset's no-contact reference image
+  // function of the sensor (its dataset's index in track_dataset's list: each sensor may have
+  // its own model), the frame's colour image and that dataset's no-contact reference image
   // (Dataset::background; a learned model), timed as part of the frame.
-  std::function<ImageF(const ImageU8& color, const ImageU8& reference)> normals;
-  std::string normals_name = "gt";  // for the summary
+  std::function<ImageF(std::size_t sensor, const ImageU8& color, const ImageU8& reference)> normals;
+  std::string normals_name = "gt";  // for the summary (with a model per sensor, their list)
 };
 
 struct FrameResult {
