@@ -24,6 +24,7 @@
 
 #include "common/cli_main.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/sensor.h"
 #include "pg/sim/mesh.h"
@@ -788,9 +789,7 @@ int main(int argc, char** argv) {
     for (const Output& o : make_all(root)) {
       const fs::path path = root / o.file;
       fs::create_directories(path.parent_path());
-      std::ofstream out(path, std::ios::binary);
-      out << o.text;
-      if (!out) throw std::runtime_error(path.string() + ": cannot write");
+      pg::write_text_file(path.string(), o.text);
     }
     return pg::kExitOk;
   });

@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/point_io.h"
 
@@ -115,16 +116,6 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
   }
   f.finish();
   return info;
-}
-
-void write_text_atomically(const std::string& path, const std::string& text) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << text;
-    if (!out) throw InputError(path + ": cannot write");
-  }
-  fs::rename(tmp, path);
 }
 
 }  // namespace
@@ -392,9 +383,7 @@ void DatasetWriter::remove_stale_frames() const {
 
 void write_sensor_index(const std::string& dir, const std::vector<std::string>& names) {
   const std::string path = (fs::path(dir) / kSensorIndexFile).string();
-  std::ofstream out(path);
-  out << nlohmann::json({{"sensors", names}}).dump(2) << "\n";
-  if (!out) throw InputError(path + ": cannot write");
+  write_text_atomically(path, nlohmann::json({{"sensors", names}}).dump(2) + "\n");
 }
 
 std::vector<std::string> sensor_dataset_dirs(const std::string& dir) {

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 
@@ -63,10 +64,12 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
   // OpenImageIO stamps EXR files with the time of writing unless told a date; an empty one keeps
   // two writes of the same pixels byte-identical, so datasets can be compared by checksum.
   spec.attribute("DateTime", "");
-  if (!out->open(path, spec) || !out->write_image(mem_type, image.data.data())) {
-    throw InputError(path + ": cannot write image: " + out->geterror());
+  errno = 0;
+  if (!out->open(path, spec) || !out->write_image(mem_type, image.data.data()) || !out->close()) {
+    const int error_number = errno;
+    throw InputError(path + ": cannot write image: " + out->geterror() +
+                     write_failure_cause(path, error_number));
   }
-  out->close();
 }
 
 }  // namespace

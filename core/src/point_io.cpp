@@ -1,11 +1,14 @@
 #include "pg/core/point_io.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 
@@ -14,8 +17,9 @@ void write_ply(const std::string& path, const std::vector<Eigen::Vector3f>& poin
   if (normals && normals->size() != points.size()) {
     throw std::invalid_argument("write_ply: one normal per point expected");
   }
+  errno = 0;
   std::ofstream out(path, std::ios::binary);
-  if (!out) throw InputError(path + ": cannot write");
+  if (!out) throw InputError(path + ": cannot write" + write_failure_cause(path, errno));
   out << "ply\nformat binary_little_endian 1.0\nelement vertex " << points.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n";
   if (normals) out << "property float nx\nproperty float ny\nproperty float nz\n";
@@ -24,7 +28,13 @@ void write_ply(const std::string& path, const std::vector<Eigen::Vector3f>& poin
     out.write(reinterpret_cast<const char*>(points[i].data()), 3 * sizeof(float));
     if (normals) out.write(reinterpret_cast<const char*>((*normals)[i].data()), 3 * sizeof(float));
   }
-  if (!out) throw InputError(path + ": write failed");
+  try {
+    close_checked(out, path);
+  } catch (const InputError&) {
+    std::error_code ec;
+    std::filesystem::remove(path, ec);  // not a truncated PLY that reads as a short one
+    throw;
+  }
 }
 
 std::vector<Eigen::Vector3f> read_ply(const std::string& path,

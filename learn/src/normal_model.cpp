@@ -9,6 +9,7 @@
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/gel_rays.h"
 #include "pg/core/statistics.h"
 
@@ -164,12 +165,13 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
   generator->save(weights);
   archive.write("generator", weights);
   const std::string tmp = path + ".tmp";
+  std::error_code ec;
   try {
     archive.save_to(tmp);
-  } catch (const c10::Error& e) {
-    throw InputError(path + ": cannot write the model file");
+  } catch (const c10::Error&) {
+    fs::remove(tmp, ec);
+    throw InputError(path + ": cannot write the model file" + write_failure_cause(path, 0));
   }
-  std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw InputError(path + ": cannot write the model file: " + ec.message());
 }

@@ -14,6 +14,7 @@
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 
@@ -361,12 +362,16 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
       a.write("discriminator", dw);
       a.write("opt_d", od);
     }
+    std::error_code ec;
     try {
       a.save_to(checkpoint + ".tmp");
     } catch (const c10::Error&) {
-      throw InputError(checkpoint + ": cannot write the checkpoint");
+      fs::remove(checkpoint + ".tmp", ec);
+      throw InputError(checkpoint + ": cannot write the checkpoint" +
+                       write_failure_cause(checkpoint, 0));
     }
-    fs::rename(checkpoint + ".tmp", checkpoint);
+    fs::rename(checkpoint + ".tmp", checkpoint, ec);
+    if (ec) throw InputError(checkpoint + ": cannot write the checkpoint: " + ec.message());
   };
 
   const int batches = int((train.size() + o.batch - 1) / o.batch);

@@ -11,6 +11,7 @@
 
 #include "mesh_formats.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/se3.h"
 #include "pg/sim/mesh.h"
@@ -364,12 +365,7 @@ void save_glb(const std::string& path, const TriangleMesh& mesh) {
   if (!writer.WriteGltfSceneToStream(&model, glb, /*prettyPrint=*/false, /*writeBinary=*/true)) {
     throw InputError(path + ": tinygltf failed to serialise the mesh");
   }
-  std::ofstream file(path, std::ios::binary | std::ios::trunc);
-  if (!file) throw InputError(path + ": cannot open for writing: " + std::strerror(errno));
-  const std::string bytes = glb.str();
-  file.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  file.close();
-  if (!file) throw InputError(path + ": write failed: " + std::strerror(errno));
+  write_text_file(path, glb.str());
 }
 
 }  // namespace pg

@@ -2,12 +2,15 @@
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <mutex>
+#include <optional>
 
 #include "pg/core/error.h"
 #include "shading.h"
@@ -93,10 +96,149 @@ std::vector<RenderedFrame> SceneRenderer::render_frame(int frame) const {
   return out;
 }
 
+namespace {
+
+// The description of sensor `k`'s dataset.
+DatasetInfo dataset_info(const SceneRenderer& renderer, int k) {
+  const Scene& scene = renderer.scene();
+  const SceneObject& tracked = scene.objects[scene.tracked_object];
+  DatasetInfo info;
+  info.sensor = renderer.sensor(k).sensor();
+  // dataset.json describes the frames: a scene rendered without noise has none, whatever its
+  // sensor's noise model would add.
+  if (!scene.render.noise) info.sensor.noise.sigma = 0.0;
+  info.frames = scene.frames;
+  info.fps = scene.fps;
+  info.outputs = scene.render.outputs;
+  info.scene = fs::absolute(scene.path).lexically_normal().string();
+  info.seed = scene.render.seed;
+  info.object_name = tracked.name;
+  info.object_mesh = fs::absolute(tracked.mesh_path).lexically_normal().string();
+  info.object_scale = tracked.scale;
+  return info;
+}
+
+// Frame `frame` of sensor `k`, as its dataset stores it.
+void write_rendered_frame(const SceneRenderer& renderer, int frame, int k,
+                          const RenderedFrame& rendered, DatasetWriter& writer) {
+  const Scene& scene = renderer.scene();
+  FramePose pose;
+  pose.frame = frame;
+  pose.time_s = frame / scene.fps;
+  pose.T_world_object = scene.objects[scene.tracked_object].T_world_object.at(frame);
+  pose.T_world_sensor = scene.sensors[k].T_world_sensor.at(frame);
+  pose.contact = rendered.stats.contact;
+  FrameImages images = rendered.images;
+  if (!rendered.contact_points_object.empty()) {
+    images.contact_points = rendered.contact_points_object[scene.tracked_object];
+  }
+  writer.write_frame(pose, images);
+}
+
+std::uintmax_t folder_bytes(const fs::path& folder) {
+  std::uintmax_t bytes = 0;
+  std::error_code ec;
+  for (const auto& entry : fs::recursive_directory_iterator(folder, ec)) {
+    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
+  }
+  return bytes;
+}
+
+// Bytes of the frame files a render of `frames` frames into `dir` replaces (an earlier dataset's
+// of the same outputs), and of its poses.csv.
+std::uintmax_t replaced_bytes(const std::string& dir, const std::vector<std::string>& outputs,
+                              int frames) {
+  std::error_code ec;
+  if (!fs::exists(fs::path(dir) / "dataset.json", ec)) return 0;
+  std::uintmax_t bytes = 0;
+  const auto add = [&](const fs::path& file) {
+    const std::uintmax_t size = fs::file_size(file, ec);
+    if (!ec) bytes += size;
+  };
+  add(fs::path(dir) / "poses.csv");
+  for (const std::string& output : outputs) {
+    // The files there, not the frames' names: a render may be of millions of frames.
+    for (const auto& entry : fs::directory_iterator(fs::path(dir) / output, ec)) {
+      const std::string stem = entry.path().stem().string();
+      if (stem.empty() || stem.size() > 9 ||
+          !std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+        continue;
+      }
+      const int frame = std::stoi(stem);
+      if (frame < frames &&
+          entry.path().filename() == fs::path(dataset_frame_path(dir, output, frame)).filename()) {
+        add(entry.path());
+      }
+    }
+  }
+  return bytes;
+}
+
+// The free space of the disk that will hold `path` (its nearest existing folder's); nullopt when
+// the system does not say.
+std::optional<std::uintmax_t> free_bytes(fs::path path) {
+  std::error_code ec;
+  path = fs::absolute(path, ec);
+  while (!path.empty() && !fs::exists(path, ec)) {
+    if (path == path.parent_path()) break;
+    path = path.parent_path();
+  }
+  const fs::space_info space = fs::space(path, ec);
+  if (ec) return std::nullopt;
+  return space.available;
+}
+
+std::string size_text(std::uintmax_t bytes) {
+  char text[32];
+  if (bytes >= 1'000'000'000) {
+    std::snprintf(text, sizeof text, "%.1f GB", bytes / 1e9);
+  } else {
+    std::snprintf(text, sizeof text, "%.1f MB", bytes / 1e6);
+  }
+  return text;
+}
+
+}  // namespace
+
+std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
+  static std::atomic<int> calls{0};
+  const fs::path scratch =
+      fs::temp_directory_path() /
+      ("pg_render_estimate_" + std::to_string(::getpid()) + "_" + std::to_string(calls++));
+  const int frame = renderer.scene().frames / 2;  // more likely in contact than the first
+  std::uintmax_t total = 0;
+  try {
+    const std::vector<RenderedFrame> rendered = renderer.render_frame(frame);
+    for (int k = 0; k < renderer.sensor_count(); ++k) {
+      const fs::path dir = scratch / std::to_string(k);
+      DatasetInfo info = dataset_info(renderer, k);
+      const int frames = info.frames;
+      info.frames = frame + 1;  // the writer keeps a pose per frame: not a long scene's all
+      DatasetWriter writer(dir.string(), info);
+      write_rendered_frame(renderer, frame, k, rendered[k], writer);
+      if (info.has_output("color"))
+        writer.write_background(renderer.sensor(k).background_color_u8());
+      std::uintmax_t frame_files = 0;
+      for (const std::string& output : info.outputs) {
+        std::error_code ec;
+        const std::uintmax_t size =
+            fs::file_size(dataset_frame_path(dir.string(), output, frame), ec);
+        if (!ec) frame_files += size;
+      }
+      // The rest (dataset.json, background.png) once; a poses.csv row is under 400 bytes.
+      total += folder_bytes(dir) + (frame_files + 400) * std::uintmax_t(frames - 1) + 400;
+    }
+  } catch (const InputError&) {
+    total = 0;  // the scratch folder cannot be written: no estimate
+  }
+  std::error_code ec;
+  fs::remove_all(scratch, ec);
+  return total;
+}
+
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress) {
   const Scene& scene = renderer.scene();
-  const SceneObject& tracked = scene.objects[scene.tracked_object];
   RenderSummary summary;
   summary.frames = scene.frames;
   std::vector<std::string> dirs;
@@ -114,21 +256,24 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
                      "or empty folder");
   }
   for (const auto& dir : dirs) DatasetWriter::check_folder(dir);
+  // And the disk's space, before an earlier dataset there is touched: a render that cannot fit
+  // would stop half-way with a full disk.
+  summary.bytes_estimate = estimate_dataset_bytes(renderer);
+  std::uintmax_t replaced = 0;
+  for (const auto& dir : dirs) replaced += replaced_bytes(dir, scene.render.outputs, scene.frames);
+  const std::optional<std::uintmax_t> available = free_bytes(out_dir);
+  if (available && summary.bytes_estimate > *available + replaced) {
+    throw InputError(
+        out_dir + ": the render needs about " + size_text(summary.bytes_estimate) + " (" +
+        std::to_string(scene.frames) + " frames x " + std::to_string(renderer.sensor_count()) +
+        " sensor(s)) and the disk holding it has " + size_text(*available + replaced) +
+        (replaced > 0 ? " free, with the earlier dataset's frames it would replace" : " free") +
+        "; free some space, or render fewer frames, fewer outputs (--outputs) or "
+        "smaller images (--width, --height)");
+  }
   std::vector<std::unique_ptr<DatasetWriter>> writers;
   for (int i = 0; i < renderer.sensor_count(); ++i) {
-    DatasetInfo info;
-    info.sensor = renderer.sensor(i).sensor();
-    // dataset.json describes the frames: a scene rendered without noise has none, whatever its
-    // sensor's noise model would add.
-    if (!scene.render.noise) info.sensor.noise.sigma = 0.0;
-    info.frames = scene.frames;
-    info.fps = scene.fps;
-    info.outputs = scene.render.outputs;
-    info.scene = fs::absolute(scene.path).lexically_normal().string();
-    info.seed = scene.render.seed;
-    info.object_name = tracked.name;
-    info.object_mesh = fs::absolute(tracked.mesh_path).lexically_normal().string();
-    info.object_scale = tracked.scale;
+    const DatasetInfo info = dataset_info(renderer, i);
     const std::string& dir = dirs[i];
     writers.push_back(std::make_unique<DatasetWriter>(dir, info));
     if (info.has_output("color"))
@@ -142,17 +287,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
     const auto frames = renderer.render_frame(frame);
     bool contact = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
-      FramePose pose;
-      pose.frame = frame;
-      pose.time_s = frame / scene.fps;
-      pose.T_world_object = tracked.T_world_object.at(frame);
-      pose.T_world_sensor = scene.sensors[i].T_world_sensor.at(frame);
-      pose.contact = frames[i].stats.contact;
-      FrameImages images = frames[i].images;
-      if (!frames[i].contact_points_object.empty()) {
-        images.contact_points = frames[i].contact_points_object[scene.tracked_object];
-      }
-      writers[i]->write_frame(pose, images);
+      write_rendered_frame(renderer, frame, i, frames[i], *writers[i]);
       contact = contact || frames[i].stats.contact;
       clamped = clamped || frames[i].stats.clamped_pixels > 0;
     }

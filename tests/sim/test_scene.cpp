@@ -1,6 +1,7 @@
 // Scene files: every field parses, defaults, path resolution, error messages that name the file
 // and the field, trajectories through the loader, and the committed scenes under scenes/.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -12,7 +13,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pg/core/error.h"
@@ -20,6 +23,7 @@
 #include "pg/core/sensor.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/scene.h"
+#include "pg/sim/scene_renderer.h"
 
 namespace pg {
 namespace {
@@ -533,6 +537,34 @@ TEST(CommittedScenes, BenchmarkHasTwentyContactSequencesPerObject) {
       }
     }
   }
+}
+
+// The disk-space check before a render (render_scene_to_dataset) rests on this estimate: one
+// frame's files measured, times the frames. Against what whole renders write: one sensor with
+// every output (the contact points vary from frame to frame), and two sensors.
+TEST(SceneRendering, TheSizeEstimateIsNearWhatARenderWrites) {
+  const fs::path dir = fs::temp_directory_path() / ("pg_size_" + std::to_string(::getpid()));
+  for (const auto& [scene, outputs] : std::vector<std::pair<std::string, std::string>>{
+           {"default.json", "color,normal,depth,mask,points"},
+           {"examples/two_digits_regrasp.json", "color,normal"}}) {
+    SCOPED_TRACE(scene);
+    RenderOverrides overrides;
+    std::stringstream list(outputs);
+    for (std::string o; std::getline(list, o, ',');) overrides.outputs.push_back(o);
+    const SceneRenderer renderer(load_scene(std::string(PG_SOURCE_DIR) + "/scenes/" + scene),
+                                 overrides);
+    fs::remove_all(dir);
+    const RenderSummary summary = render_scene_to_dataset(renderer, dir.string());
+    std::uintmax_t written = 0;
+    for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+      if (entry.is_regular_file()) written += entry.file_size();
+    }
+    EXPECT_GT(written, 1'000'000u);
+    EXPECT_EQ(summary.bytes_estimate, estimate_dataset_bytes(renderer));
+    EXPECT_NEAR(double(summary.bytes_estimate) / double(written), 1.0, 0.1)
+        << summary.bytes_estimate << " estimated, " << written << " written";
+  }
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -189,6 +189,55 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_EQ(Dataset::open(d).frames(), 5);
 }
 
+// A render that the disk cannot hold is refused before anything is written (it would stop
+// half-way with a full disk); an earlier dataset in the folder stays whole. The render line says
+// how much a render wrote.
+TEST(TacsimCli, ARenderTheDiskCannotHoldIsRefusedBeforeWriting) {
+  TempDir tmp;
+  const std::string d = tmp.str("d");
+  CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out " + d);
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::uintmax_t bytes = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(d)) {
+    if (entry.is_regular_file()) bytes += entry.file_size();
+  }
+  char written[32];
+  std::snprintf(written, sizeof written, "(%.1f MB)", bytes / 1e6);
+  EXPECT_NE(r.out.find(d + " " + written), std::string::npos) << r.out;
+  // Ten million frames of the same press at 240x320, all outputs: about 10 TB.
+  std::string scene;
+  {
+    std::ifstream in(kScenes + "examples/sphere_press.json");
+    scene.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const auto replace = [&scene](const std::string& from, const std::string& to) {
+    scene.replace(scene.find(from), from.size(), to);
+  };
+  replace("\"frames\": 10", "\"frames\": 10000000");
+  replace("../../meshes/", std::string(PG_SOURCE_DIR) + "/meshes/");
+  std::ofstream(tmp.str("long.json")) << scene;
+  if (fs::space(tmp.str("")).available > 5'000'000'000'000ull) {
+    GTEST_SKIP() << "this disk could hold the render";
+  }
+  const std::string outputs =
+      " -q --width 240 --height 320 --outputs color,normal,depth,mask,points";
+  r = tacsim("render " + tmp.str("long.json") + outputs + " --out " + tmp.str("new"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(tmp.str("new") + ": the render needs about "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(10000000 frames x 1 sensor(s)) and the disk holding it has "),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("new")));
+  r = tacsim("render " + tmp.str("long.json") + outputs + " --out " + d);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("free, with the earlier dataset's frames it would replace"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(Dataset::open(d).frames(), 10);
+  EXPECT_EQ(Dataset::open(d).info().width(), 120);
+  EXPECT_NO_THROW(Dataset::open(d).color(9));
+}
+
 TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
   TempDir tmp;
   const std::string scene = kScenes + "examples/sphere_press.json";

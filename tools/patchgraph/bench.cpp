@@ -16,6 +16,7 @@
 #include "../common/machine_info.h"
 #include "../common/plot_script.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/sim/scene_renderer.h"
 #include "track_args.h"
@@ -259,7 +260,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
         << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad
         << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
   }
-  if (!out) throw InputError(path + ": cannot write");
+  close_checked(out, path);
 }
 
 void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
@@ -276,7 +277,7 @@ void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
           << "," << s.median_frame_ms << "," << s.rejected_registrations << "\n";
     }
   }
-  if (!out) throw InputError(path + ": cannot write");
+  close_checked(out, path);
 }
 
 std::string markdown_table(const std::vector<Row>& rows) {
@@ -385,7 +386,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   write_csv(csv, rows);
   write_runs_csv((fs::path(args.out) / "runs.csv").string(), rows);
   const std::string md = head + markdown_table(rows);
-  std::ofstream(md_path) << md;
+  write_text_file(md_path, md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s, %s and %s/runs.csv\n", csv.c_str(), md_path.c_str(), args.out.c_str());
   if (!args.no_plot && run_plot_script("plot_bench.py", args.out)) {

@@ -11,6 +11,7 @@
 #include "../common/cli_main.h"
 #include "../common/plot_script.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 
@@ -90,7 +91,7 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
         << csv_field(r.run) << "\n";
   }
-  if (!out) throw InputError(path + ": cannot write");
+  close_checked(out, path);
 }
 
 // One object and method's runs: final errors [m, rad] and per-frame update times [ms].
@@ -203,7 +204,7 @@ int run_eval(const EvalArgs& args) {
   write_results_csv(results, rows);
   const std::vector<Group> groups = group_runs(rows, methods);
   const std::string md = summary_markdown(groups);
-  std::ofstream((fs::path(args.out) / "summary.md").string()) << md;
+  write_text_file((fs::path(args.out) / "summary.md").string(), md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
   if (!args.no_plots) run_plot_script("plot_eval.py", args.out);

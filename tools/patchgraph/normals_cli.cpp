@@ -11,6 +11,7 @@
 #include "../common/cli_main.h"
 #include "../common/progress.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 namespace {
@@ -194,13 +195,11 @@ int run_eval_normals(const EvalNormalsArgs& a) {
                        {"ms_per_frame", m.ms_per_frame}});
   }
   if (!a.json.empty()) {
-    std::ofstream out(a.json);
-    out << nlohmann::json{{"model", a.model},
-                          {"arch", model.info().spec.arch},
-                          {"results", results}}
-               .dump(2)
-        << "\n";
-    if (!out) throw InputError(a.json + ": cannot write");
+    write_text_file(
+        a.json,
+        nlohmann::json{{"model", a.model}, {"arch", model.info().spec.arch}, {"results", results}}
+                .dump(2) +
+            "\n");
   }
   return kExitOk;
 }

@@ -18,6 +18,7 @@
 
 #include "../common/machine_info.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/statistics.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
@@ -206,9 +207,10 @@ int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const Be
     std::printf("%s", out.str().c_str());
     std::fflush(stdout);
     if (!args.markdown.empty()) {
-      std::ofstream file(args.markdown, preset == std::string("digit") ? std::ios::trunc : std::ios::app);
+      std::ofstream file(args.markdown,
+                         preset == std::string("digit") ? std::ios::trunc : std::ios::app);
       file << out.str();
-      if (!file) throw InputError(args.markdown + ": cannot write");
+      close_checked(file, args.markdown);
     }
     out.str("");
   }
@@ -265,9 +267,7 @@ int run_bench(const BenchArgs& in) {
     }
   }
   if (!args.markdown.empty()) {
-    std::ofstream out(args.markdown);
-    out << head.str() << table.str();
-    if (!out) throw InputError(args.markdown + ": cannot write");
+    write_text_file(args.markdown, head.str() + table.str());
   }
   return 0;
 }

@@ -75,11 +75,16 @@ int run_render(const RenderArgs& a) {
     sizes += (seen.empty() ? "" : " + ") + size;
     seen.push_back(size);
   }
+  std::uintmax_t bytes = 0;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(a.out, ec)) {
+    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
+  }
   std::printf(
       "rendered %d frames x %d sensor(s) at %s in %.2f s (%.1f frames/s, with image writing) -> "
-      "%s\n",
+      "%s (%.1f MB)\n",
       s.frames, renderer.sensor_count(), sizes.c_str(), s.seconds,
-      s.frames / std::max(s.seconds, 1e-9), a.out.c_str());
+      s.frames / std::max(s.seconds, 1e-9), a.out.c_str(), bytes / 1e6);
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
   std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
   if (s.contact_frames == 0) {

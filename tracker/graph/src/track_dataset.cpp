@@ -10,9 +10,11 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 #include <vector>
 
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/point_io.h"
 #include "pg/core/statistics.h"
 #include "pg/tracker/contact_cloud.h"
@@ -403,8 +405,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
     poses[i].contact_known = true;
   }
   write_poses_csv((fs::path(out_dir) / "poses.csv").string(), poses);
-  const std::string errors_path = (fs::path(out_dir) / "errors.csv").string();
-  std::ofstream errors(errors_path);
+  std::ostringstream errors;
   errors.precision(9);
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
@@ -425,7 +426,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
            << f.image_to_image_dropped << "," << f.rejected_normals << "," << f.contact_sensors
            << "\n";
   }
-  if (!errors) throw InputError(errors_path + ": cannot write");
+  write_text_atomically((fs::path(out_dir) / "errors.csv").string(), errors.str());
   const TrackSummary& s = run.summary;
   const GraphOptions& graph = run.tracker->options();
   // Every sensor's patch, in the object frame (gtpatch's is the one model).
@@ -495,7 +496,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
     summary["window_vs_batch_rotation_rms_rad"] = s.window_vs_batch_rotation_rms_rad;
   }
   const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
-  std::ofstream(summary_path) << summary.dump(2) << "\n";
+  write_text_atomically(summary_path, summary.dump(2) + "\n");
   write_ply((fs::path(out_dir) / "patch.ply").string(), patch.points, &patch.normals);
 }
 

@@ -1,5 +1,6 @@
 #pragma once
 // Renders a whole scene: every sensor, every frame, into the dataset format.
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -48,12 +49,21 @@ struct RenderSummary {
   int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
+  std::uintmax_t bytes_estimate = 0;      // estimate_dataset_bytes (0: not known)
 };
 
 // Progress callback: (frames done, frames total).
 using ProgressFn = std::function<void(int, int)>;
 
-// Writes OUT (one sensor) or OUT/<sensor name>/ (several sensors) in the dataset format.
+// The bytes a render writes, about: the middle frame's files (written to a scratch folder and
+// measured; a frame in contact takes more than one without) times the frames, and the files each
+// dataset holds once. 0 when the scratch folder cannot be written.
+std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer);
+
+// Writes OUT (one sensor) or OUT/<sensor name>/ (several sensors) in the dataset format. Throws
+// InputError before writing anything when a folder holds something else than a dataset, or the
+// disk has less free space than estimate_dataset_bytes (counting the frames of an earlier
+// dataset the render replaces).
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress = nullptr);
 

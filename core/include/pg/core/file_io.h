@@ -1,0 +1,25 @@
+#pragma once
+// Writing files so that a full disk (or a folder gone from under a run) is an InputError naming
+// the file and the cause, never a truncated file taken for a whole one.
+#include <fstream>
+#include <string>
+#include <string_view>
+
+namespace pg {
+
+// Free space below which a failed write is put down to a full disk [bytes].
+inline constexpr unsigned long long kLowDiskSpace = 1ull << 20;
+
+// " (CAUSE)" for a write of `path` that failed with `error_number` (errno; 0 when not known),
+// naming a disk with less than kLowDiskSpace free as full; "" when nothing is known.
+std::string write_failure_cause(const std::string& path, int error_number);
+// Closes `out`, opened on `path`, and throws InputError "PATH: cannot write (CAUSE)" unless every
+// write to it reached the file.
+void close_checked(std::ofstream& out, const std::string& path);
+// Writes `text` to `path`, replacing it; InputError as close_checked.
+void write_text_file(const std::string& path, std::string_view text);
+// The same through PATH.tmp and a rename, so no reader sees half a file: a write that fails leaves
+// the previous file as it was and no PATH.tmp.
+void write_text_atomically(const std::string& path, std::string_view text);
+
+}  // namespace pg

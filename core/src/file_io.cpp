@@ -1,0 +1,69 @@
+#include "pg/core/file_io.h"
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <optional>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+std::string write_failure_cause(const std::string& path, int error_number) {
+  std::string cause = error_number != 0 ? std::strerror(error_number) : "";
+  fs::path folder = fs::path(path).parent_path();
+  if (folder.empty()) folder = ".";
+  std::error_code ec;
+  const fs::space_info space = fs::space(folder, ec);
+  if (!ec && space.available < kLowDiskSpace) {
+    cause += (cause.empty() ? "" : "; ") + std::string("the disk holding ") + folder.string() +
+             " is full: " + std::to_string(space.available / 1024) + " KB free";
+  }
+  return cause.empty() ? "" : " (" + cause + ")";
+}
+
+namespace {
+
+// Writes `text` to `path`; nullopt when every byte reached the file, else the cause
+// (write_failure_cause).
+std::optional<std::string> try_write(const std::string& path, std::string_view text) {
+  errno = 0;
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (out) {
+    out.write(text.data(), std::streamsize(text.size()));
+    out.close();  // the last buffered bytes reach the file here, or fail to
+  }
+  if (out) return std::nullopt;
+  return write_failure_cause(path, errno);
+}
+
+}  // namespace
+
+void close_checked(std::ofstream& out, const std::string& path) {
+  errno = 0;
+  out.close();  // the last buffered bytes reach the file here, or fail to
+  if (!out) throw InputError(path + ": cannot write" + write_failure_cause(path, errno));
+}
+
+void write_text_file(const std::string& path, std::string_view text) {
+  if (const auto cause = try_write(path, text)) throw InputError(path + ": cannot write" + *cause);
+}
+
+void write_text_atomically(const std::string& path, std::string_view text) {
+  const std::string tmp = path + ".tmp";
+  std::error_code ec;
+  if (const auto cause = try_write(tmp, text)) {
+    fs::remove(tmp, ec);
+    throw InputError(path + ": cannot write" + *cause);
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    const std::string message = path + ": cannot replace it with " + tmp + ": " + ec.message();
+    fs::remove(tmp, ec);
+    throw InputError(message);
+  }
+}
+
+}  // namespace pg
