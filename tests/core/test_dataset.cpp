@@ -9,6 +9,7 @@
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/point_io.h"
 
@@ -462,6 +463,29 @@ TEST(PointIo, PlyRoundTripWithNormalsAndErrors) {
   std::vector<Eigen::Vector3f> bad = {{NAN, 0, 0}};
   write_ply(tmp.str("nan.ply"), bad);
   expect_input_error([&] { read_ply(tmp.str("nan.ply")); }, "not finite");
+}
+
+// A write that does not reach the disk is an error naming the file and the cause, never a short
+// file taken for a whole one (/dev/full fails every write as a full disk does); a failed atomic
+// write leaves the earlier file and no temporary.
+TEST(FileIo, AFailedWriteNamesTheFileAndTheCause) {
+  TempDir tmp;
+  expect_input_error([] { write_text_file("/dev/full", std::string(100000, 'x')); },
+                     "/dev/full: cannot write (No space left on device");
+  expect_input_error([] { write_text_file("/dev/full", "short, so buffered until closed"); },
+                     "No space left on device");
+  expect_input_error(
+      [] { write_ply("/dev/full", std::vector<Eigen::Vector3f>(10, Eigen::Vector3f::Ones())); },
+      "/dev/full: cannot write (No space left on device");
+  expect_input_error([&] { write_text_file(tmp.str("none/a.txt"), "x"); },
+                     "none/a.txt: cannot write (No such file or directory)");
+  write_text_atomically(tmp.str("a.txt"), "earlier");
+  fs::create_directory(tmp.str("a.txt.tmp/"));  // the temporary cannot be written
+  std::ofstream(tmp.str("a.txt.tmp/keep")) << "x";
+  expect_input_error([&] { write_text_atomically(tmp.str("a.txt"), "new"); },
+                     tmp.str("a.txt") + ": cannot write");
+  std::ifstream in(tmp.str("a.txt"));
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "earlier");
 }
 
 TEST(Image, FormatsRoundTrip) {
