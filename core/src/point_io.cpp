@@ -32,7 +32,9 @@ void write_ply(const std::string& path, const std::vector<Eigen::Vector3f>& poin
     close_checked(out, path);
   } catch (const InputError&) {
     std::error_code ec;
-    std::filesystem::remove(path, ec);  // not a truncated PLY that reads as a short one
+    if (std::filesystem::is_regular_file(path, ec)) {
+      std::filesystem::remove(path, ec);  // not a truncated PLY that reads as a short one
+    }
     throw;
   }
 }
