@@ -140,42 +140,74 @@ void check_normals_source(const Dataset& dataset, const std::string& normals) {
   }
 }
 
+std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets) {
+  const std::vector<FramePose>& primary = datasets[0]->poses();
+  const double half_frame = 0.5 / datasets[0]->info().fps;
+  std::vector<std::vector<int>> frames(datasets.size(), std::vector<int>(primary.size(), -1));
+  for (std::size_t i = 0; i < primary.size(); ++i) frames[0][i] = int(i);
+  for (std::size_t k = 1; k < datasets.size(); ++k) {
+    const std::vector<FramePose>& other = datasets[k]->poses();
+    std::vector<double> gap(primary.size(), half_frame);  // of the frame taken so far
+    for (std::size_t j = 0; j < other.size(); ++j) {
+      const double t = other[j].time_s;
+      // The primary's frames just before and after t (its times rise, Dataset::poses).
+      const auto after =
+          std::lower_bound(primary.begin(), primary.end(), t,
+                           [](const FramePose& p, double time) { return p.time_s < time; });
+      for (const auto near : {after - (after != primary.begin()), after}) {
+        if (near == primary.end()) continue;
+        const std::size_t i = std::size_t(near - primary.begin());
+        const double apart = std::abs(near->time_s - t);
+        // Two cameras' clocks may disagree a little; half a frame apart is another frame.
+        if (apart < gap[i]) {
+          gap[i] = apart;
+          frames[k][i] = int(j);
+        }
+      }
+    }
+  }
+  return frames;
+}
+
 void check_same_sequence(const std::vector<const Dataset*>& datasets) {
   const Dataset& primary = *datasets[0];
+  const double fps = primary.info().fps;
   for (std::size_t k = 1; k < datasets.size(); ++k) {
     const Dataset& other = *datasets[k];
-    if (other.frames() != primary.frames()) {
-      throw InputError(other.dir() + ": " + std::to_string(other.frames()) + " frames, but " +
-                       primary.dir() + " has " + std::to_string(primary.frames()) +
-                       "; the sensors of one sequence are tracked frame by frame together");
-    }
-    const double fps = primary.info().fps;
     if (std::abs(other.info().fps - fps) > 1e-9 * fps) {
       throw InputError(other.dir() + "/dataset.json: fps " + number(other.info().fps) + ", but " +
                        primary.dir() + " has " + number(fps) +
                        "; the sensors of one sequence are tracked frame by frame together");
     }
-    for (int i = 0; i < other.frames(); ++i) {
-      const FramePose& a = primary.poses()[std::size_t(i)];
-      const FramePose& b = other.poses()[std::size_t(i)];
-      // Two cameras' clocks may disagree a little; half a frame apart is another frame.
-      if (!(std::abs(a.time_s - b.time_s) < 0.5 / fps)) {
-        throw InputError(other.dir() + "/poses.csv: line " + std::to_string(i + 2) + " (frame " +
-                         std::to_string(i) + "): time " + number(b.time_s) + " s, but " +
-                         primary.dir() + "/poses.csv has " + number(a.time_s) +
-                         " s there; the sensors of one sequence must give their frames at the "
-                         "same times (within half a frame)");
-      }
+  }
+  const std::vector<std::vector<int>> frames = sequence_frames(datasets);
+  for (std::size_t k = 1; k < datasets.size(); ++k) {
+    const Dataset& other = *datasets[k];
+    if (std::all_of(frames[k].begin(), frames[k].end(), [](int j) { return j < 0; })) {
+      const auto span = [](const Dataset& d) {
+        return number(d.poses().front().time_s) + " to " + number(d.poses().back().time_s) + " s";
+      };
+      throw InputError(other.dir() + "/poses.csv: no frame within half a frame of one of " +
+                       primary.dir() + "/poses.csv's (times " + span(other) + " against " +
+                       span(primary) +
+                       "): not the same sequence, or clocks that are not aligned (shift its time "
+                       "column by the offset)");
+    }
+    for (std::size_t i = 0; i < frames[k].size(); ++i) {
+      const int j = frames[k][i];
+      if (j < 0) continue;
+      const FramePose& a = primary.poses()[i];
+      const FramePose& b = other.poses()[std::size_t(j)];
       if (!a.object_known || !b.object_known) continue;
       const double apart_m = translation_distance(a.T_world_object, b.T_world_object);
       const double apart_rad = rotation_distance(a.T_world_object, b.T_world_object);
       if (apart_m > kSameObjectM || apart_rad > kSameObjectRad) {
         char apart[96];
         std::snprintf(apart, sizeof apart, "%.3g mm / %.3g rad", apart_m * 1e3, apart_rad);
-        throw InputError(other.dir() + "/poses.csv: line " + std::to_string(i + 2) + " (frame " +
-                         std::to_string(i) + "): the object pose is " + apart + " from " +
-                         primary.dir() +
-                         "/poses.csv's: not the same object, or not the same world frame");
+        throw InputError(other.dir() + "/poses.csv: line " + std::to_string(j + 2) + " (frame " +
+                         std::to_string(j) + "): the object pose is " + apart + " from " +
+                         primary.dir() + "/poses.csv's at that time (frame " + std::to_string(i) +
+                         "): not the same object, or not the same world frame");
       }
     }
   }
@@ -183,15 +215,29 @@ void check_same_sequence(const std::vector<const Dataset*>& datasets) {
 
 std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& datasets) {
   std::vector<FramePose> poses = datasets[0]->poses();
+  const std::vector<std::vector<int>> frames = sequence_frames(datasets);
   for (std::size_t i = 0; i < poses.size(); ++i) {
     for (std::size_t k = 1; k < datasets.size() && !poses[i].object_known; ++k) {
-      const FramePose& other = datasets[k]->poses()[i];
+      if (frames[k][i] < 0) continue;
+      const FramePose& other = datasets[k]->poses()[std::size_t(frames[k][i])];
       if (!other.object_known) continue;
       poses[i].T_world_object = other.T_world_object;
       poses[i].object_known = true;
     }
   }
   return poses;
+}
+
+SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s) {
+  const auto after =
+      std::lower_bound(poses.begin(), poses.end(), time_s,
+                       [](const FramePose& p, double time) { return p.time_s < time; });
+  if (after == poses.begin()) return poses.front().T_world_sensor;
+  if (after == poses.end()) return poses.back().T_world_sensor;
+  const FramePose& before = *(after - 1);
+  const double span = after->time_s - before.time_s;
+  const double s = span > 0 ? (time_s - before.time_s) / span : 0.0;
+  return interpolate(before.T_world_sensor, after->T_world_sensor, s);
 }
 
 namespace {
@@ -208,6 +254,7 @@ struct SensorFeed {
   ImageU8 background;
   ImageU8 color;   // this frame's, for learned normals
   ImageF normals;  // this frame's: the dataset's, or the model's from `color`
+  int frame = -1;  // of this dataset at the primary's frame (sequence_frames); -1: none
   ContactFrame contact;
 };
 
@@ -238,15 +285,21 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   const bool sensor_frame =
       object_frame_is_sensor(truth, dataset.dir() + "/poses.csv" +
                                         (datasets.size() > 1 ? " (and the other sensors')" : ""));
+  // Each sensor's frame at each of the primary's (another's camera may have started later or
+  // dropped a frame: it adds nothing where it has none).
+  const std::vector<std::vector<int>> frames = sequence_frames(datasets);
   Gaussian noise(options.seed);
   for (int i = 0; i < dataset.frames(); ++i) {
     const FramePose& gt = truth[std::size_t(i)];
     // Decoding the image files is not part of the timed update.
-    for (SensorFeed& feed : feeds) {
+    for (std::size_t k = 0; k < feeds.size(); ++k) {
+      SensorFeed& feed = feeds[k];
+      feed.frame = frames[k][std::size_t(i)];
+      if (feed.frame < 0) continue;
       if (learned) {
-        feed.color = feed.dataset->color(i);
+        feed.color = feed.dataset->color(feed.frame);
       } else {
-        feed.normals = feed.dataset->normal(i);
+        feed.normals = feed.dataset->normal(feed.frame);
       }
     }
     TrackerInput input;
@@ -256,15 +309,23 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     input.object_prior_given = gt.object_known || (sensor_frame && i == 0);
     input.other_sensors.resize(feeds.size() - 1);
     for (std::size_t k = 1; k < feeds.size(); ++k) {
-      input.other_sensors[k - 1].T_world_sensor_measured = noise.perturb(
-          feeds[k].dataset->poses()[std::size_t(i)].T_world_sensor, options.end_effector_noise);
+      const std::vector<FramePose>& poses = feeds[k].dataset->poses();
+      const SE3 T_world_sensor = feeds[k].frame >= 0
+                                     ? poses[std::size_t(feeds[k].frame)].T_world_sensor
+                                     : sensor_pose_at(poses, gt.time_s);
+      input.other_sensors[k - 1].T_world_sensor_measured =
+          noise.perturb(T_world_sensor, options.end_effector_noise);
     }
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;
     FrameResult r;
     for (std::size_t k = 0; k < feeds.size(); ++k) {
       SensorFeed& feed = feeds[k];
-      if (learned && is_dropout(feed.color)) {
+      if (feed.frame < 0) {
+        // No image of this sensor at this time: its measurement is missing, no pixel is bad.
+        feed.builder.build_unreadable(feed.contact);
+        feed.contact.rejected_normals = 0;
+      } else if (learned && is_dropout(feed.color)) {
         feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
       } else if (learned &&
                  shows_no_change(feed.color, feed.background, feed.builder.min_contact_pixels())) {

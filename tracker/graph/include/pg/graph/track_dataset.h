@@ -143,20 +143,33 @@ TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
 // sensors renders a dataset for each), tracked together (TrackerInput::other_sensors): the first
 // is the primary (its sensor pose and poses.csv columns are the outputs'; the motion frame is the
 // carrying sensor's, TrackerInput::other_sensors). The ground truth and vision prior are the
-// object poses of sequence_poses(); check_same_sequence() must hold.
+// object poses of sequence_poses(); check_same_sequence() must hold. Frames are the primary's:
+// each other sensor gives its frame at that time (sequence_frames), and where it has none its
+// measurement is missing there (SensorInput::measurement_missing: an invalid input, its pose
+// interpolated, sensor_pose_at).
 TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackOptions& options,
                        const std::function<void(int, int)>& progress = nullptr);
 
 // Throws InputError naming the dataset unless it holds the images tracking reads: its normal
 // images for `normals` "gt", else its colour images for the model `normals` names.
 void check_normals_source(const Dataset& dataset, const std::string& normals);
+// Each sensor's frame at each of the primary's (datasets[0]'s) frames: frames[k][i] is sensor
+// k's frame nearest in time to the primary's frame i, within half a frame (each taken once, by
+// the nearer), or -1 where it has none (its camera started later, stopped earlier or dropped a
+// frame; two cameras' clocks may disagree a little). frames[0][i] = i; sensors rendered
+// together pair frame i with frame i.
+std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets);
 // Throws InputError (naming the file, line or field) unless `datasets` (one per sensor) can be
-// tracked together: as many frames, the same fps, each frame at the same time (within half a
-// frame) and the same object pose (1e-6 m, 1e-5 rad) wherever two give one.
+// tracked together: the same fps, some frames at the same times (sequence_frames) and the same
+// object pose (1e-6 m, 1e-5 rad) at those wherever two give one.
 void check_same_sequence(const std::vector<const Dataset*>& datasets);
-// The first dataset's poses, with the object's pose taken from another dataset at frames where
-// the first gives none: the sequence's ground truth and vision prior.
+// The first dataset's poses, with the object's pose taken from another dataset's frame at that
+// time (sequence_frames) where the first gives none: the sequence's ground truth and vision
+// prior.
 std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& datasets);
+// The sensor's pose at `time_s` from a dataset's poses: interpolated between the frames around it
+// (linear, slerp), the first or last frame's outside them.
+SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s);
 
 // The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
