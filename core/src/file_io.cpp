@@ -41,6 +41,13 @@ std::optional<std::string> try_write(const std::string& path, std::string_view t
 
 }  // namespace
 
+std::ofstream open_for_writing(const std::string& path) {
+  errno = 0;
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) throw InputError(path + ": cannot write" + write_failure_cause(path, errno));
+  return out;
+}
+
 void close_checked(std::ofstream& out, const std::string& path) {
   errno = 0;
   out.close();  // the last buffered bytes reach the file here, or fail to

@@ -202,9 +202,11 @@ std::string size_text(std::uintmax_t bytes) {
 
 std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
   static std::atomic<int> calls{0};
+  std::error_code ec;
+  const fs::path temp = fs::temp_directory_path(ec);
+  if (ec) return 0;  // no scratch folder (TMPDIR names none): no estimate
   const fs::path scratch =
-      fs::temp_directory_path() /
-      ("pg_render_estimate_" + std::to_string(::getpid()) + "_" + std::to_string(calls++));
+      temp / ("pg_render_estimate_" + std::to_string(::getpid()) + "_" + std::to_string(calls++));
   const int frame = renderer.scene().frames / 2;  // more likely in contact than the first
   std::uintmax_t total = 0;
   try {
@@ -228,10 +230,9 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
       // The rest (dataset.json, background.png) once; a poses.csv row is under 400 bytes.
       total += folder_bytes(dir) + (frame_files + 400) * std::uintmax_t(frames - 1) + 400;
     }
-  } catch (const InputError&) {
+  } catch (const std::exception&) {
     total = 0;  // the scratch folder cannot be written: no estimate
   }
-  std::error_code ec;
   fs::remove_all(scratch, ec);
   return total;
 }

@@ -798,8 +798,9 @@ TEST_F(PatchgraphCli, EvalTracksARenderOfSeveralSensorsAsOneSequence) {
   CliRun refused = patchgraph("eval --datasets " + bad + " --methods constvel -q --out " +
                               out("eval_sensors_bad_out"));
   EXPECT_EQ(refused.code, 1) << refused.out;
-  EXPECT_NE(refused.out.find(bad + "/mixed/b/poses.csv: line 2 (frame 0): the object pose is"),
-            std::string::npos)
+  EXPECT_NE(
+      refused.out.find(bad + "/mixed/b/poses.csv: line 2 (frame 0): the object pose at 0 s is"),
+      std::string::npos)
       << refused.out;
   EXPECT_FALSE(fs::exists(out("eval_sensors_bad_out")));
   fs::remove(bad + "/mixed/b");

@@ -242,7 +242,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t
 }
 
 void write_csv(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream out(path);
+  std::ofstream out = open_for_writing(path);
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
          "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
@@ -264,7 +264,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
 }
 
 void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream out(path);
+  std::ofstream out = open_for_writing(path);
   out.precision(9);
   out << "setting,scene,object,frames,final_translation_error_m,final_rotation_error_rad,"
          "translation_rmse_m,rotation_rmse_rad,median_frame_ms,rejected_registrations\n";

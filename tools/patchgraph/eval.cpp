@@ -78,7 +78,7 @@ struct Row {
 };
 
 void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream out(path);
+  std::ofstream out = open_for_writing(path);
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"

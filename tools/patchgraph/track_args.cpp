@@ -25,7 +25,7 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Normals source: gt (the dataset's normal images), a model file from "
                  "train-normals (applied to the colour images), or one model per sensor in the "
                  "sequence's order, separated by commas (sensors of different sizes or "
-                 "illumination)");
+                 "illumination; so a model's path cannot hold a comma)");
   app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
       ->check(range_check(1, kMaxThreads));
   app.add_option("--normals-phases", a.normals_phases,
@@ -133,6 +133,7 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
 
 NormalsModels load_normals_models(const TrackArgs& a) {
   if (a.normals == "gt") return {};
+  if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   std::vector<std::string> paths;
   std::stringstream list(a.normals);
   for (std::string path; std::getline(list, path, ',');) paths.push_back(path);

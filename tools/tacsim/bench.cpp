@@ -207,8 +207,13 @@ int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const Be
     std::printf("%s", out.str().c_str());
     std::fflush(stdout);
     if (!args.markdown.empty()) {
+      errno = 0;
       std::ofstream file(args.markdown,
                          preset == std::string("digit") ? std::ios::trunc : std::ios::app);
+      if (!file) {
+        throw InputError(args.markdown + ": cannot write" +
+                         write_failure_cause(args.markdown, errno));
+      }
       file << out.str();
       close_checked(file, args.markdown);
     }

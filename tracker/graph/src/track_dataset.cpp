@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <vector>
@@ -140,33 +141,86 @@ void check_normals_source(const Dataset& dataset, const std::string& normals) {
   }
 }
 
-std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets) {
-  const std::vector<FramePose>& primary = datasets[0]->poses();
-  const double half_frame = 0.5 / datasets[0]->info().fps;
-  std::vector<std::vector<int>> frames(datasets.size(), std::vector<int>(primary.size(), -1));
-  for (std::size_t i = 0; i < primary.size(); ++i) frames[0][i] = int(i);
-  for (std::size_t k = 1; k < datasets.size(); ++k) {
-    const std::vector<FramePose>& other = datasets[k]->poses();
-    std::vector<double> gap(primary.size(), half_frame);  // of the frame taken so far
-    for (std::size_t j = 0; j < other.size(); ++j) {
-      const double t = other[j].time_s;
-      // The primary's frames just before and after t (its times rise, Dataset::poses).
-      const auto after =
-          std::lower_bound(primary.begin(), primary.end(), t,
-                           [](const FramePose& p, double time) { return p.time_s < time; });
-      for (const auto near : {after - (after != primary.begin()), after}) {
-        if (near == primary.end()) continue;
-        const std::size_t i = std::size_t(near - primary.begin());
-        const double apart = std::abs(near->time_s - t);
-        // Two cameras' clocks may disagree a little; half a frame apart is another frame.
-        if (apart < gap[i]) {
-          gap[i] = apart;
-          frames[k][i] = int(j);
-        }
-      }
-    }
+namespace {
+
+// Sensor k's frame at each of the primary's frames (sequence_frames).
+std::vector<int> pair_frames(const std::vector<FramePose>& primary,
+                             const std::vector<FramePose>& other, double half_frame) {
+  const std::size_t m = primary.size(), n = other.size();
+  std::vector<int> frames(m, -1);
+  const auto apart = [&](std::size_t i, std::size_t j) {
+    return std::abs(other[j].time_s - primary[i].time_s);
+  };
+  bool in_step = m == n;  // frame i with frame i, as sensors rendered together
+  for (std::size_t i = 0; in_step && i < m; ++i) in_step = apart(i, i) < half_frame;
+  if (in_step) {
+    for (std::size_t i = 0; i < m; ++i) frames[i] = int(i);
+    return frames;
+  }
+  // Both lists rise in time: walk them together, each frame taken once and in order.
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < m && j < n; ++i) {
+    while (j < n && other[j].time_s <= primary[i].time_s - half_frame) ++j;  // none for it
+    while (j + 1 < n && apart(i, j + 1) < apart(i, j)) ++j;  // a nearer one (a dropped-in frame)
+    if (j == n || !(apart(i, j) < half_frame)) continue;
+    if (i + 1 < m && apart(i + 1, j) < apart(i, j)) continue;  // it is the next frame's
+    frames[i] = int(j++);
   }
   return frames;
+}
+
+// A pose at a time (pose_at), and how far apart the two frames it is interpolated between are
+// (0 for a frame's own): what a turn or a change of speed between them may put it off by.
+struct PoseAtTime {
+  SE3 pose;
+  double between_m = 0, between_rad = 0;
+};
+
+// The pose `pose` of `poses` at `time_s`: the frame's own at its time (`frame`'s where it is
+// stamped then: a coarse clock may stamp two alike), else interpolated between the frames around
+// it (linear, slerp) where both give it (`known`; null: every frame does); nullopt elsewhere.
+std::optional<PoseAtTime> pose_at(const std::vector<FramePose>& poses, double time_s,
+                                  SE3 FramePose::*pose, bool FramePose::*known, int frame) {
+  const auto gives = [known](const FramePose& p) { return known == nullptr || p.*known; };
+  if (frame >= 0 && poses[std::size_t(frame)].time_s == time_s) {
+    const FramePose& own = poses[std::size_t(frame)];
+    if (!gives(own)) return std::nullopt;
+    return PoseAtTime{own.*pose};
+  }
+  const auto after =
+      std::lower_bound(poses.begin(), poses.end(), time_s,
+                       [](const FramePose& p, double time) { return p.time_s < time; });
+  if (after != poses.end() && after->time_s == time_s) {
+    if (!gives(*after)) return std::nullopt;
+    return PoseAtTime{(*after).*pose};
+  }
+  if (after == poses.begin() || after == poses.end()) return std::nullopt;
+  const FramePose& before = *(after - 1);
+  if (!gives(before) || !gives(*after)) return std::nullopt;
+  const SE3& a = before.*pose;
+  const SE3& b = (*after).*pose;
+  const double s = (time_s - before.time_s) / (after->time_s - before.time_s);
+  return PoseAtTime{interpolate(a, b, s), translation_distance(a, b), rotation_distance(a, b)};
+}
+
+}  // namespace
+
+std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets) {
+  const std::vector<FramePose>& primary = datasets[0]->poses();
+  std::vector<std::vector<int>> frames(datasets.size());
+  frames[0].resize(primary.size());
+  for (std::size_t i = 0; i < primary.size(); ++i) frames[0][i] = int(i);
+  const double half_frame = 0.5 / datasets[0]->info().fps;
+  for (std::size_t k = 1; k < datasets.size(); ++k) {
+    frames[k] = pair_frames(primary, datasets[k]->poses(), half_frame);
+  }
+  return frames;
+}
+
+std::optional<SE3> object_pose_at(const std::vector<FramePose>& poses, double time_s, int frame) {
+  const auto at =
+      pose_at(poses, time_s, &FramePose::T_world_object, &FramePose::object_known, frame);
+  return at ? std::optional<SE3>(at->pose) : std::nullopt;
 }
 
 void check_same_sequence(const std::vector<const Dataset*>& datasets) {
@@ -196,17 +250,21 @@ void check_same_sequence(const std::vector<const Dataset*>& datasets) {
     for (std::size_t i = 0; i < frames[k].size(); ++i) {
       const int j = frames[k][i];
       if (j < 0) continue;
+      // The other's object pose at the primary's time (its frames may be stamped a little
+      // apart): its frame's own, or between its frames around that time.
       const FramePose& a = primary.poses()[i];
-      const FramePose& b = other.poses()[std::size_t(j)];
-      if (!a.object_known || !b.object_known) continue;
-      const double apart_m = translation_distance(a.T_world_object, b.T_world_object);
-      const double apart_rad = rotation_distance(a.T_world_object, b.T_world_object);
-      if (apart_m > kSameObjectM || apart_rad > kSameObjectRad) {
+      const std::optional<PoseAtTime> b =
+          pose_at(other.poses(), a.time_s, &FramePose::T_world_object, &FramePose::object_known, j);
+      if (!a.object_known || !b) continue;
+      const double apart_m = translation_distance(a.T_world_object, b->pose);
+      const double apart_rad = rotation_distance(a.T_world_object, b->pose);
+      if (apart_m > kSameObjectM + b->between_m || apart_rad > kSameObjectRad + b->between_rad) {
         char apart[96];
         std::snprintf(apart, sizeof apart, "%.3g mm / %.3g rad", apart_m * 1e3, apart_rad);
         throw InputError(other.dir() + "/poses.csv: line " + std::to_string(j + 2) + " (frame " +
-                         std::to_string(j) + "): the object pose is " + apart + " from " +
-                         primary.dir() + "/poses.csv's at that time (frame " + std::to_string(i) +
+                         std::to_string(j) + "): the object pose at " + number(a.time_s) +
+                         " s is " + apart + " from " + primary.dir() +
+                         "/poses.csv's at that time (frame " + std::to_string(i) +
                          "): not the same object, or not the same world frame");
       }
     }
@@ -219,25 +277,20 @@ std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& dataset
   for (std::size_t i = 0; i < poses.size(); ++i) {
     for (std::size_t k = 1; k < datasets.size() && !poses[i].object_known; ++k) {
       if (frames[k][i] < 0) continue;
-      const FramePose& other = datasets[k]->poses()[std::size_t(frames[k][i])];
-      if (!other.object_known) continue;
-      poses[i].T_world_object = other.T_world_object;
+      const std::optional<SE3> other =
+          object_pose_at(datasets[k]->poses(), poses[i].time_s, frames[k][i]);
+      if (!other) continue;
+      poses[i].T_world_object = *other;
       poses[i].object_known = true;
     }
   }
   return poses;
 }
 
-SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s) {
-  const auto after =
-      std::lower_bound(poses.begin(), poses.end(), time_s,
-                       [](const FramePose& p, double time) { return p.time_s < time; });
-  if (after == poses.begin()) return poses.front().T_world_sensor;
-  if (after == poses.end()) return poses.back().T_world_sensor;
-  const FramePose& before = *(after - 1);
-  const double span = after->time_s - before.time_s;
-  const double s = span > 0 ? (time_s - before.time_s) / span : 0.0;
-  return interpolate(before.T_world_sensor, after->T_world_sensor, s);
+SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s, int frame) {
+  const auto at = pose_at(poses, time_s, &FramePose::T_world_sensor, nullptr, frame);
+  if (at) return at->pose;
+  return time_s < poses.front().time_s ? poses.front().T_world_sensor : poses.back().T_world_sensor;
 }
 
 namespace {
@@ -309,12 +362,11 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     input.object_prior_given = gt.object_known || (sensor_frame && i == 0);
     input.other_sensors.resize(feeds.size() - 1);
     for (std::size_t k = 1; k < feeds.size(); ++k) {
-      const std::vector<FramePose>& poses = feeds[k].dataset->poses();
-      const SE3 T_world_sensor = feeds[k].frame >= 0
-                                     ? poses[std::size_t(feeds[k].frame)].T_world_sensor
-                                     : sensor_pose_at(poses, gt.time_s);
+      // At the primary's time: its frame's own pose when stamped then (sensors rendered
+      // together), else between its frames around that time.
       input.other_sensors[k - 1].T_world_sensor_measured =
-          noise.perturb(T_world_sensor, options.end_effector_noise);
+          noise.perturb(sensor_pose_at(feeds[k].dataset->poses(), gt.time_s, feeds[k].frame),
+                        options.end_effector_noise);
     }
     const auto start = std::chrono::steady_clock::now();
     double normals_ms = 0;

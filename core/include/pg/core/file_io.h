@@ -13,6 +13,9 @@ inline constexpr unsigned long long kLowDiskSpace = 1ull << 20;
 // " (CAUSE)" for a write of `path` that failed with `error_number` (errno; 0 when not known),
 // naming a disk with less than kLowDiskSpace free as full; "" when nothing is known.
 std::string write_failure_cause(const std::string& path, int error_number);
+// `path` opened for writing (replacing it); InputError "PATH: cannot write (CAUSE)" when it
+// cannot be.
+std::ofstream open_for_writing(const std::string& path);
 // Closes `out`, opened on `path`, and throws InputError "PATH: cannot write (CAUSE)" unless every
 // write to it reached the file.
 void close_checked(std::ofstream& out, const std::string& path);

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -154,22 +155,28 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
 // images for `normals` "gt", else its colour images for the model `normals` names.
 void check_normals_source(const Dataset& dataset, const std::string& normals);
 // Each sensor's frame at each of the primary's (datasets[0]'s) frames: frames[k][i] is sensor
-// k's frame nearest in time to the primary's frame i, within half a frame (each taken once, by
-// the nearer), or -1 where it has none (its camera started later, stopped earlier or dropped a
-// frame; two cameras' clocks may disagree a little). frames[0][i] = i; sensors rendered
-// together pair frame i with frame i.
+// k's frame taken at the time of the primary's frame i, within half a frame, or -1 where it has
+// none (its camera started later, stopped earlier or dropped a frame; two cameras' clocks may
+// disagree a little). Each frame is taken once and in time order, by the primary's frame it is
+// nearest to, and the nearest of those near one frame. frames[0][i] = i; datasets of as many
+// frames all within half a frame of each other's (sensors rendered together) pair i with i.
 std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets);
 // Throws InputError (naming the file, line or field) unless `datasets` (one per sensor) can be
 // tracked together: the same fps, some frames at the same times (sequence_frames) and the same
-// object pose (1e-6 m, 1e-5 rad) at those wherever two give one.
+// object pose at the primary's times wherever two give one (object_pose_at): 1e-6 m, 1e-5 rad
+// apart at a frame's own time, and the motion between the two frames more where interpolated.
 void check_same_sequence(const std::vector<const Dataset*>& datasets);
-// The first dataset's poses, with the object's pose taken from another dataset's frame at that
-// time (sequence_frames) where the first gives none: the sequence's ground truth and vision
-// prior.
+// The first dataset's poses, with the object's pose taken from another dataset at that time
+// (object_pose_at, where that one has a frame then: sequence_frames) where the first gives none:
+// the sequence's ground truth and vision prior.
 std::vector<FramePose> sequence_poses(const std::vector<const Dataset*>& datasets);
-// The sensor's pose at `time_s` from a dataset's poses: interpolated between the frames around it
-// (linear, slerp), the first or last frame's outside them.
-SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s);
+// A dataset's poses at `time_s`: a frame's own at its time (`frame`'s, the one paired with that
+// time, where it is stamped then: a coarse clock may stamp two alike), else interpolated between
+// the frames around it (linear, slerp). The object's only where both frames give it (nullopt
+// else, and outside the frames); the sensor's the first or last frame's outside them.
+std::optional<SE3> object_pose_at(const std::vector<FramePose>& poses, double time_s,
+                                  int frame = -1);
+SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s, int frame = -1);
 
 // The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
