@@ -687,6 +687,32 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   std::ifstream a(out("folder") + "/poses.csv"), b(out("both") + "/poses.csv");
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(a), {}),
             std::string(std::istreambuf_iterator<char>(b), {}));
+  // A camera that started two frames late: its frames paired by time, those it lacks named.
+  {
+    const Dataset from = Dataset::open(side);
+    DatasetInfo info = from.info();
+    info.frames = from.frames() - 2;
+    DatasetWriter writer(out("side_late"), info);
+    for (int j = 2; j < from.frames(); ++j) {
+      FramePose pose = from.poses()[std::size_t(j)];
+      pose.frame = j - 2;
+      FrameImages images;
+      images.normal = from.normal(j);
+      writer.write_frame(pose, images);
+    }
+    writer.finish();
+  }
+  const CliRun late =
+      patchgraph("track " + below + " " + out("side_late") + " -q --out " + out("late"));
+  ASSERT_EQ(late.code, 0) << late.out;
+  EXPECT_NE(late.out.find("note: " + out("side_late") +
+                          " has no frame within half a frame of 2 of the 60 frames of " + below +
+                          " (the first: its frame 0)"),
+            std::string::npos)
+      << late.out;
+  EXPECT_NE(late.out.find("warning: 2 frame(s) had a non-finite"), std::string::npos) << late.out;
+  EXPECT_NE(late.out.find("or a sensor without a frame at that time (above)"), std::string::npos)
+      << late.out;
 }
 
 // Each sensor may have its own normals model (--normals A,B in the sequence's order): sensors of

@@ -157,6 +157,7 @@ int run_eval(const EvalArgs& args) {
     opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
     check_normals_models(models, sensors);
+    note_missing_frames(sensors);
     const std::vector<FramePose> truth = sequence_poses(sensors);
     if (!truth.empty() && !truth.back().object_known) {
       throw InputError(sensors[0]->dir() + "/poses.csv" +

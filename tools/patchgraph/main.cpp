@@ -74,20 +74,7 @@ int run_track(const TrackArgs& a) {
   check_normals_models(models, sensors);  // before the output folder is made
   check_same_sequence(sensors);
   const Dataset& dataset = datasets[0];
-  // Cameras of their own may start, stop or drop frames apart: where a sensor has no frame at the
-  // primary's time it adds nothing, which is said before the run.
-  const std::vector<std::vector<int>> frames = sequence_frames(sensors);
-  int unpaired_frames = 0;
-  for (std::size_t k = 1; k < frames.size(); ++k) {
-    const int missing = int(std::count(frames[k].begin(), frames[k].end(), -1));
-    if (missing == 0) continue;
-    unpaired_frames += missing;
-    const int first = int(std::find(frames[k].begin(), frames[k].end(), -1) - frames[k].begin());
-    std::printf(
-        "note: %s has no frame within half a frame of %d of the %d frames of %s (the first at "
-        "its frame %d); it adds nothing to those (errors.csv: invalid_input)\n",
-        datasets[k].dir().c_str(), missing, dataset.frames(), dataset.dir().c_str(), first);
-  }
+  const int unpaired_frames = note_missing_frames(sensors);
   const TrackOptions options = make_track_options(a, dataset, models);
   for (const Dataset& d : datasets) {
     if (a.normals == "gt" ||

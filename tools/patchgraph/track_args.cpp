@@ -1,5 +1,6 @@
 #include "track_args.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -207,6 +208,23 @@ std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& dataset
   std::vector<const Dataset*> out;
   for (const Dataset& d : datasets) out.push_back(&d);
   return out;
+}
+
+int note_missing_frames(const std::vector<const Dataset*>& datasets) {
+  const std::vector<std::vector<int>> frames = sequence_frames(datasets);
+  int total = 0;
+  for (std::size_t k = 1; k < frames.size(); ++k) {
+    const int missing = int(std::count(frames[k].begin(), frames[k].end(), -1));
+    if (missing == 0) continue;
+    total += missing;
+    const int first = int(std::find(frames[k].begin(), frames[k].end(), -1) - frames[k].begin());
+    std::printf(
+        "note: %s has no frame within half a frame of %d of the %d frames of %s (the first: its "
+        "frame %d); it adds nothing to those (errors.csv: invalid_input)\n",
+        datasets[k]->dir().c_str(), missing, datasets[0]->frames(), datasets[0]->dir().c_str(),
+        first);
+  }
+  return total;
 }
 
 TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,

@@ -59,6 +59,10 @@ void check_normals_models(const NormalsModels& models, const std::vector<const D
 // work. Throws InputError naming what is missing or malformed.
 std::vector<Dataset> open_sequence(const std::string& dir);
 std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& datasets);
+// Cameras of their own may start, stop or drop frames apart: prints a note for each sensor of
+// `datasets` without a frame at some of the primary's times (sequence_frames), where it adds
+// nothing. Returns how many such sensor-frames there are.
+int note_missing_frames(const std::vector<const Dataset*>& datasets);
 // Checks --method, loads --config and, for gtpatch, the primary dataset's object mesh. `models`:
 // --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
