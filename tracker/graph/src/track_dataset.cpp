@@ -225,15 +225,6 @@ std::optional<SE3> object_pose_at(const std::vector<FramePose>& poses, double ti
 
 void check_same_sequence(const std::vector<const Dataset*>& datasets) {
   const Dataset& primary = *datasets[0];
-  const double fps = primary.info().fps;
-  for (std::size_t k = 1; k < datasets.size(); ++k) {
-    const Dataset& other = *datasets[k];
-    if (std::abs(other.info().fps - fps) > 1e-9 * fps) {
-      throw InputError(other.dir() + "/dataset.json: fps " + number(other.info().fps) + ", but " +
-                       primary.dir() + " has " + number(fps) +
-                       "; the sensors of one sequence are tracked frame by frame together");
-    }
-  }
   const std::vector<std::vector<int>> frames = sequence_frames(datasets);
   for (std::size_t k = 1; k < datasets.size(); ++k) {
     const Dataset& other = *datasets[k];

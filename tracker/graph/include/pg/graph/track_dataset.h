@@ -155,16 +155,17 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
 // images for `normals` "gt", else its colour images for the model `normals` names.
 void check_normals_source(const Dataset& dataset, const std::string& normals);
 // Each sensor's frame at each of the primary's (datasets[0]'s) frames: frames[k][i] is sensor
-// k's frame taken at the time of the primary's frame i, within half a frame, or -1 where it has
-// none (its camera started later, stopped earlier or dropped a frame; two cameras' clocks may
-// disagree a little). Each frame is taken once and in time order, by the primary's frame it is
-// nearest to, and the nearest of those near one frame. frames[0][i] = i; datasets of as many
-// frames all within half a frame of each other's (sensors rendered together) pair i with i.
+// k's frame taken at the time of the primary's frame i, within half of the primary's frame (the
+// rates may differ), or -1 where it has none (its camera started later, stopped earlier, dropped
+// a frame or runs slower; two cameras' clocks may disagree a little). Each frame is taken once
+// and in time order, by the primary's frame it is nearest to, and the nearest of those near one
+// frame. frames[0][i] = i; datasets of as many frames all within half a frame of each other's
+// (sensors rendered together) pair i with i.
 std::vector<std::vector<int>> sequence_frames(const std::vector<const Dataset*>& datasets);
 // Throws InputError (naming the file, line or field) unless `datasets` (one per sensor) can be
-// tracked together: the same fps, some frames at the same times (sequence_frames) and the same
-// object pose at the primary's times wherever two give one (object_pose_at): 1e-6 m, 1e-5 rad
-// apart at a frame's own time, and the motion between the two frames more where interpolated.
+// tracked together: some frames at the same times (sequence_frames) and the same object pose at
+// the primary's times wherever two give one (object_pose_at): 1e-6 m, 1e-5 rad apart at a frame's
+// own time, and the motion between the two frames more where interpolated.
 void check_same_sequence(const std::vector<const Dataset*>& datasets);
 // The first dataset's poses, with the object's pose taken from another dataset at that time
 // (object_pose_at, where that one has a frame then: sequence_frames) where the first gives none:
