@@ -118,12 +118,12 @@ DatasetInfo dataset_info(const SceneRenderer& renderer, int k) {
   return info;
 }
 
-// Frame `frame` of sensor `k`, as its dataset stores it.
+// Frame `frame` of sensor `k`, as its dataset stores it (as frame `index` of `writer`'s).
 void write_rendered_frame(const SceneRenderer& renderer, int frame, int k,
-                          const RenderedFrame& rendered, DatasetWriter& writer) {
+                          const RenderedFrame& rendered, DatasetWriter& writer, int index) {
   const Scene& scene = renderer.scene();
   FramePose pose;
-  pose.frame = frame;
+  pose.frame = index;
   pose.time_s = frame / scene.fps;
   pose.T_world_object = scene.objects[scene.tracked_object].T_world_object.at(frame);
   pose.T_world_sensor = scene.sensors[k].T_world_sensor.at(frame);
@@ -190,7 +190,9 @@ std::optional<std::uintmax_t> free_bytes(fs::path path) {
 
 std::string size_text(std::uintmax_t bytes) {
   char text[32];
-  if (bytes >= 1'000'000'000) {
+  if (bytes >= 1'000'000'000'000) {
+    std::snprintf(text, sizeof text, "%.1f TB", bytes / 1e12);
+  } else if (bytes >= 1'000'000'000) {
     std::snprintf(text, sizeof text, "%.1f GB", bytes / 1e9);
   } else {
     std::snprintf(text, sizeof text, "%.1f MB", bytes / 1e6);
@@ -215,17 +217,17 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
       const fs::path dir = scratch / std::to_string(k);
       DatasetInfo info = dataset_info(renderer, k);
       const int frames = info.frames;
-      info.frames = frame + 1;  // the writer keeps a pose per frame: not a long scene's all
+      info.frames = 1;  // the writer keeps a pose per frame: the one, stored as frame 0
       DatasetWriter writer(dir.string(), info);
-      write_rendered_frame(renderer, frame, k, rendered[k], writer);
+      write_rendered_frame(renderer, frame, k, rendered[k], writer, 0);
       if (info.has_output("color"))
         writer.write_background(renderer.sensor(k).background_color_u8());
       std::uintmax_t frame_files = 0;
       for (const std::string& output : info.outputs) {
-        std::error_code ec;
+        std::error_code size_ec;
         const std::uintmax_t size =
-            fs::file_size(dataset_frame_path(dir.string(), output, frame), ec);
-        if (!ec) frame_files += size;
+            fs::file_size(dataset_frame_path(dir.string(), output, 0), size_ec);
+        if (!size_ec) frame_files += size;
       }
       // The rest (dataset.json, background.png) once; a poses.csv row is under 400 bytes.
       total += folder_bytes(dir) + (frame_files + 400) * std::uintmax_t(frames - 1) + 400;
@@ -288,7 +290,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
     const auto frames = renderer.render_frame(frame);
     bool contact = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
-      write_rendered_frame(renderer, frame, i, frames[i], *writers[i]);
+      write_rendered_frame(renderer, frame, i, frames[i], *writers[i], frame);
       contact = contact || frames[i].stats.contact;
       clamped = clamped || frames[i].stats.clamped_pixels > 0;
     }

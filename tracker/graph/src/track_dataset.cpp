@@ -7,7 +7,6 @@
 #include <cstdlib>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
@@ -161,7 +160,7 @@ std::vector<int> pair_frames(const std::vector<FramePose>& primary,
   std::size_t j = 0;
   for (std::size_t i = 0; i < m && j < n; ++i) {
     while (j < n && other[j].time_s <= primary[i].time_s - half_frame) ++j;  // none for it
-    while (j + 1 < n && apart(i, j + 1) < apart(i, j)) ++j;  // a nearer one (a dropped-in frame)
+    while (j + 1 < n && apart(i, j + 1) < apart(i, j)) ++j;  // a nearer one (a faster camera)
     if (j == n || !(apart(i, j) < half_frame)) continue;
     if (i + 1 < m && apart(i + 1, j) < apart(i, j)) continue;  // it is the next frame's
     frames[i] = int(j++);
