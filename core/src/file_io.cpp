@@ -11,6 +11,15 @@ namespace pg {
 
 namespace fs = std::filesystem;
 
+std::uintmax_t folder_bytes(const std::string& folder) {
+  std::uintmax_t bytes = 0;
+  std::error_code ec;
+  for (const auto& entry : fs::recursive_directory_iterator(folder, ec)) {
+    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
+  }
+  return bytes;
+}
+
 std::string write_failure_cause(const std::string& path, int error_number) {
   std::string cause = error_number != 0 ? std::strerror(error_number) : "";
   fs::path folder = fs::path(path).parent_path();

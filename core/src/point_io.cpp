@@ -1,10 +1,7 @@
 #include "pg/core/point_io.h"
 
-#include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -18,32 +15,17 @@ void write_ply(const std::string& path, const std::vector<Eigen::Vector3f>& poin
   if (normals && normals->size() != points.size()) {
     throw std::invalid_argument("write_ply: one normal per point expected");
   }
-  // Through PATH.tmp and a rename, as the text outputs: a failed write leaves the earlier file.
-  const std::string tmp = path + ".tmp";
-  std::error_code ec;
-  try {
-    std::ofstream out = open_for_writing(tmp);
-    out << "ply\nformat binary_little_endian 1.0\nelement vertex " << points.size()
-        << "\nproperty float x\nproperty float y\nproperty float z\n";
-    if (normals) out << "property float nx\nproperty float ny\nproperty float nz\n";
-    out << "end_header\n";
-    for (std::size_t i = 0; i < points.size(); ++i) {
-      out.write(reinterpret_cast<const char*>(points[i].data()), 3 * sizeof(float));
-      if (normals)
-        out.write(reinterpret_cast<const char*>((*normals)[i].data()), 3 * sizeof(float));
-    }
-    close_checked(out, tmp);
-  } catch (const InputError& e) {
-    std::filesystem::remove(tmp, ec);
-    const std::string cause = e.what();
-    throw InputError(path + cause.substr(std::min(tmp.size(), cause.size())));
+  std::ostringstream out;
+  out << "ply\nformat binary_little_endian 1.0\nelement vertex " << points.size()
+      << "\nproperty float x\nproperty float y\nproperty float z\n";
+  if (normals) out << "property float nx\nproperty float ny\nproperty float nz\n";
+  out << "end_header\n";
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    out.write(reinterpret_cast<const char*>(points[i].data()), 3 * sizeof(float));
+    if (normals) out.write(reinterpret_cast<const char*>((*normals)[i].data()), 3 * sizeof(float));
   }
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    const std::string message = path + ": cannot replace it with " + tmp + ": " + ec.message();
-    std::filesystem::remove(tmp, ec);
-    throw InputError(message);
-  }
+  // As the text outputs: a failed write leaves the earlier file.
+  write_text_atomically(path, out.str());
 }
 
 std::vector<Eigen::Vector3f> read_ply(const std::string& path,

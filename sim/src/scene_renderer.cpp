@@ -13,6 +13,7 @@
 #include <optional>
 
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "shading.h"
 
 namespace pg {
@@ -135,15 +136,6 @@ void write_rendered_frame(const SceneRenderer& renderer, int frame, int k,
   writer.write_frame(pose, images);
 }
 
-std::uintmax_t folder_bytes(const fs::path& folder) {
-  std::uintmax_t bytes = 0;
-  std::error_code ec;
-  for (const auto& entry : fs::recursive_directory_iterator(folder, ec)) {
-    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
-  }
-  return bytes;
-}
-
 // Bytes of the frame files a render of `frames` frames into `dir` replaces (an earlier dataset's
 // of the same outputs), and of its poses.csv.
 std::uintmax_t replaced_bytes(const std::string& dir, const std::vector<std::string>& outputs,
@@ -230,7 +222,7 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
         if (!size_ec) frame_files += size;
       }
       // The rest (dataset.json, background.png) once; a poses.csv row is under 400 bytes.
-      total += folder_bytes(dir) + (frame_files + 400) * std::uintmax_t(frames - 1) + 400;
+      total += folder_bytes(dir.string()) + (frame_files + 400) * std::uintmax_t(frames - 1) + 400;
     }
   } catch (const std::exception&) {
     total = 0;  // the scratch folder cannot be written: no estimate

@@ -7,6 +7,8 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "../common/test_support.h"
 #include "pg/core/error.h"
@@ -38,6 +40,40 @@ Dataset render_benchmark(const std::string& name, int frames, const fs::path& di
   nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/" + name + ".json");
   scene["frames"] = frames;
   return render(scene, dir, kRepo + "/scenes/benchmark");
+}
+
+// scenes/examples/two_digits_regrasp.json rendered with normals only into dir: its datasets of
+// the sensor below the cube and of the one at its side.
+std::pair<Dataset, Dataset> render_regrasp(const fs::path& dir) {
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/examples/two_digits_regrasp.json");
+  scene["render"]["outputs"] = {"normal"};
+  const SceneRenderer renderer(
+      scene_from_json(scene, "two_digits_regrasp.json", kRepo + "/scenes/examples"));
+  render_scene_to_dataset(renderer, dir.string());
+  return {Dataset::open((dir / "digit_below").string()),
+          Dataset::open((dir / "digit_side").string())};
+}
+
+// A camera of its own: the frames `kept` of `from`, renumbered, as a dataset at `fps` in dir,
+// each pose first as `restamp` (when given) sets it for its frame j of `from` and its n-th place
+// (its time stamp, and the poses at that time); the images as rendered.
+Dataset recorded(const Dataset& from, const std::vector<int>& kept, double fps, const fs::path& dir,
+                 const std::function<void(FramePose&, int j, int n)>& restamp = nullptr) {
+  DatasetInfo info = from.info();
+  info.frames = int(kept.size());
+  info.fps = fps;
+  DatasetWriter writer(dir.string(), info);
+  for (int n = 0; n < info.frames; ++n) {
+    const int j = kept[std::size_t(n)];
+    FramePose pose = from.poses()[std::size_t(j)];
+    pose.frame = n;
+    if (restamp) restamp(pose, j, n);
+    FrameImages images;
+    images.normal = from.normal(j);
+    writer.write_frame(pose, images);
+  }
+  writer.finish();
+  return Dataset::open(dir.string());
 }
 
 TrackSummary track(const Dataset& d, Method method) {
@@ -261,13 +297,9 @@ TEST(Tracking, AnObjectHeldInAShakingHandTracksAsOnAStillSensor) {
 // single sensor's new episode has, kept the 6 mrad to the end).
 TEST(Tracking, TwoSensorsOnOneObjectSeeWhatNeitherSeesAlone) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/examples/two_digits_regrasp.json");
-  scene["render"]["outputs"] = {"normal"};
-  const SceneRenderer renderer(
-      scene_from_json(scene, "two_digits_regrasp.json", kRepo + "/scenes/examples"));
-  render_scene_to_dataset(renderer, tmp.path.string());
-  const Dataset below = Dataset::open((tmp.path / "digit_below").string());
-  const Dataset side = Dataset::open((tmp.path / "digit_side").string());
+  const std::pair<Dataset, Dataset> regrasp = render_regrasp(tmp.path);
+  const Dataset& below = regrasp.first;
+  const Dataset& side = regrasp.second;
   const TrackRun alone_below = track_dataset(below, TrackOptions());
   const TrackRun alone_side = track_dataset(side, TrackOptions());
   const TrackRun both = track_dataset({&below, &side}, TrackOptions());
@@ -315,37 +347,21 @@ TEST(Tracking, TwoSensorsOnOneObjectSeeWhatNeitherSeesAlone) {
 // frames taken together.
 TEST(Tracking, SensorsOnTheirOwnClocksArePairedByTime) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/examples/two_digits_regrasp.json");
-  scene["render"]["outputs"] = {"normal"};
-  const SceneRenderer renderer(
-      scene_from_json(scene, "two_digits_regrasp.json", kRepo + "/scenes/examples"));
-  render_scene_to_dataset(renderer, tmp.path.string());
-  const Dataset below = Dataset::open((tmp.path / "digit_below").string());
-  const Dataset side = Dataset::open((tmp.path / "digit_side").string());
-  // The side sensor's frames `kept`, renumbered, stamped 0.3 frames late or early (the poses
-  // with them, as a camera's log would give them; the images stay as rendered).
+  const std::pair<Dataset, Dataset> regrasp = render_regrasp(tmp.path);
+  const Dataset& below = regrasp.first;
+  const Dataset& side = regrasp.second;
+  // The side sensor's frames `kept`, stamped 0.3 frames late or early (the poses with them, as a
+  // camera's log would give them).
+  const double fps = side.info().fps;
   const auto recamera = [&](const std::string& name, const std::vector<int>& kept) {
-    DatasetInfo info = side.info();
-    info.frames = int(kept.size());
-    DatasetWriter writer((tmp.path / name).string(), info);
-    const std::vector<FramePose>& poses = side.poses();
-    for (std::size_t n = 0; n < kept.size(); ++n) {
-      const int j = kept[n], to = n % 2 == 0 ? j + 1 : j - 1;
-      FramePose pose = poses[std::size_t(j)];
-      pose.frame = int(n);
-      if (to >= 0 && to < side.frames()) {
-        pose.time_s += 0.3 * (to - j) / info.fps;
-        pose.T_world_object =
-            interpolate(pose.T_world_object, poses[std::size_t(to)].T_world_object, 0.3);
-        pose.T_world_sensor =
-            interpolate(pose.T_world_sensor, poses[std::size_t(to)].T_world_sensor, 0.3);
-      }
-      FrameImages images;
-      images.normal = side.normal(kept[n]);
-      writer.write_frame(pose, images);
-    }
-    writer.finish();
-    return Dataset::open((tmp.path / name).string());
+    return recorded(side, kept, fps, tmp.path / name, [&](FramePose& pose, int j, int n) {
+      const int to = n % 2 == 0 ? j + 1 : j - 1;
+      if (to < 0 || to >= side.frames()) return;
+      const FramePose& next = side.poses()[std::size_t(to)];
+      pose.time_s += 0.3 * (to - j) / fps;
+      pose.T_world_object = interpolate(pose.T_world_object, next.T_world_object, 0.3);
+      pose.T_world_sensor = interpolate(pose.T_world_sensor, next.T_world_sensor, 0.3);
+    });
   };
   std::vector<int> every(std::size_t(side.frames())), kept;
   for (int j = 0; j < side.frames(); ++j) {
@@ -394,19 +410,10 @@ TEST(Tracking, SensorsOnTheirOwnClocksArePairedByTime) {
   // A clock too coarse for the rate stamps two frames alike (Dataset::poses allows it): both
   // sensors so, the side's camera two frames late; each frame pairs with its own.
   const auto coarse = [&](const std::string& name, const Dataset& from, int first) {
-    DatasetInfo info = from.info();
-    info.frames = from.frames() - first;
-    DatasetWriter writer((tmp.path / name).string(), info);
-    for (int j = first; j < from.frames(); ++j) {
-      FramePose pose = from.poses()[std::size_t(j)];
-      pose.frame = j - first;
-      pose.time_s = (j / 2) * 2 / info.fps;
-      FrameImages images;
-      images.normal = from.normal(j);
-      writer.write_frame(pose, images);
-    }
-    writer.finish();
-    return Dataset::open((tmp.path / name).string());
+    std::vector<int> kept;
+    for (int j = first; j < from.frames(); ++j) kept.push_back(j);
+    return recorded(from, kept, fps, tmp.path / name,
+                    [&](FramePose& pose, int j, int) { pose.time_s = (j / 2) * 2 / fps; });
   };
   const Dataset below_coarse = coarse("below_coarse", below, 0);
   const Dataset side_coarse = coarse("side_coarse", side, 0);
@@ -421,21 +428,9 @@ TEST(Tracking, SensorsOnTheirOwnClocksArePairedByTime) {
   EXPECT_EQ(coarse_run.summary.invalid_input_frames, 2);
   // A camera at half the rate (a GelSight Mini beside a DIGIT, say): its frames pair with every
   // other of the faster one's, either way round, and add what they see.
-  {
-    DatasetInfo info = side.info();
-    info.frames = side.frames() / 2;
-    info.fps = side.info().fps / 2;
-    DatasetWriter writer((tmp.path / "side_half").string(), info);
-    for (int n = 0; n < info.frames; ++n) {
-      FramePose pose = side.poses()[std::size_t(2 * n)];
-      pose.frame = n;
-      FrameImages images;
-      images.normal = side.normal(2 * n);
-      writer.write_frame(pose, images);
-    }
-    writer.finish();
-  }
-  const Dataset side_half = Dataset::open((tmp.path / "side_half").string());
+  std::vector<int> even;
+  for (int j = 0; j < side.frames(); j += 2) even.push_back(j);
+  const Dataset side_half = recorded(side, even, fps / 2, tmp.path / "side_half");
   const std::vector<std::vector<int>> half = sequence_frames({&below, &side_half});
   const std::vector<std::vector<int>> double_rate = sequence_frames({&side_half, &below});
   for (int i = 0; i < below.frames(); ++i) {

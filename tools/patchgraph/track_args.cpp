@@ -138,7 +138,7 @@ NormalsModels load_normals_models(const TrackArgs& a) {
   std::vector<std::string> paths;
   std::stringstream list(a.normals);
   for (std::string path; std::getline(list, path, ',');) paths.push_back(path);
-  if (!a.normals.empty() && a.normals.back() == ',') paths.emplace_back();
+  if (a.normals.back() == ',') paths.emplace_back();
   std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
   NormalsModels models;
   for (const std::string& path : paths) {

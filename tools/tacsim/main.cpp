@@ -18,6 +18,7 @@
 #include "../common/progress.h"
 #include "bench.h"
 #include "pg/core/dataset.h"
+#include "pg/core/file_io.h"
 #include "pg/sim/scene_renderer.h"
 #include "sheet.h"
 
@@ -75,11 +76,7 @@ int run_render(const RenderArgs& a) {
     sizes += (seen.empty() ? "" : " + ") + size;
     seen.push_back(size);
   }
-  std::uintmax_t bytes = 0;
-  std::error_code ec;
-  for (const auto& entry : std::filesystem::recursive_directory_iterator(a.out, ec)) {
-    if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
-  }
+  const std::uintmax_t bytes = folder_bytes(a.out);
   std::printf(
       "rendered %d frames x %d sensor(s) at %s in %.2f s (%.1f frames/s, with image writing) -> "
       "%s (%.1f MB)\n",

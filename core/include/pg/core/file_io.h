@@ -1,11 +1,15 @@
 #pragma once
 // Writing files so that a full disk (or a folder gone from under a run) is an InputError naming
 // the file and the cause, never a truncated file taken for a whole one.
+#include <cstdint>
 #include <fstream>
 #include <string>
 #include <string_view>
 
 namespace pg {
+
+// The bytes of the files in `folder` and below it (0 for none, or no such folder).
+std::uintmax_t folder_bytes(const std::string& folder);
 
 // Free space below which a failed write is put down to a full disk [bytes].
 inline constexpr unsigned long long kLowDiskSpace = 1ull << 20;
