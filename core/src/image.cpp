@@ -36,8 +36,12 @@ Image<T> read_image(const std::string& path, OIIO::TypeDesc type, bool float_fil
     throw InputError(path + ": image has no pixels");
   }
   Image<T> image(spec.width, spec.height, spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, type, image.data.data())) {
-    throw InputError(path + ": cannot decode image: " + in->geterror());
+  // A file cut short may decode "successfully" with the rest of the image made up (JPEG: grey);
+  // the reader then holds an error (premature end of data).
+  if (!in->read_image(0, 0, 0, spec.nchannels, type, image.data.data()) || in->has_error()) {
+    const std::string cause = in->geterror();
+    throw InputError(path + ": cannot decode image: " +
+                     (cause.empty() ? std::string("the file is damaged or cut short") : cause));
   }
   in->close();
   return image;

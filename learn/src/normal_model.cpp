@@ -210,6 +210,15 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
   }
+  // A damaged file may still unpack (the archive's checksums are not verified): weights that are
+  // not finite (NaN, inf: bytes overwritten) would turn every prediction into noise.
+  for (const auto& list : {generator->parameters(), generator->buffers()}) {
+    for (const torch::Tensor& t : list) {
+      if (!torch::isfinite(t).all().item<bool>()) {
+        throw InputError(path + ": corrupt model file: weights that are not finite numbers");
+      }
+    }
+  }
   generator->eval();
   return generator;
 }
@@ -381,11 +390,11 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
   return normals;
 }
 
-NormalMetrics evaluate_normals(const NormalEstimator& model,
-                               const std::vector<std::string>& datasets,
-                               const std::function<void(int, int)>& progress) {
+namespace {
+
+std::vector<Dataset> open_evaluation_data(const NormalEstimator& model,
+                                          const std::vector<std::string>& datasets) {
   std::vector<Dataset> sets;
-  int total = 0;
   for (const auto& dir : datasets) {
     sets.push_back(Dataset::open(dir));
     for (const char* output : {"color", "normal", "mask"}) {
@@ -395,8 +404,22 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
       }
     }
     model.check_sensor(sets.back().info().sensor, dir);
-    total += sets.back().frames();
   }
+  return sets;
+}
+
+}  // namespace
+
+void check_evaluation_data(const NormalEstimator& model, const std::vector<std::string>& datasets) {
+  for (const Dataset& d : open_evaluation_data(model, datasets)) d.background();
+}
+
+NormalMetrics evaluate_normals(const NormalEstimator& model,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress) {
+  const std::vector<Dataset> sets = open_evaluation_data(model, datasets);
+  int total = 0;
+  for (const Dataset& d : sets) total += d.frames();
   learn::MetricSums sums;
   std::vector<double> times;
   int done = 0;

@@ -446,6 +446,22 @@ TEST(Dataset, ContactPointsRoundTripAsPly) {
   expect_input_error([&] { d.color(0); }, "no 'color' output");
 }
 
+// A JPEG cut short decodes with the missing rows made up (grey): it must be refused like a PNG
+// cut short, naming the file.
+TEST(ImageIo, AnImageCutShortIsRefused) {
+  TempDir tmp;
+  ImageU8 image(64, 48, 3);
+  for (std::size_t i = 0; i < image.data.size(); ++i) image.data[i] = std::uint8_t(i * 7 % 251);
+  for (const char* name : {"whole.jpg", "whole.png"}) {
+    write_image(tmp.str(name), image);
+    EXPECT_EQ(read_image_u8(tmp.str(name)).width, 64) << name;
+    const std::string cut = std::string("cut_") + name;
+    std::filesystem::copy_file(tmp.str(name), tmp.str(cut));
+    std::filesystem::resize_file(tmp.str(cut), std::filesystem::file_size(tmp.str(cut)) / 2);
+    expect_input_error([&] { read_image_u8(tmp.str(cut)); }, cut + ": cannot decode image");
+  }
+}
+
 TEST(PointIo, PlyRoundTripWithNormalsAndErrors) {
   TempDir tmp;
   std::vector<Eigen::Vector3f> p = {{1, 2, 3}, {-1, 0.5f, 1e-6f}}, n = {{0, 0, 1}, {1, 0, 0}};

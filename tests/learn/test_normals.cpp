@@ -303,6 +303,35 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   fs::resize_file(truncated, fs::file_size(truncated) / 2);
   msg = input_error_message([&] { NormalEstimator::load(truncated); });
   EXPECT_NE(msg.find("truncated.pt"), std::string::npos) << msg;
+  // Bytes overwritten inside a weight tensor's data: the archive still unpacks (its checksums
+  // are not verified), so the weights themselves are checked. The file is a zip of stored
+  // entries; 0xffffffff in the middle of the largest data entry is a NaN there.
+  {
+    std::ifstream in(o.out, std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto u16 = [&](std::size_t at) {
+      return std::size_t(std::uint8_t(bytes[at])) | std::size_t(std::uint8_t(bytes[at + 1])) << 8;
+    };
+    const auto u32 = [&](std::size_t at) { return u16(at) | u16(at + 2) << 16; };
+    std::size_t best_at = 0, best_size = 0;
+    // The central directory's entries (the local headers leave the sizes to a trailer).
+    for (std::size_t at = bytes.find("PK\x01\x02");
+         at != std::string::npos && at + 46 < bytes.size();
+         at = bytes.find("PK\x01\x02", at + 46)) {
+      const std::size_t size = u32(at + 24), name = u16(at + 28), local = u32(at + 42);
+      if (bytes.compare(at + 46, name, "") == 0 || local + 30 > bytes.size()) continue;
+      if (bytes.substr(at + 46, name).find("/data/") != std::string::npos && size > best_size) {
+        best_size = size;
+        best_at = local + 30 + u16(local + 26) + u16(local + 28);
+      }
+    }
+    ASSERT_GT(best_size, 64u) << "no weight data found in " << o.out;
+    std::fill_n(bytes.begin() + std::ptrdiff_t(best_at + (best_size / 8) * 4), 4, '\xff');
+    const std::string damaged = tmp_->str("damaged.pt");
+    std::ofstream(damaged, std::ios::binary) << bytes;
+    msg = input_error_message([&] { NormalEstimator::load(damaged); });
+    EXPECT_NE(msg.find("damaged.pt: corrupt model file"), std::string::npos) << msg;
+  }
 
   // Training data without the ground truth it needs.
   TrainOptions bad = o;

@@ -247,8 +247,11 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
   EXPECT_NE(r.out.find("--width requires --height"), std::string::npos) << r.out;
   EXPECT_EQ(tacsim("sheet " + scene + " --height 80 --out " + tmp.str("s.png")).code, 2);
   r = tacsim("render " + scene + " --outputs '' --out " + tmp.str("d"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find("--outputs: empty"), std::string::npos) << r.out;
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--outputs: an empty value"), std::string::npos) << r.out;
+  r = tacsim("render " + scene + " --out ''");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--out: an empty value"), std::string::npos) << r.out;
   r = tacsim("render " + scene + " --outputs mask,mask --out " + tmp.str("d"));
   EXPECT_NE(r.out.find("--outputs: output 'mask' is given twice"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("d")));

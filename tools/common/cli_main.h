@@ -186,9 +186,24 @@ class OutputFolder {
 
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.
+// Throws CLI::ValidationError for an option or argument given as an empty string (`--out ""`,
+// a shell variable that was never set): no option of these tools means anything by it, and a
+// file named "" fails later with a message that names nothing.
+inline void check_no_empty_values(const CLI::App& app) {
+  for (const CLI::Option* option : app.get_options()) {
+    for (const std::string& value : option->results()) {
+      if (value.empty() && option->get_expected_min() > 0) {
+        throw CLI::ValidationError(option->get_name(), "an empty value");
+      }
+    }
+  }
+  for (const CLI::App* sub : app.get_subcommands()) check_no_empty_values(*sub);
+}
+
 inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int()>& body) {
   try {
     app.parse(argc, argv);
+    check_no_empty_values(app);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {

@@ -169,6 +169,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);
+  check_evaluation_data(model, a.data);
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",
               "MSE image", "angle contact", "angle image", "ms/frame");

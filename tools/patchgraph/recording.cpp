@@ -206,9 +206,17 @@ int run_recording(const RecordingArgs& a) {
   }
   // Read everything that can fail before writing anything: every frame's header (a frame of
   // another size half-way through would otherwise leave an earlier dataset in --out replaced by
-  // half a new one), the background and the first frame whole.
+  // half a new one), the background and the first frame whole. When --out holds an earlier
+  // dataset, every frame is decoded whole too: one cut short half-way would otherwise fail only
+  // after the earlier dataset is gone (a new --out is removed again on failure).
+  const bool out_existed = fs::exists(a.out);
   for (const fs::path& file : files) {
-    check_frame_shape(file.string(), read_image_shape(file.string()), sensor.camera, a.downsample);
+    if (out_existed) {
+      sensor_image(file.string(), sensor.camera, a.downsample);
+    } else {
+      check_frame_shape(file.string(), read_image_shape(file.string()), sensor.camera,
+                        a.downsample);
+    }
   }
   const ImageU8 background = sensor_image(a.background, sensor.camera, a.downsample);
   FrameImages images;
@@ -222,7 +230,6 @@ int run_recording(const RecordingArgs& a) {
   info.object_name = a.object;
   // A frame that turns out unreadable half-way leaves no half-written dataset behind (unless the
   // folder was there before: then it is not ours to delete).
-  const bool out_existed = fs::exists(a.out);
   try {
     DatasetWriter writer(a.out, info);
     writer.write_background(background);

@@ -89,7 +89,11 @@ struct NormalMetrics {
   double ms_per_frame = 0;  // median inference time
 };
 
-// Evaluates on every frame of each dataset (needs color, normal and mask outputs).
+// Throws InputError naming the dataset unless each can be evaluated with `model`: color, normal
+// and mask outputs, images the model takes, a no-contact reference. Before any work, so that a
+// bad last dataset does not cost the results of the others.
+void check_evaluation_data(const NormalEstimator& model, const std::vector<std::string>& datasets);
+// Evaluates on every frame of each dataset (checked as check_evaluation_data says).
 NormalMetrics evaluate_normals(const NormalEstimator& model,
                                const std::vector<std::string>& datasets,
                                const std::function<void(int, int)>& progress = nullptr);
