@@ -766,7 +766,11 @@ std::vector<Output> make_all(const fs::path& root) {
                               NormalsSet{"stud", "stud_r3mm.glb", "train", 50},
                               NormalsSet{"torus", "torus_r5mm.glb", "train", 50},
                               NormalsSet{"ellipsoid", "ellipsoid.glb", "train", 50},
-                              NormalsSet{"plate", "rounded_plate.glb", "train", 50}}) {
+                              NormalsSet{"plate", "rounded_plate.glb", "train", 50},
+                              // Ball-bearing presses, the calibration a real sensor's labels
+                              // come from (patchgraph label-ball; docs/learned_normals.md).
+                              NormalsSet{"ball", "ball_bearing_0p5in.glb", "train", 50},
+                              NormalsSet{"ball", "ball_bearing_0p5in.glb", "val", 20}}) {
     const std::string file = std::string("scenes/normals/") + n.object + "_" + n.split + ".json";
     outputs.push_back(checked(file, random_presses_json(root, n.object, n.mesh, file, n.frames),
                               root, "random presses", 0.0));

@@ -37,21 +37,41 @@ GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
   return rays;
 }
 
-ImageF undeformed_gel_normals(const GelRays& rays) {
+ImageF sphere_indentation(const GelRays& rays, const Eigen::Vector3d& centre, double radius) {
+  ImageF u(rays.width, rays.height, 1, 0.0f);
+  const Eigen::Vector3d oc = rays.origin_sensor.cast<double>() - centre;
+  for (int i = 0; i < rays.width * rays.height; ++i) {
+    // |o + d t - c|^2 = r^2: a t^2 + 2 b t + c = 0, the near root.
+    const Eigen::Vector3d d = rays.dir_sensor[std::size_t(i)].cast<double>();
+    const double a = d.squaredNorm(), b = d.dot(oc), c = oc.squaredNorm() - radius * radius;
+    const double disc = b * b - a * c;
+    if (disc <= 0) continue;
+    const double t = (-b - std::sqrt(disc)) / a;
+    u.data[std::size_t(i)] = float(std::max(0.0, double(rays.t_gel[std::size_t(i)]) - t));
+  }
+  return u;
+}
+
+ImageF gel_normals(const GelRays& rays, const ImageF& indentation) {
   ImageF normals(rays.width, rays.height, 3, 0.0f);
+  const auto point = [&](int x, int y) {
+    const int i = rays.index(x, y);
+    return rays.point(i, indentation.data[std::size_t(i)]);
+  };
   for (int y = 0; y < rays.height; ++y) {
     const int ym = std::max(y - 1, 0), yp = std::min(y + 1, rays.height - 1);
     for (int x = 0; x < rays.width; ++x) {
       const int xm = std::max(x - 1, 0), xp = std::min(x + 1, rays.width - 1);
-      const Eigen::Vector3f dx =
-          rays.point(rays.index(xp, y), 0) - rays.point(rays.index(xm, y), 0);
-      const Eigen::Vector3f dy =
-          rays.point(rays.index(x, yp), 0) - rays.point(rays.index(x, ym), 0);
-      const Eigen::Vector3f n = dx.cross(dy).normalized();
+      const Eigen::Vector3f n =
+          (point(xp, y) - point(xm, y)).cross(point(x, yp) - point(x, ym)).normalized();
       for (int c = 0; c < 3; ++c) normals.at(x, y, c) = n[c];
     }
   }
   return normals;
+}
+
+ImageF undeformed_gel_normals(const GelRays& rays) {
+  return gel_normals(rays, ImageF(rays.width, rays.height, 1, 0.0f));
 }
 
 }  // namespace pg

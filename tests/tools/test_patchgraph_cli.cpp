@@ -120,6 +120,11 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
           1, "no_such_folder/m.json: cannot write: ");
   refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
           "given twice");
+  // An empty value (an unset shell variable) is a usage error naming the option, for any of them.
+  refused("track '' --out " + out("x"), 2, "dataset: an empty value");
+  refused("track " + data() + " --out ''", 2, "--out: an empty value");
+  refused("eval-normals --model " + model + " --data " + data() + " --json ''", 2,
+          "--json: an empty value");
   refused("recording --images " + data() + "/color --background " + data() +
               "/background.png --static-sensor --fps 1e-300 --out " + out("rec"),
           2, "--fps");
@@ -1077,6 +1082,14 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_FALSE(rec.poses()[5].object_known);
   EXPECT_FALSE(rec.poses()[5].contact_known);
   EXPECT_LT(translation_distance(rec.poses()[5].T_world_sensor, SE3()), 1e-12);
+  // A recording has no normals to evaluate against: refused before the dataset given before it
+  // is evaluated (whose results would be lost).
+  const CliRun eval = patchgraph("eval-normals -q --model " + std::string(PG_SOURCE_DIR) +
+                                 "/models/normals_unet.pt --data " + data() + " " + out("rec"));
+  EXPECT_EQ(eval.code, 1) << eval.out;
+  EXPECT_NE(eval.out.find(out("rec") + ": dataset has no 'normal' output"), std::string::npos)
+      << eval.out;
+  EXPECT_EQ(eval.out.find("MSE contact"), std::string::npos) << eval.out;
   const CliRun x2 = patchgraph("recording --images " + frames_x2.string() + " --background " +
                                (dir_ / "rec_background_x2.png").string() +
                                " --static-sensor --downsample 2 -q --out " + out("rec_x2"));
@@ -1178,6 +1191,99 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_NE(late.out.find("capture_1030.png: 60x80 px, but the sensor is"), std::string::npos)
       << late.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
+  // One whose header is whole but whose pixels are cut short: also refused before the earlier
+  // dataset is touched (it used to be found only after its poses.csv was gone).
+  const fs::path cut = frames / "capture_1030.png";
+  write_image(cut.string(), rendered.color(30));
+  fs::resize_file(cut, fs::file_size(cut) / 2);
+  const CliRun short_frame = patchgraph("recording --images " + frames.string() + " --background " +
+                                        (dir_ / "rec_background.png").string() +
+                                        " --static-sensor -q --out " + out("rec"));
+  EXPECT_EQ(short_frame.code, 1) << short_frame.out;
+  EXPECT_NE(short_frame.out.find("capture_1030.png: cannot decode image"), std::string::npos)
+      << short_frame.out;
+  EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
+  EXPECT_EQ(Dataset::open(out("rec")).color(31).data, rendered.color(31).data);
+}
+
+// Ball presses as a real sensor records them (colour only) become a training set: each frame's
+// circle found, labelled with the ball's normals, trainable; a circle given by hand replaces the
+// found one; a wrong diameter, no colour images and a malformed circles file are refused.
+TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/normals/ball_val.json";
+  ASSERT_EQ(run(TACSIM_PATH, "render " + scene + " -q --outputs color --out " + out("balls")).code,
+            0);
+  const CliRun r = patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
+                              out("balls_labelled"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("20 presses labelled"), std::string::npos) << r.out;
+  const Dataset labelled = Dataset::open(out("balls_labelled"));
+  ASSERT_EQ(labelled.frames(), 20);
+  EXPECT_TRUE(labelled.info().has_output("normal") && labelled.info().has_output("mask"));
+  EXPECT_EQ(labelled.color(7).data, Dataset::open(out("balls")).color(7).data);
+  const auto contact_pixels = [](const ImageU8& mask) {
+    return std::count(mask.data.begin(), mask.data.end(), 255);
+  };
+  EXPECT_GT(contact_pixels(labelled.mask(7)), 100);
+  std::ifstream circles_in(out("balls_labelled") + "/circles.csv");
+  std::vector<std::vector<std::string>> rows;
+  for (std::string line; std::getline(circles_in, line);) rows.push_back(split_csv_line(line));
+  ASSERT_EQ(rows.size(), 21u);
+  EXPECT_EQ(rows[0][3], "u_px");
+  EXPECT_EQ(rows[2][2], "found");
+  const CliRun train = patchgraph("train-normals --data " + out("balls_labelled") +
+                                  " --epochs 1 --depth 2 --width 4 -q --out " + out("ball.pt"));
+  EXPECT_EQ(train.code, 0) << train.out;
+
+  // By hand: frame 0 has no press, frame 1's circle is given 2 px wider than found.
+  {
+    std::ofstream given(out("circles_given.csv"));
+    given << "frame,u_px,v_px,radius_px\n0,,,\n1," << rows[2][3] << "," << rows[2][4] << ","
+          << std::stod(rows[2][5]) + 2 << "\n";
+  }
+  const CliRun by_hand =
+      patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
+                 out("balls_by_hand") + " --circles " + out("circles_given.csv"));
+  ASSERT_EQ(by_hand.code, 0) << by_hand.out;
+  EXPECT_NE(by_hand.out.find("19 presses labelled"), std::string::npos) << by_hand.out;
+  EXPECT_NE(by_hand.out.find("1 without contact"), std::string::npos) << by_hand.out;
+  const Dataset hand = Dataset::open(out("balls_by_hand"));
+  EXPECT_EQ(contact_pixels(hand.mask(0)), 0);
+  EXPECT_GT(contact_pixels(hand.mask(1)), contact_pixels(labelled.mask(1)));
+
+  const auto refused = [&](const std::string& args, int code, const std::string& text) {
+    fs::remove_all(out("balls_bad"));
+    const CliRun bad = patchgraph("label-ball " + args + " -q --out " + out("balls_bad"));
+    EXPECT_EQ(bad.code, code) << args;
+    EXPECT_NE(bad.out.find(text), std::string::npos) << args << "\n" << bad.out;
+    EXPECT_FALSE(fs::exists(out("balls_bad"))) << args;
+  };
+  refused(out("balls") + " --diameter 12.7", 2, "--diameter");
+  refused(out("balls") + " --diameter 0.001", 1,
+          "no ball press found in any of its 20 frames (frame 0: the contact is wider than a ball "
+          "of diameter 1.00 mm makes: is the diameter right?)");
+  // A ball too small for most presses: the frames it cannot be are skipped, and said why.
+  const CliRun small =
+      patchgraph("label-ball " + out("balls") + " --diameter 0.004 -q --out " + out("balls_small"));
+  EXPECT_EQ(small.code, 0) << small.out;
+  EXPECT_NE(small.out.find("18 skipped"), std::string::npos) << small.out;
+  EXPECT_NE(small.out.find("warning: frame 0 skipped: the contact is wider"), std::string::npos)
+      << small.out;
+  refused(data() + "_no_such --diameter 0.0127", 1, "_no_such");
+  ASSERT_EQ(
+      run(TACSIM_PATH, "render " + scene + " -q --outputs normal --out " + out("balls_n")).code, 0);
+  refused(out("balls_n") + " --diameter 0.0127", 1, "no colour images");
+  const auto circles = [&](const std::string& text) {
+    std::ofstream(out("circles_bad.csv")) << text;
+    return out("balls") + " --diameter 0.0127 --circles " + out("circles_bad.csv");
+  };
+  refused(circles("frame,u,v,r\n"), 1, "line 1: no column u_px");
+  refused(circles("frame,u_px,v_px,radius_px\n3,40,abc,10\n"), 1,
+          "line 2: v_px: 'abc' is not a finite number");
+  refused(circles("frame,u_px,v_px,radius_px\n3,40,50,\n"), 1, "line 2: radius_px is empty");
+  refused(circles("frame,u_px,v_px,radius_px\n20,40,50,10\n"), 1,
+          "line 2: frame: '20' is not a frame of the dataset (0-19)");
+  refused(circles("frame,u_px,v_px,radius_px\n3,,,\n3,,,\n"), 1, "frame 3 is given twice");
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -16,6 +16,7 @@
 #include "../common/progress.h"
 #include "bench.h"
 #include "eval.h"
+#include "label_ball.h"
 #include "normals_cli.h"
 #include "recording.h"
 #include "track_args.h"
@@ -105,9 +106,10 @@ int run_track(const TrackArgs& a) {
   const TrackSummary& s = run.summary;
   std::string names;
   for (const Dataset& d : datasets) names += (names.empty() ? "" : " + ") + d.dir();
-  std::printf("%s on %s (%s): %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
-              names.c_str(), dataset.info().object_name.c_str(), s.frames, s.contact_frames,
-              s.episodes);
+  const std::string& object = dataset.info().object_name;
+  std::printf("%s on %s%s: %d frames, %d with contact, %d episode(s)\n", s.method.c_str(),
+              names.c_str(), object.empty() ? "" : (" (" + object + ")").c_str(), s.frames,
+              s.contact_frames, s.episodes);
   std::fflush(stdout);  // the warnings below (stderr) follow this line in a shared log too
   if (s.rejected_registrations > 0) {
     std::fprintf(stderr, "warning: %d registrations were rejected as implausible jumps\n",
@@ -267,11 +269,14 @@ int main(int argc, char** argv) {
   CLI::App* cmd_eval_normals = add_eval_normals_command(app, eval_normals_args);
   RecordingArgs recording_args;
   CLI::App* cmd_recording = add_recording_command(app, recording_args);
+  LabelBallArgs label_ball_args;
+  CLI::App* cmd_label_ball = add_label_ball_command(app, label_ball_args);
 
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_train_normals->parsed()) return run_train_normals(train_normals_args);
     if (cmd_eval_normals->parsed()) return run_eval_normals(eval_normals_args);
     if (cmd_recording->parsed()) return run_recording(recording_args);
+    if (cmd_label_ball->parsed()) return run_label_ball(label_ball_args);
     if (cmd_bench->parsed()) return run_track_bench(bench);
     if (cmd_track->parsed()) return run_track(track);
     if (cmd_eval->parsed()) return run_eval(eval);

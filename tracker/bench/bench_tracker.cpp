@@ -26,20 +26,12 @@ namespace {
 ImageF sphere_normals(const GelRays& rays, const ImageF& reference, const Eigen::Vector3d& c,
                       double R) {
   ImageF n = reference;
-  const Eigen::Vector3d o = rays.origin_sensor.cast<double>();
-  for (int y = 0; y < rays.height; ++y) {
-    for (int x = 0; x < rays.width; ++x) {
-      const int i = rays.index(x, y);
-      const Eigen::Vector3d d = rays.dir_sensor[i].cast<double>();
-      const Eigen::Vector3d oc = o - c;
-      const double a = d.squaredNorm(), b = 2 * d.dot(oc), cc = oc.squaredNorm() - R * R;
-      const double disc = b * b - 4 * a * cc;
-      if (disc <= 0) continue;
-      const double t = (-b - std::sqrt(disc)) / (2 * a);
-      if (t >= rays.t_gel[i]) continue;
-      const Eigen::Vector3d normal = (c - (o + d * t)).normalized();
-      for (int k = 0; k < 3; ++k) n.at(x, y, k) = float(normal[k]);
-    }
+  const ImageF u = sphere_indentation(rays, c, R);
+  for (int i = 0; i < rays.width * rays.height; ++i) {
+    if (u.data[std::size_t(i)] <= 0.0f) continue;
+    const Eigen::Vector3d normal =
+        (c - rays.point(i, u.data[std::size_t(i)]).cast<double>()).normalized();
+    for (int k = 0; k < 3; ++k) n.data[3 * std::size_t(i) + k] = float(normal[k]);
   }
   return n;
 }

@@ -15,6 +15,7 @@
 
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/image_change.h"
 #include "pg/core/point_io.h"
 #include "pg/core/statistics.h"
 #include "pg/tracker/contact_cloud.h"
@@ -62,40 +63,11 @@ bool is_dropout(const ImageU8& color) {
 }
 
 // A colour frame no different from the no-contact reference beyond the camera's noise: fewer
-// than `min_pixels` pixels whose 3x3 mean difference exceeds kChangeLevels in a channel. The
-// mean of nine pixels of noise sigma 7 (the renderer's) has a sigma of 2.3 levels, so 10 levels
-// are 4.3 sigma: 0 or 1 such pixels in a rendered frame without contact, and none with less noise.
-// A sphere pressed just deep enough for 6 pixels to be indented by 0.1 mm already changes 57 to
-// 166 pixels by more, on the rigid and the elastic gel, with the synthetic and the real DIGIT
-// background (docs/learned_normals.md).
-constexpr int kChangeLevels = 10;
-
+// than `min_pixels` changed pixels (pg/core/image_change.h).
 bool shows_no_change(const ImageU8& color, const ImageU8& background, int min_pixels) {
-  const std::size_t row = std::size_t(color.width) * 3;
-  // Per row: the difference summed over it and the rows above and below, per column and
-  // channel; then three of those sums side by side.
-  std::vector<int> column(row);
   int changed = 0;
-  for (int y = 1; y + 1 < color.height; ++y) {
-    const std::size_t above = std::size_t(y - 1) * row;
-    for (std::size_t i = 0; i < row; ++i) {
-      int sum = 0;
-      for (std::size_t r = above; r < above + 3 * row; r += row) {
-        sum += int(color.data[r + i]) - int(background.data[r + i]);
-      }
-      column[i] = sum;
-    }
-    for (int x = 1; x + 1 < color.width; ++x) {
-      for (int c = 0; c < 3; ++c) {
-        const int sum = column[(x - 1) * 3 + c] + column[x * 3 + c] + column[(x + 1) * 3 + c];
-        if (std::abs(sum) > 9 * kChangeLevels) {
-          if (++changed >= min_pixels) return false;
-          break;
-        }
-      }
-    }
-  }
-  return true;
+  for_each_changed_pixel(color, background, [&](int, int) { return ++changed < min_pixels; });
+  return changed < min_pixels;
 }
 
 }  // namespace

@@ -33,9 +33,17 @@ struct GelRays {
 // slope is small).
 GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel);
 
-// Unit normals of the undeformed gel (+z, out of the gel), width x height x 3, built like a
-// rendered frame's: the cross product of the central differences of the gel points (one-sided
-// at the image border). The reference when no no-contact frame is available.
+// The rigid gel (TACTO's model) indented by a sphere of `radius` [m] centred at `centre` in S:
+// per pixel, how far in camera depth the sphere's near side lies in front of the undeformed
+// gel [m] (width x height x 1), 0 where it does not. Its surface normals there point to the centre.
+ImageF sphere_indentation(const GelRays& rays, const Eigen::Vector3d& centre, double radius);
+
+// Unit normals (+z, out of the gel) of the gel indented by `indentation` (width x height x 1
+// [m], toward the camera, as a dataset's depth image), width x height x 3, built like a rendered
+// frame's: the cross product of the central differences of the surface points (clamped at the
+// image border).
+ImageF gel_normals(const GelRays& rays, const ImageF& indentation);
+// The same for the undeformed gel: the reference when no no-contact frame is available.
 ImageF undeformed_gel_normals(const GelRays& rays);
 
 }  // namespace pg

@@ -1,0 +1,49 @@
+#pragma once
+// Training labels for a real sensor from presses of a ball of known radius (the paper's section
+// IV-A, after GelSight's calibration): the ball's contact is a circle in the colour image, and
+// from the circle, the ball's radius and the sensor's geometry the gel's shape under it follows,
+// so its normal image can be synthesised where no renderer knows the truth. Torch-free.
+#include <Eigen/Core>
+#include <string>
+
+#include "pg/core/gel_rays.h"
+#include "pg/core/image.h"
+
+namespace pg {
+
+struct BallPress {
+  bool found = false;
+  std::string reason;  // why no press was found (when !found)
+  // Not found because the frame shows no change: fewer pixels differ from the reference than a
+  // press changes (a frame without contact, as the tracker takes it).
+  bool no_change = false;
+  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  // the contact circle in the image [px]
+  double radius_px = 0;
+  Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();  // the ball's centre in S [m]
+  double depth_m = 0;                                  // deepest indentation of the gel [m]
+  double rms_px = 0;        // the circle's boundary points off the fitted ball (found ones) [px]
+  int boundary_points = 0;  // how many the fit used
+};
+
+// Finds the press of a ball of `radius_m` in a colour frame: the largest connected region that
+// differs from the no-contact `reference` beyond the camera's noise (pg/core/image_change.h),
+// holes filled; its boundary's points on the undeformed gel; the ball's centre (on the object's
+// side of the gel) that puts them all at `radius_m`. Not found (with the reason) when nothing
+// changed, the region is too small or not a circle, or the ball would be wider than its radius
+// allows or deeper than the gel takes (`max_indentation_m`).
+BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
+                          double radius_m, double max_indentation_m);
+// The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px).
+BallPress ball_press_from_circle(const GelRays& rays, const Eigen::Vector2d& centre_px,
+                                 double radius_px, double radius_m, double max_indentation_m);
+
+// What the renderer would write for the ball at `centre_m` on the rigid gel: the indentation
+// (depth image), its normals (central differences, as a rendered frame's) and the contact mask
+// (0/255, indented pixels).
+struct BallLabels {
+  ImageF normal, depth;
+  ImageU8 mask;
+};
+BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m);
+
+}  // namespace pg

@@ -1,0 +1,287 @@
+#include "pg/learn/ball_press.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "pg/core/image_change.h"
+
+namespace pg {
+namespace {
+
+// Fewer changed pixels than this are no press (the tracker's smallest contact at 120x160).
+constexpr int kMinRegionPixels = 20;
+// A circle needs this many boundary points, and must pass this close to them.
+constexpr int kMinBoundaryPoints = 12;
+constexpr double kMaxRmsPx = 1.5;
+// The four neighbours of a pixel.
+constexpr int kDx[4] = {-1, 1, 0, 0}, kDy[4] = {0, 0, -1, 1};
+
+std::string format(const char* fmt, double a, double b = 0) {
+  char text[160];
+  std::snprintf(text, sizeof(text), fmt, a, b);
+  return text;
+}
+
+// The undeformed gel point seen at image position (u, v) [px]: the pixels' gel points,
+// interpolated bilinearly (clamped to the image).
+Eigen::Vector3d gel_point(const GelRays& rays, double u, double v) {
+  u = std::clamp(u, 0.0, double(rays.width - 1));
+  v = std::clamp(v, 0.0, double(rays.height - 1));
+  const int x0 = std::min(int(u), rays.width - 2), y0 = std::min(int(v), rays.height - 2);
+  const double fx = u - x0, fy = v - y0;
+  const auto p = [&](int x, int y) -> Eigen::Vector3d {
+    return rays.point(rays.index(x, y), 0.0f).cast<double>();
+  };
+  return (1 - fy) * ((1 - fx) * p(x0, y0) + fx * p(x0 + 1, y0)) +
+         fy * ((1 - fx) * p(x0, y0 + 1) + fx * p(x0 + 1, y0 + 1));
+}
+
+// The centre c on the object's side (+z) of the points q that puts them all at `radius` (least
+// squares, Gauss-Newton from the centre of the circle they span). Returns false when the points
+// span a circle wider than the ball.
+bool fit_ball(const std::vector<Eigen::Vector3d>& q, double radius, Eigen::Vector3d* centre) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : q) mean += p;
+  mean /= double(q.size());
+  double spread = 0;
+  for (const auto& p : q) spread += (p - mean).head<2>().norm();
+  spread /= double(q.size());
+  if (spread >= radius) return false;
+  Eigen::Vector3d c =
+      mean + Eigen::Vector3d::UnitZ() * std::sqrt(radius * radius - spread * spread);
+  for (int it = 0; it < 50; ++it) {
+    Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (const auto& p : q) {
+      const Eigen::Vector3d d = p - c;
+      const double n = d.norm();
+      const Eigen::Vector3d J = -d / n;  // d(|p - c| - radius) / dc
+      H += J * J.transpose();
+      g += J * (n - radius);
+    }
+    const Eigen::Vector3d step = H.ldlt().solve(-g);
+    if (!step.allFinite()) break;
+    c += step;
+    if (step.norm() < 1e-12) break;
+  }
+  *centre = c;
+  return c.allFinite();
+}
+
+// Fits the ball to the image points (u, v) on its contact's boundary, drops the points more than
+// three median deviations (at least a pixel) off it and fits again; then the depth and checks.
+BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& boundary,
+                    double radius_m, double max_indentation_m) {
+  BallPress press;
+  if (int(boundary.size()) < kMinBoundaryPoints) {
+    press.reason = format("the contact's boundary has %.0f points, fewer than %.0f to fit a circle",
+                          double(boundary.size()), kMinBoundaryPoints);
+    return press;
+  }
+  std::vector<Eigen::Vector2d> image = boundary;
+  std::vector<Eigen::Vector3d> q;
+  for (const auto& b : boundary) q.push_back(gel_point(rays, b.x(), b.y()));
+  const auto off_px = [&](const Eigen::Vector3d& p, const Eigen::Vector3d& c) {
+    return std::abs((p - c).norm() - radius_m) * rays.px_per_m;
+  };
+  Eigen::Vector3d c;
+  for (int pass = 0; pass < 2; ++pass) {
+    if (!fit_ball(q, radius_m, &c)) {
+      press.reason = format(
+          "the contact is wider than a ball of diameter %.2f mm makes: is the diameter right?",
+          2e3 * radius_m);
+      return press;
+    }
+    if (pass == 1) break;
+    std::vector<double> off;
+    for (const auto& p : q) off.push_back(off_px(p, c));
+    std::vector<double> sorted = off;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double keep = std::max(1.0, 3.0 * 1.4826 * sorted[sorted.size() / 2]);
+    std::vector<Eigen::Vector3d> kept;
+    std::vector<Eigen::Vector2d> kept_image;
+    for (std::size_t k = 0; k < q.size(); ++k) {
+      if (off[k] > keep) continue;
+      kept.push_back(q[k]);
+      kept_image.push_back(image[k]);
+    }
+    if (int(kept.size()) < kMinBoundaryPoints) break;
+    q.swap(kept);
+    image.swap(kept_image);
+  }
+  double sum_sq = 0;
+  for (const auto& p : q) sum_sq += off_px(p, c) * off_px(p, c);
+  press.rms_px = std::sqrt(sum_sq / double(q.size()));
+  press.boundary_points = int(q.size());
+  press.centre_m = c;
+  if (press.rms_px > kMaxRmsPx) {
+    press.reason = format(
+        "the change is not a circle: its boundary lies %.1f px (RMS) off the best "
+        "ball (more than %.1f px); one ball pressed at a time?",
+        press.rms_px, kMaxRmsPx);
+    return press;
+  }
+  const ImageF u = sphere_indentation(rays, c, radius_m);
+  press.depth_m = double(*std::max_element(u.data.begin(), u.data.end()));
+  if (press.depth_m <= 0) {
+    press.reason = "the fitted ball does not indent the gel";
+    return press;
+  }
+  if (press.depth_m > max_indentation_m) {
+    press.reason = format(
+        "the fitted ball is %.2f mm deep, deeper than the gel takes (%.2f mm): "
+        "is the diameter right?",
+        press.depth_m * 1e3, max_indentation_m * 1e3);
+    return press;
+  }
+  // The circle in the image through the points the ball was fitted to (least squares,
+  // x^2 + y^2 + a x + b y + c = 0): what --circles takes back.
+  Eigen::MatrixXd A(image.size(), 3);
+  Eigen::VectorXd rhs(image.size());
+  for (std::size_t k = 0; k < image.size(); ++k) {
+    A.row(Eigen::Index(k)) << image[k].x(), image[k].y(), 1.0;
+    rhs(Eigen::Index(k)) = -image[k].squaredNorm();
+  }
+  const Eigen::Vector3d abc = A.colPivHouseholderQr().solve(rhs);
+  press.centre_px = -0.5 * abc.head<2>();
+  press.radius_px = std::sqrt(std::max(0.0, press.centre_px.squaredNorm() - abc.z()));
+  press.found = true;
+  return press;
+}
+
+}  // namespace
+
+BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
+                          double radius_m, double max_indentation_m) {
+  const int w = rays.width, h = rays.height;
+  std::vector<char> changed(std::size_t(w) * h, 0);
+  int changed_count = 0;
+  for_each_changed_pixel(color, reference, [&](int x, int y) {
+    changed[std::size_t(y) * w + x] = 1;
+    ++changed_count;
+    return true;
+  });
+  BallPress none;
+  if (changed_count < kMinRegionPixels) {
+    none.no_change = true;
+    none.reason = format(
+        "%.0f px differ from the no-contact reference beyond the camera's noise, "
+        "fewer than a press changes (%.0f): no contact",
+        double(changed_count), double(kMinRegionPixels));
+    return none;
+  }
+  // The largest 4-connected region of changed pixels.
+  std::vector<int> label(changed.size(), -1), stack;
+  int best = -1, best_size = 0;
+  for (int start = 0; start < w * h; ++start) {
+    if (!changed[std::size_t(start)] || label[std::size_t(start)] >= 0) continue;
+    int size = 0;
+    stack.assign(1, start);
+    label[std::size_t(start)] = start;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      ++size;
+      const int x = i % w, y = i / w;
+      for (const int j : {x > 0 ? i - 1 : -1, x + 1 < w ? i + 1 : -1, y > 0 ? i - w : -1,
+                          y + 1 < h ? i + w : -1}) {
+        if (j >= 0 && changed[std::size_t(j)] && label[std::size_t(j)] < 0) {
+          label[std::size_t(j)] = start;
+          stack.push_back(j);
+        }
+      }
+    }
+    if (size > best_size) {
+      best_size = size;
+      best = start;
+    }
+  }
+  if (best_size < kMinRegionPixels) {
+    none.reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
+                         double(best_size), double(kMinRegionPixels));
+    return none;
+  }
+  // Its holes filled (a press's flat middle may look like the reference): every pixel that the
+  // image's border cannot reach without crossing the region.
+  std::vector<char> outside(changed.size(), 0);
+  stack.clear();
+  for (int i = 0; i < w * h; ++i) {
+    const int x = i % w, y = i / w;
+    if ((x == 0 || y == 0 || x == w - 1 || y == h - 1) && label[std::size_t(i)] != best) {
+      outside[std::size_t(i)] = 1;
+      stack.push_back(i);
+    }
+  }
+  while (!stack.empty()) {
+    const int i = stack.back();
+    stack.pop_back();
+    const int x = i % w, y = i / w;
+    for (const int j :
+         {x > 0 ? i - 1 : -1, x + 1 < w ? i + 1 : -1, y > 0 ? i - w : -1, y + 1 < h ? i + w : -1}) {
+      if (j >= 0 && !outside[std::size_t(j)] && label[std::size_t(j)] != best) {
+        outside[std::size_t(j)] = 1;
+        stack.push_back(j);
+      }
+    }
+  }
+  // The change test's 3x3 mean reaches one pixel beyond a sharp change: the region less its
+  // outermost pixels (measured on rendered presses of the rigid gel: the ball's centre 0.15 mm
+  // off without this, 0.05 mm with it; docs/learned_normals.md).
+  // The image's outermost pixels, which the change test never marks, are not outside the press.
+  const auto beyond = [&](int x, int y) {
+    return x > 0 && y > 0 && x < w - 1 && y < h - 1 && outside[std::size_t(y) * w + x];
+  };
+  std::vector<char> grown = outside;
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) {
+      if (beyond(x - 1, y) || beyond(x + 1, y) || beyond(x, y - 1) || beyond(x, y + 1)) {
+        grown[std::size_t(y) * w + x] = 1;
+      }
+    }
+  }
+  outside.swap(grown);
+  // The boundary: midway between each region pixel and an outside neighbour, except at the
+  // image's outermost pixels, which the change test never marks (a press cut by the image's edge
+  // keeps only its arc inside).
+  std::vector<Eigen::Vector2d> boundary;
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) {
+      if (outside[std::size_t(y) * w + x]) continue;
+      for (int k = 0; k < 4; ++k) {
+        const int dx = kDx[k], dy = kDy[k], nx = x + dx, ny = y + dy;
+        if (nx <= 0 || ny <= 0 || nx >= w - 1 || ny >= h - 1) continue;
+        if (outside[std::size_t(ny) * w + nx]) boundary.emplace_back(x + 0.5 * dx, y + 0.5 * dy);
+      }
+    }
+  }
+  return fit_press(rays, boundary, radius_m, max_indentation_m);
+}
+
+BallPress ball_press_from_circle(const GelRays& rays, const Eigen::Vector2d& centre_px,
+                                 double radius_px, double radius_m, double max_indentation_m) {
+  std::vector<Eigen::Vector2d> boundary;
+  const int n = 90;
+  for (int k = 0; k < n; ++k) {
+    const double a = 2 * M_PI * k / n;
+    const Eigen::Vector2d p = centre_px + radius_px * Eigen::Vector2d(std::cos(a), std::sin(a));
+    if (p.x() >= 0 && p.y() >= 0 && p.x() <= rays.width - 1 && p.y() <= rays.height - 1) {
+      boundary.push_back(p);
+    }
+  }
+  return fit_press(rays, boundary, radius_m, max_indentation_m);
+}
+
+BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m) {
+  BallLabels labels;
+  labels.depth = sphere_indentation(rays, centre_m, radius_m);
+  labels.normal = gel_normals(rays, labels.depth);
+  labels.mask = ImageU8(rays.width, rays.height, 1, 0);
+  for (std::size_t i = 0; i < labels.depth.data.size(); ++i)
+    if (labels.depth.data[i] > 0) labels.mask.data[i] = 255;
+  return labels;
+}
+
+}  // namespace pg

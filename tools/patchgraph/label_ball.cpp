@@ -1,0 +1,285 @@
+#include "label_ball.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+#include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "pg/core/dataset.h"
+#include "pg/core/error.h"
+#include "pg/core/file_io.h"
+#include "pg/core/gel_rays.h"
+#include "pg/learn/ball_press.h"
+
+namespace pg {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// A circle given by hand for one frame; none: the frame shows no press.
+using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
+
+std::vector<std::string> split_cells(const std::string& line) {
+  std::vector<std::string> cells;
+  std::stringstream in(line);
+  std::string cell;
+  while (std::getline(in, cell, ',')) {
+    const auto b = cell.find_first_not_of(" \t\r"), e = cell.find_last_not_of(" \t\r");
+    cells.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
+  }
+  if (!line.empty() && line.back() == ',') cells.push_back("");
+  return cells;
+}
+
+// --circles: a CSV with a header naming at least frame, u_px, v_px and radius_px (the columns of
+// the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
+// numbers (radius > 0) or all empty (no press in that frame). Frames not listed are found
+// automatically.
+std::map<int, GivenCircle> read_circles(const std::string& path, int frames) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path + ": cannot open (--circles)");
+  std::string line;
+  if (!std::getline(in, line)) throw InputError(path + ": empty; expected a header line");
+  const std::vector<std::string> header = split_cells(line);
+  const char* names[4] = {"frame", "u_px", "v_px", "radius_px"};
+  int column[4];
+  for (int k = 0; k < 4; ++k) {
+    const auto it = std::find(header.begin(), header.end(), names[k]);
+    if (it == header.end()) {
+      throw InputError(path + ": line 1: no column " + names[k] +
+                       " (expected frame,u_px,v_px,radius_px)");
+    }
+    column[k] = int(it - header.begin());
+  }
+  std::map<int, GivenCircle> circles;
+  for (int number = 2; std::getline(in, line); ++number) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    const std::vector<std::string> cells = split_cells(line);
+    const std::string at = path + ": line " + std::to_string(number) + ": ";
+    double v[4];
+    bool empty[4];
+    for (int k = 0; k < 4; ++k) {
+      const std::string cell = column[k] < int(cells.size()) ? cells[std::size_t(column[k])] : "";
+      empty[k] = cell.empty();
+      char* end = nullptr;
+      v[k] = empty[k] ? 0.0 : std::strtod(cell.c_str(), &end);
+      if (!empty[k] && (*end != '\0' || !std::isfinite(v[k]))) {
+        throw InputError(at + names[k] + ": '" + excerpt(cell) + "' is not a finite number");
+      }
+    }
+    if (empty[0] || v[0] != std::floor(v[0]) || v[0] < 0 || v[0] >= frames) {
+      throw InputError(at + "frame: '" + (empty[0] ? "" : format_number(v[0])) +
+                       "' is not a frame of the dataset (0-" + std::to_string(frames - 1) + ")");
+    }
+    const int frame = int(v[0]);
+    if (circles.count(frame)) {
+      throw InputError(at + "frame " + std::to_string(frame) + " is given twice");
+    }
+    if (empty[1] && empty[2] && empty[3]) {
+      circles[frame] = std::nullopt;
+      continue;
+    }
+    for (int k = 1; k < 4; ++k) {
+      if (empty[k]) {
+        throw InputError(at + names[k] +
+                         " is empty: give u_px, v_px and radius_px, or none of "
+                         "them for a frame without a press");
+      }
+    }
+    if (!(v[3] > 0)) throw InputError(at + "radius_px: " + format_number(v[3]) + " is not > 0");
+    circles[frame] = Eigen::Vector3d(v[1], v[2], v[3]);
+  }
+  return circles;
+}
+
+// What became of one frame.
+struct FrameLabel {
+  enum Kind { kPress, kNoPress, kSkipped } kind = kSkipped;
+  bool given = false;  // from --circles
+  BallPress press;
+};
+
+std::string circles_csv(const std::vector<FrameLabel>& labels) {
+  std::string text =
+      "frame,labelled_frame,status,u_px,v_px,radius_px,centre_x_m,centre_y_m,centre_z_m,"
+      "depth_m,rms_px,reason\n";
+  int labelled = 0;
+  char row[512];
+  for (std::size_t f = 0; f < labels.size(); ++f) {
+    const FrameLabel& l = labels[f];
+    const char* status = l.kind == FrameLabel::kPress     ? (l.given ? "given" : "found")
+                         : l.kind == FrameLabel::kNoPress ? "no_press"
+                                                          : "skipped";
+    const std::string index = l.kind == FrameLabel::kSkipped ? "" : std::to_string(labelled++);
+    if (l.kind == FrameLabel::kPress) {
+      const BallPress& p = l.press;
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%.3f,\n", f,
+                    index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
+                    p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, p.rms_px);
+    } else {
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,%s\n", f, index.c_str(), status,
+                    csv_field(l.press.reason).c_str());
+    }
+    text += row;
+  }
+  return text;
+}
+
+}  // namespace
+
+CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
+  CLI::App* cmd = app.add_subcommand(
+      "label-ball",
+      "Label frames of ball presses with the ball's normals: a real sensor's training data");
+  cmd->add_option("dataset", a.dataset,
+                  "Dataset of the presses, with colour images and a no-contact reference "
+                  "(patchgraph recording, or a render)")
+      ->required();
+  cmd->add_option("--diameter", a.diameter, "The ball's diameter [m] (a 1/2 inch ball: 0.0127)")
+      ->required()
+      ->check(range_check(1e-4, 0.2));
+  cmd->add_option("--circles", a.circles,
+                  "CSV of contact circles given by hand: frame,u_px,v_px,radius_px (the "
+                  "circles.csv a run writes, corrected); empty cells: no press in that frame")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out,-o", a.out, "The labelled dataset (color, normal, depth, mask)")
+      ->required();
+  cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
+  return cmd;
+}
+
+int run_label_ball(const LabelBallArgs& a) {
+  check_output_is_not_input(a.out, a.dataset, "the dataset");
+  const Dataset d = Dataset::open(a.dataset);
+  if (!d.info().has_output("color")) {
+    throw InputError(a.dataset + "/dataset.json: outputs: no colour images to find presses in");
+  }
+  const SensorModel& sensor = d.info().sensor;
+  const ImageU8 reference = d.background();
+  const std::map<int, GivenCircle> given =
+      a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, d.frames());
+  const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
+  const double radius = 0.5 * a.diameter, max_depth = sensor.gel.max_indentation_m;
+
+  // Every frame's press first (reading every colour image), so that nothing is written when no
+  // frame has one.
+  std::vector<FrameLabel> labels(std::size_t(d.frames()));
+  int presses = 0, no_press = 0;
+  {
+    Progress progress("finding presses", d.frames(), !a.quiet);
+    for (int f = 0; f < d.frames(); ++f) {
+      FrameLabel& l = labels[std::size_t(f)];
+      const auto it = given.find(f);
+      l.given = it != given.end();
+      if (l.given && !it->second) {
+        l.kind = FrameLabel::kNoPress;
+        l.press.reason = "no press (--circles)";
+      } else if (l.given) {
+        const Eigen::Vector3d& c = *it->second;
+        l.press = ball_press_from_circle(rays, c.head<2>(), c.z(), radius, max_depth);
+        if (!l.press.found) l.press.reason = "--circles: " + l.press.reason;
+        l.kind = l.press.found ? FrameLabel::kPress : FrameLabel::kSkipped;
+      } else {
+        l.press = find_ball_press(d.color(f), reference, rays, radius, max_depth);
+        l.kind = l.press.found       ? FrameLabel::kPress
+                 : l.press.no_change ? FrameLabel::kNoPress
+                                     : FrameLabel::kSkipped;
+      }
+      presses += l.kind == FrameLabel::kPress;
+      no_press += l.kind == FrameLabel::kNoPress;
+      progress.update(f + 1);
+    }
+  }
+  if (presses == 0) {
+    const auto first = std::find_if(labels.begin(), labels.end(), [](const FrameLabel& l) {
+      return l.kind == FrameLabel::kSkipped;
+    });
+    throw InputError(a.dataset + ": no ball press found in any of its " +
+                     std::to_string(d.frames()) + " frames" +
+                     (first != labels.end()
+                          ? " (frame " + std::to_string(first - labels.begin()) + ": " +
+                                first->press.reason + ")"
+                          : " (none shows a change from the no-contact reference)"));
+  }
+
+  DatasetInfo info = d.info();
+  info.frames = presses + no_press;
+  info.outputs = {"color", "normal", "depth", "mask"};
+  info.scene.clear();
+  info.object_name = "ball";
+  info.object_mesh.clear();
+  info.object_scale = 1.0;
+  const bool out_existed = fs::exists(a.out);
+  try {
+    DatasetWriter writer(a.out, info);
+    writer.write_background(reference);
+    const ImageF flat = undeformed_gel_normals(rays);
+    Progress progress("labelling", info.frames, !a.quiet);
+    int written = 0;
+    for (int f = 0; f < d.frames(); ++f) {
+      const FrameLabel& l = labels[std::size_t(f)];
+      if (l.kind == FrameLabel::kSkipped) continue;
+      FramePose pose = d.poses()[std::size_t(f)];
+      pose.frame = written;
+      // The ball's centre is known, its orientation is not: no object pose.
+      pose.T_world_object = SE3();
+      pose.object_known = false;
+      pose.contact = l.kind == FrameLabel::kPress;
+      pose.contact_known = true;
+      FrameImages images;
+      images.color = d.color(f);
+      if (l.kind == FrameLabel::kPress) {
+        BallLabels ball = ball_labels(rays, l.press.centre_m, radius);
+        images.normal = std::move(ball.normal);
+        images.depth = std::move(ball.depth);
+        images.mask = std::move(ball.mask);
+      } else {
+        images.normal = flat;
+        images.depth = ImageF(rays.width, rays.height, 1, 0.0f);
+        images.mask = ImageU8(rays.width, rays.height, 1, 0);
+      }
+      writer.write_frame(pose, images);
+      progress.update(++written);
+    }
+    writer.finish();
+    write_text_atomically((fs::path(a.out) / "circles.csv").string(), circles_csv(labels));
+  } catch (...) {
+    std::error_code ignored;
+    if (!out_existed) fs::remove_all(a.out, ignored);
+    throw;
+  }
+  const int skipped = d.frames() - presses - no_press;
+  std::vector<double> rms, depth;
+  for (const FrameLabel& l : labels) {
+    if (l.kind != FrameLabel::kPress) continue;
+    rms.push_back(l.press.rms_px);
+    depth.push_back(l.press.depth_m * 1e3);
+  }
+  std::sort(rms.begin(), rms.end());
+  std::sort(depth.begin(), depth.end());
+  std::printf(
+      "%d frames of %s: %d presses labelled (%.2f-%.2f mm deep, circle fit %.2f px RMS "
+      "median), %d without contact, %d skipped -> %s (circles.csv: each frame's circle "
+      "or reason)\n",
+      d.frames(), a.dataset.c_str(), presses, depth.front(), depth.back(), rms[rms.size() / 2],
+      no_press, skipped, a.out.c_str());
+  int shown = 0;
+  for (std::size_t f = 0; f < labels.size() && shown < 5; ++f) {
+    if (labels[f].kind != FrameLabel::kSkipped) continue;
+    std::fprintf(stderr, "warning: frame %zu skipped: %s\n", f, labels[f].press.reason.c_str());
+    ++shown;
+  }
+  if (skipped > shown) std::fprintf(stderr, "warning: %d more skipped\n", skipped - shown);
+  return kExitOk;
+}
+
+}  // namespace pg
