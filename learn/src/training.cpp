@@ -167,13 +167,15 @@ void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
 // augmentation or training data would silently continue a different run. --epochs and
 // --decay-epochs may change on resuming (to train longer); the schedule is a function of the
 // epoch, so it then continues as the new values say.
+std::string canonical_or_given(const std::string& path) {
+  std::error_code ec;
+  const fs::path canonical = fs::weakly_canonical(path, ec);
+  return ec ? path : canonical.string();
+}
+
 nlohmann::json run_settings(const TrainOptions& o) {
   nlohmann::json data = nlohmann::json::array();
-  for (const std::string& folder : o.train_data) {
-    std::error_code ec;
-    const fs::path canonical = fs::weakly_canonical(folder, ec);
-    data.push_back(ec ? folder : canonical.string());
-  }
+  for (const std::string& folder : o.train_data) data.push_back(canonical_or_given(folder));
   return {{"--lr", o.learning_rate},
           {"beta1", o.beta1},
           {"--batch", o.batch},
@@ -184,7 +186,8 @@ nlohmann::json run_settings(const TrainOptions& o) {
           {"--shift", o.shift_px},
           {"--gain-jitter", o.gain_jitter},
           {"--offset-jitter", o.offset_jitter},
-          {"--data", data}};
+          {"--data", data},
+          {"--init", o.init_model.empty() ? std::string() : canonical_or_given(o.init_model)}};
 }
 
 // Throws InputError naming the first setting of `o` that differs from the checkpoint's record
@@ -208,8 +211,22 @@ double learning_rate_at(const TrainOptions& o, int epoch) {
 
 }  // namespace
 
-void train_normals(const TrainOptions& o, const std::function<void(const EpochReport&)>& on_epoch,
+void train_normals(const TrainOptions& options,
+                   const std::function<void(const EpochReport&)>& on_epoch,
                    const std::function<void(int, int)>& on_step) {
+  TrainOptions o = options;
+  // Fine-tuning: the network (and its normalisation, below) is the starting model's.
+  NormalModelInfo init;
+  learn::Generator g(nullptr);
+  if (!o.init_model.empty()) {
+    g = learn::load_model(o.init_model, init);
+    if (init.gel_relative != o.gel_relative) {
+      throw InputError("--init " + o.init_model + ": its normals are relative to the " +
+                       (init.gel_relative ? "gel" : "sensor") + "; train with --labels " +
+                       (init.gel_relative ? "gel" : "sensor") + " to fine-tune it");
+    }
+    o.spec = init.spec;
+  }
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");
   if (o.out.empty()) throw InputError("--out: no model file given");
   if (o.epochs < 1 || o.batch < 1) throw InputError("--epochs and --batch must be at least 1");
@@ -258,15 +275,24 @@ void train_normals(const TrainOptions& o, const std::function<void(const EpochRe
   info.training_data = o.train_data;
   info.gel_relative = o.gel_relative;
   info.sensor = train.sensor;
-  {
+  if (g) {
+    if (init.width != train.width || init.height != train.height) {
+      throw InputError("--init " + o.init_model + ": takes " + std::to_string(init.width) + "x" +
+                       std::to_string(init.height) + " images, the training data is " +
+                       std::to_string(train.width) + "x" + std::to_string(train.height));
+    }
+    info.input_mean = init.input_mean;
+    info.input_std = init.input_std;
+    g->train();
+  } else {
     const torch::Tensor all = torch::stack(train.input);
     const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);
     for (int c = 0; c < 3; ++c) {
       info.input_mean[c] = mean[c].item<float>();
       info.input_std[c] = std[c].item<float>();
     }
+    g = learn::Generator(o.spec);
   }
-  learn::Generator g(o.spec);
   const bool mlp = o.spec.arch == "mlp";
   const bool gan = !mlp && o.gan_weight > 0;
   learn::PatchDiscriminator d(nullptr);

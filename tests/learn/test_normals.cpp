@@ -126,6 +126,48 @@ TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
   }
 }
 
+// Fine-tuning (--init) starts from the model's weights and normalisation: one epoch at a
+// vanishing learning rate keeps its validation error, where the same epoch from random weights
+// is far off; a model of another image size or label frame is refused.
+TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
+  const std::string base = tmp_->str("base.pt");
+  std::vector<EpochReport> trained;
+  train_normals(tiny_options(train_, val_, base),
+                [&](const EpochReport& r) { trained.push_back(r); });
+  const auto one_epoch = [&](const std::string& init, const std::string& out) {
+    TrainOptions o = tiny_options(train_, val_, tmp_->str(out));
+    o.init_model = init;
+    o.epochs = 1;
+    o.learning_rate = 1e-12;
+    o.spec.base_width = 4;  // taken from the model when fine-tuning
+    std::vector<EpochReport> r;
+    train_normals(o, [&](const EpochReport& e) { r.push_back(e); });
+    return r.at(0).val.angle_contact_deg;
+  };
+  const double tuned = one_epoch(base, "tuned.pt"), scratch = one_epoch("", "scratch.pt");
+  const double before = trained.back().val.angle_contact_deg;
+  std::printf("contact angle: trained %.2f, fine-tuned at lr 1e-12 %.2f, from scratch %.2f deg\n",
+              before, tuned, scratch);
+  EXPECT_NEAR(tuned, before, 0.25 * before);
+  EXPECT_GT(scratch, 1.5 * before);
+  const NormalEstimator model = NormalEstimator::load(tmp_->str("tuned.pt"));
+  EXPECT_EQ(model.info().spec.base_width, 8);
+  EXPECT_EQ(model.info().input_mean, NormalEstimator::load(base).info().input_mean);
+
+  TrainOptions gel = tiny_options(train_, val_, tmp_->str("gel.pt"));
+  gel.init_model = base;
+  gel.gel_relative = true;
+  std::string msg = input_error_message([&] { train_normals(gel); });
+  EXPECT_NE(msg.find("--init " + base + ": its normals are relative to the sensor"),
+            std::string::npos)
+      << msg;
+  const std::string wide = render(*tmp_, "cube_val", "wide", 80, 60);
+  TrainOptions other = tiny_options(wide, wide, tmp_->str("other.pt"));
+  other.init_model = base;
+  msg = input_error_message([&] { train_normals(other); });
+  EXPECT_NE(msg.find("takes 40x30 images, the training data is 80x60"), std::string::npos) << msg;
+}
+
 TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   // With the learning rate decaying over the last two epochs, so the resumed run must also pick
   // up the schedule where the interrupted one left it.

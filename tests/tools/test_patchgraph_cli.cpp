@@ -120,6 +120,13 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
           1, "no_such_folder/m.json: cannot write: ");
   refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
           "given twice");
+  // Fine-tuning takes the starting model's network, and does not write over it.
+  refused("train-normals --data " + data() + " --init " + model + " --width 8 --out " + out("m.pt"),
+          2, "--width excludes --init");
+  fs::copy_file(model, out("init.pt"), fs::copy_options::overwrite_existing);
+  refused(
+      "train-normals --data " + data() + " --init " + out("init.pt") + " --out " + out("./init.pt"),
+      1, "is the --init model; write the fine-tuned model to another file");
   // An empty value (an unset shell variable) is a usage error naming the option, for any of them.
   refused("track '' --out " + out("x"), 2, "dataset: an empty value");
   refused("track " + data() + " --out ''", 2, "--out: an empty value");

@@ -32,15 +32,26 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
   cmd->add_option("--val", o.val_data,
                   "Validation dataset folders (default: every 10th training frame held out)");
   cmd->add_option("--out,-o", o.out, "Model file to write (OUT.ckpt: the checkpoint)")->required();
-  cmd->add_option("--arch", o.spec.arch, "unet (pix2pix, default), resnet or mlp")
-      ->check(CLI::IsMember({"unet", "resnet", "mlp"}));
-  cmd->add_option("--depth", o.spec.depth,
-                  "unet: down-sampling levels (default 5); resnet: residual blocks")
-      ->check(CLI::Range(1, 8));
-  cmd->add_option("--width", o.spec.base_width, "Channels of the first layer (default 16)")
-      ->check(CLI::Range(1, 256));
-  cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
-      ->check(CLI::Range(1, 1024));
+  CLI::Option* arch =
+      cmd->add_option("--arch", o.spec.arch, "unet (pix2pix, default), resnet or mlp")
+          ->check(CLI::IsMember({"unet", "resnet", "mlp"}));
+  CLI::Option* depth =
+      cmd->add_option("--depth", o.spec.depth,
+                      "unet: down-sampling levels (default 5); resnet: residual blocks")
+          ->check(CLI::Range(1, 8));
+  CLI::Option* width =
+      cmd->add_option("--width", o.spec.base_width, "Channels of the first layer (default 16)")
+          ->check(CLI::Range(1, 256));
+  CLI::Option* hidden =
+      cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
+          ->check(CLI::Range(1, 1024));
+  cmd->add_option("--init", o.init_model,
+                  "Fine-tune: start from this model's weights, network and input normalisation "
+                  "(e.g. the default model, on a real sensor's ball-press labels)")
+      ->excludes(arch)
+      ->excludes(depth)
+      ->excludes(width)
+      ->excludes(hidden);
   cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(kPositive);
   cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(kPositive);
   cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")->check(kPositive);
@@ -119,9 +130,17 @@ int run_train_normals(const TrainNormalsArgs& a) {
     }
   }
   o.gel_relative = a.labels == "gel";
+  std::error_code ec;
+  if (!o.init_model.empty() && std::filesystem::equivalent(o.out, o.init_model, ec)) {
+    throw InputError("--out " + o.out +
+                     " is the --init model; write the fine-tuned model to "
+                     "another file (the starting model would be replaced)");
+  }
   std::unique_ptr<Progress> progress;
   int epoch = 0;
-  std::printf("training %s on %zu dataset(s) for %d epochs -> %s\n", describe(o.spec).c_str(),
+  std::printf("%s on %zu dataset(s) for %d epochs -> %s\n",
+              o.init_model.empty() ? ("training " + describe(o.spec)).c_str()
+                                   : ("fine-tuning " + o.init_model).c_str(),
               o.train_data.size(), o.epochs, o.out.c_str());
   std::fflush(stdout);
   train_normals(

@@ -128,6 +128,10 @@ struct TrainOptions {
   int threads = 0;            // 0 = all cores
   int checkpoint_every = 10;  // epochs
   bool resume = false;        // continue from OUT.ckpt
+  // Fine-tuning: start from this model's weights, with its network and its input normalisation
+  // (`spec` is then taken from it; the training images must be of its size and its label frame,
+  // `gel_relative`). The discriminator starts afresh. "" = from random weights.
+  std::string init_model;
 };
 
 struct EpochReport {
