@@ -7,8 +7,10 @@
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
+#include "pg/core/csv.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
@@ -184,8 +186,7 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   const bool has_line = static_cast<bool>(std::getline(in, line));
   // A file saved on Windows ends its lines with "\r\n"; the rows drop the '\r' below. A
   // spreadsheet's UTF-8 byte-order mark before the header is dropped too.
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  if (line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
+  clean_csv_line(line, true);
   if (!has_line || line != kPosesHeader) {
     throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) +
                      "', found '" + excerpt(line) + "'");
@@ -196,15 +197,7 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
     ++line_no;
     if (line.empty()) continue;
     const std::string where = path + ": line " + std::to_string(line_no);
-    // Cells split on every comma, so that an empty last cell counts.
-    std::vector<std::string> cells(1);
-    for (char ch : line) {
-      if (ch == ',') {
-        cells.emplace_back();
-      } else if (ch != '\r') {
-        cells.back() += ch;
-      }
-    }
+    const std::vector<std::string> cells = csv_cells(line);
     if (int(cells.size()) != kPosesColumns) {
       throw InputError(where + ": expected " + std::to_string(kPosesColumns) + " columns, got " +
                        std::to_string(cells.size()));
@@ -219,14 +212,12 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
         empty_object_cells += is_object_column(c);
         continue;
       }
-      char* end = nullptr;
-      v[c] = std::strtod(cell.c_str(), &end);
-      // Decimal numbers only: strtod also reads hexadecimal ("0x10" as 16 m) and skips spaces.
-      const bool decimal = !cell.empty() && cell.find_first_of("xXpP \t") == std::string::npos;
-      if (!decimal || end != cell.c_str() + cell.size()) {
+      const std::optional<double> number = decimal_number(cell);
+      if (!number) {
         throw InputError(where + ": " + column_name(c) + ": '" + excerpt(cell) +
                          "' is not a decimal number");
       }
+      v[c] = *number;
       if (!std::isfinite(v[c])) {
         throw InputError(where + ": non-finite value in column " + std::to_string(c + 1) + " (" +
                          column_name(c) + ")");

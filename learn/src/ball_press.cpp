@@ -13,9 +13,11 @@ namespace {
 
 // Fewer changed pixels than this are no press (the tracker's smallest contact at 120x160).
 constexpr int kMinRegionPixels = 20;
-// A circle needs this many boundary points, and must pass this close to them.
+// A circle needs this many boundary points, and must pass this close to them: within 3 % of its
+// radius (RMS), or half a pixel for small ones. Rendered ball presses fit within 0.15-0.46 px,
+// at most 2.3 % of their radius; a cube's corner or edge 1.4-7.8 % (docs/learned_normals.md).
 constexpr int kMinBoundaryPoints = 12;
-constexpr double kMaxRmsPx = 1.5;
+constexpr double kMaxRmsFraction = 0.03, kMinRmsLimitPx = 0.5;
 // The four neighbours of a pixel.
 constexpr int kDx[4] = {-1, 1, 0, 0}, kDy[4] = {0, 0, -1, 1};
 
@@ -117,11 +119,38 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
   press.rms_px = std::sqrt(sum_sq / double(q.size()));
   press.boundary_points = int(q.size());
   press.centre_m = c;
-  if (press.rms_px > kMaxRmsPx) {
+  // The circle in the image through the same points (least squares, x^2 + y^2 + a x + b y + c =
+  // 0): what --circles takes back.
+  Eigen::MatrixXd A(image.size(), 3);
+  Eigen::VectorXd rhs(image.size());
+  for (std::size_t k = 0; k < image.size(); ++k) {
+    A.row(Eigen::Index(k)) << image[k].x(), image[k].y(), 1.0;
+    rhs(Eigen::Index(k)) = -image[k].squaredNorm();
+  }
+  const Eigen::Vector3d abc = A.colPivHouseholderQr().solve(rhs);
+  press.centre_px = -0.5 * abc.head<2>();
+  press.radius_px = std::sqrt(std::max(0.0, press.centre_px.squaredNorm() - abc.z()));
+  const double limit = std::max(kMinRmsLimitPx, kMaxRmsFraction * press.radius_px);
+  if (press.rms_px > limit) {
     press.reason = format(
-        "the change is not a circle: its boundary lies %.1f px (RMS) off the best "
-        "ball (more than %.1f px); one ball pressed at a time?",
-        press.rms_px, kMaxRmsPx);
+        "the change is not a circle: its boundary lies %.2f px (RMS) off the "
+        "best ball, more than %.2f px; one ball pressed at a time?",
+        press.rms_px, limit);
+    return press;
+  }
+  // A short arc (a press mostly beyond the image's edge) leaves the centre poorly determined.
+  std::vector<double> angles;
+  for (const auto& p : image) {
+    angles.push_back(std::atan2(p.y() - press.centre_px.y(), p.x() - press.centre_px.x()));
+  }
+  std::sort(angles.begin(), angles.end());
+  double gap = angles.front() + 2 * M_PI - angles.back();
+  for (std::size_t k = 1; k < angles.size(); ++k) gap = std::max(gap, angles[k] - angles[k - 1]);
+  if (gap > M_PI) {
+    press.reason = format(
+        "less than half of the contact's circle is in the image (%.0f of 360 "
+        "deg): too little to place the ball",
+        360.0 - gap * 180.0 / M_PI);
     return press;
   }
   const ImageF u = sphere_indentation(rays, c, radius_m);
@@ -137,17 +166,6 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
         press.depth_m * 1e3, max_indentation_m * 1e3);
     return press;
   }
-  // The circle in the image through the points the ball was fitted to (least squares,
-  // x^2 + y^2 + a x + b y + c = 0): what --circles takes back.
-  Eigen::MatrixXd A(image.size(), 3);
-  Eigen::VectorXd rhs(image.size());
-  for (std::size_t k = 0; k < image.size(); ++k) {
-    A.row(Eigen::Index(k)) << image[k].x(), image[k].y(), 1.0;
-    rhs(Eigen::Index(k)) = -image[k].squaredNorm();
-  }
-  const Eigen::Vector3d abc = A.colPivHouseholderQr().solve(rhs);
-  press.centre_px = -0.5 * abc.head<2>();
-  press.radius_px = std::sqrt(std::max(0.0, press.centre_px.squaredNorm() - abc.z()));
   press.found = true;
   return press;
 }
@@ -175,7 +193,7 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
   }
   // The largest 4-connected region of changed pixels.
   std::vector<int> label(changed.size(), -1), stack;
-  int best = -1, best_size = 0;
+  int best = -1, best_size = 0, second_size = 0;
   for (int start = 0; start < w * h; ++start) {
     if (!changed[std::size_t(start)] || label[std::size_t(start)] >= 0) continue;
     int size = 0;
@@ -195,9 +213,24 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
       }
     }
     if (size > best_size) {
+      second_size = best_size;
       best_size = size;
       best = start;
+    } else {
+      second_size = std::max(second_size, size);
     }
+  }
+  if (changed_count > w * h / 2) {
+    none.reason = format(
+        "%.0f %% of the image differs from the no-contact reference: a camera "
+        "dropout, or the lighting changed since the reference was taken",
+        100.0 * changed_count / (w * h));
+    return none;
+  }
+  if (second_size >= kMinRegionPixels) {
+    none.reason = format("two separate contacts (%.0f and %.0f px): one ball at a time",
+                         double(best_size), double(second_size));
+    return none;
   }
   if (best_size < kMinRegionPixels) {
     none.reason = format("the largest change covers %.0f px, fewer than a press's %.0f",

@@ -162,16 +162,18 @@ void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
   }
 }
 
-// The settings that make a training run what it is, recorded in the checkpoint so that a resumed
-// run can be held to them: resuming with another learning rate, batch, seed, loss weight,
-// augmentation or training data would silently continue a different run. --epochs and
-// --decay-epochs may change on resuming (to train longer); the schedule is a function of the
-// epoch, so it then continues as the new values say.
+// A path as one file is always named (symbolic links and ".." resolved), or as given.
 std::string canonical_or_given(const std::string& path) {
   std::error_code ec;
   const fs::path canonical = fs::weakly_canonical(path, ec);
   return ec ? path : canonical.string();
 }
+
+// The settings that make a training run what it is, recorded in the checkpoint so that a resumed
+// run can be held to them: resuming with another learning rate, batch, seed, loss weight,
+// augmentation, training data or starting model would silently continue a different run.
+// --epochs and --decay-epochs may change on resuming (to train longer); the schedule is a
+// function of the epoch, so it then continues as the new values say.
 
 nlohmann::json run_settings(const TrainOptions& o) {
   nlohmann::json data = nlohmann::json::array();
@@ -283,7 +285,6 @@ void train_normals(const TrainOptions& options,
     }
     info.input_mean = init.input_mean;
     info.input_std = init.input_std;
-    g->train();
   } else {
     const torch::Tensor all = torch::stack(train.input);
     const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);
@@ -317,6 +318,9 @@ void train_normals(const TrainOptions& options,
         throw InputError(checkpoint + ": not a normals training checkpoint");
       }
       const nlohmann::json j = nlohmann::json::parse(text.toStringRef());
+      // The run's settings first: a run resumed without its --init would otherwise be told only
+      // that the network differs.
+      if (j.contains("run")) check_run_settings(j.at("run"), o, checkpoint);
       NetworkSpec trained;
       trained.arch = j.at("arch").get<std::string>();
       trained.depth = j.at("depth").get<int>();
@@ -336,7 +340,6 @@ void train_normals(const TrainOptions& options,
                          "; resume with the checkpoint's --arch, --depth, --width, --hidden, "
                          "--gan-weight and --labels, or train into another --out");
       }
-      if (j.contains("run")) check_run_settings(j.at("run"), o, checkpoint);
       history = j.at("history");
       first_epoch = int(epoch.toInt());
       torch::serialize::InputArchive sub;

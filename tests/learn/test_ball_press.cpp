@@ -200,6 +200,46 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   const BallPress outside = ball_press_from_circle(rays, {500, 500}, 10, kBallRadius, max_depth);
   EXPECT_FALSE(outside.found);
   EXPECT_NE(outside.reason.find("fewer than 12"), std::string::npos) << outside.reason;
+  // A circle mostly beyond the image's edge: its short arc does not place the ball.
+  const BallPress arc = ball_press_from_circle(rays, {-15, 80}, 20, kBallRadius, max_depth);
+  EXPECT_FALSE(arc.found);
+  EXPECT_NE(arc.reason.find("less than half of the contact's circle"), std::string::npos)
+      << arc.reason;
+  // The whole frame brighter than the reference (the LEDs, a dropout): no press, and why.
+  ImageU8 brighter = reference;
+  for (auto& v : brighter.data) v = std::uint8_t(std::min(255, v + 20));
+  const BallPress light = find_ball_press(brighter, reference, rays, kBallRadius, max_depth);
+  EXPECT_FALSE(light.found);
+  EXPECT_NE(light.reason.find("of the image differs"), std::string::npos) << light.reason;
+  // Two presses in one frame (two frames' changes side by side) are not one ball's.
+  const ImageU8 a = d.color(1), b = d.color(2);
+  ImageU8 both = reference;
+  for (std::size_t i = 0; i < both.data.size(); ++i) {
+    both.data[i] =
+        std::uint8_t(std::clamp(int(a.data[i]) + int(b.data[i]) - reference.data[i], 0, 255));
+  }
+  const BallPress two = find_ball_press(both, reference, rays, kBallRadius, max_depth);
+  EXPECT_FALSE(two.found);
+  EXPECT_NE(two.reason.find("two separate contacts"), std::string::npos) << two.reason;
+}
+
+// Presses of a cube are not a ball's: most are refused as no circle (the rest: small contacts,
+// round to within the pixels' noise; docs/learned_normals.md).
+TEST_F(BallPressLabels, ACubeIsNoBall) {
+  RenderOverrides o;
+  o.outputs = {"color"};
+  render_scene_to_dataset(SceneRenderer(load_scene(kSource + "/scenes/normals/cube_val.json"), o),
+                          dir_->str("cube"));
+  const Dataset d = Dataset::open(dir_->str("cube"));
+  const GelRays rays = make_gel_rays(d.info().sensor.camera, d.info().sensor.gel);
+  int refused = 0;
+  for (int f = 0; f < d.frames(); ++f) {
+    const BallPress p = find_ball_press(d.color(f), d.background(), rays, kBallRadius,
+                                        d.info().sensor.gel.max_indentation_m);
+    refused += !p.found;
+    if (p.found) EXPECT_LT(p.radius_px, 16.0) << "frame " << f << ": a large contact passed";
+  }
+  EXPECT_GE(refused, 14);
 }
 
 }  // namespace

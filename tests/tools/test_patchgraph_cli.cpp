@@ -1286,11 +1286,33 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   };
   refused(circles("frame,u,v,r\n"), 1, "line 1: no column u_px");
   refused(circles("frame,u_px,v_px,radius_px\n3,40,abc,10\n"), 1,
-          "line 2: v_px: 'abc' is not a finite number");
+          "line 2: v_px: 'abc' is not a finite decimal number");
   refused(circles("frame,u_px,v_px,radius_px\n3,40,50,\n"), 1, "line 2: radius_px is empty");
   refused(circles("frame,u_px,v_px,radius_px\n20,40,50,10\n"), 1,
           "line 2: frame: '20' is not a frame of the dataset (0-19)");
   refused(circles("frame,u_px,v_px,radius_px\n3,,,\n3,,,\n"), 1, "frame 3 is given twice");
+  refused(circles("frame,u_px,v_px,radius_px\n3,0x3C,80,10\n"), 1,
+          "line 2: u_px: '0x3C' is not a finite decimal number");
+  refused(circles("frame,u_px,v_px,radius_px\n3,-40,80,10\n"), 1,
+          "line 2: the circle lies outside the 120x160 image");
+  refused(out("balls") + " --diameter 0.0127 --circles " + out("no_such.csv"), 1,
+          "no_such.csv: cannot open (--circles)");
+  // A spreadsheet's byte-order mark is no part of the header.
+  fs::remove_all(out("balls_bom"));
+  std::ofstream(out("circles_bom.csv")) << "\xEF\xBB\xBF"
+                                        << "frame,u_px,v_px,radius_px\n0,,,\n";
+  const CliRun bom = patchgraph("label-ball " + out("balls") + " --diameter 0.0127 --circles " +
+                                out("circles_bom.csv") + " -q --out " + out("balls_bom"));
+  EXPECT_EQ(bom.code, 0) << bom.out;
+  EXPECT_NE(bom.out.find("1 without contact"), std::string::npos) << bom.out;
+  // The circles.csv of a run given back as it is gives the same labels: its skipped frames stay
+  // skipped (not frames without a press).
+  fs::remove_all(out("balls_small_again"));
+  const CliRun again =
+      patchgraph("label-ball " + out("balls") + " --diameter 0.004 --circles " +
+                 out("balls_small") + "/circles.csv -q --out " + out("balls_small_again"));
+  EXPECT_EQ(again.code, 0) << again.out;
+  EXPECT_NE(again.out.find("0 without contact, 18 skipped"), std::string::npos) << again.out;
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

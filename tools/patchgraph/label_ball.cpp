@@ -8,11 +8,11 @@
 #include <fstream>
 #include <map>
 #include <optional>
-#include <sstream>
 #include <vector>
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
+#include "pg/core/csv.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
@@ -28,62 +28,57 @@ namespace {
 // A circle given by hand for one frame; none: the frame shows no press.
 using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 
-std::vector<std::string> split_cells(const std::string& line) {
-  std::vector<std::string> cells;
-  std::stringstream in(line);
-  std::string cell;
-  while (std::getline(in, cell, ',')) {
-    const auto b = cell.find_first_not_of(" \t\r"), e = cell.find_last_not_of(" \t\r");
-    cells.push_back(b == std::string::npos ? "" : cell.substr(b, e - b + 1));
-  }
-  if (!line.empty() && line.back() == ',') cells.push_back("");
-  return cells;
-}
-
 // --circles: a CSV with a header naming at least frame, u_px, v_px and radius_px (the columns of
 // the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
-// numbers (radius > 0) or all empty (no press in that frame). Frames not listed are found
-// automatically.
-std::map<int, GivenCircle> read_circles(const std::string& path, int frames) {
+// numbers (radius > 0) or all empty (no press in that frame); a row whose status column says
+// "skipped" (as label-ball wrote it) is as if not listed. Frames not listed are searched.
+std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (--circles)");
   std::string line;
   if (!std::getline(in, line)) throw InputError(path + ": empty; expected a header line");
-  const std::vector<std::string> header = split_cells(line);
+  clean_csv_line(line, true);
+  const std::vector<std::string> header = csv_cells(line);
   const char* names[4] = {"frame", "u_px", "v_px", "radius_px"};
   int column[4];
   for (int k = 0; k < 4; ++k) {
     const auto it = std::find(header.begin(), header.end(), names[k]);
     if (it == header.end()) {
-      throw InputError(path + ": line 1: no column " + names[k] +
+      throw InputError(path + ": line 1: no column " + std::string(names[k]) +
                        " (expected frame,u_px,v_px,radius_px)");
     }
     column[k] = int(it - header.begin());
   }
+  const auto status_it = std::find(header.begin(), header.end(), "status");
+  const int status = status_it == header.end() ? -1 : int(status_it - header.begin());
   std::map<int, GivenCircle> circles;
   for (int number = 2; std::getline(in, line); ++number) {
-    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-    const std::vector<std::string> cells = split_cells(line);
+    clean_csv_line(line, false);
+    if (line.find_first_not_of(" \t") == std::string::npos) continue;
+    const std::vector<std::string> cells = csv_cells(line);
+    const auto cell = [&](int c) { return c < int(cells.size()) ? cells[std::size_t(c)] : ""; };
     const std::string at = path + ": line " + std::to_string(number) + ": ";
     double v[4];
     bool empty[4];
     for (int k = 0; k < 4; ++k) {
-      const std::string cell = column[k] < int(cells.size()) ? cells[std::size_t(column[k])] : "";
-      empty[k] = cell.empty();
-      char* end = nullptr;
-      v[k] = empty[k] ? 0.0 : std::strtod(cell.c_str(), &end);
-      if (!empty[k] && (*end != '\0' || !std::isfinite(v[k]))) {
-        throw InputError(at + names[k] + ": '" + excerpt(cell) + "' is not a finite number");
+      const std::string text = cell(column[k]);
+      empty[k] = text.empty();
+      const std::optional<double> number_in = decimal_number(text);
+      if (!empty[k] && (!number_in || !std::isfinite(*number_in))) {
+        throw InputError(at + names[k] + ": '" + excerpt(text) +
+                         "' is not a finite decimal number");
       }
+      v[k] = empty[k] ? 0.0 : *number_in;
     }
     if (empty[0] || v[0] != std::floor(v[0]) || v[0] < 0 || v[0] >= frames) {
-      throw InputError(at + "frame: '" + (empty[0] ? "" : format_number(v[0])) +
-                       "' is not a frame of the dataset (0-" + std::to_string(frames - 1) + ")");
+      throw InputError(at + "frame: '" + cell(column[0]) + "' is not a frame of the dataset (0-" +
+                       std::to_string(frames - 1) + ")");
     }
     const int frame = int(v[0]);
     if (circles.count(frame)) {
       throw InputError(at + "frame " + std::to_string(frame) + " is given twice");
     }
+    if (status >= 0 && cell(status) == "skipped") continue;
     if (empty[1] && empty[2] && empty[3]) {
       circles[frame] = std::nullopt;
       continue;
@@ -96,6 +91,13 @@ std::map<int, GivenCircle> read_circles(const std::string& path, int frames) {
       }
     }
     if (!(v[3] > 0)) throw InputError(at + "radius_px: " + format_number(v[3]) + " is not > 0");
+    const Eigen::Vector2d centre(v[1], v[2]);
+    const Eigen::Vector2d nearest = centre.cwiseMax(Eigen::Vector2d::Zero())
+                                        .cwiseMin(Eigen::Vector2d(rays.width - 1, rays.height - 1));
+    if ((nearest - centre).norm() >= v[3]) {
+      throw InputError(at + "the circle lies outside the " + std::to_string(rays.width) + "x" +
+                       std::to_string(rays.height) + " image");
+    }
     circles[frame] = Eigen::Vector3d(v[1], v[2], v[3]);
   }
   return circles;
@@ -149,8 +151,7 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
       ->check(range_check(1e-4, 0.2));
   cmd->add_option("--circles", a.circles,
                   "CSV of contact circles given by hand: frame,u_px,v_px,radius_px (the "
-                  "circles.csv a run writes, corrected); empty cells: no press in that frame")
-      ->check(CLI::ExistingFile);
+                  "circles.csv a run writes, corrected); empty cells: no press in that frame");
   cmd->add_option("--out,-o", a.out, "The labelled dataset (color, normal, depth, mask)")
       ->required();
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
@@ -165,9 +166,9 @@ int run_label_ball(const LabelBallArgs& a) {
   }
   const SensorModel& sensor = d.info().sensor;
   const ImageU8 reference = d.background();
-  const std::map<int, GivenCircle> given =
-      a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, d.frames());
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
+  const std::map<int, GivenCircle> given =
+      a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
   const double radius = 0.5 * a.diameter, max_depth = sensor.gel.max_indentation_m;
 
   // Every frame's press first (reading every colour image), so that nothing is written when no

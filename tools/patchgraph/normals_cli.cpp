@@ -130,6 +130,9 @@ int run_train_normals(const TrainNormalsArgs& a) {
     }
   }
   o.gel_relative = a.labels == "gel";
+  if (!o.init_model.empty() && !std::filesystem::is_regular_file(o.init_model)) {
+    throw InputError(o.init_model + ": model file not found (--init)");
+  }
   std::error_code ec;
   if (!o.init_model.empty() && std::filesystem::equivalent(o.out, o.init_model, ec)) {
     throw InputError("--out " + o.out +

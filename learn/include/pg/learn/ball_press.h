@@ -30,7 +30,9 @@ struct BallPress {
 // holes filled; its boundary's points on the undeformed gel; the ball's centre (on the object's
 // side of the gel) that puts them all at `radius_m`. Not found (with the reason) when nothing
 // changed, the region is too small or not a circle, or the ball would be wider than its radius
-// allows or deeper than the gel takes (`max_indentation_m`).
+// allows or deeper than the gel takes (`max_indentation_m`); also when a second region is as
+// large as a press (two contacts), most of the image changed (a dropout, the lighting), or less
+// than half of the circle lies in the image.
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
                           double radius_m, double max_indentation_m);
 // The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px).

@@ -1,0 +1,19 @@
+#pragma once
+// Reading the CSV files a user may write or save from a spreadsheet (poses.csv, circles).
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace pg {
+
+// A line as read: its '\r' (a file saved on Windows) dropped, and with `header`, a spreadsheet's
+// UTF-8 byte-order mark before it.
+void clean_csv_line(std::string& line, bool header);
+// The cells of a line split on every comma, so that an empty last cell counts. No quoting: the
+// files read this way hold numbers (a quoted text cell may only come last).
+std::vector<std::string> csv_cells(const std::string& line);
+// A cell's decimal number; none for anything else (strtod alone would also read hexadecimal,
+// "0x10" as 16, and skip spaces). Infinite and NaN cells are numbers here: check std::isfinite.
+std::optional<double> decimal_number(const std::string& cell);
+
+}  // namespace pg
