@@ -237,7 +237,9 @@ TEST_F(BallPressLabels, ACubeIsNoBall) {
     const BallPress p = find_ball_press(d.color(f), d.background(), rays, kBallRadius,
                                         d.info().sensor.gel.max_indentation_m);
     refused += !p.found;
-    if (p.found) EXPECT_LT(p.radius_px, 16.0) << "frame " << f << ": a large contact passed";
+    if (p.found) {
+      EXPECT_LT(p.radius_px, 16.0) << "frame " << f << ": a large contact passed";
+    }
   }
   EXPECT_GE(refused, 14);
 }
