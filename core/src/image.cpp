@@ -90,6 +90,20 @@ ImageU8 read_image_u8(const std::string& path) {
   return read_image<std::uint8_t>(path, OIIO::TypeDesc::UINT8);
 }
 
+void check_image_output(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    throw InputError(path + ": is a folder; give the image file's name");
+  }
+  if (!OIIO::ImageOutput::create(path)) {
+    throw InputError(path + ": no image writer for this extension: " + OIIO::geterror());
+  }
+  const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
+  if (!std::filesystem::is_directory(folder, ec)) {
+    throw InputError(path + ": cannot write: " + folder.string() + " is not a folder");
+  }
+}
+
 void write_image(const std::string& path, const ImageF& image) {
   write(path, image, OIIO::TypeDesc::FLOAT);
 }

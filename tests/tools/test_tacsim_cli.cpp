@@ -314,6 +314,16 @@ TEST(TacsimCli, SheetOfScenesWithDifferentImageSizes) {
   EXPECT_EQ(sheet.at(10, 10, 1), 255);
   const std::uint8_t* centre = &sheet.at(120, 160, 0);
   EXPECT_FALSE(centre[0] == 255 && centre[1] == 255 && centre[2] == 255);
+  // An --out that cannot be written is refused before any scene is rendered.
+  for (const auto& [out, text] :
+       {std::pair<std::string, std::string>{tmp.str("s.txt"), "no image writer"},
+        {tmp.str("none/s.png"), "is not a folder"},
+        {tmp.str(), "is a folder"}}) {
+    const CliRun bad = tacsim("sheet " + kScenes + "examples/sphere_press.json --out " + out);
+    EXPECT_EQ(bad.code, 1) << out;
+    EXPECT_NE(bad.out.find(text), std::string::npos) << bad.out;
+    EXPECT_EQ(bad.out.find("frame 0"), std::string::npos) << "rendered first: " << bad.out;
+  }
 }
 
 TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {

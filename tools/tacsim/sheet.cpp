@@ -34,6 +34,7 @@ ImageU8 to_u8(const ImageF& image, float scale, float offset) {
 }  // namespace
 
 int run_sheet(const SheetArgs& args) {
+  check_image_output(args.out);  // before rendering every scene
   std::vector<std::vector<ImageU8>> columns;
   for (const auto& path : args.scenes) {
     Scene scene = load_scene(path);
