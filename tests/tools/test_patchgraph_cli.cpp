@@ -1313,6 +1313,31 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
                  out("balls_small") + "/circles.csv -q --out " + out("balls_small_again"));
   EXPECT_EQ(again.code, 0) << again.out;
   EXPECT_NE(again.out.find("0 without contact, 18 skipped"), std::string::npos) << again.out;
+  // A skipped row with a circle filled in by hand takes it (that of the 12.7 mm run's frame 1,
+  // where the ball is smaller than 4 mm would need: here a 13 mm ball).
+  {
+    std::ifstream in(out("balls_small") + "/circles.csv");
+    std::ofstream edited(out("circles_edited.csv"));
+    std::string line;
+    for (int row = 0; std::getline(in, line); ++row) {
+      const std::vector<std::string> cells = split_csv_line(line);
+      if (row == 2 && cells.at(2) == "skipped") {
+        edited << "1,,skipped," << rows[2][3] << "," << rows[2][4] << "," << rows[2][5] << "\n";
+      } else {
+        edited << line << "\n";
+      }
+    }
+  }
+  fs::remove_all(out("balls_edited"));
+  const CliRun edited = patchgraph("label-ball " + out("balls") + " --diameter 0.013 --circles " +
+                                   out("circles_edited.csv") + " -q --out " + out("balls_edited"));
+  EXPECT_EQ(edited.code, 0) << edited.out;
+  std::ifstream edited_in(out("balls_edited") + "/circles.csv");
+  std::string header_line, row0, row1;
+  std::getline(edited_in, header_line);
+  std::getline(edited_in, row0);
+  std::getline(edited_in, row1);
+  EXPECT_EQ(split_csv_line(row1).at(2), "given") << row1;
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

@@ -30,8 +30,9 @@ using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 
 // --circles: a CSV with a header naming at least frame, u_px, v_px and radius_px (the columns of
 // the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
-// numbers (radius > 0) or all empty (no press in that frame); a row whose status column says
-// "skipped" (as label-ball wrote it) is as if not listed. Frames not listed are searched.
+// numbers (radius > 0) or all empty (no press in that frame); a row with empty circle cells
+// whose status column says "skipped" (as label-ball wrote it) is as if not listed, one with a
+// circle filled in takes it. Frames not listed are searched.
 std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (--circles)");
@@ -78,8 +79,9 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
     if (circles.count(frame)) {
       throw InputError(at + "frame " + std::to_string(frame) + " is given twice");
     }
-    if (status >= 0 && cell(status) == "skipped") continue;
     if (empty[1] && empty[2] && empty[3]) {
+      // A skipped frame as label-ball wrote it is searched again, not a frame without a press.
+      if (status >= 0 && cell(status) == "skipped") continue;
       circles[frame] = std::nullopt;
       continue;
     }
