@@ -174,7 +174,6 @@ std::string canonical_or_given(const std::string& path) {
 // augmentation, training data or starting model would silently continue a different run.
 // --epochs and --decay-epochs may change on resuming (to train longer); the schedule is a
 // function of the epoch, so it then continues as the new values say.
-
 nlohmann::json run_settings(const TrainOptions& o) {
   nlohmann::json data = nlohmann::json::array();
   for (const std::string& folder : o.train_data) data.push_back(canonical_or_given(folder));
