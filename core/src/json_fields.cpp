@@ -241,6 +241,21 @@ Eigen::Vector3d JsonFields::position(const std::string& key, const Eigen::Vector
   return has(key) ? required_position(key) : fallback;
 }
 
+Eigen::Vector3d JsonFields::required_rpy(const std::string& key) {
+  const Eigen::Vector3d a = required<Eigen::Vector3d>(key);
+  if (a.cwiseAbs().maxCoeff() > kMaxAngleRad) {
+    std::ostringstream msg;
+    msg << field(key) << ": [" << a.x() << ", " << a.y() << ", " << a.z()
+        << "] is out of range: each angle must be within +-" << kMaxAngleRad << " rad";
+    throw InputError(msg.str());
+  }
+  return a;
+}
+
+Eigen::Vector3d JsonFields::rpy(const std::string& key, const Eigen::Vector3d& fallback) {
+  return has(key) ? required_rpy(key) : fallback;
+}
+
 void JsonFields::finish() const {
   for (const auto& item : j_.items()) {
     if (!read_.count(item.key())) throw InputError(field(item.key()) + ": unknown key");

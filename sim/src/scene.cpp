@@ -26,7 +26,7 @@ SE3 read_pose(const nlohmann::json& j, const std::string& where) {
   if (f.has("rpy") && f.has("quaternion")) {
     throw InputError(where + ": give either rpy or quaternion, not both");
   }
-  if (f.has("rpy")) pose = pose_from_position_rpy(position, f.required<Eigen::Vector3d>("rpy"));
+  if (f.has("rpy")) pose = pose_from_position_rpy(position, f.required_rpy("rpy"));
   if (f.has("quaternion")) pose = SE3(f.required<Eigen::Quaterniond>("quaternion"), position);
   f.finish();
   return pose;
@@ -66,7 +66,7 @@ Trajectory read_motion(JsonFields& f) {
     Waypoint wp;
     wp.frame = w.required<int>("frame");
     wp.position_m = w.position("position", Eigen::Vector3d::Zero());
-    wp.rpy_rad = w.optional<Eigen::Vector3d>("rpy", Eigen::Vector3d::Zero());
+    wp.rpy_rad = w.rpy("rpy", Eigen::Vector3d::Zero());
     w.finish();
     if (!waypoints.empty() && wp.frame <= waypoints.back().frame) {
       throw InputError(where + ".frame: frames must increase strictly (" +

@@ -235,10 +235,12 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
   };
   const std::vector<Case> cases = {
       {"missing frames", [](json& j) { j.erase("frames"); }, {": frames", "missing"}},
-      {"frames of the wrong type", [](json& j) { j["frames"] = "ten"; },
+      {"frames of the wrong type",
+       [](json& j) { j["frames"] = "ten"; },
        {": frames", "expected an integer, got a string"}},
       {"unknown top-level key", [](json& j) { j["colour"] = "red"; }, {": colour: unknown key"}},
-      {"unknown nested key", [](json& j) { j["objects"][0]["colour"] = "red"; },
+      {"unknown nested key",
+       [](json& j) { j["objects"][0]["colour"] = "red"; },
        {": objects[0].colour: unknown key"}},
       {"waypoint frames not increasing",
        [](json& j) {
@@ -252,19 +254,31 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
          j["objects"][0]["trajectory"] = {{"poses", {{{"position", {0, 0, 0}}}}}};
        },
        {"objects[0].pose", "either pose or trajectory"}},
-      {"unknown output", [](json& j) { j["render"] = {{"outputs", {"color", "rgb"}}}; },
+      {"unknown output",
+       [](json& j) {
+         j["render"] = {{"outputs", {"color", "rgb"}}};
+       },
        {"render.outputs", "unknown output 'rgb'"}},
-      {"no output", [](json& j) { j["render"] = {{"outputs", json::array()}}; },
+      {"no output",
+       [](json& j) {
+         j["render"] = {{"outputs", json::array()}};
+       },
        {"render.outputs", "empty; name at least one"}},
-      {"unknown tracked object", [](json& j) { j["tracked_object"] = "ghost"; },
+      {"unknown tracked object",
+       [](json& j) { j["tracked_object"] = "ghost"; },
        {": tracked_object", "'ghost'"}},
-      {"unknown sensor preset", [](json& j) { j["sensors"][0]["sensor"] = "digit9"; },
+      {"unknown sensor preset",
+       [](json& j) { j["sensors"][0]["sensor"] = "digit9"; },
        {"sensors[0].sensor", "unknown sensor preset 'digit9'"}},
       {"zero quaternion",
-       [](json& j) { j["objects"][0]["pose"] = {{"quaternion", {0, 0, 0, 0}}}; },
+       [](json& j) {
+         j["objects"][0]["pose"] = {{"quaternion", {0, 0, 0, 0}}};
+       },
        {"objects[0].pose.quaternion", "finite and non-zero"}},
       {"position beyond a kilometre",
-       [](json& j) { j["objects"][0]["pose"] = {{"position", {0, 1.7e308, 0}}}; },
+       [](json& j) {
+         j["objects"][0]["pose"] = {{"position", {0, 1.7e308, 0}}};
+       },
        {"objects[0].pose.position", "out of range", "1000 m"}},
       {"waypoint position beyond a kilometre",
        [](json& j) {
@@ -272,6 +286,17 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
                                                        waypoint(4, {-1e300, 0, 0}, {0, 0, 0})};
        },
        {"sensors[0].trajectory.waypoints[1].position", "out of range"}},
+      {"rpy beyond a thousand radians",
+       [](json& j) {
+         j["objects"][0]["pose"] = {{"rpy", {0, 1e300, 0}}};
+       },
+       {"objects[0].pose.rpy", "out of range", "1000 rad"}},
+      {"waypoint rpy beyond a thousand radians",
+       [](json& j) {
+         j["sensors"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0}, {0, 0, 0}),
+                                                       waypoint(4, {0, 0, 0}, {0, 0, -2e3})};
+       },
+       {"sensors[0].trajectory.waypoints[1].rpy", "out of range"}},
       {"light position beyond a kilometre",
        [](json& j) {
          j["sensors"][0]["sensor"] = {{"lights", {{{"position_m", {0, 0, 2e3}}}}}};

@@ -21,6 +21,9 @@ namespace pg {
 // any real setup while keeping the arithmetic on positions (differences, squares, interpolation)
 // far from overflow, so a typo like 1e300 is refused up front instead of ending as inf/NaN poses.
 constexpr double kMaxPositionM = 1e3;
+// Bound on every roll, pitch and yaw read from a file [rad]: 159 turns leave room for any
+// multi-turn waypoint; beyond, a typo like 1e300 has no meaningful sine.
+constexpr double kMaxAngleRad = 1e3;
 
 // Parses a JSON file. Throws InputError "PATH:LINE:COLUMN: message" on malformed JSON,
 // "PATH: message" on a number too large for a double and "PATH: cannot read" for a missing file.
@@ -58,6 +61,9 @@ class JsonFields {
   // A position [m]: 3 finite numbers, each within +-kMaxPositionM; the error names the key.
   Eigen::Vector3d position(const std::string& key, const Eigen::Vector3d& fallback);
   Eigen::Vector3d required_position(const std::string& key);
+  // Roll, pitch and yaw [rad]: 3 finite numbers, each within +-kMaxAngleRad.
+  Eigen::Vector3d rpy(const std::string& key, const Eigen::Vector3d& fallback);
+  Eigen::Vector3d required_rpy(const std::string& key);
 
   // Throws InputError naming the first key that was never read.
   void finish() const;
