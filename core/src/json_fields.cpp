@@ -226,15 +226,24 @@ double JsonFields::number_in(const std::string& key, double lo, double hi, doubl
   return has(key) ? required_number_in(key, lo, hi) : fallback;
 }
 
-Eigen::Vector3d JsonFields::required_position(const std::string& key) {
-  const Eigen::Vector3d p = required<Eigen::Vector3d>(key);
-  if (p.cwiseAbs().maxCoeff() > kMaxPositionM) {
+namespace {
+
+// `v` (the field `where`) unless a component lies beyond +-bound: "each <what> must be within".
+Eigen::Vector3d within(const Eigen::Vector3d& v, double bound, const std::string& where,
+                       const char* what, const char* unit) {
+  if (v.cwiseAbs().maxCoeff() > bound) {
     std::ostringstream msg;
-    msg << field(key) << ": [" << p.x() << ", " << p.y() << ", " << p.z()
-        << "] is out of range: each coordinate must be within +-" << kMaxPositionM << " m";
+    msg << where << ": [" << v.x() << ", " << v.y() << ", " << v.z() << "] is out of range: each "
+        << what << " must be within +-" << bound << " " << unit;
     throw InputError(msg.str());
   }
-  return p;
+  return v;
+}
+
+}  // namespace
+
+Eigen::Vector3d JsonFields::required_position(const std::string& key) {
+  return within(required<Eigen::Vector3d>(key), kMaxPositionM, field(key), "coordinate", "m");
 }
 
 Eigen::Vector3d JsonFields::position(const std::string& key, const Eigen::Vector3d& fallback) {
@@ -242,14 +251,7 @@ Eigen::Vector3d JsonFields::position(const std::string& key, const Eigen::Vector
 }
 
 Eigen::Vector3d JsonFields::required_rpy(const std::string& key) {
-  const Eigen::Vector3d a = required<Eigen::Vector3d>(key);
-  if (a.cwiseAbs().maxCoeff() > kMaxAngleRad) {
-    std::ostringstream msg;
-    msg << field(key) << ": [" << a.x() << ", " << a.y() << ", " << a.z()
-        << "] is out of range: each angle must be within +-" << kMaxAngleRad << " rad";
-    throw InputError(msg.str());
-  }
-  return a;
+  return within(required<Eigen::Vector3d>(key), kMaxAngleRad, field(key), "angle", "rad");
 }
 
 Eigen::Vector3d JsonFields::rpy(const std::string& key, const Eigen::Vector3d& fallback) {
