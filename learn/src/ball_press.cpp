@@ -21,6 +21,25 @@ constexpr double kMaxRmsFraction = 0.03, kMinRmsLimitPx = 0.5;
 // The four neighbours of a pixel.
 constexpr int kDx[4] = {-1, 1, 0, 0}, kDy[4] = {0, 0, -1, 1};
 
+// Flood fill from the pixels in `stack`: calls visit(j) for each 4-neighbour j of a filled pixel
+// that accept(j) allows; visit must make accept(j) false for j (mark it), and j is filled next.
+template <typename Accept, typename Visit>
+void flood(int w, int h, std::vector<int>& stack, Accept&& accept, Visit&& visit) {
+  while (!stack.empty()) {
+    const int i = stack.back();
+    stack.pop_back();
+    const int x = i % w, y = i / w;
+    for (int k = 0; k < 4; ++k) {
+      const int nx = x + kDx[k], ny = y + kDy[k];
+      if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
+      const int j = ny * w + nx;
+      if (!accept(j)) continue;
+      visit(j);
+      stack.push_back(j);
+    }
+  }
+}
+
 std::string format(const char* fmt, double a, double b = 0) {
   char text[160];
   std::snprintf(text, sizeof(text), fmt, a, b);
@@ -191,27 +210,27 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
         double(changed_count), double(kMinRegionPixels));
     return none;
   }
+  if (changed_count > w * h / 2) {
+    none.reason = format(
+        "%.0f %% of the image differs from the no-contact reference: a camera "
+        "dropout, or the lighting changed since the reference was taken",
+        100.0 * changed_count / (w * h));
+    return none;
+  }
   // The largest 4-connected region of changed pixels.
   std::vector<int> label(changed.size(), -1), stack;
   int best = -1, best_size = 0, second_size = 0;
   for (int start = 0; start < w * h; ++start) {
     if (!changed[std::size_t(start)] || label[std::size_t(start)] >= 0) continue;
-    int size = 0;
+    int size = 1;
     stack.assign(1, start);
     label[std::size_t(start)] = start;
-    while (!stack.empty()) {
-      const int i = stack.back();
-      stack.pop_back();
-      ++size;
-      const int x = i % w, y = i / w;
-      for (const int j : {x > 0 ? i - 1 : -1, x + 1 < w ? i + 1 : -1, y > 0 ? i - w : -1,
-                          y + 1 < h ? i + w : -1}) {
-        if (j >= 0 && changed[std::size_t(j)] && label[std::size_t(j)] < 0) {
+    flood(
+        w, h, stack, [&](int j) { return changed[std::size_t(j)] && label[std::size_t(j)] < 0; },
+        [&](int j) {
           label[std::size_t(j)] = start;
-          stack.push_back(j);
-        }
-      }
-    }
+          ++size;
+        });
     if (size > best_size) {
       second_size = best_size;
       best_size = size;
@@ -219,13 +238,6 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
     } else {
       second_size = std::max(second_size, size);
     }
-  }
-  if (changed_count > w * h / 2) {
-    none.reason = format(
-        "%.0f %% of the image differs from the no-contact reference: a camera "
-        "dropout, or the lighting changed since the reference was taken",
-        100.0 * changed_count / (w * h));
-    return none;
   }
   if (second_size >= kMinRegionPixels) {
     none.reason = format("two separate contacts (%.0f and %.0f px): one ball at a time",
@@ -248,18 +260,9 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
       stack.push_back(i);
     }
   }
-  while (!stack.empty()) {
-    const int i = stack.back();
-    stack.pop_back();
-    const int x = i % w, y = i / w;
-    for (const int j :
-         {x > 0 ? i - 1 : -1, x + 1 < w ? i + 1 : -1, y > 0 ? i - w : -1, y + 1 < h ? i + w : -1}) {
-      if (j >= 0 && !outside[std::size_t(j)] && label[std::size_t(j)] != best) {
-        outside[std::size_t(j)] = 1;
-        stack.push_back(j);
-      }
-    }
-  }
+  flood(
+      w, h, stack, [&](int j) { return !outside[std::size_t(j)] && label[std::size_t(j)] != best; },
+      [&](int j) { outside[std::size_t(j)] = 1; });
   // The change test's 3x3 mean reaches one pixel beyond a sharp change: the region less its
   // outermost pixels (measured on rendered presses of the rigid gel: the ball's centre 0.15 mm
   // off without this, 0.05 mm with it; docs/learned_normals.md).
