@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <vector>
 
+#include "pg/core/gel_elastic.h"
 #include "pg/core/image_change.h"
 
 namespace pg {
@@ -92,6 +93,40 @@ bool fit_ball(const std::vector<Eigen::Vector3d>& q, double radius, Eigen::Vecto
   return c.allFinite();
 }
 
+// The circle through image points (least squares, x^2 + y^2 + a x + b y + c = 0).
+void image_circle(const std::vector<Eigen::Vector2d>& points, Eigen::Vector2d* centre,
+                  double* radius) {
+  Eigen::MatrixXd A(points.size(), 3);
+  Eigen::VectorXd rhs(points.size());
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    A.row(Eigen::Index(k)) << points[k].x(), points[k].y(), 1.0;
+    rhs(Eigen::Index(k)) = -points[k].squaredNorm();
+  }
+  const Eigen::Vector3d abc = A.colPivHouseholderQr().solve(rhs);
+  *centre = -0.5 * abc.head<2>();
+  *radius = std::sqrt(std::max(0.0, centre->squaredNorm() - abc.z()));
+}
+
+// Puts the press's ball at `centre`: its depth, or the reason it cannot be there.
+bool place_at(const GelRays& rays, const Eigen::Vector3d& centre, double radius_m,
+              double max_indentation_m, BallPress* press) {
+  const ImageF u = sphere_indentation(rays, centre, radius_m);
+  press->centre_m = centre;
+  press->depth_m = double(*std::max_element(u.data.begin(), u.data.end()));
+  if (press->depth_m <= 0) {
+    press->reason = "the fitted ball does not indent the gel";
+    return false;
+  }
+  if (press->depth_m > max_indentation_m) {
+    press->reason = format(
+        "the fitted ball is %.2f mm deep, deeper than the gel takes (%.2f mm): "
+        "is the diameter right?",
+        press->depth_m * 1e3, max_indentation_m * 1e3);
+    return false;
+  }
+  return true;
+}
+
 // Fits the ball to the image points (u, v) on its contact's boundary, drops the points more than
 // three median deviations (at least a pixel) off it and fits again; then the depth and checks.
 BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& boundary,
@@ -138,17 +173,8 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
   press.rms_px = std::sqrt(sum_sq / double(q.size()));
   press.boundary_points = int(q.size());
   press.centre_m = c;
-  // The circle in the image through the same points (least squares, x^2 + y^2 + a x + b y + c =
-  // 0): what --circles takes back.
-  Eigen::MatrixXd A(image.size(), 3);
-  Eigen::VectorXd rhs(image.size());
-  for (std::size_t k = 0; k < image.size(); ++k) {
-    A.row(Eigen::Index(k)) << image[k].x(), image[k].y(), 1.0;
-    rhs(Eigen::Index(k)) = -image[k].squaredNorm();
-  }
-  const Eigen::Vector3d abc = A.colPivHouseholderQr().solve(rhs);
-  press.centre_px = -0.5 * abc.head<2>();
-  press.radius_px = std::sqrt(std::max(0.0, press.centre_px.squaredNorm() - abc.z()));
+  // The circle in the image through the same points: what --circles takes back.
+  image_circle(image, &press.centre_px, &press.radius_px);
   const double limit = std::max(kMinRmsLimitPx, kMaxRmsFraction * press.radius_px);
   if (press.rms_px > limit) {
     press.reason = format(
@@ -172,28 +198,17 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
         360.0 - gap * 180.0 / M_PI);
     return press;
   }
-  const ImageF u = sphere_indentation(rays, c, radius_m);
-  press.depth_m = double(*std::max_element(u.data.begin(), u.data.end()));
-  if (press.depth_m <= 0) {
-    press.reason = "the fitted ball does not indent the gel";
-    return press;
-  }
-  if (press.depth_m > max_indentation_m) {
-    press.reason = format(
-        "the fitted ball is %.2f mm deep, deeper than the gel takes (%.2f mm): "
-        "is the diameter right?",
-        press.depth_m * 1e3, max_indentation_m * 1e3);
-    return press;
-  }
-  press.found = true;
+  press.found = place_at(rays, c, radius_m, max_indentation_m, &press);
   return press;
 }
 
-}  // namespace
-
-BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
-                          double radius_m, double max_indentation_m) {
-  const int w = rays.width, h = rays.height;
+// The boundary of the change a press makes: the largest 4-connected region of the pixels that
+// differ from the no-contact reference beyond the camera's noise, its holes filled, less its
+// outermost ring; the points midway between it and the pixels outside. False (with none's
+// reason and no_change) when the frame shows no single press.
+bool change_boundary(const ImageU8& color, const ImageU8& reference,
+                     std::vector<Eigen::Vector2d>* boundary, BallPress* none) {
+  const int w = color.width, h = color.height;
   std::vector<char> changed(std::size_t(w) * h, 0);
   int changed_count = 0;
   for_each_changed_pixel(color, reference, [&](int x, int y) {
@@ -201,21 +216,20 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
     ++changed_count;
     return true;
   });
-  BallPress none;
   if (changed_count < kMinRegionPixels) {
-    none.no_change = true;
-    none.reason = format(
+    none->no_change = true;
+    none->reason = format(
         "%.0f px differ from the no-contact reference beyond the camera's noise, "
         "fewer than a press changes (%.0f): no contact",
         double(changed_count), double(kMinRegionPixels));
-    return none;
+    return false;
   }
   if (changed_count > w * h / 2) {
-    none.reason = format(
+    none->reason = format(
         "%.0f %% of the image differs from the no-contact reference: a camera "
         "dropout, or the lighting changed since the reference was taken",
         100.0 * changed_count / (w * h));
-    return none;
+    return false;
   }
   // The largest 4-connected region of changed pixels.
   std::vector<int> label(changed.size(), -1), stack;
@@ -240,14 +254,14 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
     }
   }
   if (second_size >= kMinRegionPixels) {
-    none.reason = format("two separate contacts (%.0f and %.0f px): one ball at a time",
-                         double(best_size), double(second_size));
-    return none;
+    none->reason = format("two separate contacts (%.0f and %.0f px): one ball at a time",
+                          double(best_size), double(second_size));
+    return false;
   }
   if (best_size < kMinRegionPixels) {
-    none.reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
-                         double(best_size), double(kMinRegionPixels));
-    return none;
+    none->reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
+                          double(best_size), double(kMinRegionPixels));
+    return false;
   }
   // Its holes filled (a press's flat middle may look like the reference): every pixel that the
   // image's border cannot reach without crossing the region.
@@ -282,22 +296,141 @@ BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const 
   // The boundary: midway between each region pixel and an outside neighbour, except at the
   // image's outermost pixels, which the change test never marks (a press cut by the image's edge
   // keeps only its arc inside).
-  std::vector<Eigen::Vector2d> boundary;
+  boundary->clear();
   for (int y = 1; y + 1 < h; ++y) {
     for (int x = 1; x + 1 < w; ++x) {
       if (outside[std::size_t(y) * w + x]) continue;
       for (int k = 0; k < 4; ++k) {
         const int dx = kDx[k], dy = kDy[k], nx = x + dx, ny = y + dy;
         if (nx <= 0 || ny <= 0 || nx >= w - 1 || ny >= h - 1) continue;
-        if (outside[std::size_t(ny) * w + nx]) boundary.emplace_back(x + 0.5 * dx, y + 0.5 * dy);
+        if (outside[std::size_t(ny) * w + nx]) boundary->emplace_back(x + 0.5 * dx, y + 0.5 * dy);
       }
     }
   }
-  return fit_press(rays, boundary, radius_m, max_indentation_m);
+  return true;
 }
 
-BallPress ball_press_from_circle(const GelRays& rays, const Eigen::Vector2d& centre_px,
-                                 double radius_px, double radius_m, double max_indentation_m) {
+// The press's middle, where the gel takes the ball's shape whatever its elasticity: within this
+// fraction of the circle's radius, and tilted less than this (the colour change is near linear
+// in the tilt there, as at the edge of the visible change); the colour model needs this many of
+// its pixels.
+constexpr double kMiddleFraction = 0.75, kMaxModelTilt = 0.2;
+constexpr int kMinModelPixels = 20;
+
+// Places the press's ball by the shading (find_ball_press, step 2). `press` holds the ball
+// placed through its circle; it is moved when the model can be fitted and the circle's radius
+// bracketed, and refused (found false, with the reason) if the new place is deeper than the gel
+// takes.
+void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
+                      double radius_m, const GelModel& gel, BallPress* press) {
+  const int w = rays.width, h = rays.height;
+  const ImageF flat = undeformed_gel_normals(rays);
+  // The colour change per channel against the tilt (nx, ny of the normal less the undeformed
+  // gel's) over the middle, by least squares with an offset (the middle's mean change).
+  const ImageF ball = gel_normals(rays, sphere_indentation(rays, press->centre_m, radius_m));
+  std::vector<Eigen::Vector3d> rows;
+  std::vector<Eigen::Vector3d> change;
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) {
+      if ((Eigen::Vector2d(x, y) - press->centre_px).norm() > kMiddleFraction * press->radius_px)
+        continue;
+      const std::size_t i = std::size_t(y) * w + x;
+      const double tx = ball.data[3 * i] - flat.data[3 * i];
+      const double ty = ball.data[3 * i + 1] - flat.data[3 * i + 1];
+      if (std::hypot(tx, ty) > kMaxModelTilt) continue;
+      rows.emplace_back(1.0, tx, ty);
+      change.emplace_back(double(color.data[3 * i]) - reference.data[3 * i],
+                          double(color.data[3 * i + 1]) - reference.data[3 * i + 1],
+                          double(color.data[3 * i + 2]) - reference.data[3 * i + 2]);
+    }
+  }
+  if (int(rows.size()) < kMinModelPixels) return;
+  Eigen::MatrixXd A(rows.size(), 3), B(rows.size(), 3);
+  for (std::size_t k = 0; k < rows.size(); ++k) {
+    A.row(Eigen::Index(k)) = rows[k].transpose();
+    B.row(Eigen::Index(k)) = change[k].transpose();
+  }
+  const Eigen::Matrix3d model = A.colPivHouseholderQr().solve(B);  // rows: offset, tx, ty
+  if (!model.allFinite()) return;
+  const Eigen::Matrix<double, 2, 3> slope = model.bottomRows<2>();
+
+  // The circle the search finds in the frame the gel model and the colour model predict for a
+  // ball at c.
+  std::vector<Eigen::Vector2d> boundary;
+  ImageU8 predicted = reference;
+  const auto predicted_circle = [&](const Eigen::Vector3d& c, Eigen::Vector2d* centre,
+                                    double* radius) {
+    const ImageF rigid = sphere_indentation(rays, c, radius_m);
+    const ImageF normal = gel_normals(rays, elastic_indentation(gel.elastic, rays.px_per_m, rigid));
+    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+      const Eigen::Vector2d tilt(normal.data[3 * i] - flat.data[3 * i],
+                                 normal.data[3 * i + 1] - flat.data[3 * i + 1]);
+      const Eigen::Vector3d value =
+          Eigen::Vector3d(reference.data[3 * i], reference.data[3 * i + 1],
+                          reference.data[3 * i + 2]) +
+          slope.transpose() * tilt;
+      for (int ch = 0; ch < 3; ++ch)
+        predicted.data[3 * i + ch] = std::uint8_t(std::clamp(std::lround(value[ch]), 0L, 255L));
+    }
+    BallPress ignored;
+    if (!change_boundary(predicted, reference, &boundary, &ignored) ||
+        int(boundary.size()) < kMinBoundaryPoints)
+      return false;
+    image_circle(boundary, centre, radius);
+    return true;
+  };
+  // The depth that gives the circle's radius, by bisection along z between the ball just
+  // touching and 0.5 mm deeper than the circle put it.
+  Eigen::Vector3d c = press->centre_m;
+  const auto fit_depth = [&]() {
+    double deeper = -5e-4, shallower = press->depth_m;
+    Eigen::Vector2d centre;
+    double r_deep = 0, r_shallow = 0;
+    const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+    if (!predicted_circle(c + deeper * z, &centre, &r_deep) || r_deep < press->radius_px)
+      return false;
+    if (predicted_circle(c + shallower * z, &centre, &r_shallow) && r_shallow > press->radius_px)
+      return false;
+    for (int it = 0; it < 20; ++it) {
+      const double mid = 0.5 * (deeper + shallower);
+      double r = 0;
+      if (predicted_circle(c + mid * z, &centre, &r) && r > press->radius_px)
+        deeper = mid;
+      else
+        shallower = mid;
+    }
+    c += 0.5 * (deeper + shallower) * z;
+    return true;
+  };
+  if (!fit_depth()) return;
+  // Then the side: the predicted circle's centre onto the found one's, on the gel.
+  Eigen::Vector2d centre;
+  double r = 0;
+  if (predicted_circle(c, &centre, &r)) {
+    const Eigen::Vector3d shift = gel_point(rays, press->centre_px.x(), press->centre_px.y()) -
+                                  gel_point(rays, centre.x(), centre.y());
+    c.head<2>() += shift.head<2>();
+    if (!fit_depth()) return;
+  }
+  press->shading_fit = true;
+  press->found = place_at(rays, c, radius_m, gel.max_indentation_m, press);
+}
+
+}  // namespace
+
+BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
+                          double radius_m, const GelModel& gel) {
+  std::vector<Eigen::Vector2d> boundary;
+  BallPress press;
+  if (!change_boundary(color, reference, &boundary, &press)) return press;
+  press = fit_press(rays, boundary, radius_m, gel.max_indentation_m);
+  if (press.found) place_by_shading(color, reference, rays, radius_m, gel, &press);
+  return press;
+}
+
+BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
+                                 const GelRays& rays, const Eigen::Vector2d& centre_px,
+                                 double radius_px, double radius_m, const GelModel& gel) {
   std::vector<Eigen::Vector2d> boundary;
   const int n = 90;
   for (int k = 0; k < n; ++k) {
@@ -307,16 +440,20 @@ BallPress ball_press_from_circle(const GelRays& rays, const Eigen::Vector2d& cen
       boundary.push_back(p);
     }
   }
-  return fit_press(rays, boundary, radius_m, max_indentation_m);
+  BallPress press = fit_press(rays, boundary, radius_m, gel.max_indentation_m);
+  if (press.found) place_by_shading(color, reference, rays, radius_m, gel, &press);
+  return press;
 }
 
-BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m) {
+BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m,
+                       const ElasticModel& elastic) {
   BallLabels labels;
-  labels.depth = sphere_indentation(rays, centre_m, radius_m);
+  const ImageF rigid = sphere_indentation(rays, centre_m, radius_m);
+  labels.depth = elastic_indentation(elastic, rays.px_per_m, rigid);
   labels.normal = gel_normals(rays, labels.depth);
   labels.mask = ImageU8(rays.width, rays.height, 1, 0);
-  for (std::size_t i = 0; i < labels.depth.data.size(); ++i)
-    if (labels.depth.data[i] > 0) labels.mask.data[i] = 255;
+  for (std::size_t i = 0; i < rigid.data.size(); ++i)
+    if (rigid.data[i] > 0) labels.mask.data[i] = 255;
   return labels;
 }
 

@@ -1238,6 +1238,21 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   ASSERT_EQ(rows.size(), 21u);
   EXPECT_EQ(rows[0][3], "u_px");
   EXPECT_EQ(rows[2][2], "found");
+  EXPECT_EQ(rows[0][11], "fit");
+  EXPECT_EQ(rows[2][11], "shading") << "placed by the shading, not through the circle alone";
+  // The render's gel is elastic, and so are the labels: the sink-in around the contact is
+  // indented too. --gel rigid labels the ball's shape alone, and the dataset says which.
+  EXPECT_TRUE(labelled.info().sensor.gel.elastic.enabled);
+  const CliRun rigid = patchgraph("label-ball " + out("balls") +
+                                  " --diameter 0.0127 --gel rigid -q --out " + out("balls_rigid"));
+  ASSERT_EQ(rigid.code, 0) << rigid.out;
+  EXPECT_NE(rigid.out.find("rigid gel"), std::string::npos) << rigid.out;
+  const Dataset rigid_labels = Dataset::open(out("balls_rigid"));
+  EXPECT_FALSE(rigid_labels.info().sensor.gel.elastic.enabled);
+  const auto indented = [](const ImageF& depth) {
+    return std::count_if(depth.data.begin(), depth.data.end(), [](float u) { return u > 0; });
+  };
+  EXPECT_GT(indented(labelled.depth(7)), indented(rigid_labels.depth(7)) + 20);
   const CliRun train = patchgraph("train-normals --data " + out("balls_labelled") +
                                   " --epochs 1 --depth 2 --width 4 -q --out " + out("ball.pt"));
   EXPECT_EQ(train.code, 0) << train.out;
@@ -1266,6 +1281,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     EXPECT_FALSE(fs::exists(out("balls_bad"))) << args;
   };
   refused(out("balls") + " --diameter 12.7", 2, "--diameter");
+  refused(out("balls") + " --diameter 0.0127 --gel soft", 2, "--gel");
   refused(out("balls") + " --diameter 0.001", 1,
           "no ball press found in any of its 20 frames (frame 0: the contact is wider than a ball "
           "of diameter 1.00 mm makes: is the diameter right?)");

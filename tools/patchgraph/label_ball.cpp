@@ -115,7 +115,7 @@ struct FrameLabel {
 std::string circles_csv(const std::vector<FrameLabel>& labels) {
   std::string text =
       "frame,labelled_frame,status,u_px,v_px,radius_px,centre_x_m,centre_y_m,centre_z_m,"
-      "depth_m,rms_px,reason\n";
+      "depth_m,rms_px,fit,reason\n";
   int labelled = 0;
   char row[512];
   for (std::size_t f = 0; f < labels.size(); ++f) {
@@ -126,11 +126,12 @@ std::string circles_csv(const std::vector<FrameLabel>& labels) {
     const std::string index = l.kind == FrameLabel::kSkipped ? "" : std::to_string(labelled++);
     if (l.kind == FrameLabel::kPress) {
       const BallPress& p = l.press;
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%.3f,\n", f,
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%.3f,%s,\n", f,
                     index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
-                    p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, p.rms_px);
+                    p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, p.rms_px,
+                    p.shading_fit ? "shading" : "circle");
     } else {
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,%s\n", f, index.c_str(), status,
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,,%s\n", f, index.c_str(), status,
                     csv_field(l.press.reason).c_str());
     }
     text += row;
@@ -156,6 +157,11 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
                   "circles.csv a run writes, corrected); empty cells: no press in that frame");
   cmd->add_option("--out,-o", a.out, "The labelled dataset (color, normal, depth, mask)")
       ->required();
+  cmd->add_option("--gel", a.gel,
+                  "The gel the labels model: elastic (the sensor's elastic model: rim rounded, "
+                  "sink-in around the contact) or rigid (TACTO's; the paper's ball labels); "
+                  "default: as the dataset's sensor says (sensor gel.elastic.enabled)")
+      ->check(CLI::IsMember({"elastic", "rigid"}));
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }
@@ -166,12 +172,14 @@ int run_label_ball(const LabelBallArgs& a) {
   if (!d.info().has_output("color")) {
     throw InputError(a.dataset + "/dataset.json: outputs: no colour images to find presses in");
   }
+  GelModel gel = d.info().sensor.gel;
+  if (!a.gel.empty()) gel.elastic.enabled = a.gel == "elastic";
   const SensorModel& sensor = d.info().sensor;
   const ImageU8 reference = d.background();
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   const std::map<int, GivenCircle> given =
       a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
-  const double radius = 0.5 * a.diameter, max_depth = sensor.gel.max_indentation_m;
+  const double radius = 0.5 * a.diameter;
 
   // Every frame's press first (reading every colour image), so that nothing is written when no
   // frame has one.
@@ -188,11 +196,12 @@ int run_label_ball(const LabelBallArgs& a) {
         l.press.reason = "no press (--circles)";
       } else if (l.given) {
         const Eigen::Vector3d& c = *it->second;
-        l.press = ball_press_from_circle(rays, c.head<2>(), c.z(), radius, max_depth);
+        l.press =
+            ball_press_from_circle(d.color(f), reference, rays, c.head<2>(), c.z(), radius, gel);
         if (!l.press.found) l.press.reason = "--circles: " + l.press.reason;
         l.kind = l.press.found ? FrameLabel::kPress : FrameLabel::kSkipped;
       } else {
-        l.press = find_ball_press(d.color(f), reference, rays, radius, max_depth);
+        l.press = find_ball_press(d.color(f), reference, rays, radius, gel);
         l.kind = l.press.found       ? FrameLabel::kPress
                  : l.press.no_change ? FrameLabel::kNoPress
                                      : FrameLabel::kSkipped;
@@ -221,6 +230,7 @@ int run_label_ball(const LabelBallArgs& a) {
   info.object_name = "ball";
   info.object_mesh.clear();
   info.object_scale = 1.0;
+  info.sensor.gel = gel;  // the gel the labels model
   const bool out_existed = fs::exists(a.out);
   try {
     DatasetWriter writer(a.out, info);
@@ -241,7 +251,7 @@ int run_label_ball(const LabelBallArgs& a) {
       FrameImages images;
       images.color = d.color(f);
       if (l.kind == FrameLabel::kPress) {
-        BallLabels ball = ball_labels(rays, l.press.centre_m, radius);
+        BallLabels ball = ball_labels(rays, l.press.centre_m, radius, gel.elastic);
         images.normal = std::move(ball.normal);
         images.depth = std::move(ball.depth);
         images.mask = std::move(ball.mask);
@@ -262,19 +272,21 @@ int run_label_ball(const LabelBallArgs& a) {
   }
   const int skipped = d.frames() - presses - no_press;
   std::vector<double> rms, depth;
+  int by_shading = 0;
   for (const FrameLabel& l : labels) {
     if (l.kind != FrameLabel::kPress) continue;
     rms.push_back(l.press.rms_px);
     depth.push_back(l.press.depth_m * 1e3);
+    by_shading += l.press.shading_fit;
   }
   std::sort(rms.begin(), rms.end());
   std::sort(depth.begin(), depth.end());
   std::printf(
       "%d frames of %s: %d presses labelled (%.2f-%.2f mm deep, circle fit %.2f px RMS "
-      "median), %d without contact, %d skipped -> %s (circles.csv: each frame's circle "
-      "or reason)\n",
+      "median, %d placed by the shading, %s gel), %d without contact, %d skipped -> %s "
+      "(circles.csv: each frame's circle or reason)\n",
       d.frames(), a.dataset.c_str(), presses, depth.front(), depth.back(), rms[rms.size() / 2],
-      no_press, skipped, a.out.c_str());
+      by_shading, gel.elastic.enabled ? "elastic" : "rigid", no_press, skipped, a.out.c_str());
   int shown = 0;
   for (std::size_t f = 0; f < labels.size() && shown < 5; ++f) {
     if (labels[f].kind != FrameLabel::kSkipped) continue;

@@ -10,6 +10,9 @@ struct LabelBallArgs {
   double diameter = 0;  // the ball's [m]
   std::string circles;  // CSV of circles given by hand (frame,u_px,v_px,radius_px), optional
   std::string out;      // the labelled dataset
+  // The gel the labels model: "elastic" (the dataset's sensor's elastic model), "rigid", or empty
+  // for what the dataset's sensor says (gel.elastic.enabled).
+  std::string gel;
   bool quiet = false;
 };
 

@@ -23,29 +23,48 @@ struct BallPress {
   double depth_m = 0;                                  // deepest indentation of the gel [m]
   double rms_px = 0;        // the circle's boundary points off the fitted ball (found ones) [px]
   int boundary_points = 0;  // how many the fit used
+  // Placed by the shading (below): the ball whose press the gel model and the frame's own
+  // colour response show as this circle. False: the ball through the circle on the undeformed gel.
+  bool shading_fit = false;
 };
 
 // Finds the press of a ball of `radius_m` in a colour frame: the largest connected region that
 // differs from the no-contact `reference` beyond the camera's noise (pg/core/image_change.h),
-// holes filled; its boundary's points on the undeformed gel; the ball's centre (on the object's
-// side of the gel) that puts them all at `radius_m`. Not found (with the reason) when nothing
-// changed, the region is too small or not a circle, or the ball would be wider than its radius
-// allows or deeper than the gel takes (`max_indentation_m`); also when a second region is as
-// large as a press (two contacts), most of the image changed (a dropout, the lighting), or less
-// than half of the circle lies in the image.
+// holes filled; its boundary, a circle. Then the ball is placed in two steps:
+//  1. through the circle: its boundary's points on the undeformed gel, and the ball's centre (on
+//     the object's side of the gel) that puts them all at `radius_m`. Exact for a rigid gel and
+//     a sharp change, but the visible change reaches past the contact: by the camera's noise
+//     threshold, and on an elastic gel by the sink-in around it (the ball then sits too deep);
+//  2. by the shading: the frame's colour change against the tilt of the gel's normal, per
+//     channel (a linear model fitted to the press's middle, where the gel takes the ball's shape
+//     and the tilt follows from the circle alone), predicts the frame the gel (`gel`: rigid, or
+//     its elastic model) would show for a ball at any place; the ball is moved until the circle
+//     found in that predicted frame is the one found in the real one (its depth by bisection on
+//     the radius, then its side position by the centres, then its depth again). Step 1's ball is
+//     kept (shading_fit false) when the middle has too few pixels for the model or no depth
+//     gives the circle's radius.
+// Not found (with the reason) when nothing changed, the region is too small or not a circle, or
+// the ball would be wider than its radius allows or deeper than the gel takes
+// (gel.max_indentation_m); also when a second region is as large as a press (two contacts), most
+// of the image changed (a dropout, the lighting), or less than half of the circle lies in the
+// image.
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
-                          double radius_m, double max_indentation_m);
-// The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px).
-BallPress ball_press_from_circle(const GelRays& rays, const Eigen::Vector2d& centre_px,
-                                 double radius_px, double radius_m, double max_indentation_m);
+                          double radius_m, const GelModel& gel);
+// The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px):
+// the edge of the visible change, as the search finds it.
+BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
+                                 const GelRays& rays, const Eigen::Vector2d& centre_px,
+                                 double radius_px, double radius_m, const GelModel& gel);
 
-// What the renderer would write for the ball at `centre_m` on the rigid gel: the indentation
-// (depth image), its normals (central differences, as a rendered frame's) and the contact mask
-// (0/255, indented pixels).
+// What the renderer would write for the ball at `centre_m` pressed into the gel (`elastic`, as
+// the renderer deforms it; rigid when off): the indentation (depth image), its normals (central
+// differences, as a rendered frame's) and the contact mask (0/255, the pixels the ball itself
+// indents, as the renderer's mask).
 struct BallLabels {
   ImageF normal, depth;
   ImageU8 mask;
 };
-BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m);
+BallLabels ball_labels(const GelRays& rays, const Eigen::Vector3d& centre_m, double radius_m,
+                       const ElasticModel& elastic);
 
 }  // namespace pg
