@@ -1152,6 +1152,30 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                        data() + "/poses.csv --fps 30 -q --out " + out("rec_rate"));
   EXPECT_EQ(other_rate.code, 1) << other_rate.out;
   EXPECT_NE(other_rate.out.find("--fps 30 disagrees with"), std::string::npos) << other_rate.out;
+  // A time column that does not advance gives no rate: 60, said in a warning, or --fps.
+  {
+    std::ifstream in(data() + "/poses.csv");
+    std::ofstream still((dir_ / "poses_still.csv").string());
+    std::string line;
+    for (int row = 0; std::getline(in, line); ++row) {
+      std::vector<std::string> cells = split_csv_line(line);
+      if (row > 0) cells.at(1) = "2.5";
+      for (std::size_t c = 0; c < cells.size(); ++c) still << (c ? "," : "") << cells[c];
+      still << "\n";
+    }
+  }
+  const std::string still_args = "recording --images " + frames.string() + " --background " +
+                                 (dir_ / "rec_background.png").string() + " --poses " +
+                                 (dir_ / "poses_still.csv").string() + " -q --out ";
+  const CliRun still = patchgraph(still_args + out("rec_still"));
+  EXPECT_EQ(still.code, 0) << still.out;
+  EXPECT_NE(still.out.find("the time column does not advance (2.5 s"), std::string::npos)
+      << still.out;
+  EXPECT_NEAR(Dataset::open(out("rec_still")).info().fps, 60.0, 1e-6);
+  const CliRun still_30 = patchgraph(still_args + out("rec_still_30") + " --fps 30");
+  EXPECT_EQ(still_30.code, 0) << still_30.out;
+  EXPECT_EQ(still_30.out.find("warning"), std::string::npos) << still_30.out;
+  EXPECT_NEAR(Dataset::open(out("rec_still_30")).info().fps, 30.0, 1e-6);
   fs::remove(frames / "capture_1059.png");
   const CliRun more_poses = patchgraph("recording --images " + frames.string() + " --background " +
                                        (dir_ / "rec_background.png").string() + " --poses " +
