@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <limits>
 #include <vector>
 
 #include "pg/core/gel_elastic.h"
@@ -14,11 +16,15 @@ namespace {
 
 // Fewer changed pixels than this are no press (the tracker's smallest contact at 120x160).
 constexpr int kMinRegionPixels = 20;
+// A second changed region at least 1 / this of the largest is a second contact.
+constexpr int kSecondContactFraction = 10;
 // A circle needs this many boundary points, and must pass this close to them: within 3 % of its
 // radius (RMS), or half a pixel for small ones. Rendered ball presses fit within 0.15-0.46 px,
 // at most 2.3 % of their radius; a cube's corner or edge 1.4-7.8 % (docs/learned_normals.md).
 constexpr int kMinBoundaryPoints = 12;
 constexpr double kMaxRmsFraction = 0.03, kMinRmsLimitPx = 0.5;
+// How far outside its circle a press's pixels at the image's edge may lie [px].
+constexpr double kEdgeSlackPx = 2.0;
 // The four neighbours of a pixel.
 constexpr int kDx[4] = {-1, 1, 0, 0}, kDy[4] = {0, 0, -1, 1};
 
@@ -130,7 +136,7 @@ bool place_at(const GelRays& rays, const Eigen::Vector3d& centre, double radius_
 // Fits the ball to the image points (u, v) on its contact's boundary, drops the points more than
 // three median deviations (at least a pixel) off it and fits again; then the depth and checks.
 BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& boundary,
-                    double radius_m, double max_indentation_m) {
+                    const std::vector<Eigen::Vector2d>& at_edge, double radius_m) {
   BallPress press;
   if (int(boundary.size()) < kMinBoundaryPoints) {
     press.reason = format("the contact's boundary has %.0f points, fewer than %.0f to fit a circle",
@@ -183,6 +189,18 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
         press.rms_px, limit);
     return press;
   }
+  // The press where the image's edge cuts it must lie inside the circle: a short arc can fit a
+  // smaller circle than the press's (the region is one pixel wider than its boundary, and the
+  // change test's mean reaches one more).
+  double beyond = -std::numeric_limits<double>::infinity();
+  for (const auto& p : at_edge) beyond = std::max(beyond, (p - press.centre_px).norm());
+  if (beyond > press.radius_px + kEdgeSlackPx) {
+    press.reason = format(
+        "the press runs off the image's edge %.1f px beyond the circle fitted to its arc (radius "
+        "%.1f px): too little of it in the image to place the ball",
+        beyond - press.radius_px, press.radius_px);
+    return press;
+  }
   // A short arc (a press mostly beyond the image's edge) leaves the centre poorly determined.
   std::vector<double> angles;
   for (const auto& p : image) {
@@ -198,16 +216,20 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
         360.0 - gap * 180.0 / M_PI);
     return press;
   }
-  press.found = place_at(rays, c, radius_m, max_indentation_m, &press);
+  // The gel's depth limit is checked once the ball is placed (by the shading): through the circle
+  // alone it sits too deep on an elastic gel.
+  press.found = place_at(rays, c, radius_m, std::numeric_limits<double>::infinity(), &press);
   return press;
 }
 
 // The boundary of the change a press makes: the largest 4-connected region of the pixels that
 // differ from the no-contact reference beyond the camera's noise, its holes filled, less its
-// outermost ring; the points midway between it and the pixels outside. False (with none's
-// reason and no_change) when the frame shows no single press.
+// outermost ring; the points midway between it and the pixels outside, and its pixels next to
+// the image's outermost ones (which the change test never marks). False (with none's reason and
+// no_change) when the frame shows no single press.
 bool change_boundary(const ImageU8& color, const ImageU8& reference,
-                     std::vector<Eigen::Vector2d>* boundary, BallPress* none) {
+                     std::vector<Eigen::Vector2d>* boundary, std::vector<Eigen::Vector2d>* at_edge,
+                     BallPress* none) {
   const int w = color.width, h = color.height;
   std::vector<char> changed(std::size_t(w) * h, 0);
   int changed_count = 0;
@@ -233,7 +255,8 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
   }
   // The largest 4-connected region of changed pixels.
   std::vector<int> label(changed.size(), -1), stack;
-  int best = -1, best_size = 0, second_size = 0;
+  int best = -1, best_size = 0;
+  std::vector<int> sizes;
   for (int start = 0; start < w * h; ++start) {
     if (!changed[std::size_t(start)] || label[std::size_t(start)] >= 0) continue;
     int size = 1;
@@ -245,15 +268,27 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
           label[std::size_t(j)] = start;
           ++size;
         });
+    sizes.push_back(size);
     if (size > best_size) {
-      second_size = best_size;
       best_size = size;
       best = start;
-    } else {
-      second_size = std::max(second_size, size);
     }
   }
-  if (second_size >= kMinRegionPixels) {
+  // Changes of a tenth of the largest or more (and at least a press's) are contacts; smaller ones
+  // (a speck of dust, a noise cluster) are left out.
+  const int contact_size = std::max(kMinRegionPixels, best_size / kSecondContactFraction);
+  std::sort(sizes.begin(), sizes.end(), std::greater<int>());
+  const int regions = int(
+      std::count_if(sizes.begin(), sizes.end(), [&](int size) { return size >= contact_size; }));
+  const int second_size = sizes.size() > 1 ? sizes[1] : 0;
+  if (regions >= 3) {
+    none->reason = format(
+        "the frame differs from the no-contact reference in %.0f separate places: the lighting "
+        "changed or the camera moved since the reference was taken?",
+        double(regions));
+    return false;
+  }
+  if (regions == 2) {
     none->reason = format("two separate contacts (%.0f and %.0f px): one ball at a time",
                           double(best_size), double(second_size));
     return false;
@@ -297,9 +332,11 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
   // image's outermost pixels, which the change test never marks (a press cut by the image's edge
   // keeps only its arc inside).
   boundary->clear();
+  at_edge->clear();
   for (int y = 1; y + 1 < h; ++y) {
     for (int x = 1; x + 1 < w; ++x) {
       if (outside[std::size_t(y) * w + x]) continue;
+      if (x == 1 || y == 1 || x == w - 2 || y == h - 2) at_edge->emplace_back(x, y);
       for (int k = 0; k < 4; ++k) {
         const int dx = kDx[k], dy = kDy[k], nx = x + dx, ny = y + dy;
         if (nx <= 0 || ny <= 0 || nx >= w - 1 || ny >= h - 1) continue;
@@ -356,7 +393,7 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
 
   // The circle the search finds in the frame the gel model and the colour model predict for a
   // ball at c.
-  std::vector<Eigen::Vector2d> boundary;
+  std::vector<Eigen::Vector2d> boundary, edge;
   ImageU8 predicted = reference;
   const auto predicted_circle = [&](const Eigen::Vector3d& c, Eigen::Vector2d* centre,
                                     double* radius) {
@@ -373,7 +410,7 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
         predicted.data[3 * i + ch] = std::uint8_t(std::clamp(std::lround(value[ch]), 0L, 255L));
     }
     BallPress ignored;
-    if (!change_boundary(predicted, reference, &boundary, &ignored) ||
+    if (!change_boundary(predicted, reference, &boundary, &edge, &ignored) ||
         int(boundary.size()) < kMinBoundaryPoints)
       return false;
     image_circle(boundary, centre, radius);
@@ -412,19 +449,27 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
     c.head<2>() += shift.head<2>();
     if (!fit_depth()) return;
   }
+  press->centre_m = c;
   press->shading_fit = true;
-  press->found = place_at(rays, c, radius_m, gel.max_indentation_m, press);
+}
+
+// Step 2 and the depth check for a ball placed through its circle.
+void place(const ImageU8& color, const ImageU8& reference, const GelRays& rays, double radius_m,
+           const GelModel& gel, BallPress* press) {
+  if (!press->found) return;
+  place_by_shading(color, reference, rays, radius_m, gel, press);
+  press->found = place_at(rays, press->centre_m, radius_m, gel.max_indentation_m, press);
 }
 
 }  // namespace
 
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
                           double radius_m, const GelModel& gel) {
-  std::vector<Eigen::Vector2d> boundary;
+  std::vector<Eigen::Vector2d> boundary, at_edge;
   BallPress press;
-  if (!change_boundary(color, reference, &boundary, &press)) return press;
-  press = fit_press(rays, boundary, radius_m, gel.max_indentation_m);
-  if (press.found) place_by_shading(color, reference, rays, radius_m, gel, &press);
+  if (!change_boundary(color, reference, &boundary, &at_edge, &press)) return press;
+  press = fit_press(rays, boundary, at_edge, radius_m);
+  place(color, reference, rays, radius_m, gel, &press);
   return press;
 }
 
@@ -440,8 +485,16 @@ BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
       boundary.push_back(p);
     }
   }
-  BallPress press = fit_press(rays, boundary, radius_m, gel.max_indentation_m);
-  if (press.found) place_by_shading(color, reference, rays, radius_m, gel, &press);
+  if (int(boundary.size()) < kMinBoundaryPoints) {
+    BallPress outside;
+    outside.reason = format(
+        "the circle (radius %.1f px) lies in the image at fewer than %.0f of 90 points: too "
+        "little of it to place the ball",
+        radius_px, double(kMinBoundaryPoints));
+    return outside;
+  }
+  BallPress press = fit_press(rays, boundary, {}, radius_m);
+  place(color, reference, rays, radius_m, gel, &press);
   return press;
 }
 

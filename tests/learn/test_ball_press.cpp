@@ -190,6 +190,45 @@ TEST_F(BallPressLabels, APressCutByTheImageEdge) {
   }
 }
 
+// A press whose centre lies beyond the image's edge: its arc also fits a smaller circle inside
+// the image (0.4-0.6 mm off, 4-5 deg labels, within the RMS limit); refused, because the press
+// reaches the image's edge outside that circle. And a press 1.65 mm deep into the elastic gel
+// (it takes 2 mm), whose ball through its circle alone sits deeper than that: placed.
+TEST_F(BallPressLabels, APressMostlyBeyondTheEdgeAndADeepOne) {
+  const std::string scene = dir_->str("beyond.json");
+  std::ofstream(scene) << R"({"frames": 4, "sensors": [{"name": "digit", "sensor": "digit"}],
+    "objects": [{"name": "ball", "mesh": ")"
+                       << kSource << R"(/meshes/ball_bearing_0p5in.glb",
+                 "trajectory": {"waypoints": [
+                   {"frame": 0, "position": [0.0102, 0.0, 0.0048], "rpy": [0, 0, 0]},
+                   {"frame": 1, "position": [0.0100, 0.0, 0.0049], "rpy": [0, 0, 0]},
+                   {"frame": 2, "position": [0.0, 0.0, 0.0047], "rpy": [0, 0, 0]},
+                   {"frame": 3, "position": [0.0, 0.0, 0.0046], "rpy": [0, 0, 0]}]}}],
+    "render": {"outputs": ["color", "mask"], "noise": true, "shadows": true,
+               "seed": 5319969832575489}})";
+  RenderOverrides o;
+  o.elastic = true;
+  render_scene_to_dataset(SceneRenderer(load_scene(scene), o), dir_->str("beyond"));
+  const Dataset d = Dataset::open(dir_->str("beyond"));
+  const GelRays rays = make_gel_rays(d.info().sensor.camera, d.info().sensor.gel);
+  for (int f = 0; f < 4; ++f) {
+    const BallPress press =
+        find_ball_press(d.color(f), d.background(), rays, kBallRadius, d.info().sensor.gel);
+    if (f < 2) {
+      EXPECT_FALSE(press.found) << "frame " << f;
+      EXPECT_NE(press.reason.find("runs off the image's edge"), std::string::npos)
+          << "frame " << f << ": " << press.reason;
+      continue;
+    }
+    ASSERT_TRUE(press.found) << "frame " << f << ": " << press.reason;
+    const Eigen::Vector3d centre(0.0, 0.0, f == 2 ? 0.0047 : 0.0046);
+    const ImageF truth = sphere_indentation(rays, centre, kBallRadius);
+    const double true_depth = *std::max_element(truth.data.begin(), truth.data.end());
+    EXPECT_GT(true_depth, 1.6e-3);
+    EXPECT_NEAR(press.depth_m, true_depth, 3e-5) << "frame " << f;
+  }
+}
+
 // The circle the search found, given back by hand, puts the ball at the same place; a frame
 // without a press, a ball too small for the contact and a circle off the image are refused
 // with the reason.
@@ -221,7 +260,9 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   const BallPress outside =
       ball_press_from_circle(color, reference, rays, {500, 500}, 10, kBallRadius, gel);
   EXPECT_FALSE(outside.found);
-  EXPECT_NE(outside.reason.find("fewer than 12"), std::string::npos) << outside.reason;
+  EXPECT_NE(outside.reason.find("lies in the image at fewer than 12 of 90 points"),
+            std::string::npos)
+      << outside.reason;
   // A circle mostly beyond the image's edge: its short arc does not place the ball.
   const BallPress arc =
       ball_press_from_circle(color, reference, rays, {-15, 80}, 20, kBallRadius, gel);
@@ -244,6 +285,27 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   const BallPress two = find_ball_press(both, reference, rays, kBallRadius, gel);
   EXPECT_FALSE(two.found);
   EXPECT_NE(two.reason.find("two separate contacts"), std::string::npos) << two.reason;
+  // A speck (3x3 px darkened, far from the press) is no second contact: left out, the press
+  // placed as without it.
+  ImageU8 speck = color;
+  for (int y = 4; y < 7; ++y)
+    for (int x = 4; x < 7; ++x)
+      for (int c = 0; c < 3; ++c) speck.at(x, y, c) = std::uint8_t(speck.at(x, y, c) / 2);
+  const BallPress with_speck = find_ball_press(speck, reference, rays, kBallRadius, gel);
+  ASSERT_TRUE(with_speck.found) << with_speck.reason;
+  EXPECT_LT((with_speck.centre_m - found.centre_m).norm(), 1e-6);
+  // Changes in several places besides the press (as where the background has texture and the
+  // camera moved, or the light changed unevenly): not "two contacts", and said so.
+  ImageU8 patches = color;
+  for (const int y0 : {5, 60, 130}) {
+    for (int y = y0; y < y0 + 12; ++y)
+      for (int x = 100; x < 112; ++x)
+        for (int c = 0; c < 3; ++c) patches.at(x, y, c) = std::uint8_t(patches.at(x, y, c) / 2);
+  }
+  const BallPress moved = find_ball_press(patches, reference, rays, kBallRadius, gel);
+  EXPECT_FALSE(moved.found);
+  EXPECT_NE(moved.reason.find("the lighting changed or the camera moved"), std::string::npos)
+      << moved.reason;
 }
 
 // Presses of a cube are not a ball's: most are refused as no circle (the rest: small contacts,

@@ -1296,6 +1296,16 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   const Dataset hand = Dataset::open(out("balls_by_hand"));
   EXPECT_EQ(contact_pixels(hand.mask(0)), 0);
   EXPECT_GT(contact_pixels(hand.mask(1)), contact_pixels(labelled.mask(1)));
+  {
+    // A given circle's row: its fit RMS (the circle against itself) is left empty.
+    std::ifstream in(out("balls_by_hand") + "/circles.csv");
+    std::string line;
+    for (int row = 0; row < 3 && std::getline(in, line); ++row) {
+    }
+    const std::vector<std::string> cells = split_csv_line(line);
+    EXPECT_EQ(cells.at(2), "given") << line;
+    EXPECT_EQ(cells.at(10), "") << line;
+  }
 
   const auto refused = [&](const std::string& args, int code, const std::string& text) {
     fs::remove_all(out("balls_bad"));
@@ -1331,6 +1341,15 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   refused(circles("frame,u_px,v_px,radius_px\n20,40,50,10\n"), 1,
           "line 2: frame: '20' is not a frame of the dataset (0-19)");
   refused(circles("frame,u_px,v_px,radius_px\n3,,,\n3,,,\n"), 1, "frame 3 is given twice");
+  refused(circles("frame,u_px,v_px,radius_px,status\n3,,,,bogus\n"), 1,
+          "line 2: status: 'bogus' is none of found, given, no_press, skipped");
+  refused(out("balls") + " --diameter 0.0127 --circles " + out("balls"), 1,
+          "a folder, not a CSV file (--circles)");
+  {
+    std::string none = "frame,u_px,v_px,radius_px\n";
+    for (int f = 0; f < 20; ++f) none += std::to_string(f) + ",,,\n";
+    refused(circles(none), 1, "every frame of");
+  }
   refused(circles("frame,u_px,v_px,radius_px\n3,0x3C,80,10\n"), 1,
           "line 2: u_px: '0x3C' is not a finite decimal number");
   refused(circles("frame,u_px,v_px,radius_px\n3,-40,80,10\n"), 1,

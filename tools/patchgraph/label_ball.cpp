@@ -34,6 +34,7 @@ using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 // whose status column says "skipped" (as label-ball wrote it) is as if not listed, one with a
 // circle filled in takes it. Frames not listed are searched.
 std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
+  if (fs::is_directory(path)) throw InputError(path + ": a folder, not a CSV file (--circles)");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (--circles)");
   std::string line;
@@ -59,6 +60,12 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
     const std::vector<std::string> cells = csv_cells(line);
     const auto cell = [&](int c) { return c < int(cells.size()) ? cells[std::size_t(c)] : ""; };
     const std::string at = path + ": line " + std::to_string(number) + ": ";
+    const char* statuses[] = {"", "found", "given", "no_press", "skipped"};
+    if (status >= 0 &&
+        std::find(std::begin(statuses), std::end(statuses), cell(status)) == std::end(statuses)) {
+      throw InputError(at + "status: '" + excerpt(cell(status)) +
+                       "' is none of found, given, no_press, skipped (or empty)");
+    }
     double v[4];
     bool empty[4];
     for (int k = 0; k < 4; ++k) {
@@ -126,9 +133,11 @@ std::string circles_csv(const std::vector<FrameLabel>& labels) {
     const std::string index = l.kind == FrameLabel::kSkipped ? "" : std::to_string(labelled++);
     if (l.kind == FrameLabel::kPress) {
       const BallPress& p = l.press;
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%.3f,%s,\n", f,
+      // A given circle's fit RMS would measure it against itself: left empty.
+      const std::string rms = l.given ? "" : format_number(p.rms_px, "%.3f");
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%s,%s,\n", f,
                     index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
-                    p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, p.rms_px,
+                    p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, rms.c_str(),
                     p.shading_fit ? "shading" : "circle");
     } else {
       std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,,%s\n", f, index.c_str(), status,
@@ -212,6 +221,13 @@ int run_label_ball(const LabelBallArgs& a) {
     }
   }
   if (presses == 0) {
+    const bool all_given = std::all_of(labels.begin(), labels.end(), [](const FrameLabel& l) {
+      return l.given && l.kind == FrameLabel::kNoPress;
+    });
+    if (all_given) {
+      throw InputError(a.circles + ": every frame of " + a.dataset +
+                       " is given as one without a press: nothing to label");
+    }
     const auto first = std::find_if(labels.begin(), labels.end(), [](const FrameLabel& l) {
       return l.kind == FrameLabel::kSkipped;
     });
@@ -275,18 +291,32 @@ int run_label_ball(const LabelBallArgs& a) {
   int by_shading = 0;
   for (const FrameLabel& l : labels) {
     if (l.kind != FrameLabel::kPress) continue;
-    rms.push_back(l.press.rms_px);
+    if (!l.given) rms.push_back(l.press.rms_px);  // a given circle's would measure it on itself
     depth.push_back(l.press.depth_m * 1e3);
     by_shading += l.press.shading_fit;
   }
   std::sort(rms.begin(), rms.end());
   std::sort(depth.begin(), depth.end());
+  const std::string fit = rms.empty()
+                              ? ""
+                              : ", circle fit " + format_number(rms[rms.size() / 2], "%.2f") +
+                                    " px RMS median of the found";
   std::printf(
-      "%d frames of %s: %d presses labelled (%.2f-%.2f mm deep, circle fit %.2f px RMS "
-      "median, %d placed by the shading, %s gel), %d without contact, %d skipped -> %s "
-      "(circles.csv: each frame's circle or reason)\n",
-      d.frames(), a.dataset.c_str(), presses, depth.front(), depth.back(), rms[rms.size() / 2],
-      by_shading, gel.elastic.enabled ? "elastic" : "rigid", no_press, skipped, a.out.c_str());
+      "%d frames of %s: %d %s labelled (%.2f-%.2f mm deep%s, %d placed by the shading, %s "
+      "gel), %d without contact, %d skipped -> %s (circles.csv: each frame's circle or reason)\n",
+      d.frames(), a.dataset.c_str(), presses, presses == 1 ? "press" : "presses", depth.front(),
+      depth.back(), fit.c_str(), by_shading, gel.elastic.enabled ? "elastic" : "rigid", no_press,
+      skipped, a.out.c_str());
+  for (std::size_t f = 0; f < labels.size(); ++f) {
+    const FrameLabel& l = labels[f];
+    if (l.kind == FrameLabel::kPress && l.given && !l.press.shading_fit) {
+      std::fprintf(stderr,
+                   "warning: frame %zu: the given circle's ball is placed through the circle "
+                   "alone: the frame's shading inside it does not place it (does the frame show "
+                   "that press?)\n",
+                   f);
+    }
+  }
   int shown = 0;
   for (std::size_t f = 0; f < labels.size() && shown < 5; ++f) {
     if (labels[f].kind != FrameLabel::kSkipped) continue;

@@ -44,10 +44,11 @@ struct BallPress {
 //     kept (shading_fit false) when the middle has too few pixels for the model or no depth
 //     gives the circle's radius.
 // Not found (with the reason) when nothing changed, the region is too small or not a circle, or
-// the ball would be wider than its radius allows or deeper than the gel takes
-// (gel.max_indentation_m); also when a second region is as large as a press (two contacts), most
-// of the image changed (a dropout, the lighting), or less than half of the circle lies in the
-// image.
+// the ball would be wider than its radius allows or, once placed, deeper than the gel takes
+// (gel.max_indentation_m); also when a second region is a tenth of the press or more (two
+// contacts; three or more: the lighting or the camera), most of the image changed (a dropout,
+// the lighting), less than half of the circle lies in the image, or the press reaches the
+// image's edge outside the circle fitted to its arc (its centre beyond the edge).
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
                           double radius_m, const GelModel& gel);
 // The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px):
