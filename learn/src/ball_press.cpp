@@ -48,7 +48,7 @@ void flood(int w, int h, std::vector<int>& stack, Accept&& accept, Visit&& visit
 }
 
 std::string format(const char* fmt, double a, double b = 0) {
-  char text[160];
+  char text[256];
   std::snprintf(text, sizeof(text), fmt, a, b);
   return text;
 }
@@ -276,10 +276,10 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
   }
   // Changes of a tenth of the largest or more (and at least a press's) are contacts; smaller ones
   // (a speck of dust, a noise cluster) are left out.
-  const int contact_size = std::max(kMinRegionPixels, best_size / kSecondContactFraction);
   std::sort(sizes.begin(), sizes.end(), std::greater<int>());
-  const int regions = int(
-      std::count_if(sizes.begin(), sizes.end(), [&](int size) { return size >= contact_size; }));
+  const int regions = int(std::count_if(sizes.begin(), sizes.end(), [&](int size) {
+    return size >= kMinRegionPixels && size * kSecondContactFraction >= best_size;
+  }));
   const int second_size = sizes.size() > 1 ? sizes[1] : 0;
   if (regions >= 3) {
     none->reason = format(
@@ -353,11 +353,13 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
 // its pixels.
 constexpr double kMiddleFraction = 0.75, kMaxModelTilt = 0.2;
 constexpr int kMinModelPixels = 20;
+// The placed ball's predicted circle must have the found one's radius to this much [px].
+constexpr double kRadiusTolerancePx = 0.5;
 
 // Places the press's ball by the shading (find_ball_press, step 2). `press` holds the ball
-// placed through its circle; it is moved when the model can be fitted and the circle's radius
-// bracketed, and refused (found false, with the reason) if the new place is deeper than the gel
-// takes.
+// placed through its circle; its centre is moved (and shading_fit set) when the colour model can
+// be fitted and the predicted circle brought onto the found one; otherwise it is left as it was.
+// Its depth is the caller's to update (place()).
 void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
                       double radius_m, const GelModel& gel, BallPress* press) {
   const int w = rays.width, h = rays.height;
@@ -428,7 +430,8 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
       return false;
     if (predicted_circle(c + shallower * z, &centre, &r_shallow) && r_shallow > press->radius_px)
       return false;
-    for (int it = 0; it < 20; ++it) {
+    // 14 halvings of the 0.8-2.5 mm bracket: under 0.2 um, far below a pixel's step in radius.
+    for (int it = 0; it < 14; ++it) {
       const double mid = 0.5 * (deeper + shallower);
       double r = 0;
       if (predicted_circle(c + mid * z, &centre, &r) && r > press->radius_px)
@@ -437,18 +440,21 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
         shallower = mid;
     }
     c += 0.5 * (deeper + shallower) * z;
-    return true;
+    // The end of the bisection must give the radius (a predicted frame that failed half-way, e.g.
+    // split in two, would have steered it to one end).
+    double r = 0;
+    return predicted_circle(c, &centre, &r) && std::abs(r - press->radius_px) < kRadiusTolerancePx;
   };
   if (!fit_depth()) return;
-  // Then the side: the predicted circle's centre onto the found one's, on the gel.
+  // Then the side: the predicted circle's centre onto the found one's, on the gel; then the depth
+  // again. Any failure keeps step 1's ball.
   Eigen::Vector2d centre;
   double r = 0;
-  if (predicted_circle(c, &centre, &r)) {
-    const Eigen::Vector3d shift = gel_point(rays, press->centre_px.x(), press->centre_px.y()) -
-                                  gel_point(rays, centre.x(), centre.y());
-    c.head<2>() += shift.head<2>();
-    if (!fit_depth()) return;
-  }
+  if (!predicted_circle(c, &centre, &r)) return;
+  const Eigen::Vector3d shift = gel_point(rays, press->centre_px.x(), press->centre_px.y()) -
+                                gel_point(rays, centre.x(), centre.y());
+  c.head<2>() += shift.head<2>();
+  if (!fit_depth()) return;
   press->centre_m = c;
   press->shading_fit = true;
 }
@@ -459,6 +465,10 @@ void place(const ImageU8& color, const ImageU8& reference, const GelRays& rays, 
   if (!press->found) return;
   place_by_shading(color, reference, rays, radius_m, gel, press);
   press->found = place_at(rays, press->centre_m, radius_m, gel.max_indentation_m, press);
+  if (!press->found && !press->shading_fit) {
+    press->reason =
+        "placed through the circle alone (the shading did not place it): " + press->reason;
+  }
 }
 
 }  // namespace

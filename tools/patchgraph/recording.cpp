@@ -197,9 +197,10 @@ int run_recording(const RecordingArgs& a) {
     fps = frame_rate(poses, a.poses, a.fps);
     if (frames > 1 && !(poses.back().time_s > poses.front().time_s) && a.fps <= 0) {
       std::fprintf(stderr,
-                   "warning: %s: the time column does not advance (%s s in the first and the "
-                   "last row): the dataset says 60 frames per second; --fps sets the rate\n",
-                   a.poses.c_str(), format_number(poses.front().time_s).c_str());
+                   "warning: %s: the time column does not advance (%s s in the first row, %s s "
+                   "in the last): the dataset says 60 frames per second; --fps sets the rate\n",
+                   a.poses.c_str(), format_number(poses.front().time_s).c_str(),
+                   format_number(poses.back().time_s).c_str());
     }
     object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
   } else {

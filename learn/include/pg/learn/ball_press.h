@@ -21,8 +21,10 @@ struct BallPress {
   double radius_px = 0;
   Eigen::Vector3d centre_m = Eigen::Vector3d::Zero();  // the ball's centre in S [m]
   double depth_m = 0;                                  // deepest indentation of the gel [m]
-  double rms_px = 0;        // the circle's boundary points off the fitted ball (found ones) [px]
-  int boundary_points = 0;  // how many the fit used
+  // The circle's boundary points off the ball placed through them (step 1 below, found ones;
+  // not the ball placed by the shading) [px], and how many that fit used.
+  double rms_px = 0;
+  int boundary_points = 0;
   // Placed by the shading (below): the ball whose press the gel model and the frame's own
   // colour response show as this circle. False: the ball through the circle on the undeformed gel.
   bool shading_fit = false;
@@ -41,8 +43,8 @@ struct BallPress {
 //     its elastic model) would show for a ball at any place; the ball is moved until the circle
 //     found in that predicted frame is the one found in the real one (its depth by bisection on
 //     the radius, then its side position by the centres, then its depth again). Step 1's ball is
-//     kept (shading_fit false) when the middle has too few pixels for the model or no depth
-//     gives the circle's radius.
+//     kept (shading_fit false) when the middle has too few pixels for the model, the model is
+//     not finite, or no depth gives the circle's radius.
 // Not found (with the reason) when nothing changed, the region is too small or not a circle, or
 // the ball would be wider than its radius allows or, once placed, deeper than the gel takes
 // (gel.max_indentation_m); also when a second region is a tenth of the press or more (two
