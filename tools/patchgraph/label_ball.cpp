@@ -32,7 +32,8 @@ using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 // the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
 // numbers (radius > 0) or all empty (no press in that frame); a row with empty circle cells
 // whose status column says "skipped" (as label-ball wrote it) is as if not listed, one with a
-// circle filled in takes it. Frames not listed are searched.
+// circle filled in takes it; a status column holds found, given, no_press, skipped or nothing.
+// Frames not listed are searched.
 std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
   if (fs::is_directory(path)) throw InputError(path + ": a folder, not a CSV file (--circles)");
   std::ifstream in(path);
