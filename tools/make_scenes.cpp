@@ -17,7 +17,6 @@
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -26,8 +25,10 @@
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
+#include "pg/core/random.h"
 #include "pg/core/sensor.h"
 #include "pg/sim/mesh.h"
+#include "pg/sim/presses.h"
 #include "pg/sim/scene.h"
 
 namespace {
@@ -59,80 +60,7 @@ std::uint64_t scene_seed(const std::string& name) {
   return h >> 11;
 }
 
-// mt19937_64 with explicit mappings: the std:: distributions differ between standard libraries,
-// and the scene files must not.
-class Random {
- public:
-  explicit Random(std::uint64_t seed) : engine_(seed) {}
-  double uniform(double lo, double hi) {
-    return lo + (hi - lo) * double(engine_() >> 11) * 0x1.0p-53;
-  }
-  int integer(int lo, int hi) { return lo + int(engine_() % std::uint64_t(hi - lo + 1)); }
-  double sign() { return (engine_() >> 63) ? 1.0 : -1.0; }
-
- private:
-  std::mt19937_64 engine_;
-};
-
 // ------------------------------------------------------------------------- contact geometry
-
-// Points on the mesh surface at most `spacing` apart. The vertices alone are too coarse: on the
-// convex gel the middle of a long straight edge reaches deeper than its ends.
-std::vector<Vector3d> surface_samples(const pg::TriangleMesh& mesh, double spacing) {
-  std::vector<Vector3d> points;
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    const Vector3d a = mesh.vertices[t[0]].cast<double>(), b = mesh.vertices[t[1]].cast<double>(),
-                   c = mesh.vertices[t[2]].cast<double>();
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const int n = std::max(1, int(std::ceil(longest / spacing)));
-    for (int i = 0; i <= n; ++i) {
-      for (int j = 0; i + j <= n; ++j) points.push_back(a + (b - a) * i / n + (c - a) * j / n);
-    }
-  }
-  return points;
-}
-
-struct Contact {
-  double depth = -std::numeric_limits<double>::infinity();  // max of surface_z - z [m]
-  Vector2d max_abs_xy = Vector2d::Zero();  // largest |x|, |y| of a penetrating point [m]
-};
-
-Contact measure_contact(const std::vector<Vector3d>& p_object, const pg::SE3& T_sensor_object,
-                        const pg::GelModel& gel) {
-  Contact contact;
-  for (const Vector3d& p : p_object) {
-    const Vector3d p_sensor = T_sensor_object * p;
-    // surface_z <= 0, so -z bounds the penetration: skip points that can neither penetrate nor
-    // be the deepest.
-    if (-p_sensor.z() <= std::min(contact.depth, 0.0)) continue;
-    const double depth = gel.surface_z(p_sensor.x(), p_sensor.y()) - p_sensor.z();
-    contact.depth = std::max(contact.depth, depth);
-    if (depth > 0.0) {
-      contact.max_abs_xy = contact.max_abs_xy.cwiseMax(p_sensor.head<2>().cwiseAbs());
-    }
-  }
-  return contact;
-}
-
-// Mean of the points within 0.1 mm of the farthest along `direction` (only points whose z lies
-// in [z_lo, z_hi]): the corner, edge, face or stud tops an orientation presses first.
-Vector3d extreme_centroid(const std::vector<Vector3d>& points, const Vector3d& direction,
-                          double z_lo, double z_hi) {
-  double best = -std::numeric_limits<double>::infinity();
-  for (const Vector3d& p : points) {
-    if (p.z() >= z_lo && p.z() <= z_hi) best = std::max(best, p.dot(direction));
-  }
-  Vector3d sum = Vector3d::Zero();
-  int count = 0;
-  for (const Vector3d& p : points) {
-    if (p.z() >= z_lo && p.z() <= z_hi && p.dot(direction) > best - 0.1 * kMm) {
-      sum += p;
-      ++count;
-    }
-  }
-  if (count == 0) throw std::runtime_error("extreme_centroid: no points in the z band");
-  return sum / count;
-}
 
 // x rounded to a multiple of 1 / per_unit; dividing by the exact integer per_unit gives the double
 // nearest the decimal, so the file shows it with few digits. (+ 0.0 turns -0 into 0.)
@@ -206,7 +134,7 @@ const Shape& shape(const fs::path& meshes_dir, const std::string& file) {
   if (it != cache.end()) return it->second;
   const pg::TriangleMesh mesh = pg::load_mesh(path);
   const pg::Bounds3 b = pg::mesh_bounds(mesh);
-  Shape s{surface_samples(mesh, 0.25 * kMm), b.min.cast<double>(), b.max.cast<double>()};
+  Shape s{pg::surface_grid(mesh, 0.25 * kMm), b.min.cast<double>(), b.max.cast<double>()};
   return cache.emplace(path, std::move(s)).first->second;
 }
 
@@ -241,13 +169,13 @@ Quaterniond rotation_from_columns(const Vector3d& x, const Vector3d& y, const Ve
 Vector3d mode_pivot(const Shape& s, const ContactMode& m) {
   const double h = s.hi.z() - s.lo.z();
   const Vector3d down_object = m.q_base.conjugate() * -Vector3d::UnitZ();
-  return extreme_centroid(s.points, down_object, s.lo.z() + m.z_band_lo * h - 1e-9,
-                          s.lo.z() + m.z_band_hi * h + 1e-9);
+  return pg::extreme_centroid(s.points, down_object, s.lo.z() + m.z_band_lo * h - 1e-9,
+                              s.lo.z() + m.z_band_hi * h + 1e-9);
 }
 
 // The brick lies along the gel's long axis (y) with its studs toward the gel; "stud_edge" tilts
 // it about that axis so one row of studs and the long edge of the stud face press.
-ContactMode brick_mode(int kind, double yaw0, Random& rng) {
+ContactMode brick_mode(int kind, double yaw0, pg::Random& rng) {
   const Quaterniond studs_down = AngleAxisd(kPi / 2, Vector3d::UnitZ()) *
                                  AngleAxisd(kPi, Vector3d::UnitX());
   const Quaterniond yaw(AngleAxisd(yaw0, Vector3d::UnitZ()));
@@ -349,7 +277,7 @@ ordered_json waypoints_json(const SceneSpec& spec, const Shape& s, const pg::Gel
     Vector3d t;
     t.head<2>() = p.pivot_xy_world - (q * p.pivot_object).head<2>();
     t.z() = 0.0;
-    t.z() = measure_contact(s.points, pg::SE3(q, t), gel).depth - spec.depth;
+    t.z() = pg::measure_press(s.points, pg::SE3(q, t), gel).depth_m - spec.depth;
     for (int i = 0; i < 3; ++i) t[i] = round_to(t[i], 1e7);
     waypoints.push_back({{"frame", f}, {"position", vec_json(t)}, {"rpy", vec_json(rpy)}});
   }
@@ -374,7 +302,7 @@ SceneSpec benchmark_spec(const std::string& object, int index, const fs::path& r
   spec.object = object;
   spec.file = "scenes/benchmark/" + object + "_" + nn + ".json";
   spec.seed = scene_seed(object + "_" + nn);
-  Random rng(spec.seed);
+  pg::Random rng(spec.seed);
   const Vector2d centre(rng.uniform(-1, 1) * kMm, rng.uniform(-1.5, 1.5) * kMm);
   const double cycles = rng.uniform(1.0, 2.5);
   const double depth_fraction = rng.uniform(0, 1);  // where in a mode's depth range
@@ -468,7 +396,7 @@ SceneSpec default_spec(const fs::path& root) {
 ordered_json pressed_pose(const Shape& s, const Vector2d& xy, double depth) {
   const pg::GelModel gel = pg::sensor_preset("digit").gel;
   Vector3d t(xy.x(), xy.y(), 0.0);
-  t.z() = round_to(measure_contact(s.points, pg::SE3::Translation(t), gel).depth - depth, 1e7);
+  t.z() = round_to(pg::measure_press(s.points, pg::SE3::Translation(t), gel).depth_m - depth, 1e7);
   return {{"position", vec_json(t)}, {"rpy", vec_json(Vector3d::Zero())}};
 }
 
@@ -588,37 +516,17 @@ ordered_json held_in_hand_json(const fs::path& root) {
 ordered_json random_presses_json(const fs::path& root, const std::string& object,
                                  const std::string& mesh, const std::string& file, int frames) {
   const Shape& s = shape(root / "meshes", mesh);
-  const pg::GelModel gel = pg::sensor_preset("digit").gel;
   const std::string name = fs::path(file).stem().string();
-  Random rng(scene_seed(name));
+  pg::RandomPressOptions options;
+  options.frames = frames;
+  options.target_half_m = Vector2d(4, 5) * kMm;
+  options.contact_half_m = 0.9 * Vector2d(kVisibleX, kVisibleY);
+  options.seed = scene_seed(name);
   ordered_json waypoints = ordered_json::array();
-  for (int f = 0; f < frames; ++f) {
-    for (int attempt = 0;; ++attempt) {
-      if (attempt == 100) throw std::runtime_error(file + ": no visible press found");
-      // Uniform random rotation (Shoemake), rounded as the file stores it.
-      const double u1 = rng.uniform(0, 1), u2 = rng.uniform(0, 2 * kPi), u3 = rng.uniform(0, 2 * kPi);
-      const Quaterniond q_random(std::sqrt(u1) * std::cos(u3), std::sqrt(1 - u1) * std::sin(u2),
-                                 std::sqrt(1 - u1) * std::cos(u2), std::sqrt(u1) * std::sin(u3));
-      Vector3d rpy = pg::rpy_from_quaternion(q_random.normalized());
-      for (int i = 0; i < 3; ++i) rpy[i] = round_to(rpy[i], 1e6);
-      const Quaterniond q = pg::quaternion_from_rpy(rpy);
-      const Vector2d target(rng.uniform(-4, 4) * kMm, rng.uniform(-5, 5) * kMm);
-      const double depth = rng.uniform(0.3, 1.5) * kMm;
-      const Vector3d lowest = extreme_centroid(s.points, q.inverse() * -Vector3d::UnitZ(),
-                                               -1.0, 1.0);
-      Vector3d t;
-      t.head<2>() = target - (q * lowest).head<2>();
-      t.z() = 0.0;
-      t.z() = measure_contact(s.points, pg::SE3(q, t), gel).depth - depth;
-      for (int i = 0; i < 3; ++i) t[i] = round_to(t[i], 1e7);
-      const Contact c = measure_contact(s.points, pg::SE3(q, t), gel);
-      if (c.depth < 0.25 * kMm || c.depth > 1.6 * kMm || c.max_abs_xy.x() > 0.9 * kVisibleX ||
-          c.max_abs_xy.y() > 0.9 * kVisibleY) {
-        continue;
-      }
-      waypoints.push_back({{"frame", f}, {"position", vec_json(t)}, {"rpy", vec_json(rpy)}});
-      break;
-    }
+  for (const pg::Waypoint& w :
+       pg::random_presses(s.points, pg::sensor_preset("digit").gel, options)) {
+    waypoints.push_back(
+        {{"frame", w.frame}, {"position", vec_json(w.position_m)}, {"rpy", vec_json(w.rpy_rad)}});
   }
   ordered_json object_json = {{"name", object},
                               {"mesh", relative_mesh(file, "meshes/" + mesh)},
@@ -629,35 +537,6 @@ ordered_json random_presses_json(const fs::path& root, const std::string& object
 }
 
 // ------------------------------------------------------------------------- checking and writing
-
-// One line per array element or object member unless the whole value fits in `width` columns.
-void format_json(std::ostream& out, const ordered_json& j, int indent, std::size_t width = 120) {
-  std::function<std::string(const ordered_json&)> inline_form = [&](const ordered_json& v) {
-    if (!v.is_structured()) return v.dump();
-    std::string s = v.is_array() ? "[" : "{";
-    bool first = true;
-    for (auto it = v.begin(); it != v.end(); ++it, first = false) {
-      if (!first) s += ", ";
-      if (v.is_object()) s += ordered_json(it.key()).dump() + ": ";
-      s += inline_form(*it);
-    }
-    return s + (v.is_array() ? "]" : "}");
-  };
-  const std::string flat = inline_form(j);
-  if (!j.is_structured() || j.empty() || indent + flat.size() <= width) {
-    out << flat;
-    return;
-  }
-  out << (j.is_array() ? "[\n" : "{\n");
-  bool first = true;
-  for (auto it = j.begin(); it != j.end(); ++it, first = false) {
-    if (!first) out << ",\n";
-    out << std::string(indent + 2, ' ');
-    if (j.is_object()) out << ordered_json(it.key()).dump() << ": ";
-    format_json(out, *it, indent + 2, width);
-  }
-  out << "\n" << std::string(indent, ' ') << (j.is_array() ? "]" : "}");
-}
 
 struct CheckSummary {
   double min_depth = std::numeric_limits<double>::infinity();
@@ -679,32 +558,32 @@ CheckSummary check_scene(const std::string& file, const std::string& text, const
   CheckSummary sum;
   for (int f = 0; f < scene.frames; ++f) {
     for (const pg::SceneSensor& sensor : scene.sensors) {
-      Contact c;
+      pg::PressContact c;
       for (const pg::SceneObject& o : scene.objects) {
         const Shape& s = shape(fs::path(o.mesh_path).parent_path(),
                                fs::path(o.mesh_path).filename().string());
         const pg::SE3 T_sensor_object = sensor.T_world_sensor.at(f).inverse() *
                                         o.T_world_object.at(f);
-        const Contact oc = measure_contact(s.points, T_sensor_object, sensor.model.gel);
-        c.depth = std::max(c.depth, oc.depth);
-        c.max_abs_xy = c.max_abs_xy.cwiseMax(oc.max_abs_xy);
+        const pg::PressContact oc = pg::measure_press(s.points, T_sensor_object, sensor.model.gel);
+        c.depth_m = std::max(c.depth_m, oc.depth_m);
+        c.max_abs_xy_m = c.max_abs_xy_m.cwiseMax(oc.max_abs_xy_m);
       }
-      const std::string at = sensor.name + ": deepest point " + std::to_string(c.depth / kMm) +
+      const std::string at = sensor.name + ": deepest point " + std::to_string(c.depth_m / kMm) +
                              " mm below the gel surface";
       const Expect e = expect(sensor.name, f);
-      if (e == Expect::kNone && c.depth >= 0.0) fail(file, f, at + ", expected no contact");
-      if (e == Expect::kContact && (c.depth < kMinDepth || c.depth > kMaxDepth)) {
+      if (e == Expect::kNone && c.depth_m >= 0.0) fail(file, f, at + ", expected no contact");
+      if (e == Expect::kContact && (c.depth_m < kMinDepth || c.depth_m > kMaxDepth)) {
         fail(file, f, at + " (allowed 0.2-2.0 mm)");
       }
-      if (c.max_abs_xy.x() >= kVisibleX || c.max_abs_xy.y() >= kVisibleY) {
-        fail(file, f, sensor.name + ": contact reaches |x| = " +
-                          std::to_string(c.max_abs_xy.x() / kMm) + " mm, |y| = " +
-                          std::to_string(c.max_abs_xy.y() / kMm) +
-                          " mm (visible: |x| < 8 mm, |y| < 10 mm)");
+      if (c.max_abs_xy_m.x() >= kVisibleX || c.max_abs_xy_m.y() >= kVisibleY) {
+        fail(file, f,
+             sensor.name + ": contact reaches |x| = " + std::to_string(c.max_abs_xy_m.x() / kMm) +
+                 " mm, |y| = " + std::to_string(c.max_abs_xy_m.y() / kMm) +
+                 " mm (visible: |x| < 8 mm, |y| < 10 mm)");
       }
-      sum.min_depth = std::min(sum.min_depth, c.depth);
-      sum.max_depth = std::max(sum.max_depth, c.depth);
-      sum.max_abs_xy = sum.max_abs_xy.cwiseMax(c.max_abs_xy);
+      sum.min_depth = std::min(sum.min_depth, c.depth_m);
+      sum.max_depth = std::max(sum.max_depth, c.depth_m);
+      sum.max_abs_xy = sum.max_abs_xy.cwiseMax(c.max_abs_xy_m);
     }
   }
   return sum;
@@ -718,14 +597,12 @@ struct Output {
 Output checked(const std::string& file, const ordered_json& j, const fs::path& root,
                const std::string& family, double depth,
                const Expectation& expect = always_contact) {
-  std::ostringstream text;
-  format_json(text, j, 0);
-  text << "\n";
-  const CheckSummary sum = check_scene(file, text.str(), root, expect);
+  const std::string text = pg::format_json(j) + "\n";
+  const CheckSummary sum = check_scene(file, text, root, expect);
   std::printf("%-36s %-28s press %5.2f mm  depth %5.2f..%5.2f mm  contact |x| %4.1f |y| %4.1f mm\n",
               file.c_str(), family.c_str(), depth / kMm, sum.min_depth / kMm,
               sum.max_depth / kMm, sum.max_abs_xy.x() / kMm, sum.max_abs_xy.y() / kMm);
-  return {file, text.str()};
+  return {file, text};
 }
 
 std::vector<Output> make_all(const fs::path& root) {

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 
@@ -262,6 +263,46 @@ void JsonFields::finish() const {
   for (const auto& item : j_.items()) {
     if (!read_.count(item.key())) throw InputError(field(item.key()) + ": unknown key");
   }
+}
+
+namespace {
+
+void format_json(std::ostream& out, const nlohmann::ordered_json& j, std::size_t indent,
+                 std::size_t width) {
+  using nlohmann::ordered_json;
+  std::function<std::string(const ordered_json&)> inline_form = [&](const ordered_json& v) {
+    if (!v.is_structured()) return v.dump();
+    std::string s = v.is_array() ? "[" : "{";
+    bool first = true;
+    for (auto it = v.begin(); it != v.end(); ++it, first = false) {
+      if (!first) s += ", ";
+      if (v.is_object()) s += ordered_json(it.key()).dump() + ": ";
+      s += inline_form(*it);
+    }
+    return s + (v.is_array() ? "]" : "}");
+  };
+  const std::string flat = inline_form(j);
+  if (!j.is_structured() || j.empty() || indent + flat.size() <= width) {
+    out << flat;
+    return;
+  }
+  out << (j.is_array() ? "[\n" : "{\n");
+  bool first = true;
+  for (auto it = j.begin(); it != j.end(); ++it, first = false) {
+    if (!first) out << ",\n";
+    out << std::string(indent + 2, ' ');
+    if (j.is_object()) out << ordered_json(it.key()).dump() << ": ";
+    format_json(out, *it, indent + 2, width);
+  }
+  out << "\n" << std::string(indent, ' ') << (j.is_array() ? "]" : "}");
+}
+
+}  // namespace
+
+std::string format_json(const nlohmann::ordered_json& j, std::size_t width) {
+  std::ostringstream out;
+  format_json(out, j, 0, width);
+  return out.str();
 }
 
 }  // namespace pg

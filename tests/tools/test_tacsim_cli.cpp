@@ -2,12 +2,14 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
@@ -35,7 +37,7 @@ TEST(TacsimCli, UsageErrorsExitWithTwo) {
 }
 
 TEST(TacsimCli, HelpOnEverySubcommand) {
-  for (const char* sub : {"", "render ", "info ", "bench "}) {
+  for (const char* sub : {"", "render ", "info ", "bench ", "sheet ", "presses "}) {
     const CliRun r = tacsim(std::string(sub) + "--help");
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
@@ -332,6 +334,75 @@ TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {
                           tmp.str() + " --out " + tmp.str("d"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("is a directory, not an image file"), std::string::npos) << r.out;
+}
+
+// `tacsim presses` writes a scene of random presses that renders one press per frame, of the
+// asked depth and inside the image; one seed writes one file; bad options are named.
+TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
+  TempDir tmp;
+  const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/toy_brick.glb";
+  const std::string args = "presses " + mesh + " --frames 8 --min-depth 0.0005 --max-depth 0.001";
+  CliRun r = tacsim(args + " --seed 3 --out " + tmp.str("brick.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("8 random presses"), std::string::npos) << r.out;
+  r = tacsim("render " + tmp.str("brick.json") + " -q --elastic off --outputs depth,mask --out " +
+             tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const Dataset d = Dataset::open(tmp.str("d"));
+  ASSERT_EQ(d.frames(), 8);
+  EXPECT_EQ(d.info().object_name, "toy_brick");
+  for (int f = 0; f < d.frames(); ++f) {
+    const ImageF depth = d.depth(f);
+    const ImageU8 mask = d.mask(f);
+    float deepest = 0;
+    int touched = 0, at_edge = 0;
+    for (int y = 0; y < depth.height; ++y) {
+      for (int x = 0; x < depth.width; ++x) {
+        deepest = std::max(deepest, depth.at(x, y, 0));
+        if (mask.at(x, y, 0) == 0) continue;
+        ++touched;
+        at_edge += x == 0 || y == 0 || x == depth.width - 1 || y == depth.height - 1;
+      }
+    }
+    // The render's indentation is along the camera's rays, a little longer than along z.
+    EXPECT_GT(deepest, 0.5e-3 - 2e-5) << "frame " << f;
+    EXPECT_LT(deepest, 1.0e-3 * 1.1) << "frame " << f;
+    EXPECT_GT(touched, 20) << "frame " << f;
+    EXPECT_EQ(at_edge, 0) << "frame " << f;
+  }
+  // One seed, one file; another seed, other presses.
+  ASSERT_EQ(tacsim(args + " --seed 3 --out " + tmp.str("again.json")).code, 0);
+  ASSERT_EQ(tacsim(args + " --seed 4 --out " + tmp.str("other.json")).code, 0);
+  const auto text = [&](const std::string& name) {
+    std::ifstream in(tmp.str(name));
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(text("again.json"), text("brick.json"));
+  EXPECT_NE(text("other.json"), text("brick.json"));
+  // Another sensor is the scene's.
+  ASSERT_EQ(tacsim(args + " --sensor gelsight_mini --out " + tmp.str("mini.json")).code, 0);
+  EXPECT_NE(text("mini.json").find("\"sensor\": \"gelsight_mini\""), std::string::npos);
+
+  for (const auto& [bad, says] : std::vector<std::pair<std::string, std::string>>{
+           {" --max-depth 1.5", "--max-depth = 1.5: must be from 1e-06 to 0.002 [m]"},
+           {" --min-depth 0.002 --max-depth 0.001", "--min-depth = 0.002"},
+           {" --sensor digit2", "unknown sensor preset 'digit2'"},
+           {" --sensor-file " + tmp.str("none.json"), "none.json"}}) {
+    r = tacsim("presses " + mesh + bad + " --out " + tmp.str("bad.json"));
+    EXPECT_EQ(r.code, 1) << bad;
+    EXPECT_NE(r.out.find(says), std::string::npos) << r.out;
+  }
+  r = tacsim("presses " + tmp.str("none.glb") + " --out " + tmp.str("bad.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("none.glb"), std::string::npos) << r.out;
+  r = tacsim("presses " + mesh + " --out " + tmp.str());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("is a folder"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("bad.json")));
+  EXPECT_EQ(tacsim("presses " + mesh + " --sensor digit --sensor-file x.json --out " +
+                   tmp.str("bad.json"))
+                .code,
+            2);
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 //   tacsim info DIR                 describe a dataset
 //   tacsim bench                    the renderer's speed benchmark
 //   tacsim sheet SCENES --out PNG   a contact sheet of one frame per scene
+//   tacsim presses MESH --out SCENE a scene of random presses (learned normals' training data)
 #include <tbb/global_control.h>
 
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include "pg/core/dataset.h"
 #include "pg/core/file_io.h"
 #include "pg/sim/scene_renderer.h"
+#include "presses.h"
 #include "sheet.h"
 
 namespace pg {
@@ -232,7 +234,32 @@ int main(int argc, char** argv) {
   add_image_size_options(*cmd_sheet, sheet.width, sheet.height, "the image");
   cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
 
+  PressesArgs presses;
+  CLI::App* cmd_presses = app.add_subcommand(
+      "presses",
+      "Write a scene of random presses of a mesh, one per frame: training data for a normals "
+      "model (render it with tacsim render)");
+  cmd_presses->add_option("mesh", presses.mesh, "The object's mesh (glTF/GLB, OBJ, STL, PLY, OFF)")
+      ->required();
+  cmd_presses->add_option("--out,-o", presses.out, "The scene file to write (JSON)")->required();
+  cmd_presses->add_option("--frames", presses.frames, "Presses, one per frame (default 50)")
+      ->check(CLI::Range(1, 1000000));
+  cmd_presses->add_option("--min-depth", presses.min_depth_m,
+                          "Shallowest press [m] (default 0.0003)");
+  cmd_presses->add_option("--max-depth", presses.max_depth_m,
+                          "Deepest press [m] (default 0.0015; at most the gel's maximum)");
+  cmd_presses->add_option("--scale", presses.scale, "Multiplies the mesh (meshes are in metres)")
+      ->check(range_check(1e-6, 1e6));
+  CLI::Option* preset =
+      cmd_presses->add_option("--sensor", presses.sensor, "Sensor preset (default digit)");
+  cmd_presses->add_option("--sensor-file", presses.sensor_file, "Sensor configuration file (JSON)")
+      ->excludes(preset);
+  cmd_presses->add_option("--name", presses.name, "The object's name (default: the mesh's stem)");
+  cmd_presses->add_option("--seed", presses.seed,
+                          "Seeds the presses and the scene's noise (default 1)");
+
   return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_presses->parsed()) return run_presses(presses);
     if (cmd_sheet->parsed()) return run_sheet(sheet);
     if (cmd_render->parsed()) {
       render.outputs_given = cmd_render->count("--outputs") > 0;

@@ -36,6 +36,11 @@ std::string without_json_tag(const std::string& what);
 
 std::string json_type_name(const nlohmann::json& j);
 
+// JSON text as the repository's scene files read: one line per array element or object member,
+// indented by two, unless the whole value fits in `width` columns (so a waypoint or a pose is
+// one line). Keys keep their order.
+std::string format_json(const nlohmann::ordered_json& j, std::size_t width = 120);
+
 class JsonFields {
  public:
   // `where` prefixes every message, e.g. "scenes/a.json: objects[1]". Throws if j is no object.

@@ -1,0 +1,62 @@
+#pragma once
+// Pressing a mesh into a sensor's gel, measured on points of its surface: how deep and how far
+// out a pose presses, and independent random presses, the training data of a learned-normals
+// model (scenes/normals/, written by make_scenes; `tacsim presses` for any mesh and sensor).
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "pg/core/se3.h"
+#include "pg/core/sensor.h"
+#include "pg/core/trajectory.h"
+#include "pg/sim/mesh.h"
+
+namespace pg {
+
+// Points on the mesh's surface at most spacing_m apart: a grid on each triangle, its corners
+// and edges included. The vertices alone are too coarse: on the convex gel the middle of a long
+// straight edge reaches deeper than its ends.
+std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spacing_m);
+
+struct PressContact {
+  // The deepest point below the undeformed gel surface [m]; negative when nothing touches.
+  double depth_m = -std::numeric_limits<double>::infinity();
+  Eigen::Vector2d max_abs_xy_m = Eigen::Vector2d::Zero();  // largest |x|, |y| in S that penetrates
+};
+
+// How points of an object (in its frame) at T_sensor_object press into the gel.
+PressContact measure_press(const std::vector<Eigen::Vector3d>& p_object, const SE3& T_sensor_object,
+                           const GelModel& gel);
+
+// The mean of the points within 0.1 mm of the farthest along `direction`, among those whose z
+// lies in [z_lo, z_hi]: the corner, edge, face or stud tops an orientation presses first.
+// Throws std::runtime_error when no point lies in the band.
+Eigen::Vector3d extreme_centroid(const std::vector<Eigen::Vector3d>& points,
+                                 const Eigen::Vector3d& direction, double z_lo, double z_hi);
+
+struct RandomPressOptions {
+  int frames = 50;
+  double min_depth_m = 0.3e-3, max_depth_m = 1.5e-3;  // each press's depth, uniform [m]
+  // Where the point pressing first lands in S: x and y uniform within +-this [m].
+  Eigen::Vector2d target_half_m{4e-3, 5e-3};
+  // Every penetrating point's |x| and |y| stay below this [m]: inside what the camera sees.
+  Eigen::Vector2d contact_half_m{7.2e-3, 9e-3};
+  std::uint64_t seed = 1;
+  int attempts = 100;  // draws per frame before giving up
+};
+
+// One press per frame: a uniformly random orientation (Shoemake's method), the point that
+// touches first at a random place, pushed to a random depth; a draw whose contact leaves
+// contact_half_m is drawn again. Returned as T_sensor_object waypoints, one per frame, rounded
+// as a scene file shows them (positions to 0.1 um, roll, pitch and yaw to 1 urad) and measured
+// after rounding. Deterministic for the points, gel and options. Throws InputError when a frame
+// finds no such press in `attempts` draws (an object too large for the visible gel).
+std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_object,
+                                     const GelModel& gel, const RandomPressOptions& options);
+
+// Where a sensor's camera sees its gel: the largest |x| and |y| in S [m] that every row and
+// column of the image reaches on the undeformed gel, within the gel's own size.
+Eigen::Vector2d visible_gel_half_m(const SensorModel& sensor);
+
+}  // namespace pg

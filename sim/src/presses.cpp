@@ -1,0 +1,141 @@
+#include "pg/sim/presses.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "pg/core/error.h"
+#include "pg/core/gel_rays.h"
+#include "pg/core/random.h"
+
+namespace pg {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// x rounded to a multiple of 1 / per_unit; dividing by the exact integer per_unit gives the double
+// nearest the decimal, so a file shows it with few digits. (+ 0.0 turns -0 into 0.)
+double round_to(double x, double per_unit) { return std::round(x * per_unit) / per_unit + 0.0; }
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spacing_m) {
+  std::vector<Eigen::Vector3d> points;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices[t[1]].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices[t[2]].cast<double>();
+    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int n = std::max(1, int(std::ceil(longest / spacing_m)));
+    for (int i = 0; i <= n; ++i) {
+      for (int j = 0; i + j <= n; ++j) points.push_back(a + (b - a) * i / n + (c - a) * j / n);
+    }
+  }
+  return points;
+}
+
+PressContact measure_press(const std::vector<Eigen::Vector3d>& p_object, const SE3& T_sensor_object,
+                           const GelModel& gel) {
+  PressContact contact;
+  for (const Eigen::Vector3d& p : p_object) {
+    const Eigen::Vector3d p_sensor = T_sensor_object * p;
+    // surface_z <= 0, so -z bounds the penetration: skip points that can neither penetrate nor
+    // be the deepest.
+    if (-p_sensor.z() <= std::min(contact.depth_m, 0.0)) continue;
+    const double depth = gel.surface_z(p_sensor.x(), p_sensor.y()) - p_sensor.z();
+    contact.depth_m = std::max(contact.depth_m, depth);
+    if (depth > 0.0) {
+      contact.max_abs_xy_m = contact.max_abs_xy_m.cwiseMax(p_sensor.head<2>().cwiseAbs());
+    }
+  }
+  return contact;
+}
+
+Eigen::Vector3d extreme_centroid(const std::vector<Eigen::Vector3d>& points,
+                                 const Eigen::Vector3d& direction, double z_lo, double z_hi) {
+  double best = -std::numeric_limits<double>::infinity();
+  for (const Eigen::Vector3d& p : points) {
+    if (p.z() >= z_lo && p.z() <= z_hi) best = std::max(best, p.dot(direction));
+  }
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (const Eigen::Vector3d& p : points) {
+    if (p.z() >= z_lo && p.z() <= z_hi && p.dot(direction) > best - 1e-4) {
+      sum += p;
+      ++count;
+    }
+  }
+  if (count == 0) throw std::runtime_error("extreme_centroid: no points in the z band");
+  return sum / count;
+}
+
+std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_object,
+                                     const GelModel& gel, const RandomPressOptions& options) {
+  if (p_object.empty()) throw InputError("random presses: the object has no surface points");
+  const double inf = std::numeric_limits<double>::infinity();
+  Random rng(options.seed);
+  std::vector<Waypoint> presses;
+  for (int f = 0; f < options.frames; ++f) {
+    for (int attempt = 0;; ++attempt) {
+      if (attempt == options.attempts) {
+        char text[256];
+        std::snprintf(text, sizeof text,
+                      "frame %d: no press of the object stays inside |x| < %.2f mm, |y| < %.2f "
+                      "mm (the visible gel) in %d random orientations: is it too large for the "
+                      "sensor, or its scale wrong?",
+                      f, 1e3 * options.contact_half_m.x(), 1e3 * options.contact_half_m.y(),
+                      options.attempts);
+        throw InputError(text);
+      }
+      // Uniform random rotation (Shoemake), rounded as the file stores it.
+      const double u1 = rng.uniform(0, 1), u2 = rng.uniform(0, 2 * kPi);
+      const double u3 = rng.uniform(0, 2 * kPi);
+      const Eigen::Quaterniond q_random(
+          std::sqrt(u1) * std::cos(u3), std::sqrt(1 - u1) * std::sin(u2),
+          std::sqrt(1 - u1) * std::cos(u2), std::sqrt(u1) * std::sin(u3));
+      Eigen::Vector3d rpy = rpy_from_quaternion(q_random.normalized());
+      for (int i = 0; i < 3; ++i) rpy[i] = round_to(rpy[i], 1e6);
+      const Eigen::Quaterniond q = quaternion_from_rpy(rpy);
+      const Eigen::Vector2d target(
+          rng.uniform(-options.target_half_m.x(), options.target_half_m.x()),
+          rng.uniform(-options.target_half_m.y(), options.target_half_m.y()));
+      const double depth = rng.uniform(options.min_depth_m, options.max_depth_m);
+      const Eigen::Vector3d lowest =
+          extreme_centroid(p_object, q.inverse() * -Eigen::Vector3d::UnitZ(), -inf, inf);
+      Eigen::Vector3d t;
+      t.head<2>() = target - (q * lowest).head<2>();
+      t.z() = 0.0;
+      t.z() = measure_press(p_object, SE3(q, t), gel).depth_m - depth;
+      for (int i = 0; i < 3; ++i) t[i] = round_to(t[i], 1e7);
+      const PressContact c = measure_press(p_object, SE3(q, t), gel);
+      if (std::abs(c.depth_m - depth) > 5e-5 || c.max_abs_xy_m.x() > options.contact_half_m.x() ||
+          c.max_abs_xy_m.y() > options.contact_half_m.y()) {
+        continue;
+      }
+      presses.push_back({f, t, rpy});
+      break;
+    }
+  }
+  return presses;
+}
+
+Eigen::Vector2d visible_gel_half_m(const SensorModel& sensor) {
+  const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
+  const int w = rays.width, h = rays.height;
+  Eigen::Vector2d half(0.5 * sensor.gel.width_m, 0.5 * sensor.gel.height_m);
+  for (int y = 0; y < h; ++y) {
+    for (const int x : {0, w - 1}) {
+      half.x() = std::min(half.x(), double(std::abs(rays.point(rays.index(x, y), 0.0f).x())));
+    }
+  }
+  for (int x = 0; x < w; ++x) {
+    for (const int y : {0, h - 1}) {
+      half.y() = std::min(half.y(), double(std::abs(rays.point(rays.index(x, y), 0.0f).y())));
+    }
+  }
+  return half;
+}
+
+}  // namespace pg

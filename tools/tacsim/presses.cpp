@@ -1,0 +1,129 @@
+#include "presses.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "../common/cli_main.h"
+#include "pg/core/error.h"
+#include "pg/core/file_io.h"
+#include "pg/core/json_fields.h"
+#include "pg/sim/mesh.h"
+#include "pg/sim/presses.h"
+
+namespace pg {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Where the presses go, as fractions of the gel the camera sees (visible_gel_half_m, 8.3 x 10.9
+// mm on the DIGIT): the point that touches first within 0.45 of it, every penetrating point
+// within 0.85; on the DIGIT about the repository's training scenes' 4 x 5 mm and 7.2 x 9 mm
+// (make_scenes).
+constexpr double kTargetFraction = 0.45, kContactFraction = 0.85;
+
+// `path` as the scene file at `scene` names it: relative to the scene's folder when the two
+// share a top folder (a project's scenes/ and meshes/), else absolute.
+std::string path_from_scene(const std::string& path, const std::string& scene) {
+  const fs::path target = fs::absolute(path).lexically_normal();
+  const fs::path folder = fs::absolute(scene).lexically_normal().parent_path();
+  const auto top = [](const fs::path& p) {
+    auto it = p.begin();
+    return ++it == p.end() ? fs::path() : *it;  // the component after the root
+  };
+  if (top(target) != top(folder)) return target.generic_string();
+  return target.lexically_relative(folder).generic_string();
+}
+
+}  // namespace
+
+int run_presses(const PressesArgs& a) {
+  if (a.out.empty()) throw InputError("--out: empty; give the scene file to write");
+  if (fs::is_directory(a.out)) {
+    throw InputError("--out " + a.out + ": is a folder; give the scene file to write (a .json)");
+  }
+  if (!a.sensor.empty() && !a.sensor_file.empty()) {
+    throw InputError("--sensor and --sensor-file: give one");
+  }
+  const SensorModel sensor = !a.sensor_file.empty()
+                                 ? load_sensor_file(a.sensor_file)
+                                 : sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
+  const double max_indentation = sensor.gel.max_indentation_m;
+  check_in_range("--max-depth", a.max_depth_m, 1e-6, max_indentation,
+                 " [m]: the gel takes at most its max_indentation_m");
+  check_in_range("--min-depth", a.min_depth_m, 1e-6, a.max_depth_m,
+                 " [m]: positive and at most --max-depth");
+
+  const TriangleMesh mesh = load_mesh(a.mesh, a.scale);
+  const Bounds3 bounds = mesh_bounds(mesh);
+  // Grid points 0.25 mm apart (the repository's scenes), closer on a small object so that a
+  // press's depth is measured to a small part of it, and no more than about two million on a
+  // large one (a 0.6 m sphere at 0.25 mm would be 70 million; the grid keeps the corners and
+  // edges, so a coarser one errs only on curved surfaces, by spacing^2 / 8 radius).
+  const double size = (bounds.max - bounds.min).cast<double>().norm();
+  double area = 0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Eigen::Vector3f& a = mesh.vertices[t[0]];
+    area += 0.5 * double((mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm());
+  }
+  const double spacing = std::max(std::min(0.25e-3, size / 50), std::sqrt(area / 1e6));
+  const std::vector<Eigen::Vector3d> points = surface_grid(mesh, spacing);
+
+  RandomPressOptions options;
+  options.frames = a.frames;
+  options.min_depth_m = a.min_depth_m;
+  options.max_depth_m = a.max_depth_m;
+  const Eigen::Vector2d visible = visible_gel_half_m(sensor);
+  options.target_half_m = kTargetFraction * visible;
+  options.contact_half_m = kContactFraction * visible;
+  options.seed = a.seed;
+  std::vector<Waypoint> presses;
+  try {
+    presses = random_presses(points, sensor.gel, options);
+  } catch (const InputError& e) {
+    throw InputError(a.mesh + (a.scale != 1.0 ? " at scale " + std::to_string(a.scale) : "") +
+                     ": " + e.what());
+  }
+
+  nlohmann::ordered_json waypoints = nlohmann::ordered_json::array();
+  for (const Waypoint& w : presses) {
+    waypoints.push_back({{"frame", w.frame},
+                         {"position", {w.position_m.x(), w.position_m.y(), w.position_m.z()}},
+                         {"rpy", {w.rpy_rad.x(), w.rpy_rad.y(), w.rpy_rad.z()}}});
+  }
+  nlohmann::ordered_json sensor_entry = {{"name", a.sensor_file.empty() ? sensor.name : "sensor"}};
+  if (!a.sensor_file.empty()) {
+    sensor_entry["sensor_file"] = path_from_scene(a.sensor_file, a.out);
+  } else {
+    sensor_entry["sensor"] = a.sensor.empty() ? "digit" : a.sensor;
+  }
+  nlohmann::ordered_json object = {
+      {"name", a.name.empty() ? fs::path(a.mesh).stem().string() : a.name},
+      {"mesh", path_from_scene(a.mesh, a.out)}};
+  if (a.scale != 1.0) object["scale"] = a.scale;
+  object["trajectory"] = {{"waypoints", waypoints}};
+  // As the repository's training scenes: the non-ideal effects on (shadows, noise; the gel as
+  // the sensor says), so that a network trained on them sees what a real sensor shows.
+  const nlohmann::ordered_json scene = {{"frames", a.frames},
+                                        {"fps", 60},
+                                        {"sensors", {sensor_entry}},
+                                        {"objects", {object}},
+                                        {"render",
+                                         {{"outputs", {"color", "normal", "depth", "mask"}},
+                                          {"noise", true},
+                                          {"shadows", true},
+                                          {"background", "synthetic"},
+                                          {"seed", a.seed}}}};
+  write_text_file(a.out, format_json(scene) + "\n");
+  std::printf(
+      "wrote %s: %d random presses of %s, %.2f-%.2f mm deep, within |x| < %.1f mm, "
+      "|y| < %.1f mm of the gel centre\n",
+      a.out.c_str(), a.frames, a.mesh.c_str(), 1e3 * a.min_depth_m, 1e3 * a.max_depth_m,
+      1e3 * options.contact_half_m.x(), 1e3 * options.contact_half_m.y());
+  std::printf("render it: tacsim render %s --out DIR\n", a.out.c_str());
+  return kExitOk;
+}
+
+}  // namespace pg
