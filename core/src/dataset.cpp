@@ -13,6 +13,7 @@
 #include "pg/core/csv.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/image_change.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/point_io.h"
 
@@ -188,8 +189,18 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   // spreadsheet's UTF-8 byte-order mark before the header is dropped too.
   clean_csv_line(line, true);
   if (!has_line || line != kPosesHeader) {
+    // Where the two part, so that a missing, extra or swapped column past the excerpt shows.
+    const std::vector<std::string> found = csv_cells(line), expected = csv_cells(kPosesHeader);
+    std::size_t k = 0;
+    while (k < found.size() && k < expected.size() && found[k] == expected[k]) ++k;
+    std::string where;
+    if (has_line && !line.empty()) {
+      where = "; column " + std::to_string(k + 1) + " is " +
+              (k < found.size() ? "'" + excerpt(found[k]) + "'" : "missing") + ", expected " +
+              (k < expected.size() ? "'" + expected[k] + "'" : "no more columns");
+    }
     throw InputError(path + ": line 1: expected the header '" + std::string(kPosesHeader) +
-                     "', found '" + excerpt(line) + "'");
+                     "', found '" + excerpt(line) + "'" + where);
   }
   std::vector<FramePose> poses;
   int line_no = 1;
@@ -494,26 +505,10 @@ ImageU8 Dataset::background() const {
                      ": no background.png and no frame that poses.csv marks as without "
                      "contact to use as the no-contact reference image");
   }
-  // Per pixel and channel the median, not the mean: the camera's noise is clipped at 0 and 255,
-  // so where the gel saturates a channel the frames' mean sits below the noise-free value, a
-  // brightness drift the network reads as slopes (eval-normals: contact angle 1.65 deg with the
-  // median of 15 frames, 2.98 with their mean, 2.83 with one frame, 1.68 with the noise-free
-  // image; docs/learned_normals.md).
+  // Their median (image_change.h: not their mean, and quieter than one frame).
   std::vector<ImageU8> images;
   for (int f : frames) images.push_back(color(f));
-  ImageU8 median = images[0];
-  std::vector<std::uint8_t> values(images.size());
-  const std::size_t mid = values.size() / 2;
-  for (std::size_t i = 0; i < median.data.size(); ++i) {
-    for (std::size_t k = 0; k < images.size(); ++k) values[k] = images[k].data[i];
-    std::nth_element(values.begin(), values.begin() + mid, values.end());
-    int m = values[mid];
-    if (values.size() % 2 == 0) {  // the two middle values' mean, rounded up
-      m = (m + *std::max_element(values.begin(), values.begin() + mid) + 1) / 2;
-    }
-    median.data[i] = std::uint8_t(m);
-  }
-  return median;
+  return median_image(images);
 }
 
 std::vector<int> Dataset::reference_frames() const {

@@ -294,8 +294,13 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
     return false;
   }
   if (best_size < kMinRegionPixels) {
+    // Scattered specks (a noisy reference's, or a speck of dust's) and no press: no contact, as
+    // the tracker's smallest contact (20 px) would take it.
+    none->no_change = true;
     none->reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
-                          double(best_size), double(kMinRegionPixels));
+                          double(best_size), double(kMinRegionPixels)) +
+                   format(": no contact (%.0f changed pixels, scattered: camera noise?)",
+                          double(changed_count));
     return false;
   }
   // Its holes filled (a press's flat middle may look like the reference): every pixel that the

@@ -399,6 +399,18 @@ TEST(Dataset, ARecordingMayLeaveTheObjectPoseAndTheContactUnknown) {
   std::ofstream(csv) << header << "\n" << hex << "\n" << row1 << "\n" << row2 << "\n";
   expect_input_error([&] { Dataset::open(tmp.str("d")); },
                      "line 2: sensor_x: '0x10' is not a decimal number");
+  // A header with a column missing, one more or another name says which column parts.
+  const std::string no_contact = header.substr(0, header.rfind(','));
+  std::ofstream(csv) << no_contact << "\n" << row0 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "column 17 is missing, expected 'contact'");
+  std::ofstream(csv) << header << ",note\n" << row0 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "column 18 is 'note', expected no more columns");
+  std::string renamed = header;
+  renamed.replace(renamed.find("sensor_qw"), 9, "sensor_w");
+  std::ofstream(csv) << renamed << "\n" << row0 << "\n";
+  expect_input_error([&] { Dataset::open(tmp.str("d")); }, "is 'sensor_w', expected 'sensor_qw'");
   // Time never goes back; a spreadsheet's byte-order mark before the header is fine.
   std::ofstream(csv) << "\xEF\xBB\xBF" << header << "\n"
                      << row0 << "\n"

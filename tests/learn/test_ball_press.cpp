@@ -294,6 +294,18 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   const BallPress with_speck = find_ball_press(speck, reference, rays, kBallRadius, gel);
   ASSERT_TRUE(with_speck.found) << with_speck.reason;
   EXPECT_LT((with_speck.centre_m - found.centre_m).norm(), 1e-6);
+  // Only specks, scattered (a noisy reference's): no press, and no contact either, as the
+  // tracker's smallest contact (20 px) takes it.
+  ImageU8 specks = reference;
+  for (int k = 0; k < 40; ++k) {
+    const int x = 5 + (k * 37) % 110, y = 5 + (k * 53) % 150;
+    for (int c = 0; c < 3; ++c) specks.at(x, y, c) = std::uint8_t(specks.at(x, y, c) / 2);
+  }
+  const BallPress scattered = find_ball_press(specks, reference, rays, kBallRadius, gel);
+  EXPECT_FALSE(scattered.found);
+  EXPECT_TRUE(scattered.no_change);
+  EXPECT_NE(scattered.reason.find("fewer than a press's 20: no contact"), std::string::npos)
+      << scattered.reason;
   // Changes in several places besides the press (as where the background has texture and the
   // camera moved, or the light changed unevenly): not "two contacts", and said so.
   ImageU8 patches = color;

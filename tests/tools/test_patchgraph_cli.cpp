@@ -16,6 +16,7 @@
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
+#include "pg/core/image_change.h"
 #include "pg/core/json_fields.h"
 
 namespace pg {
@@ -619,13 +620,13 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   const std::string last_columns =
       ",unconstrained_directions,contact_points,contact_core,unconverged_registrations,"
       "overridden_registrations,invalid_input,image_to_image_dropped,rejected_normals,"
-      "contact_sensors";
+      "contact_sensors,reference_mismatch";
   ASSERT_GT(header.size(), last_columns.size());
   EXPECT_EQ(header.substr(header.size() - last_columns.size()), last_columns);
   int lines = 0, core_frames = 0;
   for (std::string line; std::getline(errors, line); ++lines) {
     const std::vector<std::string> field = split_csv_line(line);
-    ASSERT_EQ(field.size(), 19u) << line;
+    ASSERT_EQ(field.size(), 20u) << line;
     const bool contact = field[3] == "1";
     EXPECT_EQ(field[18], contact ? "1" : "0") << line;
     const int points = std::stoi(field[11]), core = std::stoi(field[12]);
@@ -1054,6 +1055,117 @@ TEST_F(PatchgraphCli, ARecordingTakesItsFramesInNameOrderAndSaysWhenNumbersAreUn
   EXPECT_FALSE(fs::exists(out("late_rec")));
 }
 
+// A real camera's no-contact image carries its noise (the renderer's sigma 7 here). One such
+// image as the reference is warned about (it made the default model see contact in 8 of 10
+// frames without any); several, or a folder of them, become their per-pixel median, quiet enough;
+// a reference kept among the frames is not a frame. A recording's sensor poses are measured:
+// tracking it adds no simulated noise unless asked.
+TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
+  const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
+                                               "/scenes/examples/no_contact.json -q --outputs "
+                                               "color --out " +
+                                               out("still_gel"));
+  ASSERT_EQ(rendered.code, 0) << rendered.out;
+  const fs::path frames = dir_ / "still_frames";
+  fs::remove_all(frames);
+  fs::create_directories(frames);
+  const Dataset still = Dataset::open(out("still_gel"));
+  const Dataset pressed = Dataset::open(data());
+  for (int i = 0; i < 8; ++i) {
+    write_image((frames / ("f" + std::to_string(i) + ".png")).string(), pressed.color(i));
+  }
+  // The five no-contact frames: the last one beside the frames.
+  const fs::path quiet = dir_ / "still_references";
+  fs::remove_all(quiet);
+  fs::create_directories(quiet);
+  std::vector<ImageU8> no_contact;
+  for (int i = 0; i < still.frames(); ++i) {
+    no_contact.push_back(still.color(i));
+    const fs::path file = i < 4 ? quiet / ("bg" + std::to_string(i) + ".png") : frames / "bg.png";
+    write_image(file.string(), no_contact.back());
+  }
+  EXPECT_GT(noise_levels(no_contact[0]), kNoisyReferenceLevels);
+
+  const std::string args = "recording --images " + frames.string() + " --static-sensor -q";
+  CliRun one = patchgraph(args + " --background " + (frames / "bg.png").string() + " --out " +
+                          out("rec_one_reference"));
+  ASSERT_EQ(one.code, 0) << one.out;
+  EXPECT_NE(one.out.find("bg.png is a --background image: not taken as a frame"), std::string::npos)
+      << one.out;
+  EXPECT_EQ(Dataset::open(out("rec_one_reference")).frames(), 8);
+  EXPECT_NE(one.out.find("warning: --background " + (frames / "bg.png").string() +
+                         " holds camera noise of about"),
+            std::string::npos)
+      << one.out;
+  CliRun five = patchgraph(args + " --background " + quiet.string() + " " +
+                           (frames / "bg.png").string() + " --out " + out("rec_five_references"));
+  ASSERT_EQ(five.code, 0) << five.out;
+  EXPECT_NE(five.out.find("the median of 5 images"), std::string::npos) << five.out;
+  EXPECT_EQ(five.out.find("camera noise"), std::string::npos) << five.out;
+  const Dataset rec = Dataset::open(out("rec_five_references"));
+  EXPECT_EQ(rec.background().data, median_image(no_contact).data);
+  EXPECT_LT(noise_levels(rec.background()), kNoisyReferenceLevels);
+
+  // Tracked with the model: the noisy reference is warned about again; the recording's poses
+  // get no simulated noise (the first is the sensor's frame exactly), unless asked for.
+  const std::string track =
+      "track -q --normals " + std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt ";
+  CliRun t = patchgraph(track + out("rec_one_reference") + " --out " + out("rec_one_track"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("background.png, the no-contact reference, holds camera noise"),
+            std::string::npos)
+      << t.out;
+  t = patchgraph(track + out("rec_five_references") + " --out " + out("rec_five_track"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_EQ(t.out.find("camera noise"), std::string::npos) << t.out;
+  auto summary = parse_json_file(out("rec_five_track") + "/summary.json");
+  EXPECT_EQ(summary["ee_noise"].get<double>(), 0.0);
+  EXPECT_EQ(summary["vision_noise"].get<double>(), 0.0);
+  EXPECT_LT(translation_distance(
+                read_poses_csv(out("rec_five_track") + "/poses.csv")[0].T_world_object, SE3()),
+            1e-12);
+  t = patchgraph(track + out("rec_five_references") + " --vision-noise 1e-4 --out " +
+                 out("rec_five_noisy"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  summary = parse_json_file(out("rec_five_noisy") + "/summary.json");
+  EXPECT_EQ(summary["vision_noise"].get<double>(), 1e-4);
+  EXPECT_EQ(summary["ee_noise"].get<double>(), 0.0);
+  // A render's poses are exact: the simulated noise stays on by default.
+  t = patchgraph("track -q " + data() + " --out " + out("render_noise"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  summary = parse_json_file(out("render_noise") + "/summary.json");
+  EXPECT_EQ(summary["ee_noise"].get<double>(), 1e-5);
+  EXPECT_EQ(summary["vision_noise"].get<double>(), 1e-4);
+
+  // A reference taken under other lighting (every level 30 up): each frame differs from it
+  // almost everywhere, which the network reads as contact; said so (bg.png is a frame now).
+  ImageU8 brighter = median_image(no_contact);
+  for (auto& v : brighter.data) v = std::uint8_t(std::min(255, v + 30));
+  write_image(out("brighter.png"), brighter);
+  ASSERT_EQ(
+      patchgraph(args + " --background " + out("brighter.png") + " --out " + out("rec_other_light"))
+          .code,
+      0);
+  t = patchgraph(track + out("rec_other_light") + " --out " + out("rec_other_light_track"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("warning: in 9 frame(s) more than half of the image differs from the "
+                       "no-contact reference"),
+            std::string::npos)
+      << t.out;
+  summary = parse_json_file(out("rec_other_light_track") + "/summary.json");
+  EXPECT_EQ(summary["reference_mismatch_frames"].get<int>(), 9);
+  EXPECT_EQ(parse_json_file(out("rec_five_track") + "/summary.json")["reference_mismatch_frames"]
+                .get<int>(),
+            0);
+
+  // Every image of --images a reference: nothing left.
+  const CliRun none = patchgraph("recording --images " + quiet.string() + " --background " +
+                                 quiet.string() + " --static-sensor -q --out " + out("rec_none"));
+  EXPECT_EQ(none.code, 1) << none.out;
+  EXPECT_NE(none.out.find("every image in it is a --background image"), std::string::npos)
+      << none.out;
+}
+
 TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   const Dataset rendered = Dataset::open(data());
   const fs::path frames = dir_ / "rec_frames";
@@ -1126,7 +1238,9 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                  (dir_ / "rec_background_x2.png").string() +
                                  " --static-sensor -q --out " + out("rec_bad"));
   EXPECT_EQ(size.code, 1) << size.out;
-  EXPECT_NE(size.out.find("240x320 px, but the sensor is 120x160 px; --downsample 2 fits"),
+  EXPECT_NE(size.out.find("240x320 px, but the sensor's frames are 120x160 px (--downsample 2 "
+                          "fits this image; --sensor digit_240x320 takes 240x320 frames; "
+                          "--sensor gelsight_mini takes 240x320 frames)"),
             std::string::npos)
       << size.out;
   fs::create_directories(dir_ / "rec_empty");
@@ -1138,7 +1252,7 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   const CliRun no_poses =
       patchgraph("recording --images " + frames.string() + " --background " +
                  (dir_ / "rec_background.png").string() + " -q --out " + out("rec_bad"));
-  EXPECT_EQ(no_poses.code, 1) << no_poses.out;
+  EXPECT_EQ(no_poses.code, 2) << no_poses.out;  // a usage error
   EXPECT_NE(no_poses.out.find("--poses or --static-sensor"), std::string::npos) << no_poses.out;
   const CliRun with_poses = patchgraph("recording --images " + frames.string() + " --background " +
                                        (dir_ / "rec_background.png").string() + " --poses " +
@@ -1220,7 +1334,8 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                  (dir_ / "rec_background.png").string() +
                                  " --static-sensor -q --out " + out("rec"));
   EXPECT_EQ(late.code, 1) << late.out;
-  EXPECT_NE(late.out.find("capture_1030.png: 60x80 px, but the sensor is"), std::string::npos)
+  EXPECT_NE(late.out.find("capture_1030.png: 60x80 px, but the sensor's frames are"),
+            std::string::npos)
       << late.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
   // One whose header is whole but whose pixels are cut short: also refused before the earlier
@@ -1315,7 +1430,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     EXPECT_NE(bad.out.find(text), std::string::npos) << args << "\n" << bad.out;
     EXPECT_FALSE(fs::exists(out("balls_bad"))) << args;
   };
-  refused(out("balls") + " --diameter 12.7", 2, "--diameter");
+  refused(out("balls") + " --diameter 12.7", 2, "must be from 0.0001 to 0.2 [m]");
   refused(out("balls") + " --diameter 0.0127 --gel soft", 2, "--gel");
   refused(out("balls") + " --diameter 0.001", 1,
           "no ball press found in any of its 20 frames (frame 0: the contact is wider than a ball "
@@ -1328,6 +1443,15 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   EXPECT_NE(small.out.find("warning: frame 0 skipped: the contact is wider"), std::string::npos)
       << small.out;
   refused(data() + "_no_such --diameter 0.0127", 1, "_no_such");
+  // A ball ten times a 1/2 inch one (a slip of units) is labelled, and warned about.
+  const CliRun huge =
+      patchgraph("label-ball " + out("balls") + " --diameter 0.127 -q --out " + out("balls_huge"));
+  EXPECT_EQ(huge.code, 0) << huge.out;
+  EXPECT_NE(huge.out.find("warning: --diameter 0.127 m: a ball of 127 mm, over twice the 20 x 30 "
+                          "mm gel; is that its diameter in metres?"),
+            std::string::npos)
+      << huge.out;
+  EXPECT_EQ(r.out.find("is that its diameter"), std::string::npos) << r.out;
   ASSERT_EQ(
       run(TACSIM_PATH, "render " + scene + " -q --outputs normal --out " + out("balls_n")).code, 0);
   refused(out("balls_n") + " --diameter 0.0127", 1, "no colour images");
@@ -1344,6 +1468,10 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   refused(circles("frame,u_px,v_px,radius_px\n3,,,\n3,,,\n"), 1, "frame 3 is given twice");
   refused(circles("frame,u_px,v_px,radius_px,status\n3,,,,bogus\n"), 1,
           "line 2: status: 'bogus' is none of found, given, no_press, skipped");
+  // A found circle cleared by hand: search again, or no press? Asked, not guessed.
+  refused(circles("frame,status,u_px,v_px,radius_px\n0,found,,,\n"), 1,
+          "line 2: status found with the circle's cells empty: fill in u_px, v_px and radius_px, "
+          "or set the status to no_press");
   refused(out("balls") + " --diameter 0.0127 --circles " + out("balls"), 1,
           "a folder, not a CSV file (--circles)");
   {

@@ -184,6 +184,13 @@ class OutputFolder {
   bool created_ = false;
 };
 
+// A combination of options that cannot run, found after parsing (one of two options that
+// exclude each other must be given, say): exit 2, as CLI11's own usage errors.
+class UsageError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.
 // Throws CLI::ValidationError for an option or argument given as an empty string (`--out ""`,
@@ -214,6 +221,9 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
   }
   try {
     return body();
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
+    return kExitUsage;
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
   } catch (const std::bad_alloc&) {

@@ -17,6 +17,7 @@
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/gel_rays.h"
+#include "pg/core/image_change.h"
 #include "pg/learn/ball_press.h"
 
 namespace pg {
@@ -32,7 +33,8 @@ using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 // the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
 // numbers (radius > 0) or all empty (no press in that frame); a row with empty circle cells
 // whose status column says "skipped" (as label-ball wrote it) is as if not listed, one with a
-// circle filled in takes it; a status column holds found, given, no_press, skipped or nothing.
+// circle filled in takes it; empty cells under found or given are refused (a cleared circle); a
+// status column holds found, given, no_press, skipped or nothing.
 // Frames not listed are searched.
 std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
   if (fs::is_directory(path)) throw InputError(path + ": a folder, not a CSV file (--circles)");
@@ -90,6 +92,14 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
     if (empty[1] && empty[2] && empty[3]) {
       // A skipped frame as label-ball wrote it is searched again, not a frame without a press.
       if (status >= 0 && cell(status) == "skipped") continue;
+      // A press whose circle was cleared: meant as "search again" or as "no press"? Either
+      // guess would turn a press into wrong labels.
+      if (status >= 0 && (cell(status) == "found" || cell(status) == "given")) {
+        throw InputError(at + "status " + cell(status) +
+                         " with the circle's cells empty: fill in u_px, v_px and radius_px, or "
+                         "set the status to no_press (no press in the frame) or skipped (search "
+                         "it again)");
+      }
       circles[frame] = std::nullopt;
       continue;
     }
@@ -161,7 +171,14 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
       ->required();
   cmd->add_option("--diameter", a.diameter, "The ball's diameter [m] (a 1/2 inch ball: 0.0127)")
       ->required()
-      ->check(range_check(1e-4, 0.2));
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            double value = 0;
+            if (!CLI::detail::lexical_cast(text, value)) return "not a number: " + text;
+            if (value >= 1e-4 && value <= 0.2) return {};
+            return "must be from 0.0001 to 0.2 [m] (a 1/2 inch ball: 0.0127), got " + text;
+          },
+          "METRES"));
   cmd->add_option("--circles", a.circles,
                   "CSV of contact circles given by hand: frame,u_px,v_px,radius_px (the "
                   "circles.csv a run writes, corrected); empty cells: no press in that frame");
@@ -186,10 +203,23 @@ int run_label_ball(const LabelBallArgs& a) {
   if (!a.gel.empty()) gel.elastic.enabled = a.gel == "elastic";
   const SensorModel& sensor = d.info().sensor;
   const ImageU8 reference = d.background();
+  const std::string noisy =
+      noisy_reference_warning(reference, "the no-contact reference of " + a.dataset);
+  if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   const std::map<int, GivenCircle> given =
       a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
   const double radius = 0.5 * a.diameter;
+  // A ball far wider than the gel is no calibration ball: a slip of units (127 mm for 12.7)?
+  // Its presses would still be labelled, as shallow caps of a huge sphere.
+  const double gel_size = std::max(sensor.gel.width_m, sensor.gel.height_m);
+  if (a.diameter > 2 * gel_size) {
+    std::fprintf(stderr,
+                 "warning: --diameter %s m: a ball of %.0f mm, over twice the %.0f x %.0f mm "
+                 "gel; is that its diameter in metres?\n",
+                 format_number(a.diameter).c_str(), a.diameter * 1e3, sensor.gel.width_m * 1e3,
+                 sensor.gel.height_m * 1e3);
+  }
 
   // Every frame's press first (reading every colour image), so that nothing is written when no
   // frame has one.

@@ -18,6 +18,7 @@
 #include "eval.h"
 #include "label_ball.h"
 #include "normals_cli.h"
+#include "pg/core/image_change.h"
 #include "recording.h"
 #include "track_args.h"
 
@@ -78,10 +79,13 @@ int run_track(const TrackArgs& a) {
   const int unpaired_frames = note_missing_frames(sensors);
   const TrackOptions options = make_track_options(a, dataset, models);
   for (const Dataset& d : datasets) {
-    if (a.normals == "gt" ||
-        std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png")) {
-      continue;
-    }
+    if (a.normals == "gt") continue;
+    const bool file = std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png");
+    const std::string noisy = noisy_reference_warning(
+        d.background(), file ? d.dir() + "/background.png, the no-contact reference,"
+                             : "the no-contact reference of " + d.dir());
+    if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
+    if (file) continue;
     // The network reads each frame minus this reference: a frame wrongly marked without contact
     // would skew every estimate, so the choice is shown.
     const std::vector<int> frames = d.reference_frames();
@@ -155,6 +159,14 @@ int run_track(const TrackArgs& a) {
                  "or facing the camera; a dropped colour frame counts all of its pixels) "
                  "(errors.csv: rejected_normals)\n",
                  s.rejected_normal_frames);
+  }
+  if (s.reference_mismatch_frames > 0) {
+    std::fprintf(stderr,
+                 "warning: in %d frame(s) more than half of the image differs from the "
+                 "no-contact reference, more than a press changes: the lighting changed or the "
+                 "camera moved since it was taken? The network reads that as contact everywhere "
+                 "(errors.csv: reference_mismatch)\n",
+                 s.reference_mismatch_frames);
   }
   if (s.invalid_input_frames > 0) {
     std::fprintf(stderr,

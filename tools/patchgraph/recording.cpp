@@ -12,6 +12,7 @@
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/image.h"
+#include "pg/core/image_change.h"
 #include "pg/core/sensor.h"
 #include "pg/graph/track_dataset.h"
 
@@ -47,9 +48,9 @@ std::string numbers_padded(const std::string& name) {
 
 // The frame files of DIR in name order; hidden files (a copy tool's "._frame.png") are not
 // frames. Warns when the names' numbers are not zero-padded, so that name order is not their
-// numbers' order ("frame10" before "frame2").
-std::vector<fs::path> image_files(const std::string& dir) {
-  if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (--images)");
+// numbers' order ("frame10" before "frame2"). `option` names the folder's option in messages.
+std::vector<fs::path> image_files(const std::string& dir, const std::string& option) {
+  if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (" + option + ")");
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const bool hidden = entry.path().filename().string().rfind('.', 0) == 0;
@@ -58,7 +59,7 @@ std::vector<fs::path> image_files(const std::string& dir) {
     }
   }
   if (files.empty()) {
-    throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (--images)");
+    throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (" + option + ")");
   }
   std::sort(files.begin(), files.end());
   for (std::size_t i = 1; i < files.size(); ++i) {
@@ -81,19 +82,40 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
                        int factor) {
   if (raw.channels != 3 && raw.channels != 4) {
     throw InputError(path + ": " + std::to_string(raw.channels) +
-                     " channels; a tactile sensor's frame is RGB");
+                     (raw.channels == 1 ? " channel (grey)" : " channels") +
+                     "; a tactile sensor's frame is RGB");
   }
   if (raw.width != camera.width * factor || raw.height != camera.height * factor) {
-    std::string hint;
+    const auto size = [](int w, int h) { return std::to_string(w) + "x" + std::to_string(h); };
+    std::string text = path + ": " + size(raw.width, raw.height) +
+                       " px, but the sensor's frames are " + size(camera.width, camera.height) +
+                       " px";
+    if (factor > 1) {
+      text += ", so with --downsample " + std::to_string(factor) + " the images must be " +
+              size(camera.width * factor, camera.height * factor) + " px";
+    }
+    std::vector<std::string> hints;
     if (raw.width % camera.width == 0 && raw.height % camera.height == 0 &&
         raw.width / camera.width == raw.height / camera.height) {
-      hint = "; --downsample " + std::to_string(raw.width / camera.width) + " fits";
+      hints.push_back("--downsample " + std::to_string(raw.width / camera.width) +
+                      " fits this image");
     }
-    throw InputError(path + ": " + std::to_string(raw.width) + "x" + std::to_string(raw.height) +
-                     " px, but the sensor is " + std::to_string(camera.width) + "x" +
-                     std::to_string(camera.height) + " px" +
-                     (factor > 1 ? " (x" + std::to_string(factor) + " with --downsample)" : "") +
-                     hint + " (--sensor, --sensor-file)");
+    for (const std::string& name : sensor_preset_names()) {
+      const SensorModel preset = sensor_preset(name);
+      if (preset.camera.width == raw.width && preset.camera.height == raw.height) {
+        hints.push_back("--sensor " + name + " takes " + size(raw.width, raw.height) + " frames");
+      }
+    }
+    if (raw.width == camera.height * factor && raw.height == camera.width * factor) {
+      hints.push_back("the image is turned by 90 degrees (the sensor's are " +
+                      std::string(camera.width < camera.height ? "portrait" : "landscape") + ")");
+    }
+    if (!hints.empty()) {
+      text += " (";
+      for (std::size_t k = 0; k < hints.size(); ++k) text += (k ? "; " : "") + hints[k];
+      text += ")";
+    }
+    throw InputError(text + "; the frames and --background must be of one size");
   }
 }
 
@@ -116,6 +138,19 @@ ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int fac
     }
   }
   return out;
+}
+
+// The no-contact images --background names: each file, and the image files of each folder.
+std::vector<fs::path> background_files(const std::vector<std::string>& given) {
+  std::vector<fs::path> files;
+  for (const std::string& path : given) {
+    if (fs::is_directory(path)) {
+      for (const fs::path& file : image_files(path, "--background")) files.push_back(file);
+    } else {
+      files.push_back(path);
+    }
+  }
+  return files;
 }
 
 // The frame rate of a poses file's time column (first to last row), so that dataset.json says
@@ -143,7 +178,9 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
       "recording", "Make a dataset of a real sensor's frames, for track --normals MODEL");
   cmd->add_option("--images", a.images, "Folder of the frames (png, jpg, ...), in name order")
       ->required();
-  cmd->add_option("--background", a.background, "The sensor's image with nothing touching")
+  cmd->add_option("--background", a.backgrounds,
+                  "The sensor's image with nothing touching; or several such frames (files, or "
+                  "a folder): their per-pixel median is the reference, with less camera noise")
       ->required();
   auto* poses = cmd->add_option("--poses", a.poses,
                                 "poses.csv in the dataset format, one row per frame (the object "
@@ -169,11 +206,31 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
 
 int run_recording(const RecordingArgs& a) {
   if (a.poses.empty() && !a.static_sensor) {
-    throw InputError(
+    throw UsageError(
         "--poses or --static-sensor: the tracker needs the sensor's pose in every frame");
   }
   check_output_is_not_input(a.out, a.images, "--images");
-  const std::vector<fs::path> files = image_files(a.images);
+  const std::vector<fs::path> references = background_files(a.backgrounds);
+  // A no-contact image kept beside the frames is the reference, not a frame.
+  std::vector<fs::path> files, skipped;
+  for (const fs::path& file : image_files(a.images, "--images")) {
+    const bool reference = std::any_of(references.begin(), references.end(), [&](const auto& r) {
+      std::error_code ec;
+      return fs::equivalent(file, r, ec);
+    });
+    (reference ? skipped : files).push_back(file);
+  }
+  if (files.empty()) {
+    throw InputError(a.images + ": every image in it is a --background image; no frame is left");
+  }
+  if (skipped.size() == 1) {
+    std::printf("note: %s is a --background image: not taken as a frame\n",
+                skipped[0].string().c_str());
+  } else if (!skipped.empty()) {
+    std::printf("note: %zu images of %s are --background images (%s to %s): not taken as frames\n",
+                skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
+                skipped.back().filename().string().c_str());
+  }
   // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
   // output folders (DatasetWriter::finish): --images must be none of them.
   for (const std::string& output : dataset_output_names()) {
@@ -225,7 +282,16 @@ int run_recording(const RecordingArgs& a) {
                         a.downsample);
     }
   }
-  const ImageU8 background = sensor_image(a.background, sensor.camera, a.downsample);
+  std::vector<ImageU8> no_contact;
+  for (const fs::path& file : references) {
+    no_contact.push_back(sensor_image(file.string(), sensor.camera, a.downsample));
+  }
+  const ImageU8 background = median_image(no_contact);
+  const std::string noisy = noisy_reference_warning(
+      background,
+      references.size() == 1
+          ? "--background " + references[0].string()
+          : "the median of the " + std::to_string(references.size()) + " --background images");
   FrameImages images;
   images.color = sensor_image(files.front().string(), sensor.camera, a.downsample);
 
@@ -259,6 +325,12 @@ int run_recording(const RecordingArgs& a) {
       "%d frames of %s (%dx%d px) -> %s (%dx%d px); the object's pose is given in %d of "
       "them\n",
       frames, a.images.c_str(), w * n, h * n, a.out.c_str(), w, h, object_poses);
+  if (references.size() > 1) {
+    std::printf("the no-contact reference (background.png) is the median of %zu images\n",
+                references.size());
+  }
+  std::fflush(stdout);
+  if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
   return kExitOk;
 }
 

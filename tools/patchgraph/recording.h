@@ -2,12 +2,15 @@
 // patchgraph recording: a real sensor's frames -> a dataset the tracker reads.
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 namespace pg {
 
 struct RecordingArgs {
   std::string images;          // folder of the frames, taken in file-name order
-  std::string background;      // the sensor's image with nothing touching
+  // The sensor's images with nothing touching (files, or folders of them): their per-pixel
+  // median is the no-contact reference.
+  std::vector<std::string> backgrounds;
   std::string poses;           // poses.csv in the dataset's format, one row per frame
   bool static_sensor = false;  // no poses file: the sensor did not move (the world is its frame)
   std::string sensor = "digit";

@@ -84,12 +84,12 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                      gate + ", off for --normals MODEL; 0 = off)")
       ->check(kNonNegative);
   app.add_option("--ee-noise", a.end_effector_noise,
-                 "Sigma of the sensor pose noise [m, rad] (default " +
-                     format_number(TrackArgs().end_effector_noise) + ")")
+                 "Sigma of the simulated sensor pose noise [m, rad] (default " +
+                     format_number(TrackOptions().end_effector_noise) + "; 0 for a recording)")
       ->check(range_check(0, kMaxPoseNoise));
   app.add_option("--vision-noise", a.vision_noise,
-                 "Sigma of the vision prior noise [m, rad] (default " +
-                     format_number(TrackArgs().vision_noise) + ")")
+                 "Sigma of the simulated vision prior noise [m, rad] (default " +
+                     format_number(TrackOptions().vision_noise) + "; 0 for a recording)")
       ->check(range_check(0, kMaxPoseNoise));
   app.add_option("--seed", a.seed,
                  "Seed of the simulated measurement noise (default 0; eval mixes it with each "
@@ -276,8 +276,19 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
     // the toy brick a little better and the toy human worse (docs/learned_normals.md).
     o.front_end.depth.integration = DepthIntegration::kAveraged;
   }
-  o.end_effector_noise = a.end_effector_noise;
-  o.vision_noise = a.vision_noise;
+  // The noise simulates what a robot's measurements would add to a render's exact poses; a
+  // recording's are measured (and its first pose is the sensor's frame, no vision system's).
+  const bool recording = dataset.info().scene.empty();
+  if (a.end_effector_noise >= 0) {
+    o.end_effector_noise = a.end_effector_noise;
+  } else if (recording) {
+    o.end_effector_noise = 0;
+  }
+  if (a.vision_noise >= 0) {
+    o.vision_noise = a.vision_noise;
+  } else if (recording) {
+    o.vision_noise = 0;
+  }
   o.seed = a.seed;
   o.compare_batch = a.compare_batch;
   if (o.graph.method == Method::kGroundTruthPatch) {

@@ -32,7 +32,9 @@ struct TrackArgs {
   double damping_sigma = -1;  // < 0 keeps GraphOptions' own; 0 turns the damping prior off
   // [rad]; < 0 keeps GraphOptions' own (off for --normals MODEL); 0 turns it off
   double image_to_image_gate = -1;
-  double end_effector_noise = 1e-5, vision_noise = 1e-4;
+  // Simulated pose noise [m, rad]; < 0: TrackOptions' own (1e-5, 1e-4), or 0 for a recording,
+  // whose sensor poses are measurements already and whose first pose no vision system gave.
+  double end_effector_noise = -1, vision_noise = -1;
   std::uint64_t seed = 0;
   bool quiet = false;
   bool compare_batch = false;

@@ -62,12 +62,12 @@ bool is_dropout(const ImageU8& color) {
   return true;
 }
 
-// A colour frame no different from the no-contact reference beyond the camera's noise: fewer
-// than `min_pixels` changed pixels (pg/core/image_change.h).
-bool shows_no_change(const ImageU8& color, const ImageU8& background, int min_pixels) {
+// How many pixels of a colour frame differ from the no-contact reference beyond the camera's
+// noise (pg/core/image_change.h), counted up to `limit`.
+int changed_pixels(const ImageU8& color, const ImageU8& background, int limit) {
   int changed = 0;
-  for_each_changed_pixel(color, background, [&](int, int) { return ++changed < min_pixels; });
-  return changed < min_pixels;
+  for_each_changed_pixel(color, background, [&](int, int) { return ++changed < limit; });
+  return changed;
 }
 
 }  // namespace
@@ -342,9 +342,16 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
       } else if (learned && is_dropout(feed.color)) {
         feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
       } else if (learned &&
-                 shows_no_change(feed.color, feed.background, feed.builder.min_contact_pixels())) {
-        feed.builder.build_untouched(feed.contact);  // nothing pressed: no normals to estimate
+                 changed_pixels(feed.color, feed.background, feed.builder.min_contact_pixels()) <
+                     feed.builder.min_contact_pixels()) {
+        // A frame no different from the reference beyond the camera's noise: nothing pressed,
+        // no normals to estimate.
+        feed.builder.build_untouched(feed.contact);
       } else {
+        // (Counted to the end only where something changed: half the image is more than a press.)
+        const int half = feed.color.width * feed.color.height / 2;
+        r.reference_mismatch |=
+            learned && changed_pixels(feed.color, feed.background, half + 1) > half;
         if (learned) {
           const auto model_start = std::chrono::steady_clock::now();
           feed.normals = options.normals(k, feed.color, feed.background);
@@ -445,6 +452,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.overridden_registrations += f.overridden_registrations;
     s.invalid_input_frames += f.invalid_input;
     s.rejected_normal_frames += f.rejected_normals > 0;
+    s.reference_mismatch_frames += f.reference_mismatch;
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
     if (f.contact) ++s.unconstrained_direction_frames[std::clamp(f.unconstrained_directions, 0, 6)];
@@ -485,7 +493,8 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
   errors << "frame,translation_error_m,rotation_error_rad,contact,new_episode,image_to_patch,"
             "rejected_registrations,tracking_lost,frame_ms,normals_ms,unconstrained_directions,"
             "contact_points,contact_core,unconverged_registrations,overridden_registrations,"
-            "invalid_input,image_to_image_dropped,rejected_normals,contact_sensors\n";
+            "invalid_input,image_to_image_dropped,rejected_normals,contact_sensors,"
+            "reference_mismatch\n";
   for (const auto& f : run.frames) {
     errors << f.frame << ",";
     if (f.ground_truth) {
@@ -499,7 +508,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
            << f.contact_core << "," << f.unconverged_registrations << ","
            << f.overridden_registrations << "," << f.invalid_input << ","
            << f.image_to_image_dropped << "," << f.rejected_normals << "," << f.contact_sensors
-           << "\n";
+           << "," << f.reference_mismatch << "\n";
   }
   write_text_atomically((fs::path(out_dir) / "errors.csv").string(), errors.str());
   const TrackSummary& s = run.summary;
@@ -532,6 +541,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
       {"overridden_registrations", s.overridden_registrations},
       {"invalid_input_frames", s.invalid_input_frames},
       {"rejected_normal_frames", s.rejected_normal_frames},
+      {"reference_mismatch_frames", s.reference_mismatch_frames},
       {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
       {"unconstrained_direction_frames", s.unconstrained_direction_frames},

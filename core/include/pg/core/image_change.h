@@ -1,6 +1,7 @@
 #pragma once
 // Where a colour frame differs from the sensor's no-contact reference beyond the camera's noise.
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 #include "pg/core/image.h"
@@ -44,5 +45,31 @@ void for_each_changed_pixel(const ImageU8& color, const ImageU8& reference, Visi
     }
   }
 }
+
+// The per-pixel and per-channel median of images of one size (of an even count, the two middle
+// values' mean, rounded up): a no-contact reference from several frames. Not their mean: the
+// camera's noise is clipped at 0 and 255, so where the gel saturates a channel the mean sits
+// below the noise-free value, a brightness drift the network reads as slopes (eval-normals:
+// contact angle 1.65 deg with the median of 15 frames, 2.98 with their mean, 2.83 with one frame,
+// 1.68 with the noise-free image; docs/learned_normals.md). Throws std::invalid_argument for no
+// images or images of different sizes.
+ImageU8 median_image(const std::vector<ImageU8>& images);
+
+// The camera noise an image carries, as a Gaussian sigma on the 0-255 scale: each pixel's
+// difference from the mean of its four neighbours (sigma x 1.118 for white noise on a smooth
+// image), by the median of its magnitude, so that the image's own edges hardly count. Measured:
+// 0.3-1.0 on noise-free renders and on the real DIGIT background image, 6.3-7.0 on rendered frames
+// with the renderer's sigma 7.
+double noise_levels(const ImageU8& image);
+
+// A no-contact reference noisier than this (noise_levels) makes trouble: with one frame of the
+// renderer's sigma 7 as the reference, the difference images hold sigma 7 x sqrt 2, the change
+// test above takes noise for contact (in 8 of 10 frames without contact) and the network reads
+// the reference's noise pattern as dents; at sigma 2-5 neither happened (docs/learned_normals.md).
+constexpr double kNoisyReferenceLevels = 4.0;
+
+// "" when `reference` is no noisier than kNoisyReferenceLevels; else a warning naming `what`
+// and how to get a quieter one.
+std::string noisy_reference_warning(const ImageU8& reference, const std::string& what);
 
 }  // namespace pg

@@ -61,6 +61,10 @@ struct FrameResult {
   // Normal pixels rejected as unusable (ContactFrame::rejected_normals: non-finite, far from
   // unit length, or facing the camera; every pixel of a dropped colour frame); 0 when clean.
   int rejected_normals = 0;
+  // Learned normals only: more than half of a colour frame differs from its no-contact reference
+  // (pg/core/image_change.h), more than any press changes: the lighting changed or the camera
+  // moved since the reference was taken, which the network reads as contact everywhere.
+  bool reference_mismatch = false;
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
@@ -94,6 +98,7 @@ struct TrackSummary {
   int overridden_registrations = 0;
   int invalid_input_frames = 0;    // frames with a non-finite or missing input left out
   int rejected_normal_frames = 0;  // frames with any rejected normal pixel
+  int reference_mismatch_frames = 0;  // frames with FrameResult::reference_mismatch
   // Frames whose image-to-image factor was left out for disagreeing with the image-to-patch one.
   int image_to_image_dropped = 0;
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the

@@ -1,0 +1,68 @@
+#include "pg/core/image_change.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace pg {
+
+ImageU8 median_image(const std::vector<ImageU8>& images) {
+  if (images.empty()) throw std::invalid_argument("median_image: no images");
+  for (const ImageU8& image : images) {
+    if (image.width != images[0].width || image.height != images[0].height ||
+        image.channels != images[0].channels) {
+      throw std::invalid_argument("median_image: images of different sizes");
+    }
+  }
+  ImageU8 median = images[0];
+  std::vector<std::uint8_t> values(images.size());
+  const std::size_t mid = values.size() / 2;
+  for (std::size_t i = 0; i < median.data.size(); ++i) {
+    for (std::size_t k = 0; k < images.size(); ++k) values[k] = images[k].data[i];
+    std::nth_element(values.begin(), values.begin() + mid, values.end());
+    int m = values[mid];
+    if (values.size() % 2 == 0) {  // the two middle values' mean, rounded up
+      m = (m + *std::max_element(values.begin(), values.begin() + mid) + 1) / 2;
+    }
+    median.data[i] = std::uint8_t(m);
+  }
+  return median;
+}
+
+double noise_levels(const ImageU8& image) {
+  const int w = image.width, h = image.height, channels = image.channels;
+  if (w < 3 || h < 3) return 0.0;
+  // Four times the residual, as integers: |4 p - (left + right + up + down)|.
+  std::vector<int> residual;
+  residual.reserve(std::size_t(w - 2) * (h - 2) * channels);
+  for (int y = 1; y + 1 < h; ++y) {
+    for (int x = 1; x + 1 < w; ++x) {
+      for (int c = 0; c < channels; ++c) {
+        const int around = image.at(x - 1, y, c) + image.at(x + 1, y, c) + image.at(x, y - 1, c) +
+                           image.at(x, y + 1, c);
+        residual.push_back(std::abs(4 * image.at(x, y, c) - around));
+      }
+    }
+  }
+  const auto middle = residual.begin() + std::ptrdiff_t(residual.size() / 2);
+  std::nth_element(residual.begin(), middle, residual.end());
+  // The median of |N(0, s)| is 0.6745 s; the residual's sigma is sqrt(1 + 4/16) of the pixels'.
+  return *middle / 4.0 / 0.6745 / std::sqrt(1.25);
+}
+
+std::string noisy_reference_warning(const ImageU8& reference, const std::string& what) {
+  const double noise = noise_levels(reference);
+  if (!(noise > kNoisyReferenceLevels)) return "";
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "%s holds camera noise of about %.1f levels (sigma, 0-255): every frame's "
+                "difference to it carries that noise as well, which the no-contact test and the "
+                "normals network read as contact. The per-pixel median of several frames "
+                "without contact is quieter (noise / sqrt(n), about): patchgraph recording "
+                "--background A.png B.png ... (or a folder of them)",
+                what.c_str(), noise);
+  return text;
+}
+
+}  // namespace pg
