@@ -445,6 +445,9 @@ Dataset Dataset::open(const std::string& dir) {
           dir + ": is not a dataset, but holds datasets (one per sensor): " + sensors +
           "; give one of those folders (patchgraph track takes several, to track them together)");
     }
+    throw InputError(info_path +
+                     ": missing: not a dataset folder (tacsim render writes one; a folder of a "
+                     "sensor's frames becomes one with patchgraph recording)");
   }
   d.info_ = info_from_json(parse_json_file(info_path), info_path);
   const std::string poses_path = (fs::path(dir) / "poses.csv").string();

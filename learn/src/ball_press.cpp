@@ -14,8 +14,6 @@
 namespace pg {
 namespace {
 
-// Fewer changed pixels than this are no press (the tracker's smallest contact at 120x160).
-constexpr int kMinRegionPixels = 20;
 // A second changed region at least 1 / this of the largest is a second contact.
 constexpr int kSecondContactFraction = 10;
 // A circle needs this many boundary points, and must pass this close to them: within 3 % of its
@@ -238,12 +236,12 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
     ++changed_count;
     return true;
   });
-  if (changed_count < kMinRegionPixels) {
+  if (changed_count < kMinPressPixels) {
     none->no_change = true;
     none->reason = format(
         "%.0f px differ from the no-contact reference beyond the camera's noise, "
         "fewer than a press changes (%.0f): no contact",
-        double(changed_count), double(kMinRegionPixels));
+        double(changed_count), double(kMinPressPixels));
     return false;
   }
   if (changed_count > w * h / 2) {
@@ -278,7 +276,7 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
   // (a speck of dust, a noise cluster) are left out.
   std::sort(sizes.begin(), sizes.end(), std::greater<int>());
   const int regions = int(std::count_if(sizes.begin(), sizes.end(), [&](int size) {
-    return size >= kMinRegionPixels && size * kSecondContactFraction >= best_size;
+    return size >= kMinPressPixels && size * kSecondContactFraction >= best_size;
   }));
   const int second_size = sizes.size() > 1 ? sizes[1] : 0;
   if (regions >= 3) {
@@ -293,12 +291,12 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
                           double(best_size), double(second_size));
     return false;
   }
-  if (best_size < kMinRegionPixels) {
+  if (best_size < kMinPressPixels) {
     // Scattered specks (a noisy reference's, or a speck of dust's) and no press: no contact, as
     // the tracker's smallest contact (20 px) would take it.
     none->no_change = true;
     none->reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
-                          double(best_size), double(kMinRegionPixels)) +
+                          double(best_size), double(kMinPressPixels)) +
                    format(": no contact (%.0f changed pixels, scattered: camera noise?)",
                           double(changed_count));
     return false;

@@ -57,7 +57,9 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
     const Dataset d = Dataset::open(dir);
     for (const char* output : {"color", "normal", "mask"}) {
       if (!d.info().has_output(output)) {
-        throw InputError(dir + ": dataset has no '" + output + "' output, needed for training");
+        throw InputError(dir + ": dataset has no '" + output +
+                         "' output, needed for training (a recording of ball presses gets them "
+                         "from patchgraph label-ball)");
       }
     }
     if (set.width == 0) set.width = d.info().width(), set.height = d.info().height();

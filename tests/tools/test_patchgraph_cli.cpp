@@ -1291,6 +1291,28 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   EXPECT_EQ(still_30.code, 0) << still_30.out;
   EXPECT_EQ(still_30.out.find("warning"), std::string::npos) << still_30.out;
   EXPECT_NEAR(Dataset::open(out("rec_still_30")).info().fps, 30.0, 1e-6);
+  // A time column in milliseconds reads as 0.06 frames per second: warned about.
+  {
+    std::ifstream in(data() + "/poses.csv");
+    std::ofstream ms((dir_ / "poses_ms.csv").string());
+    std::string line;
+    for (int row = 0; std::getline(in, line); ++row) {
+      std::vector<std::string> cells = split_csv_line(line);
+      if (row > 0) {
+        char ms_text[32];
+        std::snprintf(ms_text, sizeof ms_text, "%.9g", std::stod(cells.at(1)) * 1000);
+        cells.at(1) = ms_text;
+      }
+      for (std::size_t c = 0; c < cells.size(); ++c) ms << (c ? "," : "") << cells[c];
+      ms << "\n";
+    }
+  }
+  const CliRun in_ms = patchgraph("recording --images " + frames.string() + " --background " +
+                                  (dir_ / "rec_background.png").string() + " --poses " +
+                                  (dir_ / "poses_ms.csv").string() + " -q --out " + out("rec_ms"));
+  EXPECT_EQ(in_ms.code, 0) << in_ms.out;
+  EXPECT_NE(in_ms.out.find("frames per second; is it in seconds?"), std::string::npos) << in_ms.out;
+  EXPECT_EQ(still.out.find("is it in seconds"), std::string::npos) << still.out;
   fs::remove(frames / "capture_1059.png");
   const CliRun more_poses = patchgraph("recording --images " + frames.string() + " --background " +
                                        (dir_ / "rec_background.png").string() + " --poses " +
@@ -1443,6 +1465,20 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   EXPECT_NE(small.out.find("warning: frame 0 skipped: the contact is wider"), std::string::npos)
       << small.out;
   refused(data() + "_no_such --diameter 0.0127", 1, "_no_such");
+  // A no-contact reference that shows a press itself (a frame of the presses taken for it):
+  // its press differs from nearly every frame, which is warned about; the render's own is not.
+  EXPECT_EQ(r.out.find("differ from at least 80 %"), std::string::npos) << r.out;
+  const std::string pressed_reference = out("balls_pressed_reference");
+  fs::remove_all(pressed_reference);
+  fs::copy(out("balls"), pressed_reference, fs::copy_options::recursive);
+  fs::copy_file(dataset_frame_path(out("balls"), "color", 5), pressed_reference + "/background.png",
+                fs::copy_options::overwrite_existing);
+  const CliRun pressed = patchgraph("label-ball " + pressed_reference +
+                                    " --diameter 0.0127 -q --out " + out("balls_pressed_labels"));
+  EXPECT_NE(pressed.out.find("of the no-contact reference of " + pressed_reference +
+                             " differ from at least 80 % of its frames: does it show a press"),
+            std::string::npos)
+      << pressed.out;
   // A ball ten times a 1/2 inch one (a slip of units) is labelled, and warned about.
   const CliRun huge =
       patchgraph("label-ball " + out("balls") + " --diameter 0.127 -q --out " + out("balls_huge"));

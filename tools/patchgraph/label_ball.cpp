@@ -206,6 +206,29 @@ int run_label_ball(const LabelBallArgs& a) {
   const std::string noisy =
       noisy_reference_warning(reference, "the no-contact reference of " + a.dataset);
   if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
+  // Presses at many places leave each pixel untouched in most frames. Pixels that differ from
+  // the reference in nearly every frame are the reference's own: a press in it (or other
+  // lighting), against which every label would be measured.
+  if (d.frames() >= 5) {
+    const int step = std::max(1, d.frames() / 31);
+    std::vector<int> times(std::size_t(reference.width) * reference.height, 0);
+    int sampled = 0;
+    for (int f = 0; f < d.frames(); f += step, ++sampled) {
+      for_each_changed_pixel(d.color(f), reference, [&](int x, int y) {
+        ++times[std::size_t(y) * reference.width + x];
+        return true;
+      });
+    }
+    const int always =
+        int(std::count_if(times.begin(), times.end(), [&](int n) { return n >= 0.8 * sampled; }));
+    if (always >= kMinPressPixels) {
+      std::fprintf(stderr,
+                   "warning: %d px of the no-contact reference of %s differ from at least 80 %% "
+                   "of its frames: does it show a press itself, or other lighting? (Unless most "
+                   "presses are at one place.)\n",
+                   always, a.dataset.c_str());
+    }
+  }
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   const std::map<int, GivenCircle> given =
       a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
@@ -355,6 +378,32 @@ int run_label_ball(const LabelBallArgs& a) {
     ++shown;
   }
   if (skipped > shown) std::fprintf(stderr, "warning: %d more skipped\n", skipped - shown);
+  // A reference that shows a press itself: frames where the ball is elsewhere show two changes
+  // (skipped), and the reference's own press is found, the same circle in frame after frame.
+  // Hand presses never land within a pixel of each other three times.
+  for (std::size_t f = 0; f < labels.size(); ++f) {
+    const FrameLabel& l = labels[f];
+    if (l.kind != FrameLabel::kPress || l.given) continue;
+    std::string same;
+    int count = 0;
+    for (std::size_t g = 0; g < labels.size(); ++g) {
+      const FrameLabel& m = labels[g];
+      if (m.kind != FrameLabel::kPress || m.given) continue;
+      if ((m.press.centre_px - l.press.centre_px).norm() < 1.0 &&
+          std::abs(m.press.radius_px - l.press.radius_px) < 1.0) {
+        same += (count++ ? ", " : "") + std::to_string(g);
+      }
+    }
+    if (count >= 3) {
+      std::fprintf(stderr,
+                   "warning: frames %s show the same circle (%.1f, %.1f px, radius %.1f px) to "
+                   "within a pixel: does the no-contact reference show a press itself? Its "
+                   "press would be found in every frame whose own press lies elsewhere%s\n",
+                   same.c_str(), l.press.centre_px.x(), l.press.centre_px.y(), l.press.radius_px,
+                   skipped > presses ? ", and most frames are skipped, as here" : "");
+      break;
+    }
+  }
   return kExitOk;
 }
 

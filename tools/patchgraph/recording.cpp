@@ -168,6 +168,15 @@ double frame_rate(const std::vector<FramePose>& poses, const std::string& path, 
     throw InputError(path + ": the time column gives " + format_number(rate) +
                      " frames per second, outside [1e-06, 1e+06]");
   }
+  // A camera's stream runs at 10-120 frames per second: far below, the column is likely in
+  // milliseconds (or microseconds), which the tracker's motion priors do not read but
+  // dataset.json's rate would misstate.
+  if (rate < 1 && given <= 0) {
+    std::fprintf(stderr,
+                 "warning: %s: the time column gives %s frames per second; is it in seconds? "
+                 "(milliseconds read as a thousand times slower; --fps sets the rate)\n",
+                 path.c_str(), format_number(rate).c_str());
+  }
   return given > 0 ? given : rate;
 }
 

@@ -11,6 +11,9 @@
 
 namespace pg {
 
+// Fewer changed pixels than this are no press (the tracker's smallest contact at 120x160).
+constexpr int kMinPressPixels = 20;
+
 struct BallPress {
   bool found = false;
   std::string reason;  // why no press was found (when !found)
