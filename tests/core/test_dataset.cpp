@@ -138,8 +138,8 @@ TEST(Dataset, ReaderRejectsMissingFiles) {
 }
 
 // Writing a shorter dataset with fewer outputs into the folder of an earlier one leaves one
-// dataset: the earlier frames past the new last one and its other outputs' frames are gone,
-// files that are not a dataset's frames stay.
+// dataset: the earlier frames past the new last one and its other outputs' frames are gone, and
+// label-ball's circles.csv of them; files that are not a dataset's frames stay.
 TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   TempDir tmp;
   const std::string dir = tmp.str("d");
@@ -147,6 +147,8 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   std::ofstream(dir + "/color/notes.txt") << "mine";
   std::ofstream(dir + "/color/4.png") << "mine";  // a number, but not a frame file's name
   std::ofstream(dir + "/normal/notes.txt") << "mine";
+  std::ofstream(dir + "/circles.csv") << "frame,u_px,v_px,radius_px\n";  // label-ball's
+  std::ofstream(dir + "/README.txt") << "mine";
   DatasetInfo info = small_info(2);
   info.outputs = {"color"};
   DatasetWriter writer(dir, info);
@@ -165,6 +167,8 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   EXPECT_TRUE(fs::exists(dir + "/normal/notes.txt"));
   EXPECT_FALSE(fs::exists(dir + "/depth"));
   EXPECT_FALSE(fs::exists(dir + "/mask"));
+  EXPECT_FALSE(fs::exists(dir + "/circles.csv")) << "the earlier frames' circles";
+  EXPECT_TRUE(fs::exists(dir + "/README.txt"));
   EXPECT_EQ(Dataset::open(dir).frames(), 2);
 }
 

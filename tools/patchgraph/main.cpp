@@ -128,7 +128,8 @@ int run_track(const TrackArgs& a) {
   // thresholds), so the track is the motion priors'.
   if (s.unconverged_registrations > s.contact_frames / 2) {
     std::fprintf(stderr,
-                 "warning: %d registrations did not converge in %d contact frames; those frames "
+                 "warning: %d registrations did not converge in %d contact frames (up to two "
+                 "per frame and sensor: image-to-image and image-to-patch); those frames "
                  "follow the motion priors (errors.csv: unconverged_registrations; --config's "
                  "icp.max_iterations and convergence thresholds)\n",
                  s.unconverged_registrations, s.contact_frames);
