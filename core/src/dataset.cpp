@@ -362,7 +362,8 @@ void DatasetWriter::finish() {
 // An earlier dataset in the same folder (a longer sequence, or other outputs) left frame files
 // this one did not overwrite: they are removed, so the folder holds one dataset. Only files named
 // as a dataset's frames (000042.png in an output's folder) go, an output folder that is left
-// empty, and circles.csv (label-ball's, of the earlier frames); anything else in the folder stays.
+// empty, and circles.csv and sources.csv (label-ball's and recording's lists of the earlier
+// frames); anything else in the folder stays.
 void DatasetWriter::remove_stale_frames() const {
   for (const std::string& output : dataset_output_names()) {
     const fs::path folder = fs::path(dir_) / output;
@@ -381,9 +382,11 @@ void DatasetWriter::remove_stale_frames() const {
     }
     if (!written && fs::is_empty(folder, ec)) fs::remove(folder, ec);
   }
-  // patchgraph label-ball's list of the earlier frames' circles, which it writes after this.
+  // The lists of the earlier frames' circles (patchgraph label-ball) and source files
+  // (patchgraph recording), which those write after this.
   std::error_code ec;
   fs::remove(fs::path(dir_) / "circles.csv", ec);
+  fs::remove(fs::path(dir_) / "sources.csv", ec);
 }
 
 void write_sensor_index(const std::string& dir, const std::vector<std::string>& names) {

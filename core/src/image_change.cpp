@@ -54,15 +54,14 @@ double noise_levels(const ImageU8& image) {
 std::string noisy_reference_warning(const ImageU8& reference, const std::string& what) {
   const double noise = noise_levels(reference);
   if (!(noise > kNoisyReferenceLevels)) return "";
-  char text[512];
-  std::snprintf(text, sizeof text,
-                "%s holds camera noise of about %.1f levels (sigma, 0-255): every frame's "
-                "difference to it carries that noise as well, which the no-contact test and the "
-                "normals network read as contact. The per-pixel median of several frames "
-                "without contact is quieter (noise / sqrt(n), about): patchgraph recording "
-                "--background A.png B.png ... (or a folder of them)",
-                what.c_str(), noise);
-  return text;
+  char levels[32];
+  std::snprintf(levels, sizeof levels, "%.1f", noise);
+  return what + " holds camera noise of about " + levels +
+         " levels (sigma, 0-255): every frame's difference to it carries that noise as well, "
+         "which the no-contact test and the normals network read as contact. The per-pixel "
+         "median of several frames without contact is quieter (about 1.25 x noise / sqrt(n): a "
+         "dozen or more at sigma 7): patchgraph recording --background A.png B.png ... (or a "
+         "folder of them)";
 }
 
 }  // namespace pg

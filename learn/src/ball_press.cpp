@@ -292,8 +292,8 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
     return false;
   }
   if (best_size < kMinPressPixels) {
-    // Scattered specks (a noisy reference's, or a speck of dust's) and no press: no contact, as
-    // the tracker's smallest contact (20 px) would take it.
+    // Scattered specks (a noisy reference's, or dust's) and no press: labelled as a frame
+    // without contact.
     none->no_change = true;
     none->reason = format("the largest change covers %.0f px, fewer than a press's %.0f",
                           double(best_size), double(kMinPressPixels)) +

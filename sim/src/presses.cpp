@@ -19,7 +19,25 @@ constexpr double kPi = 3.14159265358979323846;
 // nearest the decimal, so a file shows it with few digits. (+ 0.0 turns -0 into 0.)
 double round_to(double x, double per_unit) { return std::round(x * per_unit) / per_unit + 0.0; }
 
+// A triangle's grid divisions: each edge in pieces of at most `spacing`.
+int grid_divisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                   double spacing) {
+  const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+  return std::max(1, int(std::ceil(longest / spacing)));
+}
+
 }  // namespace
+
+std::size_t surface_grid_size(const TriangleMesh& mesh, double spacing_m) {
+  std::size_t count = 0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const std::size_t n = std::size_t(
+        grid_divisions(mesh.vertices[t[0]].cast<double>(), mesh.vertices[t[1]].cast<double>(),
+                       mesh.vertices[t[2]].cast<double>(), spacing_m));
+    count += (n + 1) * (n + 2) / 2;
+  }
+  return count;
+}
 
 std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spacing_m) {
   std::vector<Eigen::Vector3d> points;
@@ -27,8 +45,7 @@ std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spaci
     const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
     const Eigen::Vector3d b = mesh.vertices[t[1]].cast<double>();
     const Eigen::Vector3d c = mesh.vertices[t[2]].cast<double>();
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    const int n = std::max(1, int(std::ceil(longest / spacing_m)));
+    const int n = grid_divisions(a, b, c, spacing_m);
     for (int i = 0; i <= n; ++i) {
       for (int j = 0; i + j <= n; ++j) points.push_back(a + (b - a) * i / n + (c - a) * j / n);
     }

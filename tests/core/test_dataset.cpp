@@ -148,6 +148,7 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   std::ofstream(dir + "/color/4.png") << "mine";  // a number, but not a frame file's name
   std::ofstream(dir + "/normal/notes.txt") << "mine";
   std::ofstream(dir + "/circles.csv") << "frame,u_px,v_px,radius_px\n";  // label-ball's
+  std::ofstream(dir + "/sources.csv") << "frame,file\n";                 // recording's
   std::ofstream(dir + "/README.txt") << "mine";
   DatasetInfo info = small_info(2);
   info.outputs = {"color"};
@@ -168,6 +169,7 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   EXPECT_FALSE(fs::exists(dir + "/depth"));
   EXPECT_FALSE(fs::exists(dir + "/mask"));
   EXPECT_FALSE(fs::exists(dir + "/circles.csv")) << "the earlier frames' circles";
+  EXPECT_FALSE(fs::exists(dir + "/sources.csv")) << "the earlier frames' files";
   EXPECT_TRUE(fs::exists(dir + "/README.txt"));
   EXPECT_EQ(Dataset::open(dir).frames(), 2);
 }

@@ -23,6 +23,7 @@ TEST(RandomPresses, EveryFrameIsOnePressOfTheAskedDepthInsideTheArea) {
   const TriangleMesh sphere = make_uv_sphere(0.006f, 32, 64);
   for (const TriangleMesh* mesh : {&box, &sphere}) {
     const std::vector<Eigen::Vector3d> points = surface_grid(*mesh, 0.25e-3);
+    EXPECT_EQ(surface_grid_size(*mesh, 0.25e-3), points.size());
     RandomPressOptions options;
     options.frames = 30;
     options.min_depth_m = 0.4e-3;

@@ -1093,6 +1093,16 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
   EXPECT_NE(one.out.find("bg.png is a --background image: not taken as a frame"), std::string::npos)
       << one.out;
   EXPECT_EQ(Dataset::open(out("rec_one_reference")).frames(), 8);
+  {
+    // sources.csv: each frame's file, bg.png left out.
+    std::ifstream in(out("rec_one_reference") + "/sources.csv");
+    std::vector<std::string> lines;
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+    ASSERT_EQ(lines.size(), 9u);
+    EXPECT_EQ(lines[0], "frame,file");
+    EXPECT_EQ(lines[1], "0," + (frames / "f0.png").string());
+    EXPECT_EQ(lines[8], "7," + (frames / "f7.png").string());
+  }
   EXPECT_NE(one.out.find("warning: --background " + (frames / "bg.png").string() +
                          " holds camera noise of about"),
             std::string::npos)
@@ -1311,8 +1321,10 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                   (dir_ / "rec_background.png").string() + " --poses " +
                                   (dir_ / "poses_ms.csv").string() + " -q --out " + out("rec_ms"));
   EXPECT_EQ(in_ms.code, 0) << in_ms.out;
-  EXPECT_NE(in_ms.out.find("frames per second; is it in seconds?"), std::string::npos) << in_ms.out;
-  EXPECT_EQ(still.out.find("is it in seconds"), std::string::npos) << still.out;
+  EXPECT_NE(in_ms.out.find("frames per second; if it is in milliseconds, convert it"),
+            std::string::npos)
+      << in_ms.out;
+  EXPECT_EQ(still.out.find("milliseconds"), std::string::npos) << still.out;
   fs::remove(frames / "capture_1059.png");
   const CliRun more_poses = patchgraph("recording --images " + frames.string() + " --background " +
                                        (dir_ / "rec_background.png").string() + " --poses " +

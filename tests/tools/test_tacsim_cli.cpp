@@ -340,13 +340,18 @@ TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {
 // asked depth and inside the image; one seed writes one file; bad options are named.
 TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   TempDir tmp;
-  const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/toy_brick.glb";
+  // The mesh beside the scenes' folder, which does not exist yet: made, and the mesh named
+  // relative to it, as the repository's scenes name theirs.
+  fs::create_directories(tmp.str("meshes"));
+  fs::copy_file(std::string(PG_SOURCE_DIR) + "/meshes/toy_brick.glb",
+                tmp.str("meshes/toy_brick.glb"));
+  const std::string mesh = tmp.str("meshes/toy_brick.glb");
   const std::string args = "presses " + mesh + " --frames 8 --min-depth 0.0005 --max-depth 0.001";
-  CliRun r = tacsim(args + " --seed 3 --out " + tmp.str("brick.json"));
+  CliRun r = tacsim(args + " --seed 3 --out " + tmp.str("scenes/brick.json"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("8 random presses"), std::string::npos) << r.out;
-  r = tacsim("render " + tmp.str("brick.json") + " -q --elastic off --outputs depth,mask --out " +
-             tmp.str("d"));
+  r = tacsim("render " + tmp.str("scenes/brick.json") +
+             " -q --elastic off --outputs depth,mask --out " + tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;
   const Dataset d = Dataset::open(tmp.str("d"));
   ASSERT_EQ(d.frames(), 8);
@@ -371,14 +376,24 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
     EXPECT_EQ(at_edge, 0) << "frame " << f;
   }
   // One seed, one file; another seed, other presses.
-  ASSERT_EQ(tacsim(args + " --seed 3 --out " + tmp.str("again.json")).code, 0);
-  ASSERT_EQ(tacsim(args + " --seed 4 --out " + tmp.str("other.json")).code, 0);
+  ASSERT_EQ(tacsim(args + " --seed 3 --out " + tmp.str("scenes/again.json")).code, 0);
+  ASSERT_EQ(tacsim(args + " --seed 4 --out " + tmp.str("scenes/other.json")).code, 0);
   const auto text = [&](const std::string& name) {
     std::ifstream in(tmp.str(name));
     return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   };
-  EXPECT_EQ(text("again.json"), text("brick.json"));
-  EXPECT_NE(text("other.json"), text("brick.json"));
+  EXPECT_NE(text("scenes/brick.json").find("\"mesh\": \"../meshes/toy_brick.glb\""),
+            std::string::npos);
+  EXPECT_EQ(text("scenes/again.json"), text("scenes/brick.json"));
+  EXPECT_NE(text("scenes/other.json"), text("scenes/brick.json"));
+  // The default depths follow the gel (0.3-1.5 mm on the DIGIT's 2 mm); only --max-depth
+  // given: the shallowest press follows it (a fifth of it).
+  r = tacsim("presses " + mesh + " --frames 2 --out " + tmp.str("default_depths.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("0.30-1.50 mm deep"), std::string::npos) << r.out;
+  r = tacsim("presses " + mesh + " --frames 2 --max-depth 0.0002 --out " + tmp.str("shallow.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("0.04-0.20 mm deep"), std::string::npos) << r.out;
   // Another sensor is the scene's.
   ASSERT_EQ(tacsim(args + " --sensor gelsight_mini --out " + tmp.str("mini.json")).code, 0);
   EXPECT_NE(text("mini.json").find("\"sensor\": \"gelsight_mini\""), std::string::npos);
@@ -398,6 +413,13 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   r = tacsim("presses " + mesh + " --out " + tmp.str());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("is a folder"), std::string::npos) << r.out;
+  r = tacsim("presses " + mesh + " --out " + mesh);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("is the mesh"), std::string::npos) << r.out;
+  // A scale slip: the object thinner than the deepest press.
+  r = tacsim("presses " + mesh + " --scale 1e-4 --out " + tmp.str("bad.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("no thicker than the deepest press"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("bad.json")));
   EXPECT_EQ(tacsim("presses " + mesh + " --sensor digit --sensor-file x.json --out " +
                    tmp.str("bad.json"))

@@ -181,7 +181,8 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
           "METRES"));
   cmd->add_option("--circles", a.circles,
                   "CSV of contact circles given by hand: frame,u_px,v_px,radius_px (the "
-                  "circles.csv a run writes, corrected); empty cells: no press in that frame");
+                  "circles.csv a run writes, corrected); empty circle cells: no press in that "
+                  "frame (status no_press or none; skipped: search it again)");
   cmd->add_option("--out,-o", a.out, "The labelled dataset (color, normal, depth, mask)")
       ->required();
   cmd->add_option("--gel", a.gel,
@@ -210,7 +211,7 @@ int run_label_ball(const LabelBallArgs& a) {
   // the reference in nearly every frame are the reference's own: a press in it (or other
   // lighting), against which every label would be measured.
   if (d.frames() >= 5) {
-    const int step = std::max(1, d.frames() / 31);
+    const int step = (d.frames() + 30) / 31;  // at most 31 frames
     std::vector<int> times(std::size_t(reference.width) * reference.height, 0);
     int sampled = 0;
     for (int f = 0; f < d.frames(); f += step, ++sampled) {
@@ -380,25 +381,29 @@ int run_label_ball(const LabelBallArgs& a) {
   if (skipped > shown) std::fprintf(stderr, "warning: %d more skipped\n", skipped - shown);
   // A reference that shows a press itself: frames where the ball is elsewhere show two changes
   // (skipped), and the reference's own press is found, the same circle in frame after frame.
-  // Hand presses never land within a pixel of each other three times.
+  // Separate hand presses never land within a pixel of each other three times (a ball held still
+  // over consecutive frames is one press: runs of frames count once).
+  const auto same_circle = [&](std::size_t f, std::size_t g) {
+    const FrameLabel &l = labels[f], &m = labels[g];
+    return l.kind == FrameLabel::kPress && !l.given && m.kind == FrameLabel::kPress && !m.given &&
+           (m.press.centre_px - l.press.centre_px).norm() < 1.0 &&
+           std::abs(m.press.radius_px - l.press.radius_px) < 1.0;
+  };
   for (std::size_t f = 0; f < labels.size(); ++f) {
     const FrameLabel& l = labels[f];
     if (l.kind != FrameLabel::kPress || l.given) continue;
     std::string same;
     int count = 0;
     for (std::size_t g = 0; g < labels.size(); ++g) {
-      const FrameLabel& m = labels[g];
-      if (m.kind != FrameLabel::kPress || m.given) continue;
-      if ((m.press.centre_px - l.press.centre_px).norm() < 1.0 &&
-          std::abs(m.press.radius_px - l.press.radius_px) < 1.0) {
-        same += (count++ ? ", " : "") + std::to_string(g);
-      }
+      if (!same_circle(f, g) || (g > 0 && same_circle(f, g - 1))) continue;  // a run's first
+      same += (count++ ? ", " : "") + std::to_string(g);
     }
     if (count >= 3) {
       std::fprintf(stderr,
-                   "warning: frames %s show the same circle (%.1f, %.1f px, radius %.1f px) to "
-                   "within a pixel: does the no-contact reference show a press itself? Its "
-                   "press would be found in every frame whose own press lies elsewhere%s\n",
+                   "warning: frames %s (and any of their runs) show the same circle (%.1f, "
+                   "%.1f px, radius %.1f px) to within a pixel: does the no-contact reference "
+                   "show a press itself? Its press would be found in every frame whose own press "
+                   "lies elsewhere%s\n",
                    same.c_str(), l.press.centre_px.x(), l.press.centre_px.y(), l.press.radius_px,
                    skipped > presses ? ", and most frames are skipped, as here" : "");
       break;

@@ -78,6 +78,12 @@ int run_track(const TrackArgs& a) {
   const Dataset& dataset = datasets[0];
   const int unpaired_frames = note_missing_frames(sensors);
   const TrackOptions options = make_track_options(a, dataset, models);
+  if (dataset.info().scene.empty() && (a.end_effector_noise < 0 || a.vision_noise < 0)) {
+    std::printf(
+        "note: %s has no scene (a recording): its poses are taken as measured, without "
+        "simulated noise (--ee-noise, --vision-noise add it)\n",
+        dataset.dir().c_str());
+  }
   for (const Dataset& d : datasets) {
     if (a.normals == "gt") continue;
     const bool file = std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png");

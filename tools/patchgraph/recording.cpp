@@ -11,6 +11,7 @@
 #include "../common/progress.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/core/image.h"
 #include "pg/core/image_change.h"
 #include "pg/core/sensor.h"
@@ -48,8 +49,10 @@ std::string numbers_padded(const std::string& name) {
 
 // The frame files of DIR in name order; hidden files (a copy tool's "._frame.png") are not
 // frames. Warns when the names' numbers are not zero-padded, so that name order is not their
-// numbers' order ("frame10" before "frame2"). `option` names the folder's option in messages.
-std::vector<fs::path> image_files(const std::string& dir, const std::string& option) {
+// numbers' order ("frame10" before "frame2"), where the order matters (`in_order`). `option`
+// names the folder's option in messages.
+std::vector<fs::path> image_files(const std::string& dir, const std::string& option,
+                                  bool in_order = true) {
   if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (" + option + ")");
   std::vector<fs::path> files;
   for (const auto& entry : fs::directory_iterator(dir)) {
@@ -62,7 +65,7 @@ std::vector<fs::path> image_files(const std::string& dir, const std::string& opt
     throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (" + option + ")");
   }
   std::sort(files.begin(), files.end());
-  for (std::size_t i = 1; i < files.size(); ++i) {
+  for (std::size_t i = 1; in_order && i < files.size(); ++i) {
     const std::string earlier = files[i - 1].filename().string(),
                       later = files[i].filename().string();
     if (numbers_padded(later) < numbers_padded(earlier)) {
@@ -140,14 +143,22 @@ ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int fac
   return out;
 }
 
-// The no-contact images --background names: each file, and the image files of each folder.
+// The no-contact images --background names: each file, and the image files of each folder;
+// each once (a folder given twice, or a file also in a folder given, would weigh double).
 std::vector<fs::path> background_files(const std::vector<std::string>& given) {
   std::vector<fs::path> files;
+  const auto add = [&](const fs::path& file) {
+    const bool seen = std::any_of(files.begin(), files.end(), [&](const fs::path& f) {
+      std::error_code ec;
+      return f == file || fs::equivalent(f, file, ec);
+    });
+    if (!seen) files.push_back(file);
+  };
   for (const std::string& path : given) {
     if (fs::is_directory(path)) {
-      for (const fs::path& file : image_files(path, "--background")) files.push_back(file);
+      for (const fs::path& file : image_files(path, "--background", false)) add(file);
     } else {
-      files.push_back(path);
+      add(path);
     }
   }
   return files;
@@ -168,13 +179,12 @@ double frame_rate(const std::vector<FramePose>& poses, const std::string& path, 
     throw InputError(path + ": the time column gives " + format_number(rate) +
                      " frames per second, outside [1e-06, 1e+06]");
   }
-  // A camera's stream runs at 10-120 frames per second: far below, the column is likely in
-  // milliseconds (or microseconds), which the tracker's motion priors do not read but
-  // dataset.json's rate would misstate.
-  if (rate < 1 && given <= 0) {
+  // A camera's stream runs at 10-150 frames per second, which a time column in milliseconds
+  // reads as 0.01-0.15 (the tracker's motion priors do not read the rate, dataset.json states it).
+  if (rate < 0.15 && given <= 0) {
     std::fprintf(stderr,
-                 "warning: %s: the time column gives %s frames per second; is it in seconds? "
-                 "(milliseconds read as a thousand times slower; --fps sets the rate)\n",
+                 "warning: %s: the time column gives %s frames per second; if it is in "
+                 "milliseconds, convert it to seconds\n",
                  path.c_str(), format_number(rate).c_str());
   }
   return given > 0 ? given : rate;
@@ -236,9 +246,11 @@ int run_recording(const RecordingArgs& a) {
     std::printf("note: %s is a --background image: not taken as a frame\n",
                 skipped[0].string().c_str());
   } else if (!skipped.empty()) {
-    std::printf("note: %zu images of %s are --background images (%s to %s): not taken as frames\n",
-                skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
-                skipped.back().filename().string().c_str());
+    std::printf(
+        "note: %zu images of %s are --background images (the first %s, the last %s): not "
+        "taken as frames\n",
+        skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
+        skipped.back().filename().string().c_str());
   }
   // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
   // output folders (DatasetWriter::finish): --images must be none of them.
@@ -322,6 +334,13 @@ int run_recording(const RecordingArgs& a) {
       progress.update(i + 1);
     }
     writer.finish();
+    // Which file each frame came from, for the messages that name frames by number (label-ball's
+    // "frame 17 skipped", errors.csv's rows).
+    std::string sources = "frame,file\n";
+    for (int i = 0; i < frames; ++i) {
+      sources += std::to_string(i) + "," + csv_field(files[std::size_t(i)].string()) + "\n";
+    }
+    write_text_atomically((fs::path(a.out) / "sources.csv").string(), sources);
   } catch (...) {
     std::error_code ignored;
     if (!out_existed) fs::remove_all(a.out, ignored);

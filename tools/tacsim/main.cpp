@@ -244,10 +244,15 @@ int main(int argc, char** argv) {
   cmd_presses->add_option("--out,-o", presses.out, "The scene file to write (JSON)")->required();
   cmd_presses->add_option("--frames", presses.frames, "Presses, one per frame (default 50)")
       ->check(CLI::Range(1, 1000000));
-  cmd_presses->add_option("--min-depth", presses.min_depth_m,
-                          "Shallowest press [m] (default 0.0003)");
-  cmd_presses->add_option("--max-depth", presses.max_depth_m,
-                          "Deepest press [m] (default 0.0015; at most the gel's maximum)");
+  cmd_presses
+      ->add_option("--min-depth", presses.min_depth_m,
+                   "Shallowest press [m] (default a fifth of --max-depth: 0.0003)")
+      ->check(kPositive);
+  cmd_presses
+      ->add_option("--max-depth", presses.max_depth_m,
+                   "Deepest press [m] (default 0.75 of the gel's maximum indentation: "
+                   "0.0015)")
+      ->check(kPositive);
   cmd_presses->add_option("--scale", presses.scale, "Multiplies the mesh (meshes are in metres)")
       ->check(range_check(1e-6, 1e6));
   CLI::Option* preset =

@@ -50,31 +50,49 @@ int run_presses(const PressesArgs& a) {
   const SensorModel sensor = !a.sensor_file.empty()
                                  ? load_sensor_file(a.sensor_file)
                                  : sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
+  // The defaults follow the sensor (0.3-1.5 mm on the presets' 2 mm gels), so that only what
+  // was given is blamed.
   const double max_indentation = sensor.gel.max_indentation_m;
-  check_in_range("--max-depth", a.max_depth_m, 1e-6, max_indentation,
+  const double max_depth = a.max_depth_m > 0 ? a.max_depth_m : 0.75 * max_indentation;
+  const double min_depth = a.min_depth_m > 0 ? a.min_depth_m : 0.2 * max_depth;
+  check_in_range("--max-depth", max_depth, 1e-6, max_indentation,
                  " [m]: the gel takes at most its max_indentation_m");
-  check_in_range("--min-depth", a.min_depth_m, 1e-6, a.max_depth_m,
+  check_in_range("--min-depth", min_depth, 1e-6, max_depth,
                  " [m]: positive and at most --max-depth");
+  std::error_code ec;
+  if (fs::equivalent(a.out, a.mesh, ec)) {
+    throw InputError("--out " + a.out + ": is the mesh; give the scene file to write (a .json)");
+  }
 
   const TriangleMesh mesh = load_mesh(a.mesh, a.scale);
   const Bounds3 bounds = mesh_bounds(mesh);
-  // Grid points 0.25 mm apart (the repository's scenes), closer on a small object so that a
-  // press's depth is measured to a small part of it, and no more than about two million on a
-  // large one (a 0.6 m sphere at 0.25 mm would be 70 million; the grid keeps the corners and
-  // edges, so a coarser one errs only on curved surfaces, by spacing^2 / 8 radius).
-  const double size = (bounds.max - bounds.min).cast<double>().norm();
-  double area = 0;
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    const Eigen::Vector3f& a = mesh.vertices[t[0]];
-    area += 0.5 * double((mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm());
+  const Eigen::Vector3d extent = (bounds.max - bounds.min).cast<double>();
+  // An object thinner than the press would sink into the gel whole (and one of a few microns
+  // never shows): a wrong --scale, most likely.
+  if (extent.minCoeff() <= max_depth) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s%s: %.3g x %.3g x %.3g mm, no thicker than the deepest press (%.3g mm): it "
+                  "would sink into the gel whole; is --scale right (meshes are in metres)?",
+                  a.mesh.c_str(),
+                  a.scale != 1.0 ? (" at scale " + format_number(a.scale)).c_str() : "",
+                  1e3 * extent.x(), 1e3 * extent.y(), 1e3 * extent.z(), 1e3 * max_depth);
+    throw InputError(text);
   }
-  const double spacing = std::max(std::min(0.25e-3, size / 50), std::sqrt(area / 1e6));
+  // Grid points 0.25 mm apart (the repository's scenes), closer on a small object so that a
+  // press's depth is measured to a small part of it; the spacing grows until there are at most
+  // two million (a 0.6 m sphere at 0.25 mm would be 70 million, and a CAD part's long thin
+  // triangles many more than their area needs). The grid keeps the corners and edges, so a
+  // coarser one errs only on curved surfaces, by spacing^2 / 8 radius.
+  constexpr std::size_t kMaxPoints = 2'000'000;
+  double spacing = std::min(0.25e-3, extent.norm() / 50);
+  while (surface_grid_size(mesh, spacing) > kMaxPoints) spacing *= 1.25;
   const std::vector<Eigen::Vector3d> points = surface_grid(mesh, spacing);
 
   RandomPressOptions options;
   options.frames = a.frames;
-  options.min_depth_m = a.min_depth_m;
-  options.max_depth_m = a.max_depth_m;
+  options.min_depth_m = min_depth;
+  options.max_depth_m = max_depth;
   const Eigen::Vector2d visible = visible_gel_half_m(sensor);
   options.target_half_m = kTargetFraction * visible;
   options.contact_half_m = kContactFraction * visible;
@@ -83,8 +101,8 @@ int run_presses(const PressesArgs& a) {
   try {
     presses = random_presses(points, sensor.gel, options);
   } catch (const InputError& e) {
-    throw InputError(a.mesh + (a.scale != 1.0 ? " at scale " + std::to_string(a.scale) : "") +
-                     ": " + e.what());
+    throw InputError(a.mesh + (a.scale != 1.0 ? " at scale " + format_number(a.scale) : "") + ": " +
+                     e.what());
   }
 
   nlohmann::ordered_json waypoints = nlohmann::ordered_json::array();
@@ -116,11 +134,12 @@ int run_presses(const PressesArgs& a) {
                                           {"shadows", true},
                                           {"background", "synthetic"},
                                           {"seed", a.seed}}}};
+  if (fs::path(a.out).has_parent_path()) fs::create_directories(fs::path(a.out).parent_path(), ec);
   write_text_file(a.out, format_json(scene) + "\n");
   std::printf(
       "wrote %s: %d random presses of %s, %.2f-%.2f mm deep, within |x| < %.1f mm, "
       "|y| < %.1f mm of the gel centre\n",
-      a.out.c_str(), a.frames, a.mesh.c_str(), 1e3 * a.min_depth_m, 1e3 * a.max_depth_m,
+      a.out.c_str(), a.frames, a.mesh.c_str(), 1e3 * min_depth, 1e3 * max_depth,
       1e3 * options.contact_half_m.x(), 1e3 * options.contact_half_m.y());
   std::printf("render it: tacsim render %s --out DIR\n", a.out.c_str());
   return kExitOk;

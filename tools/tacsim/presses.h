@@ -11,7 +11,9 @@ struct PressesArgs {
   std::string sensor_file;  // or a sensor configuration file
   std::string name;         // the object's name (default: the mesh file's stem)
   int frames = 50;
-  double min_depth_m = 0.3e-3, max_depth_m = 1.5e-3;
+  // Each press's depth range [m]; 0: not given, then 0.75 of the gel's max_indentation_m (1.5 mm
+  // on the presets) and a fifth of the deepest (0.3 mm).
+  double min_depth_m = 0, max_depth_m = 0;
   double scale = 1.0;
   std::uint64_t seed = 1;
 };

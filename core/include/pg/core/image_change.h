@@ -64,8 +64,9 @@ double noise_levels(const ImageU8& image);
 
 // A no-contact reference noisier than this (noise_levels) makes trouble: with one frame of the
 // renderer's sigma 7 as the reference, the difference images hold sigma 7 x sqrt 2, the change
-// test above takes noise for contact (in 8 of 10 frames without contact) and the network reads
-// the reference's noise pattern as dents; at sigma 2-5 neither happened (docs/learned_normals.md).
+// test above takes noise for contact and the network reads the reference's noise pattern as dents
+// (20 of 20 frames without contact tracked as contact; docs/learned_normals.md). An audit saw it
+// at sigma 6 and 7 and not at 2-5: the warning starts at 4, with a margin.
 constexpr double kNoisyReferenceLevels = 4.0;
 
 // "" when `reference` is no noisier than kNoisyReferenceLevels; else a warning naming `what`

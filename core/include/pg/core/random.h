@@ -14,8 +14,11 @@ class Random {
   double uniform(double lo, double hi) {
     return lo + (hi - lo) * double(engine_() >> 11) * 0x1.0p-53;
   }
-  // Uniform in [lo, hi] (the modulo's bias is below 2^-40 for any int range).
-  int integer(int lo, int hi) { return lo + int(engine_() % std::uint64_t(hi - lo + 1)); }
+  // Uniform in [lo, hi], lo <= hi (the modulo's bias is below range / 2^64, 2^-32 at most).
+  int integer(int lo, int hi) {
+    const std::uint64_t range = std::uint64_t(std::int64_t(hi) - std::int64_t(lo)) + 1;
+    return int(std::int64_t(lo) + std::int64_t(engine_() % range));
+  }
   double sign() { return (engine_() >> 63) ? 1.0 : -1.0; }
 
  private:

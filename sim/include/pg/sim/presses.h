@@ -18,6 +18,9 @@ namespace pg {
 // and edges included. The vertices alone are too coarse: on the convex gel the middle of a long
 // straight edge reaches deeper than its ends.
 std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spacing_m);
+// How many points surface_grid(mesh, spacing_m) makes, without making them: a triangle of longest
+// edge L makes about (L / spacing)^2 / 2, however thin it is.
+std::size_t surface_grid_size(const TriangleMesh& mesh, double spacing_m);
 
 struct PressContact {
   // The deepest point below the undeformed gel surface [m]; negative when nothing touches.
