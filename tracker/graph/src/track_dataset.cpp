@@ -335,23 +335,26 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     FrameResult r;
     for (std::size_t k = 0; k < feeds.size(); ++k) {
       SensorFeed& feed = feeds[k];
+      const bool dropout = feed.frame >= 0 && learned && is_dropout(feed.color);
+      // With learned normals, the pixels that differ from the reference beyond the camera's
+      // noise, counted to just past half the image (in one pass: a press changes far less).
+      const int half = feed.color.width * feed.color.height / 2;
+      const int changed = feed.frame >= 0 && learned && !dropout
+                              ? changed_pixels(feed.color, feed.background, half + 1)
+                              : 0;
       if (feed.frame < 0) {
         // No image of this sensor at this time: its measurement is missing, no pixel is bad.
         feed.builder.build_unreadable(feed.contact);
         feed.contact.rejected_normals = 0;
-      } else if (learned && is_dropout(feed.color)) {
+      } else if (dropout) {
         feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
-      } else if (learned &&
-                 changed_pixels(feed.color, feed.background, feed.builder.min_contact_pixels()) <
-                     feed.builder.min_contact_pixels()) {
+      } else if (learned && changed < feed.builder.min_contact_pixels()) {
         // A frame no different from the reference beyond the camera's noise: nothing pressed,
         // no normals to estimate.
         feed.builder.build_untouched(feed.contact);
       } else {
-        // (Counted to the end only where something changed: half the image is more than a press.)
-        const int half = feed.color.width * feed.color.height / 2;
-        r.reference_mismatch |=
-            learned && changed_pixels(feed.color, feed.background, half + 1) > half;
+        // More than half the image changed: more than a press changes.
+        r.reference_mismatch |= learned && changed > half;
         if (learned) {
           const auto model_start = std::chrono::steady_clock::now();
           feed.normals = options.normals(k, feed.color, feed.background);
