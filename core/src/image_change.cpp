@@ -64,4 +64,32 @@ std::string noisy_reference_warning(const ImageU8& reference, const std::string&
          "folder of them)";
 }
 
+double saturated_fraction(const ImageU8& image) {
+  const std::size_t pixels = std::size_t(image.width) * image.height;
+  if (pixels == 0 || image.channels < 1) return 0.0;
+  std::size_t saturated = 0;
+  for (std::size_t i = 0; i < pixels; ++i) {
+    const std::uint8_t* p = &image.data[i * std::size_t(image.channels)];
+    saturated +=
+        std::all_of(p, p + image.channels, [](std::uint8_t v) { return v == 0 || v == 255; });
+  }
+  return double(saturated) / double(pixels);
+}
+
+std::vector<std::string> reference_warnings(const ImageU8& reference, const std::string& what) {
+  std::vector<std::string> warnings;
+  const std::string noisy = noisy_reference_warning(reference, what);
+  if (!noisy.empty()) warnings.push_back(noisy);
+  const double saturated = saturated_fraction(reference);
+  if (saturated > kSaturatedReferenceFraction) {
+    char percent[32];
+    std::snprintf(percent, sizeof percent, "%.0f %%", 100 * saturated);
+    warnings.push_back(what + ": " + percent +
+                       " of its pixels are clipped white or black (every colour channel at 0 or "
+                       "255), where a press cannot show: the sensor is over- or under-exposed "
+                       "(its exposure, or its lights)");
+  }
+  return warnings;
+}
+
 }  // namespace pg

@@ -1,6 +1,7 @@
 #include "pg/core/sensor.h"
 
 #include <cmath>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 #include "pg/core/json_fields.h"
@@ -172,12 +173,28 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
     throw InputError(f.field("preset") + ": " + e.what());
   }
   s.name = f.optional<std::string>("name", s.name);
+  const double preset_aspect = s.camera.fx / s.camera.fy;
   if (f.has("width") || f.has("height")) {
     const int w = f.has("width") ? f.required<int>("width") : s.camera.width;
     const int h = f.has("height") ? f.required<int>("height") : s.camera.height;
     if (w < 8 || w > 8192) throw InputError(f.field("width") + ": must be in [8, 8192] px");
     if (h < 8 || h > 8192) throw InputError(f.field("height") + ": must be in [8, 8192] px");
     s.camera = s.camera.resized(w, h);
+  }
+  const bool own_intrinsics =
+      f.has("camera") && f.at("camera").is_object() &&
+      (f.at("camera").contains("fov_y_rad") || f.at("camera").contains("fx"));
+  if ((f.has("width") || f.has("height")) && !own_intrinsics &&
+      std::abs(s.camera.fx / s.camera.fy - preset_aspect) > 0.01 * preset_aspect) {
+    // The intrinsics scale with each side: another shape of image stretches the pixels.
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s, %s: %dx%d px is not the shape of the preset's image, whose camera they "
+                  "resize: its pixels would be %.2f times as wide as tall; give camera.fov_y_rad "
+                  "(square pixels) or fx, fy, cx, cy for the new image",
+                  f.field("width").c_str(), f.field("height").c_str(), s.camera.width,
+                  s.camera.height, s.camera.fy / s.camera.fx);
+    throw InputError(text);
   }
   if (f.has("camera")) read_camera(f.at("camera"), f.field("camera"), s.camera);
   if (f.has("gel")) read_gel(f.at("gel"), f.field("gel"), s.gel);

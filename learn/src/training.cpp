@@ -297,6 +297,15 @@ void train_normals(const TrainOptions& options,
   }
   const bool mlp = o.spec.arch == "mlp";
   const bool gan = !mlp && o.gan_weight > 0;
+  // The PatchGAN's three stride-2 and two 4x4 layers need 12 px a side.
+  constexpr int kMinGanSide = 12;
+  if (gan && std::min(train.width, train.height) < kMinGanSide) {
+    throw InputError("--data: images of " + std::to_string(train.width) + "x" +
+                     std::to_string(train.height) +
+                     " px are too small for the PatchGAN "
+                     "discriminator (at least " +
+                     std::to_string(kMinGanSide) + " px a side); --gan-weight 0 trains without it");
+  }
   learn::PatchDiscriminator d(nullptr);
   if (gan) d = learn::PatchDiscriminator(o.spec.base_width);
   const auto adam = torch::optim::AdamOptions(o.learning_rate).betas({o.beta1, 0.999});

@@ -65,6 +65,8 @@ PressContact measure_press(const std::vector<Eigen::Vector3d>& p_object, const S
     contact.depth_m = std::max(contact.depth_m, depth);
     if (depth > 0.0) {
       contact.max_abs_xy_m = contact.max_abs_xy_m.cwiseMax(p_sensor.head<2>().cwiseAbs());
+      contact.min_xy_m = contact.min_xy_m.cwiseMin(p_sensor.head<2>());
+      contact.max_xy_m = contact.max_xy_m.cwiseMax(p_sensor.head<2>());
     }
   }
   return contact;
@@ -116,8 +118,9 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
       for (int i = 0; i < 3; ++i) rpy[i] = round_to(rpy[i], 1e6);
       const Eigen::Quaterniond q = quaternion_from_rpy(rpy);
       const Eigen::Vector2d target(
-          rng.uniform(-options.target_half_m.x(), options.target_half_m.x()),
-          rng.uniform(-options.target_half_m.y(), options.target_half_m.y()));
+          options.centre_m.x() + rng.uniform(-options.target_half_m.x(), options.target_half_m.x()),
+          options.centre_m.y() +
+              rng.uniform(-options.target_half_m.y(), options.target_half_m.y()));
       const double depth = rng.uniform(options.min_depth_m, options.max_depth_m);
       const Eigen::Vector3d lowest =
           extreme_centroid(p_object, q.inverse() * -Eigen::Vector3d::UnitZ(), -inf, inf);
@@ -127,8 +130,10 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
       t.z() = measure_press(p_object, SE3(q, t), gel).depth_m - depth;
       for (int i = 0; i < 3; ++i) t[i] = round_to(t[i], 1e7);
       const PressContact c = measure_press(p_object, SE3(q, t), gel);
-      if (std::abs(c.depth_m - depth) > 5e-5 || c.max_abs_xy_m.x() > options.contact_half_m.x() ||
-          c.max_abs_xy_m.y() > options.contact_half_m.y()) {
+      const Eigen::Vector2d reach =
+          (c.max_xy_m - options.centre_m).cwiseMax(options.centre_m - c.min_xy_m);
+      if (std::abs(c.depth_m - depth) > 5e-5 || reach.x() > options.contact_half_m.x() ||
+          reach.y() > options.contact_half_m.y()) {
         continue;
       }
       presses.push_back({f, t, rpy});
@@ -138,21 +143,30 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
   return presses;
 }
 
-Eigen::Vector2d visible_gel_half_m(const SensorModel& sensor) {
+GelArea visible_gel_area(const SensorModel& sensor) {
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   const int w = rays.width, h = rays.height;
-  Eigen::Vector2d half(0.5 * sensor.gel.width_m, 0.5 * sensor.gel.height_m);
+  const auto p = [&](int x, int y) -> Eigen::Vector3d {
+    return rays.point(rays.index(x, y), 0.0f).cast<double>();
+  };
+  // Inside every row's first and last pixel, and every column's.
+  Eigen::Vector2d lo(-0.5 * sensor.gel.width_m, -0.5 * sensor.gel.height_m), hi = -lo;
   for (int y = 0; y < h; ++y) {
-    for (const int x : {0, w - 1}) {
-      half.x() = std::min(half.x(), double(std::abs(rays.point(rays.index(x, y), 0.0f).x())));
-    }
+    const double a = p(0, y).x(), b = p(w - 1, y).x();
+    lo.x() = std::max(lo.x(), std::min(a, b));
+    hi.x() = std::min(hi.x(), std::max(a, b));
   }
   for (int x = 0; x < w; ++x) {
-    for (const int y : {0, h - 1}) {
-      half.y() = std::min(half.y(), double(std::abs(rays.point(rays.index(x, y), 0.0f).y())));
-    }
+    const double a = p(x, 0).y(), b = p(x, h - 1).y();
+    lo.y() = std::max(lo.y(), std::min(a, b));
+    hi.y() = std::min(hi.y(), std::max(a, b));
   }
-  return half;
+  if (!(hi.x() > lo.x() && hi.y() > lo.y())) {
+    throw InputError("sensor " + sensor.name +
+                     ": its camera sees none of its gel (is the principal point cx, cy inside "
+                     "the image?)");
+  }
+  return {0.5 * (lo + hi), 0.5 * (hi - lo)};
 }
 
 }  // namespace pg

@@ -36,6 +36,22 @@ TEST(ImageChange, NoiseLevelsReadsTheCamerasSigma) {
   EXPECT_EQ(noisy_reference_warning(shaded(2.0, 3), "x"), "");
   const std::string warning = noisy_reference_warning(shaded(7.0, 3), "bg.png");
   EXPECT_EQ(warning.rfind("bg.png holds camera noise of about 7", 0), 0u) << warning;
+  EXPECT_EQ(reference_warnings(shaded(2.0, 3), "x").size(), 0u);
+}
+
+// An over-exposed reference (white over much of it) is warned about; one channel clipped, as
+// the synthetic background's in places, is not.
+TEST(ImageChange, ASaturatedReferenceIsWarnedAbout) {
+  ImageU8 image = shaded(2.0, 4);
+  for (std::size_t i = 0; i < image.data.size() / 2; i += 3) image.data[i] = 255;  // red
+  EXPECT_EQ(saturated_fraction(image), 0.0);
+  EXPECT_TRUE(reference_warnings(image, "bg.png").empty());
+  for (std::size_t i = 0; i < image.data.size() / 2; ++i) image.data[i] = 255;  // white
+  EXPECT_NEAR(saturated_fraction(image), 0.5, 0.01);
+  const std::vector<std::string> warnings = reference_warnings(image, "bg.png");
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_EQ(warnings[0].rfind("bg.png: 50 % of its pixels are clipped white or black", 0), 0u)
+      << warnings[0];
 }
 
 TEST(ImageChange, TheMedianOfFramesIsPerPixelAndQuieter) {

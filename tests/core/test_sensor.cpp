@@ -100,6 +100,12 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   expect_input_error(parse(R"({"camera": {"fov_y_rad": 4}})"), {"camera.fov_y_rad", "range"});
   expect_input_error(parse(R"({"camera": {"fx": 100}})"), {"camera.fy", "missing"});
   expect_input_error(parse(R"({"width": 2})"), {"width"});
+  // Another shape of image than the preset's stretches its resized pixels: refused, unless the
+  // file gives the new camera; the same shape at another size is fine.
+  expect_input_error(parse(R"({"preset": "gelsight_mini", "width": 320, "height": 240})"),
+                     {"width", "height", "0.56 times as wide as tall", "camera.fov_y_rad"});
+  EXPECT_NO_THROW(parse(R"({"width": 320, "height": 240, "camera": {"fov_y_rad": 0.8}})")());
+  EXPECT_NO_THROW(parse(R"({"width": 60, "height": 80})")());
   expect_input_error(parse(R"({"noise": {"sigma": 1000}})"), {"noise.sigma"});
   expect_input_error(parse(R"({"lights": []})"), {"lights"});
   expect_input_error(parse(R"({"lights": [{"color": [1,0,0]}]})"),

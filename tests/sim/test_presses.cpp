@@ -76,37 +76,61 @@ TEST(RandomPresses, AnObjectThatCannotPressInsideTheAreaIsAnErrorNamingTheFrame)
   EXPECT_THROW(random_presses({}, sensor_preset("digit").gel, RandomPressOptions{}), InputError);
 }
 
-// The visible gel's half extents reach the image's edge in one direction and stay inside it in
-// the other, on every preset.
+// The visible gel reaches the image's edge in one direction and stays inside it in the other,
+// on every preset (centred) and with the principal point off the image's centre; a camera that
+// sees none of its gel is an error.
 TEST(RandomPresses, TheVisibleGelLiesInsideTheImage) {
-  for (const std::string& name : sensor_preset_names()) {
-    const SensorModel sensor = sensor_preset(name);
-    const Eigen::Vector2d half = visible_gel_half_m(sensor);
-    EXPECT_GT(half.x(), 0.25 * sensor.gel.width_m) << name;
-    EXPECT_GT(half.y(), 0.25 * sensor.gel.height_m) << name;
-    EXPECT_LE(half.x(), 0.5 * sensor.gel.width_m) << name;
-    EXPECT_LE(half.y(), 0.5 * sensor.gel.height_m) << name;
+  std::vector<SensorModel> sensors;
+  for (const std::string& name : sensor_preset_names()) sensors.push_back(sensor_preset(name));
+  SensorModel off_centre = sensor_preset("digit");
+  off_centre.camera.cx = 20;  // of 120 px: the camera sees more of the gel's +x side
+  sensors.push_back(off_centre);
+  for (const SensorModel& sensor : sensors) {
+    const std::string name = sensor.name + " cx " + std::to_string(sensor.camera.cx);
+    const GelArea area = visible_gel_area(sensor);
+    const Eigen::Vector2d lo = area.centre_m - area.half_m, hi = area.centre_m + area.half_m;
+    EXPECT_GT(area.half_m.x(), 0.2 * sensor.gel.width_m) << name;
+    EXPECT_GT(area.half_m.y(), 0.2 * sensor.gel.height_m) << name;
+    EXPECT_GE(lo.x(), -0.5 * sensor.gel.width_m) << name;
+    EXPECT_LE(hi.x(), 0.5 * sensor.gel.width_m) << name;
     const CameraModel& cam = sensor.camera;
     const auto pixel = [&](double x, double y) {
       const Eigen::Vector3d p_sensor(x, y, sensor.gel.surface_z(x, y));
       return cam.project(cam.T_sensor_camera().inverse() * p_sensor);
     };
-    for (const double sx : {-1.0, 1.0}) {
-      for (const double sy : {-1.0, 1.0}) {
-        // The corner of the visible rectangle: inside the image.
-        const Eigen::Vector2d uv = pixel(sx * half.x(), sy * half.y());
+    for (const double x : {lo.x(), hi.x()}) {
+      for (const double y : {lo.y(), hi.y()}) {
+        // The corners of the visible rectangle: inside the image.
+        const Eigen::Vector2d uv = pixel(x, y);
         EXPECT_GE(uv.x(), -1e-3) << name;
         EXPECT_LE(uv.x(), cam.width - 1 + 1e-3) << name;
         EXPECT_GE(uv.y(), -1e-3) << name;
         EXPECT_LE(uv.y(), cam.height - 1 + 1e-3) << name;
       }
     }
-    // A tenth further along x, at the image's corner row, is outside (the bound is tight).
-    const Eigen::Vector2d beyond = pixel(1.1 * half.x(), half.y());
+    // A tenth of the width further along +x, at the corner row, is outside (the bound is tight).
+    const Eigen::Vector2d beyond = pixel(hi.x() + 0.2 * area.half_m.x(), hi.y());
     EXPECT_TRUE(beyond.x() > cam.width - 1 || beyond.y() > cam.height - 1 ||
-                half.x() == 0.5 * sensor.gel.width_m)
+                hi.x() == 0.5 * sensor.gel.width_m)
         << name;
   }
+  EXPECT_GT(visible_gel_area(off_centre).centre_m.x(), 1e-3);
+  // Presses there stay inside the off-centre area.
+  const std::vector<Eigen::Vector3d> points = surface_grid(make_uv_sphere(0.004f, 16, 32), 2.5e-4);
+  const GelArea area = visible_gel_area(off_centre);
+  RandomPressOptions options;
+  options.frames = 10;
+  options.centre_m = area.centre_m;
+  options.target_half_m = 0.45 * area.half_m;
+  options.contact_half_m = 0.85 * area.half_m;
+  for (const Waypoint& w : random_presses(points, off_centre.gel, options)) {
+    const PressContact c = measure_press(points, press_pose(w), off_centre.gel);
+    EXPECT_GE(c.min_xy_m.x(), area.centre_m.x() - area.half_m.x()) << "frame " << w.frame;
+    EXPECT_LE(c.max_xy_m.x(), area.centre_m.x() + area.half_m.x()) << "frame " << w.frame;
+  }
+  SensorModel blind = sensor_preset("digit");
+  blind.camera.cx = 5000;
+  EXPECT_THROW(visible_gel_area(blind), InputError);
 }
 
 }  // namespace

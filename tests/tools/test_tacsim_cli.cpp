@@ -84,6 +84,15 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
   const CliRun info = tacsim("info " + tmp.str("d"));
   EXPECT_EQ(info.code, 0);
   EXPECT_NE(info.out.find("60x80"), std::string::npos) << info.out;
+  EXPECT_EQ(r.out.find("another shape"), std::string::npos) << r.out;
+  // Another shape than the sensor's stretches its pixels: rendered, with a warning.
+  const CliRun wide = tacsim("render " + kScenes + "examples/sphere_press.json -q --out " +
+                             tmp.str("wide") + " --width 80 --height 60");
+  ASSERT_EQ(wide.code, 0) << wide.out;
+  EXPECT_NE(wide.out.find("warning: --width 80 --height 60: sensor digit is 120x160 px, another "
+                          "shape; its pixels become 0.56 times as wide as tall"),
+            std::string::npos)
+      << wide.out;
 }
 
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the
@@ -390,10 +399,18 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   // given: the shallowest press follows it (a fifth of it).
   r = tacsim("presses " + mesh + " --frames 2 --out " + tmp.str("default_depths.json"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("0.30-1.50 mm deep"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mm deep (asked 0.30-1.50)"), std::string::npos) << r.out;
   r = tacsim("presses " + mesh + " --frames 2 --max-depth 0.0002 --out " + tmp.str("shallow.json"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("0.04-0.20 mm deep"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("mm deep (asked 0.04-0.20)"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("reach only"), std::string::npos) << r.out;
+  // A sensor that sees little of its gel: deep presses of a 12 mm sphere leave its view and are
+  // drawn again, so the presses are shallower than asked; said so.
+  std::ofstream(tmp.str("narrow.json")) << R"({"camera": {"fov_y_rad": 0.35}})";
+  r = tacsim("presses " + std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb --frames 30 " +
+             "--sensor-file " + tmp.str("narrow.json") + " --out " + tmp.str("narrow_scene.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: the presses reach only"), std::string::npos) << r.out;
   // Another sensor is the scene's.
   ASSERT_EQ(tacsim(args + " --sensor gelsight_mini --out " + tmp.str("mini.json")).code, 0);
   EXPECT_NE(text("mini.json").find("\"sensor\": \"gelsight_mini\""), std::string::npos);

@@ -29,12 +29,16 @@ class Progress {
       last_decile_ = decile;
     }
     last_draw_ = now;
-    const double rate = elapsed > 0 ? done / elapsed : 0.0;
-    const double eta = rate > 0 ? (total_ - done) / rate : 0.0;
     const std::string rate_unit = unit_ == "frames" ? "fps" : unit_ + "/s";
-    std::fprintf(stderr, "%s%s %d/%d %s  %.1f %s  ETA %.1f s%s", tty_ ? "\r" : "",
-                 label_.c_str(), done, total_, unit_.c_str(), rate, rate_unit.c_str(), eta,
-                 tty_ && !last ? "   " : "\n");
+    // Rate and ETA once a twentieth of a second has passed: a first step done at once (its work
+    // done before the line started) would read as millions per second.
+    char rate[64] = "-", eta[64] = "-";
+    if (elapsed >= 0.05 && done > 0) {
+      std::snprintf(rate, sizeof rate, "%.1f", done / elapsed);
+      std::snprintf(eta, sizeof eta, "%.1f", (total_ - done) * elapsed / done);
+    }
+    std::fprintf(stderr, "%s%s %d/%d %s  %s %s  ETA %s s%s", tty_ ? "\r" : "", label_.c_str(), done,
+                 total_, unit_.c_str(), rate, rate_unit.c_str(), eta, tty_ && !last ? "   " : "\n");
     std::fflush(stderr);
   }
 

@@ -204,9 +204,10 @@ int run_label_ball(const LabelBallArgs& a) {
   if (!a.gel.empty()) gel.elastic.enabled = a.gel == "elastic";
   const SensorModel& sensor = d.info().sensor;
   const ImageU8 reference = d.background();
-  const std::string noisy =
-      noisy_reference_warning(reference, "the no-contact reference of " + a.dataset);
-  if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
+  for (const std::string& w :
+       reference_warnings(reference, "the no-contact reference of " + a.dataset)) {
+    std::fprintf(stderr, "warning: %s\n", w.c_str());
+  }
   // Presses at many places leave each pixel untouched in most frames. Pixels that differ from
   // the reference in nearly every frame are the reference's own: a press in it (or other
   // lighting), against which every label would be measured.
@@ -234,10 +235,11 @@ int run_label_ball(const LabelBallArgs& a) {
   const std::map<int, GivenCircle> given =
       a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
   const double radius = 0.5 * a.diameter;
-  // A ball far wider than the gel is no calibration ball: a slip of units (127 mm for 12.7)?
-  // Its presses would still be labelled, as shallow caps of a huge sphere.
+  // A ball far wider than the gel, and than any calibration ball (5 cm), is no calibration
+  // ball: a slip of units (127 mm for 12.7)? Its presses would still be labelled, as shallow
+  // caps of a huge sphere.
   const double gel_size = std::max(sensor.gel.width_m, sensor.gel.height_m);
-  if (a.diameter > 2 * gel_size) {
+  if (a.diameter > 2 * gel_size && a.diameter > 0.05) {
     std::fprintf(stderr,
                  "warning: --diameter %s m: a ball of %.0f mm, over twice the %.0f x %.0f mm "
                  "gel; is that its diameter in metres?\n",

@@ -87,10 +87,12 @@ int run_track(const TrackArgs& a) {
   for (const Dataset& d : datasets) {
     if (a.normals == "gt") continue;
     const bool file = std::filesystem::exists(std::filesystem::path(d.dir()) / "background.png");
-    const std::string noisy = noisy_reference_warning(
-        d.background(), file ? d.dir() + "/background.png, the no-contact reference,"
-                             : "the no-contact reference of " + d.dir());
-    if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
+    for (const std::string& w :
+         reference_warnings(d.background(), file ? d.dir() + "/background.png, the no-contact "
+                                                             "reference,"
+                                                 : "the no-contact reference of " + d.dir())) {
+      std::fprintf(stderr, "warning: %s\n", w.c_str());
+    }
     if (file) continue;
     // The network reads each frame minus this reference: a frame wrongly marked without contact
     // would skew every estimate, so the choice is shown.

@@ -308,7 +308,7 @@ int run_recording(const RecordingArgs& a) {
     no_contact.push_back(sensor_image(file.string(), sensor.camera, a.downsample));
   }
   const ImageU8 background = median_image(no_contact);
-  const std::string noisy = noisy_reference_warning(
+  const std::vector<std::string> warnings = reference_warnings(
       background,
       references.size() == 1
           ? "--background " + references[0].string()
@@ -358,7 +358,7 @@ int run_recording(const RecordingArgs& a) {
                 references.size());
   }
   std::fflush(stdout);
-  if (!noisy.empty()) std::fprintf(stderr, "warning: %s\n", noisy.c_str());
+  for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   return kExitOk;
 }
 

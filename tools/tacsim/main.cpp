@@ -64,7 +64,22 @@ int run_render(const RenderArgs& a) {
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
                                                     a.threads);
   }
-  const SceneRenderer renderer(load_scene(a.scene), overrides);
+  Scene scene = load_scene(a.scene);
+  // --width and --height resize each camera's intrinsics per side: another shape of image
+  // than a sensor's stretches its pixels (a sensor file says so as an error; here the scene's
+  // sensors may be of several shapes).
+  for (const SceneSensor& sensor : scene.sensors) {
+    const CameraModel& cam = sensor.model.camera;
+    if (a.width <= 0 || a.width * cam.height == a.height * cam.width) continue;
+    const CameraModel resized = cam.resized(a.width, a.height);
+    std::fprintf(stderr,
+                 "warning: --width %d --height %d: sensor %s is %dx%d px, another shape; its "
+                 "pixels become %.2f times as wide as tall (a sensor file with the new image's "
+                 "camera keeps them square)\n",
+                 a.width, a.height, sensor.name.c_str(), cam.width, cam.height,
+                 (resized.fy / resized.fx) / (cam.fy / cam.fx));
+  }
+  const SceneRenderer renderer(std::move(scene), overrides);
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
   const RenderSummary s =
       render_scene_to_dataset(renderer, a.out, [&](int done, int) { progress.update(done); });

@@ -18,7 +18,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Where the presses go, as fractions of the gel the camera sees (visible_gel_half_m, 8.3 x 10.9
+// Where the presses go, as fractions of the gel the camera sees (visible_gel_area, 8.3 x 10.9
 // mm on the DIGIT): the point that touches first within 0.45 of it, every penetrating point
 // within 0.85; on the DIGIT about the repository's training scenes' 4 x 5 mm and 7.2 x 9 mm
 // (make_scenes).
@@ -93,9 +93,10 @@ int run_presses(const PressesArgs& a) {
   options.frames = a.frames;
   options.min_depth_m = min_depth;
   options.max_depth_m = max_depth;
-  const Eigen::Vector2d visible = visible_gel_half_m(sensor);
-  options.target_half_m = kTargetFraction * visible;
-  options.contact_half_m = kContactFraction * visible;
+  const GelArea visible = visible_gel_area(sensor);
+  options.centre_m = visible.centre_m;
+  options.target_half_m = kTargetFraction * visible.half_m;
+  options.contact_half_m = kContactFraction * visible.half_m;
   options.seed = a.seed;
   std::vector<Waypoint> presses;
   try {
@@ -136,11 +137,30 @@ int run_presses(const PressesArgs& a) {
                                           {"seed", a.seed}}}};
   if (fs::path(a.out).has_parent_path()) fs::create_directories(fs::path(a.out).parent_path(), ec);
   write_text_file(a.out, format_json(scene) + "\n");
+  // The depths the presses have: a draw whose contact leaves the area is drawn again, and deep
+  // presses of a large object leave it more often than shallow ones.
+  double shallowest = max_depth, deepest = 0;
+  for (const Waypoint& w : presses) {
+    const double depth =
+        measure_press(points, SE3(quaternion_from_rpy(w.rpy_rad), w.position_m), sensor.gel)
+            .depth_m;
+    shallowest = std::min(shallowest, depth);
+    deepest = std::max(deepest, depth);
+  }
+  const Eigen::Vector2d lo = options.centre_m - options.contact_half_m;
+  const Eigen::Vector2d hi = options.centre_m + options.contact_half_m;
   std::printf(
-      "wrote %s: %d random presses of %s, %.2f-%.2f mm deep, within |x| < %.1f mm, "
-      "|y| < %.1f mm of the gel centre\n",
-      a.out.c_str(), a.frames, a.mesh.c_str(), 1e3 * min_depth, 1e3 * max_depth,
-      1e3 * options.contact_half_m.x(), 1e3 * options.contact_half_m.y());
+      "wrote %s: %d random presses of %s, %.2f-%.2f mm deep (asked %.2f-%.2f), within x %.1f to "
+      "%.1f mm, y %.1f to %.1f mm\n",
+      a.out.c_str(), a.frames, a.mesh.c_str(), 1e3 * shallowest, 1e3 * deepest, 1e3 * min_depth,
+      1e3 * max_depth, 1e3 * lo.x(), 1e3 * hi.x(), 1e3 * lo.y(), 1e3 * hi.y());
+  if (a.frames >= 10 && deepest < min_depth + 0.6 * (max_depth - min_depth)) {
+    std::fprintf(stderr,
+                 "warning: the presses reach only %.2f mm of the %.2f asked: deeper ones of this "
+                 "object leave the gel the camera sees and were drawn again (a smaller "
+                 "--max-depth, a smaller object, or a sensor that sees more of its gel)\n",
+                 1e3 * deepest, 1e3 * max_depth);
+  }
   std::printf("render it: tacsim render %s --out DIR\n", a.out.c_str());
   return kExitOk;
 }

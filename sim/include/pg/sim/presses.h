@@ -26,6 +26,9 @@ struct PressContact {
   // The deepest point below the undeformed gel surface [m]; negative when nothing touches.
   double depth_m = -std::numeric_limits<double>::infinity();
   Eigen::Vector2d max_abs_xy_m = Eigen::Vector2d::Zero();  // largest |x|, |y| in S that penetrates
+  // The penetrating points' bounds in S [m] (+inf / -inf when none penetrates).
+  Eigen::Vector2d min_xy_m = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
+  Eigen::Vector2d max_xy_m = Eigen::Vector2d::Constant(-std::numeric_limits<double>::infinity());
 };
 
 // How points of an object (in its frame) at T_sensor_object press into the gel.
@@ -41,9 +44,12 @@ Eigen::Vector3d extreme_centroid(const std::vector<Eigen::Vector3d>& points,
 struct RandomPressOptions {
   int frames = 50;
   double min_depth_m = 0.3e-3, max_depth_m = 1.5e-3;  // each press's depth, uniform [m]
-  // Where the point pressing first lands in S: x and y uniform within +-this [m].
+  // The middle of the area the presses go to, in S [m] (off the gel's centre when the camera's
+  // principal point is).
+  Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
+  // Where the point pressing first lands: x and y within +-this of centre_m, uniform [m].
   Eigen::Vector2d target_half_m{4e-3, 5e-3};
-  // Every penetrating point's |x| and |y| stay below this [m]: inside what the camera sees.
+  // Every penetrating point stays within +-this of centre_m [m]: inside what the camera sees.
   Eigen::Vector2d contact_half_m{7.2e-3, 9e-3};
   std::uint64_t seed = 1;
   int attempts = 100;  // draws per frame before giving up
@@ -58,8 +64,13 @@ struct RandomPressOptions {
 std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_object,
                                      const GelModel& gel, const RandomPressOptions& options);
 
-// Where a sensor's camera sees its gel: the largest |x| and |y| in S [m] that every row and
-// column of the image reaches on the undeformed gel, within the gel's own size.
-Eigen::Vector2d visible_gel_half_m(const SensorModel& sensor);
+// Where a sensor's camera sees its gel: the rectangle of the undeformed gel (in S, within the
+// gel's own size) that every row and column of the image reaches. Throws InputError when the
+// camera sees none of the gel (a principal point far off the image).
+struct GelArea {
+  Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
+  Eigen::Vector2d half_m = Eigen::Vector2d::Zero();
+};
+GelArea visible_gel_area(const SensorModel& sensor);
 
 }  // namespace pg
