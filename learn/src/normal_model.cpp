@@ -41,10 +41,8 @@ nlohmann::json info_to_json(const NormalModelInfo& info) {
   j["height"] = info.height;
   j["epochs"] = info.epochs;
   j["training_data"] = info.training_data;
-  if (info.gel_relative) {
-    j["labels"] = "gel";
-    j["sensor"] = sensor_to_json(info.sensor);
-  }
+  if (info.gel_relative) j["labels"] = "gel";
+  if (info.sensor_known) j["sensor"] = sensor_to_json(info.sensor);
   j["history"] = info.history_json.empty() ? nlohmann::json::array()
                                            : nlohmann::json::parse(info.history_json);
   return j;
@@ -68,7 +66,10 @@ NormalModelInfo info_from_json(const nlohmann::json& j) {
     throw nlohmann::json::other_error::create(501, "unknown labels '" + labels + "'", &j);
   }
   info.gel_relative = labels == "gel";
-  if (info.gel_relative) info.sensor = sensor_from_json(j.at("sensor"), "model sensor");
+  info.sensor_known = j.contains("sensor");
+  if (info.sensor_known || info.gel_relative) {
+    info.sensor = sensor_from_json(j.at("sensor"), "model sensor");
+  }
   return info;
 }
 
@@ -315,6 +316,36 @@ void NormalEstimator::check_sensor(const SensorModel& sensor, const std::string&
     throw InputError(impl_->path + ": a gel-relative model of another camera or gel shape than " +
                      where + "'s sensor");
   }
+}
+
+std::string NormalEstimator::sensor_difference(const SensorModel& sensor) const {
+  const NormalModelInfo& m = impl_->info;
+  if (!m.sensor_known) return "";
+  const SensorModel& t = m.sensor;
+  std::vector<std::string> differ;
+  bool lights = t.lights.size() != sensor.lights.size();
+  for (std::size_t k = 0; !lights && k < t.lights.size(); ++k) {
+    const PointLight &a = t.lights[k], &b = sensor.lights[k];
+    lights = !a.position_m.isApprox(b.position_m, 1e-6) || !a.color.isApprox(b.color, 1e-6) ||
+             std::abs(a.intensity - b.intensity) > 1e-6 * a.intensity;
+  }
+  if (lights) differ.push_back("lights");
+  const ShadingModel &s = t.shading, &o = sensor.shading;
+  if (s.ambient != o.ambient || s.diffuse != o.diffuse || s.specular != o.specular ||
+      s.shininess != o.shininess || s.exposure != o.exposure) {
+    differ.push_back("shading");
+  }
+  const CameraModel &c = t.camera, &d = sensor.camera;
+  const auto near = [](double x, double y) { return std::abs(x - y) <= 1e-6 * std::abs(x); };
+  if (!near(c.fx, d.fx) || !near(c.fy, d.fy) || !near(c.cx + 1, d.cx + 1) ||
+      !near(c.cy + 1, d.cy + 1) || !near(c.distance_m, d.distance_m)) {
+    differ.push_back("camera");
+  }
+  std::string text;
+  for (std::size_t k = 0; k < differ.size(); ++k) {
+    text += (k == 0 ? "" : k + 1 == differ.size() ? " and " : ", ") + differ[k];
+  }
+  return text;
 }
 
 ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background) const {

@@ -32,7 +32,8 @@ struct FrameSet {
   // gel_relative: targets in each pixel's gel frame, that of the first dataset's sensor (the
   // others must have the same gel).
   bool gel_relative = false;
-  SensorModel sensor;
+  SensorModel sensor;  // the first dataset's (the model records it)
+  bool sensor_set = false;
   ImageF gel;  // gel_normals(sensor); empty until the first dataset
   std::size_t size() const { return input.size(); }
 };
@@ -70,6 +71,10 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
                        std::to_string(set.width) + "x" + std::to_string(set.height));
     }
     const ImageU8 background = d.background();
+    if (!set.sensor_set) {
+      set.sensor = d.info().sensor;
+      set.sensor_set = true;
+    }
     ImageF gel;
     if (set.gel_relative) {
       // One undeformed gel (camera and gel shape) for all; elasticity, lights and noise may vary.
@@ -262,6 +267,7 @@ void train_normals(const TrainOptions& options,
                                  : 0;
   load_frames(o.train_data, train, o.val_data.empty() ? &val : nullptr, hold_out_every);
   val.sensor = train.sensor;
+  val.sensor_set = true;
   val.gel = train.gel;
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
@@ -278,6 +284,7 @@ void train_normals(const TrainOptions& options,
   info.training_data = o.train_data;
   info.gel_relative = o.gel_relative;
   info.sensor = train.sensor;
+  info.sensor_known = true;
   if (g) {
     if (init.width != train.width || init.height != train.height) {
       throw InputError("--init " + o.init_model + ": takes " + std::to_string(init.width) + "x" +

@@ -129,6 +129,29 @@ TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
 // Fine-tuning (--init) starts from the model's weights and normalisation: one epoch at a
 // vanishing learning rate keeps its validation error, where the same epoch from random weights
 // is far off; a model of another image size or label frame is refused.
+// A model records the sensor it was trained on and tells another sensor's optics (lights,
+// shading, camera) from it; the gel, noise and the committed model (which predates the record)
+// are not compared.
+TEST_F(NormalsTraining, AModelTellsImagesOfAnotherSensorsOptics) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("optics.pt"));
+  o.epochs = 1;
+  train_normals(o);
+  const NormalEstimator model = NormalEstimator::load(tmp_->str("optics.pt"));
+  ASSERT_TRUE(model.info().sensor_known);
+  SensorModel sensor = Dataset::open(train_).info().sensor;
+  EXPECT_EQ(model.sensor_difference(sensor), "");
+  sensor.gel.elastic.enabled = !sensor.gel.elastic.enabled;
+  sensor.noise.sigma = 0;
+  EXPECT_EQ(model.sensor_difference(sensor), "") << "the gel and the noise are not optics";
+  std::swap(sensor.lights[0].color, sensor.lights[1].color);
+  EXPECT_EQ(model.sensor_difference(sensor), "lights");
+  sensor.camera.fx *= 1.1;
+  sensor.shading.exposure = 0.5;
+  EXPECT_EQ(model.sensor_difference(sensor), "lights, shading and camera");
+  EXPECT_EQ(NormalEstimator::load(kSource + "/models/normals_unet.pt").sensor_difference(sensor),
+            "");
+}
+
 TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
   const std::string base = tmp_->str("base.pt");
   std::vector<EpochReport> trained;

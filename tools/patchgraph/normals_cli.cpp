@@ -10,8 +10,10 @@
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
+#include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "track_args.h"
 
 namespace pg {
 namespace {
@@ -192,6 +194,9 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);
   check_evaluation_data(model, a.data);
+  for (const std::string& dir : a.data) {
+    warn_of_other_optics(model, Dataset::open(dir).info().sensor, dir);
+  }
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",
               "MSE image", "angle contact", "angle image", "ms/frame");

@@ -171,6 +171,18 @@ const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_
   return models[sensor].get();
 }
 
+void warn_of_other_optics(const NormalEstimator& model, const SensorModel& sensor,
+                          const std::string& where) {
+  const std::string differ = model.sensor_difference(sensor);
+  if (differ.empty()) return;
+  std::fprintf(stderr,
+               "warning: %s: its sensor's %s differ from those of the sensor %s was trained on "
+               "(%s): the network reads other shading as other slopes; train a model on this "
+               "sensor's images (docs/learned_normals.md \"Training data of your own\")\n",
+               where.c_str(), differ.c_str(), model.path().c_str(),
+               model.info().sensor.name.c_str());
+}
+
 void check_normals_models(const NormalsModels& models,
                           const std::vector<const Dataset*>& datasets) {
   if (models.size() > 1 && models.size() != datasets.size()) {
@@ -183,7 +195,10 @@ void check_normals_models(const NormalsModels& models,
   for (std::size_t k = 0; k < datasets.size(); ++k) {
     const NormalEstimator* model = normals_model_for(models, k);
     check_normals_source(*datasets[k], model ? model->path() : "gt");
-    if (model) model->check_sensor(datasets[k]->info().sensor, datasets[k]->dir());
+    if (model) {
+      model->check_sensor(datasets[k]->info().sensor, datasets[k]->dir());
+      warn_of_other_optics(*model, datasets[k]->info().sensor, datasets[k]->dir());
+    }
   }
 }
 
