@@ -130,8 +130,8 @@ TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
 // vanishing learning rate keeps its validation error, where the same epoch from random weights
 // is far off; a model of another image size or label frame is refused.
 // A model records the sensor it was trained on and tells another sensor's optics (lights,
-// shading, camera) from it; the gel, noise and the committed model (which predates the record)
-// are not compared.
+// shading, camera) from it; the gel and the noise are not compared. The committed model knows
+// the DIGIT of its training renders.
 TEST_F(NormalsTraining, AModelTellsImagesOfAnotherSensorsOptics) {
   TrainOptions o = tiny_options(train_, val_, tmp_->str("optics.pt"));
   o.epochs = 1;
@@ -148,8 +148,9 @@ TEST_F(NormalsTraining, AModelTellsImagesOfAnotherSensorsOptics) {
   sensor.camera.fx *= 1.1;
   sensor.shading.exposure = 0.5;
   EXPECT_EQ(model.sensor_difference(sensor), "lights, shading and camera");
-  EXPECT_EQ(NormalEstimator::load(kSource + "/models/normals_unet.pt").sensor_difference(sensor),
-            "");
+  const NormalEstimator committed = NormalEstimator::load(kSource + "/models/normals_unet.pt");
+  EXPECT_EQ(committed.sensor_difference(sensor_preset("digit")), "");
+  EXPECT_EQ(committed.sensor_difference(sensor), "lights, shading and camera");
 }
 
 TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
