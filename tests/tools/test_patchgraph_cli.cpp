@@ -32,16 +32,19 @@ CliRun run(const std::string& binary, const std::string& args) {
 
 CliRun patchgraph(const std::string& args) { return run(PATCHGRAPH_PATH, args); }
 
+// tacsim render of a repository scene (its path under scenes/), with `args` (-q, --out, ...).
+CliRun render_scene(const std::string& scene, const std::string& args) {
+  return run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) + "/scenes/" + scene + " " + args);
+}
+
 // One small dataset for the whole suite: the default cube scene, 60 frames.
 class PatchgraphCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = fs::temp_directory_path() / ("pg_pgcli_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
-    const CliRun r =
-        run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                             "/scenes/default.json -q --outputs color,normal,mask --out " +
-                             (dir_ / "data").string());
+    const CliRun r = render_scene(
+        "default.json", "-q --outputs color,normal,mask --out " + (dir_ / "data").string());
     ASSERT_EQ(r.code, 0) << r.out;
   }
   static void TearDownTestSuite() { fs::remove_all(dir_); }
@@ -546,10 +549,9 @@ TEST_F(PatchgraphCli, AFrameThatShowsNoChangeIsNoContact) {
 }
 
 TEST_F(PatchgraphCli, ADatasetOfAnotherSizeThanTheModelIsRefusedBeforeTracking) {
-  const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                               "/scenes/examples/sphere_press.json -q --width 60 "
-                                               "--height 80 --outputs color --out " +
-                                               out("small"));
+  const CliRun rendered =
+      render_scene("examples/sphere_press.json",
+                   "-q --width 60 --height 80 --outputs color --out " + out("small"));
   ASSERT_EQ(rendered.code, 0) << rendered.out;
   const CliRun r = patchgraph("track " + out("small") + " -q --normals " + kDefaultModel +
                               " --out " + out("track_small"));
@@ -654,10 +656,8 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
 // sensor's patch in patch.ply; the render's folder of them stands for them.
 TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   const std::string render = out("regrasp");
-  const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                        "/scenes/examples/two_digits_regrasp.json -q --outputs "
-                                        "normal --out " +
-                                        render);
+  const CliRun r =
+      render_scene("examples/two_digits_regrasp.json", "-q --outputs normal --out " + render);
   ASSERT_EQ(r.code, 0) << r.out;
   const std::string below = render + "/digit_below", side = render + "/digit_side";
   const CliRun both = patchgraph("track " + below + " " + side + " -q --out " + out("both"));
@@ -799,10 +799,8 @@ TEST_F(PatchgraphCli, EvalTracksARenderOfSeveralSensorsAsOneSequence) {
   fs::remove_all(root);
   fs::create_directories(root);
   fs::copy(data(), root + "/cube", fs::copy_options::recursive);
-  const CliRun r = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                        "/scenes/examples/two_digits_regrasp.json -q --outputs "
-                                        "normal --out " +
-                                        root + "/grasp");
+  const CliRun r = render_scene("examples/two_digits_regrasp.json",
+                                "-q --outputs normal --out " + root + "/grasp");
   ASSERT_EQ(r.code, 0) << r.out;
   const CliRun e = patchgraph("eval --datasets " + root + " --methods patchgraph --no-plots -q " +
                               "--out " + out("eval_sensors_out"));
@@ -1056,15 +1054,13 @@ TEST_F(PatchgraphCli, ARecordingTakesItsFramesInNameOrderAndSaysWhenNumbersAreUn
 }
 
 // A real camera's no-contact image carries its noise (the renderer's sigma 7 here). One such
-// image as the reference is warned about (it made the default model see contact in 8 of 10
+// image as the reference is warned about (it made the default model see contact in 20 of 20
 // frames without any); several, or a folder of them, become their per-pixel median, quiet enough;
 // a reference kept among the frames is not a frame. A recording's sensor poses are measured:
 // tracking it adds no simulated noise unless asked.
 TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
-  const CliRun rendered = run(TACSIM_PATH, "render " + std::string(PG_SOURCE_DIR) +
-                                               "/scenes/examples/no_contact.json -q --outputs "
-                                               "color --out " +
-                                               out("still_gel"));
+  const CliRun rendered =
+      render_scene("examples/no_contact.json", "-q --outputs color --out " + out("still_gel"));
   ASSERT_EQ(rendered.code, 0) << rendered.out;
   const fs::path frames = dir_ / "still_frames";
   fs::remove_all(frames);

@@ -130,6 +130,40 @@ struct FrameLabel {
   BallPress press;
 };
 
+// Presses at many places leave each pixel untouched in most frames. Pixels that differ from the
+// reference in nearly every frame are the reference's own: a press in it (or other lighting),
+// against which every label would be measured. Counted on at most 31 frames, evenly spaced,
+// as the frames are read for their presses.
+class ReferenceChange {
+ public:
+  ReferenceChange(const ImageU8& reference, int frames)
+      : reference_(reference),
+        frames_(frames),
+        step_((frames + 30) / 31),
+        times_(std::size_t(reference.width) * reference.height, 0) {}
+
+  void add(int frame, const ImageU8& color) {
+    if (frame % step_ != 0) return;
+    ++sampled_;
+    for_each_changed_pixel(color, reference_, [&](int x, int y) {
+      ++times_[std::size_t(y) * reference_.width + x];
+      return true;
+    });
+  }
+
+  // The pixels changed in at least 80 % of the sampled frames (0 for fewer than 5 frames).
+  int persistent_pixels() const {
+    if (frames_ < 5) return 0;
+    return int(
+        std::count_if(times_.begin(), times_.end(), [&](int n) { return n >= 0.8 * sampled_; }));
+  }
+
+ private:
+  const ImageU8& reference_;
+  int frames_, step_, sampled_ = 0;
+  std::vector<int> times_;
+};
+
 std::string circles_csv(const std::vector<FrameLabel>& labels) {
   std::string text =
       "frame,labelled_frame,status,u_px,v_px,radius_px,centre_x_m,centre_y_m,centre_z_m,"
@@ -208,29 +242,6 @@ int run_label_ball(const LabelBallArgs& a) {
        reference_warnings(reference, "the no-contact reference of " + a.dataset)) {
     std::fprintf(stderr, "warning: %s\n", w.c_str());
   }
-  // Presses at many places leave each pixel untouched in most frames. Pixels that differ from
-  // the reference in nearly every frame are the reference's own: a press in it (or other
-  // lighting), against which every label would be measured.
-  if (d.frames() >= 5) {
-    const int step = (d.frames() + 30) / 31;  // at most 31 frames
-    std::vector<int> times(std::size_t(reference.width) * reference.height, 0);
-    int sampled = 0;
-    for (int f = 0; f < d.frames(); f += step, ++sampled) {
-      for_each_changed_pixel(d.color(f), reference, [&](int x, int y) {
-        ++times[std::size_t(y) * reference.width + x];
-        return true;
-      });
-    }
-    const int always =
-        int(std::count_if(times.begin(), times.end(), [&](int n) { return n >= 0.8 * sampled; }));
-    if (always >= kMinPressPixels) {
-      std::fprintf(stderr,
-                   "warning: %d px of the no-contact reference of %s differ from at least 80 %% "
-                   "of its frames: does it show a press itself, or other lighting? (Unless most "
-                   "presses are at one place.)\n",
-                   always, a.dataset.c_str());
-    }
-  }
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   const std::map<int, GivenCircle> given =
       a.circles.empty() ? std::map<int, GivenCircle>{} : read_circles(a.circles, rays, d.frames());
@@ -251,9 +262,12 @@ int run_label_ball(const LabelBallArgs& a) {
   // frame has one.
   std::vector<FrameLabel> labels(std::size_t(d.frames()));
   int presses = 0, no_press = 0;
+  ReferenceChange reference_change(reference, d.frames());
   {
     Progress progress("finding presses", d.frames(), !a.quiet);
     for (int f = 0; f < d.frames(); ++f) {
+      const ImageU8 color = d.color(f);
+      reference_change.add(f, color);
       FrameLabel& l = labels[std::size_t(f)];
       const auto it = given.find(f);
       l.given = it != given.end();
@@ -262,12 +276,11 @@ int run_label_ball(const LabelBallArgs& a) {
         l.press.reason = "no press (--circles)";
       } else if (l.given) {
         const Eigen::Vector3d& c = *it->second;
-        l.press =
-            ball_press_from_circle(d.color(f), reference, rays, c.head<2>(), c.z(), radius, gel);
+        l.press = ball_press_from_circle(color, reference, rays, c.head<2>(), c.z(), radius, gel);
         if (!l.press.found) l.press.reason = "--circles: " + l.press.reason;
         l.kind = l.press.found ? FrameLabel::kPress : FrameLabel::kSkipped;
       } else {
-        l.press = find_ball_press(d.color(f), reference, rays, radius, gel);
+        l.press = find_ball_press(color, reference, rays, radius, gel);
         l.kind = l.press.found       ? FrameLabel::kPress
                  : l.press.no_change ? FrameLabel::kNoPress
                                      : FrameLabel::kSkipped;
@@ -276,6 +289,14 @@ int run_label_ball(const LabelBallArgs& a) {
       no_press += l.kind == FrameLabel::kNoPress;
       progress.update(f + 1);
     }
+  }
+  const int persistent = reference_change.persistent_pixels();
+  if (persistent >= kMinPressPixels) {
+    std::fprintf(stderr,
+                 "warning: %d px of the no-contact reference of %s differ from at least 80 %% "
+                 "of its frames: does it show a press itself, or other lighting? (Unless most "
+                 "presses are at one place.)\n",
+                 persistent, a.dataset.c_str());
   }
   if (presses == 0) {
     const bool all_given = std::all_of(labels.begin(), labels.end(), [](const FrameLabel& l) {
