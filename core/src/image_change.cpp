@@ -7,6 +7,47 @@
 
 namespace pg {
 
+int ChangedRegions::largest() const {
+  if (sizes.empty()) return -1;
+  return int(std::max_element(sizes.begin(), sizes.end()) - sizes.begin());
+}
+
+int ChangedRegions::pixels_in_regions_of(int min_size) const {
+  int pixels = 0;
+  for (const int size : sizes) pixels += size >= min_size ? size : 0;
+  return pixels;
+}
+
+ChangedRegions changed_regions(const ImageU8& color, const ImageU8& reference) {
+  const int w = color.width, h = color.height;
+  ChangedRegions r;
+  r.region.assign(std::size_t(w) * h, -1);
+  std::vector<int> changed_at;
+  for_each_changed_pixel(color, reference, [&](int x, int y) {
+    changed_at.push_back(y * w + x);
+    return true;
+  });
+  r.changed = int(changed_at.size());
+  // Marked -2 first: changed, in no region yet.
+  for (const int i : changed_at) r.region[std::size_t(i)] = -2;
+  std::vector<int> stack;
+  for (const int start : changed_at) {
+    if (r.region[std::size_t(start)] != -2) continue;
+    const int index = int(r.sizes.size());
+    int size = 1;
+    r.region[std::size_t(start)] = index;
+    stack.assign(1, start);
+    flood_fill(
+        w, h, stack, [&](int j) { return r.region[std::size_t(j)] == -2; },
+        [&](int j) {
+          r.region[std::size_t(j)] = index;
+          ++size;
+        });
+    r.sizes.push_back(size);
+  }
+  return r;
+}
+
 ImageU8 median_image(const std::vector<ImageU8>& images) {
   if (images.empty()) throw std::invalid_argument("median_image: no images");
   for (const ImageU8& image : images) {

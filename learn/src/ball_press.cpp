@@ -26,25 +26,6 @@ constexpr double kEdgeSlackPx = 2.0;
 // The four neighbours of a pixel.
 constexpr int kDx[4] = {-1, 1, 0, 0}, kDy[4] = {0, 0, -1, 1};
 
-// Flood fill from the pixels in `stack`: calls visit(j) for each 4-neighbour j of a filled pixel
-// that accept(j) allows; visit must make accept(j) false for j (mark it), and j is filled next.
-template <typename Accept, typename Visit>
-void flood(int w, int h, std::vector<int>& stack, Accept&& accept, Visit&& visit) {
-  while (!stack.empty()) {
-    const int i = stack.back();
-    stack.pop_back();
-    const int x = i % w, y = i / w;
-    for (int k = 0; k < 4; ++k) {
-      const int nx = x + kDx[k], ny = y + kDy[k];
-      if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
-      const int j = ny * w + nx;
-      if (!accept(j)) continue;
-      visit(j);
-      stack.push_back(j);
-    }
-  }
-}
-
 std::string format(const char* fmt, double a, double b = 0) {
   char text[256];
   std::snprintf(text, sizeof(text), fmt, a, b);
@@ -123,8 +104,9 @@ bool place_at(const GelRays& rays, const Eigen::Vector3d& centre, double radius_
   }
   if (press->depth_m > max_indentation_m) {
     press->reason = format(
-        "the fitted ball is %.2f mm deep, deeper than the gel takes (%.2f mm): "
-        "is the diameter right?",
+        "the fitted ball is %.2f mm deep, deeper than the gel takes (%.2f mm, the sensor's "
+        "max_indentation_m): a press to the gel's bottom, whose shape the ball no longer "
+        "gives, or a wrong diameter",
         press->depth_m * 1e3, max_indentation_m * 1e3);
     return false;
   }
@@ -229,13 +211,8 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
                      std::vector<Eigen::Vector2d>* boundary, std::vector<Eigen::Vector2d>* at_edge,
                      BallPress* none) {
   const int w = color.width, h = color.height;
-  std::vector<char> changed(std::size_t(w) * h, 0);
-  int changed_count = 0;
-  for_each_changed_pixel(color, reference, [&](int x, int y) {
-    changed[std::size_t(y) * w + x] = 1;
-    ++changed_count;
-    return true;
-  });
+  const ChangedRegions changes = changed_regions(color, reference);
+  const int changed_count = changes.changed;
   if (changed_count < kMinPressPixels) {
     none->no_change = true;
     none->reason = format(
@@ -251,29 +228,12 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
         100.0 * changed_count / (w * h));
     return false;
   }
-  // The largest 4-connected region of changed pixels.
-  std::vector<int> label(changed.size(), -1), stack;
-  int best = -1, best_size = 0;
-  std::vector<int> sizes;
-  for (int start = 0; start < w * h; ++start) {
-    if (!changed[std::size_t(start)] || label[std::size_t(start)] >= 0) continue;
-    int size = 1;
-    stack.assign(1, start);
-    label[std::size_t(start)] = start;
-    flood(
-        w, h, stack, [&](int j) { return changed[std::size_t(j)] && label[std::size_t(j)] < 0; },
-        [&](int j) {
-          label[std::size_t(j)] = start;
-          ++size;
-        });
-    sizes.push_back(size);
-    if (size > best_size) {
-      best_size = size;
-      best = start;
-    }
-  }
+  const std::vector<int>& label = changes.region;
+  const int best = changes.largest();
+  const int best_size = changes.sizes[std::size_t(best)];
   // Changes of a tenth of the largest or more (and at least a press's) are contacts; smaller ones
   // (a speck of dust, a noise cluster) are left out.
+  std::vector<int> sizes = changes.sizes;
   std::sort(sizes.begin(), sizes.end(), std::greater<int>());
   const int regions = int(std::count_if(sizes.begin(), sizes.end(), [&](int size) {
     return size >= kMinPressPixels && size * kSecondContactFraction >= best_size;
@@ -303,8 +263,8 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
   }
   // Its holes filled (a press's flat middle may look like the reference): every pixel that the
   // image's border cannot reach without crossing the region.
-  std::vector<char> outside(changed.size(), 0);
-  stack.clear();
+  std::vector<char> outside(label.size(), 0);
+  std::vector<int> stack;
   for (int i = 0; i < w * h; ++i) {
     const int x = i % w, y = i / w;
     if ((x == 0 || y == 0 || x == w - 1 || y == h - 1) && label[std::size_t(i)] != best) {
@@ -312,7 +272,7 @@ bool change_boundary(const ImageU8& color, const ImageU8& reference,
       stack.push_back(i);
     }
   }
-  flood(
+  flood_fill(
       w, h, stack, [&](int j) { return !outside[std::size_t(j)] && label[std::size_t(j)] != best; },
       [&](int j) { outside[std::size_t(j)] = 1; });
   // The change test's 3x3 mean reaches one pixel beyond a sharp change: the region less its

@@ -54,6 +54,46 @@ TEST(ImageChange, ASaturatedReferenceIsWarnedAbout) {
       << warnings[0];
 }
 
+// Changed pixels come in 4-connected regions: a press's disc is one, a touching corner another,
+// a noisy reference's scattered changes are specks of a few pixels.
+TEST(ImageChange, ChangedPixelsFormRegions) {
+  const ImageU8 reference = shaded(0.0, 5);
+  ImageU8 pressed = reference;
+  const auto darken = [&](int x, int y) {
+    for (int c = 0; c < 3; ++c) pressed.at(x, y, c) = std::uint8_t(pressed.at(x, y, c) / 2);
+  };
+  for (int y = 30; y < 50; ++y) {
+    for (int x = 30; x < 50; ++x) {
+      if (std::pow(x - 40, 2) + std::pow(y - 40, 2) <= 64) darken(x, y);  // a disc, radius 8
+    }
+  }
+  for (int y = 120; y < 124; ++y) {
+    for (int x = 90; x < 94; ++x) darken(x, y);  // a 4 x 4 square
+  }
+  const ChangedRegions changes = changed_regions(pressed, reference);
+  ASSERT_EQ(changes.sizes.size(), 2u);
+  // The 3x3 mean reaches a pixel beyond a sharp change: the disc's radius 9 or so, the square 6
+  // x 6.
+  EXPECT_NEAR(changes.sizes[0], 3.14159 * 81, 30);
+  EXPECT_EQ(changes.sizes[1], 36);
+  EXPECT_EQ(changes.largest(), 0);
+  EXPECT_EQ(changes.changed, changes.sizes[0] + 36);
+  EXPECT_EQ(changes.pixels_in_regions_of(37), changes.sizes[0]);
+  EXPECT_EQ(changes.region[40 * 120 + 40], 0);
+  EXPECT_EQ(changes.region[121 * 120 + 91], 1);
+  EXPECT_EQ(changes.region[5 * 120 + 5], -1);
+  int labelled = 0;
+  for (const int r : changes.region) labelled += r >= 0;
+  EXPECT_EQ(labelled, changes.changed);
+
+  // One noisy frame against another (sigma 7 each): about a hundred changed pixels, in specks.
+  const ChangedRegions noise = changed_regions(shaded(7.0, 6), shaded(7.0, 7));
+  EXPECT_GT(noise.changed, 30);
+  EXPECT_LT(noise.sizes[std::size_t(noise.largest())], kSpeckPixels);
+  EXPECT_EQ(noise.pixels_in_regions_of(kSpeckPixels), 0);
+  EXPECT_EQ(changed_regions(reference, reference).largest(), -1);
+}
+
 TEST(ImageChange, TheMedianOfFramesIsPerPixelAndQuieter) {
   ImageU8 a(2, 1, 1), b(2, 1, 1), c(2, 1, 1);
   a.data = {10, 200};

@@ -62,14 +62,6 @@ bool is_dropout(const ImageU8& color) {
   return true;
 }
 
-// How many pixels of a colour frame differ from the no-contact reference beyond the camera's
-// noise (pg/core/image_change.h), counted up to `limit`.
-int changed_pixels(const ImageU8& color, const ImageU8& background, int limit) {
-  int changed = 0;
-  for_each_changed_pixel(color, background, [&](int, int) { return ++changed < limit; });
-  return changed;
-}
-
 }  // namespace
 
 bool object_frame_is_sensor(const std::vector<FramePose>& poses, const std::string& poses_csv) {
@@ -336,21 +328,25 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     for (std::size_t k = 0; k < feeds.size(); ++k) {
       SensorFeed& feed = feeds[k];
       const bool dropout = feed.frame >= 0 && learned && is_dropout(feed.color);
-      // With learned normals, the pixels that differ from the reference beyond the camera's
-      // noise, counted to just past half the image (in one pass: a press changes far less).
+      // With learned normals, where the frame differs from the reference beyond the camera's
+      // noise: in specks only (the noise of a noisy reference), in regions of a contact's size,
+      // or over more than half the image (more than a press changes).
       const int half = feed.color.width * feed.color.height / 2;
-      const int changed = feed.frame >= 0 && learned && !dropout
-                              ? changed_pixels(feed.color, feed.background, half + 1)
-                              : 0;
+      int changed = 0, in_regions = 0;
+      if (feed.frame >= 0 && learned && !dropout) {
+        const ChangedRegions changes = changed_regions(feed.color, feed.background);
+        changed = changes.changed;
+        in_regions = changes.pixels_in_regions_of(kSpeckPixels);
+      }
       if (feed.frame < 0) {
         // No image of this sensor at this time: its measurement is missing, no pixel is bad.
         feed.builder.build_unreadable(feed.contact);
         feed.contact.rejected_normals = 0;
       } else if (dropout) {
         feed.builder.build_unreadable(feed.contact);  // nothing to estimate normals from
-      } else if (learned && changed < feed.builder.min_contact_pixels()) {
-        // A frame no different from the reference beyond the camera's noise: nothing pressed,
-        // no normals to estimate.
+      } else if (learned && in_regions < feed.builder.min_contact_pixels()) {
+        // A frame no different from the reference beyond the camera's noise, or only in specks:
+        // nothing pressed, no normals to estimate.
         feed.builder.build_untouched(feed.contact);
       } else {
         // More than half the image changed: more than a press changes.
