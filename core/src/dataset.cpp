@@ -47,11 +47,12 @@ bool is_position_column(int c) {
 
 std::string extension_of(const std::string& output) {
   if (output == "points") return ".ply";
+  if (output == "normal_png") return ".png";
   return (output == "normal" || output == "depth") ? ".exr" : ".png";
 }
 
 int channels_of(const std::string& output) {
-  return (output == "color" || output == "normal") ? 3 : 1;
+  return (output == "color" || output == "normal" || output == "normal_png") ? 3 : 1;
 }
 
 void check_shape(const std::string& path, const ImageShape& got, int w, int h, int c) {
@@ -69,18 +70,24 @@ void check_image(const std::string& path, const Image<T>& image, int w, int h, i
 }
 
 nlohmann::json info_to_json(const DatasetInfo& info) {
-  return {{"format", "patchgraph-dataset"},
-          {"version", kFormatVersion},
-          {"sensor", sensor_to_json(info.sensor)},
-          {"width", info.width()},
-          {"height", info.height()},
-          {"frames", info.frames},
-          {"fps", info.fps},
-          {"outputs", info.outputs},
-          {"scene", info.scene},
-          {"seed", info.seed},
-          {"object", {{"name", info.object_name}, {"mesh", info.object_mesh},
-                      {"scale", info.object_scale}}}};
+  nlohmann::json j = {
+      {"format", "patchgraph-dataset"},
+      {"version", kFormatVersion},
+      {"sensor", sensor_to_json(info.sensor)},
+      {"width", info.width()},
+      {"height", info.height()},
+      {"frames", info.frames},
+      {"fps", info.fps},
+      {"outputs", info.outputs},
+      {"scene", info.scene},
+      {"seed", info.seed},
+      {"object",
+       {{"name", info.object_name}, {"mesh", info.object_mesh}, {"scale", info.object_scale}}}};
+  if (!info.scene.empty()) {
+    j["render"] = {{"shadows", info.shadows},
+                   {"background", info.background.empty() ? "synthetic" : info.background}};
+  }
+  return j;
 }
 
 DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
@@ -117,6 +124,13 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
     info.object_scale = o.number_in("scale", 1e-9, 1e9, 1.0);
     o.finish();
   }
+  if (f.has("render")) {
+    JsonFields r(f.at("render"), f.field("render"));
+    info.shadows = r.optional<bool>("shadows", false);
+    info.background = r.optional<std::string>("background", "synthetic");
+    if (info.background == "synthetic") info.background.clear();
+    r.finish();
+  }
   f.finish();
   return info;
 }
@@ -124,7 +138,8 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
 }  // namespace
 
 const std::vector<std::string>& dataset_output_names() {
-  static const std::vector<std::string> names = {"color", "normal", "depth", "mask", "points"};
+  static const std::vector<std::string> names = {"color", "normal", "normal_png",
+                                                 "depth", "mask",   "points"};
   return names;
 }
 
@@ -334,6 +349,12 @@ void DatasetWriter::write_frame(const FramePose& pose, const FrameImages& images
     const std::string path = dataset_frame_path(dir_, o, pose.frame);
     if (o == "color") check_image(path, images.color, w, h, 3), write_image(path, images.color);
     if (o == "normal") check_image(path, images.normal, w, h, 3), write_image(path, images.normal);
+    if (o == "normal_png") {
+      check_image(path, images.normal, w, h, 3);
+      ImageF encoded = images.normal;
+      for (float& v : encoded.data) v = 0.5f * (v + 1.0f);
+      write_image_u16(path, encoded);
+    }
     if (o == "depth") check_image(path, images.depth, w, h, 1), write_image(path, images.depth);
     if (o == "mask") check_image(path, images.mask, w, h, 1), write_image(path, images.mask);
     if (o == "points") write_ply(path, images.contact_points);
@@ -531,6 +552,16 @@ std::vector<int> Dataset::reference_frames() const {
 
 ImageF Dataset::normal(int frame) const {
   return read_checked<float>(*this, "normal", frame, read_float_file);
+}
+ImageF Dataset::normal_png(int frame) const {
+  ImageF n = read_checked<float>(*this, "normal_png", frame, read_image_float);
+  for (std::size_t i = 0; i < n.data.size(); i += 3) {
+    Eigen::Vector3f v(2 * n.data[i] - 1, 2 * n.data[i + 1] - 1, 2 * n.data[i + 2] - 1);
+    const float norm = v.norm();
+    if (norm > 0) v /= norm;
+    for (int c = 0; c < 3; ++c) n.data[i + std::size_t(c)] = v[c];
+  }
+  return n;
 }
 ImageF Dataset::depth(int frame) const {
   return read_checked<float>(*this, "depth", frame, read_float_file);

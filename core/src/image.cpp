@@ -54,7 +54,8 @@ bool holds_float(const std::string& path) {
 }
 
 template <typename T>
-void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_type) {
+void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_type,
+           OIIO::TypeDesc file_type = OIIO::TypeDesc::UNKNOWN) {
   if (image.empty() || image.channels < 1 || image.channels > 4) {
     throw InputError(path + ": refusing to write an empty image or one with " +
                      std::to_string(image.channels) + " channels");
@@ -62,8 +63,10 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
   auto out = OIIO::ImageOutput::create(path);
   if (!out) throw InputError(path + ": no image writer for this extension: " + OIIO::geterror());
   // Float data goes to float files where the format supports it, 8 bits otherwise.
-  OIIO::TypeDesc file_type = mem_type;
-  if (mem_type == OIIO::TypeDesc::FLOAT && !holds_float(path)) file_type = OIIO::TypeDesc::UINT8;
+  if (file_type == OIIO::TypeDesc::UNKNOWN) {
+    file_type = mem_type;
+    if (mem_type == OIIO::TypeDesc::FLOAT && !holds_float(path)) file_type = OIIO::TypeDesc::UINT8;
+  }
   OIIO::ImageSpec spec(image.width, image.height, image.channels, file_type);
   // OpenImageIO stamps EXR files with the time of writing unless told a date; an empty one keeps
   // two writes of the same pixels byte-identical, so datasets can be compared by checksum.
@@ -110,6 +113,10 @@ void write_image(const std::string& path, const ImageF& image) {
 
 void write_image(const std::string& path, const ImageU8& image) {
   write(path, image, OIIO::TypeDesc::UINT8);
+}
+
+void write_image_u16(const std::string& path, const ImageF& image) {
+  write(path, image, OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::UINT16);
 }
 
 ImageShape read_image_shape(const std::string& path) {

@@ -121,7 +121,8 @@ void SensorRenderer::State::record_hit(Workspace& ws, int i, int obj, float t,
   const float pen = inside ? std::numeric_limits<float>::infinity() : gel.t_gel[i] - t;
   if (pen <= 0.0f || pen <= ws.rigid[i]) return;
   ws.rigid[i] = pen;
-  ws.hit_t[i] = inside ? gel.t_gel[i] - slab_m() : t;
+  // A ray that starts inside the object meets no surface of it: no contact point there.
+  ws.hit_t[i] = inside ? std::numeric_limits<float>::quiet_NaN() : t;
   ws.hit_object[i] = std::int16_t(obj);
 }
 

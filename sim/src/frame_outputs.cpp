@@ -3,6 +3,7 @@
 // ground-truth images. Rendering into a frame this renderer filled before rewrites only the
 // pixels that differ from the no-contact images, then or now (and the colour's noise).
 #include <algorithm>
+#include <cmath>
 
 #include "render_state.h"
 
@@ -335,7 +336,9 @@ void SensorRenderer::State::write_ground_truth(const std::vector<SE3>& T_sensor_
     for (int y = r.y0; y < r.y1; ++y)
       for (int x = r.x0; x < r.x1; ++x) {
         const int i = gel.index(x, y);
-        if (ws.rigid[i] <= 0.0f) continue;
+        // Where the object reaches past the gel's maximum indentation the ray may start inside
+        // it (hit_t NaN): no surface point is known there.
+        if (ws.rigid[i] <= 0.0f || std::isnan(ws.hit_t[i])) continue;
         const int obj = ws.hit_object[i];
         const Eigen::Vector3d p_sensor =
             (gel.origin_sensor + gel.dir_sensor[i] * ws.hit_t[i]).cast<double>();

@@ -28,7 +28,7 @@ RenderSettings settings_for(const SceneRender& render, const std::vector<std::st
     return std::find(outputs.begin(), outputs.end(), name) != outputs.end();
   };
   s.color = wants("color");
-  s.normal = wants("normal");
+  s.normal = wants("normal") || wants("normal_png");
   s.depth = wants("depth");
   s.mask = wants("mask");
   s.contact_points = wants("points");
@@ -116,6 +116,10 @@ DatasetInfo dataset_info(const SceneRenderer& renderer, int k) {
   info.object_name = tracked.name;
   info.object_mesh = fs::absolute(tracked.mesh_path).lexically_normal().string();
   info.object_scale = tracked.scale;
+  info.shadows = scene.render.shadows;
+  if (!scene.render.background.empty()) {
+    info.background = fs::absolute(scene.render.background).lexically_normal().string();
+  }
   return info;
 }
 

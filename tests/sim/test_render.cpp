@@ -403,15 +403,24 @@ TEST(RenderBadInput, OpenMeshRendersWhereItCrossesTheGel) {
   EXPECT_TRUE(left == 0 || right == 0) << left << " " << right;
 }
 
+// A press twice as deep as the gel allows: the indentation is clamped, and the contact points
+// are the object's surface only where a ray meets it (where the ray starts inside the sphere,
+// past the gel's base, there is none; they were put on the gel's base, up to 3 mm inside it).
 TEST(RenderBadInput, PenetrationBeyondTheGelIsClampedAndCounted) {
   SensorModel sensor = flat_digit("digit");
-  const SensorRenderer r(sensor, {sphere_shape()}, quiet_settings());
+  RenderSettings s = quiet_settings();
+  s.contact_points = true;
+  const SensorRenderer r(sensor, {sphere_shape()}, s);
   const RenderedFrame f = r.render({pressed_sphere(0, 0, 0.004)}, 0);
   EXPECT_GT(f.stats.clamped_pixels, 100);
   float deepest = 0;
   for (float d : f.images.depth.data) deepest = std::max(deepest, d);
   EXPECT_NEAR(deepest, sensor.gel.max_indentation_m, 1e-9);
   for (float n : f.images.normal.data) ASSERT_TRUE(std::isfinite(n));
+  const auto& points = f.contact_points_object.at(0);
+  ASSERT_GT(points.size(), 100u);
+  EXPECT_LT(int(points.size()), f.stats.contact_pixels);
+  for (const auto& p : points) ASSERT_NEAR(p.norm(), kRadius, 2e-6);
 }
 
 TEST(RenderBadInput, MissingBackgroundImageNamesThePath) {

@@ -95,18 +95,52 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
       << wide.out;
 }
 
+// A sensor over-exposed into white (or dark into black) over much of its image cannot show a press
+// there: the render warns, naming the sensor; the preset's does not.
+TEST(TacsimCli, AnOverExposedSensorIsWarnedAbout) {
+  TempDir tmp;
+  const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
+  for (const auto& [exposure, warned] : {std::pair<double, bool>{0.9, false}, {5.0, true}}) {
+    std::ofstream(tmp.str("bright.json"))
+        << R"({"frames": 1, "sensors": [{"name": "left", "sensor": {"shading": {"exposure": )"
+        << exposure << R"(}}}], "objects": [{"mesh": ")" << mesh
+        << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": ["color"]}})";
+    const CliRun r = tacsim("render " + tmp.str("bright.json") + " -q --out " + tmp.str("d"));
+    ASSERT_EQ(r.code, 0) << r.out;
+    EXPECT_EQ(r.out.find("warning: sensor left's no-contact image (background.png): ") !=
+                  std::string::npos,
+              warned)
+        << exposure << ": " << r.out;
+    EXPECT_EQ(r.out.find("of its pixels are clipped white or black") != std::string::npos, warned)
+        << r.out;
+  }
+}
+
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the
 // dataset) takes for present, is named with exit 1; an intact dataset reports what it read.
 TEST(TacsimCli, InfoCheckReadsEveryFrame) {
   TempDir tmp;
-  const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out " +
-                          tmp.str("d") + " --width 60 --height 80 --outputs color,normal,points");
+  const CliRun r =
+      tacsim("render " + kScenes + "examples/sphere_press.json -q --out " + tmp.str("d") +
+             " --width 60 --height 80 --outputs color,normal,normal_png,points");
   ASSERT_EQ(r.code, 0) << r.out;
   const CliRun intact = tacsim("info --check " + tmp.str("d"));
   EXPECT_EQ(intact.code, 0) << intact.out;
-  // 10 frames x 3 outputs, and background.png.
-  EXPECT_NE(intact.out.find("checked   31 frame files: each reads, at 60x80"), std::string::npos)
+  // 10 frames x 4 outputs, and background.png.
+  EXPECT_NE(intact.out.find("checked   41 frame files: each reads, at 60x80"), std::string::npos)
       << intact.out;
+  // The normals as 16-bit PNG, (n + 1) / 2: the EXR's to a 65535th.
+  const Dataset d = Dataset::open(tmp.str("d"));
+  const ImageF exact = d.normal(5), coded = d.normal_png(5);
+  ASSERT_EQ(coded.data.size(), exact.data.size());
+  float worst = 0, tilted = 0;
+  for (std::size_t i = 0; i < exact.data.size(); ++i) {
+    worst = std::max(worst, std::abs(coded.data[i] - exact.data[i]));
+    if (i % 3 == 2) tilted = std::max(tilted, 1 - exact.data[i]);
+  }
+  EXPECT_LT(worst, 5e-5f);
+  EXPECT_GT(tilted, 0.05f);  // the press's slopes (up to 25 deg) are in it
+  EXPECT_EQ(read_image_shape(dataset_frame_path(tmp.str("d"), "normal_png", 5)).channels, 3);
   const std::string victim = dataset_frame_path(tmp.str("d"), "normal", 4);
   fs::resize_file(victim, fs::file_size(victim) / 2);
   EXPECT_EQ(tacsim("info " + tmp.str("d")).code, 0) << "the file exists";
@@ -135,7 +169,24 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
     const CliRun r = tacsim("render " + scene + " -q --outputs mask --out " + tmp.str("d"));
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(Dataset::open(tmp.str("d")).info().sensor.noise.sigma, sigma) << scene;
+    EXPECT_FALSE(Dataset::open(tmp.str("d")).info().shadows);
+    EXPECT_EQ(Dataset::open(tmp.str("d")).info().background, "");
   }
+  // So do tacsim render's overrides of the scene's shading: shadows and a real background.
+  const std::string background = tmp.str("bg.png");
+  write_image(background, ImageU8(120, 160, 3));
+  const CliRun r =
+      tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask" +
+             " --shadows on --elastic off --background " + background + " --out " + tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const DatasetInfo info = Dataset::open(tmp.str("d")).info();
+  EXPECT_TRUE(info.shadows);
+  EXPECT_EQ(info.background, fs::absolute(background).lexically_normal().string());
+  const CliRun described = tacsim("info " + tmp.str("d"));
+  EXPECT_NE(described.out.find("render    rigid gel, noise sigma 7, shadows on, " +
+                               info.background + " background"),
+            std::string::npos)
+      << described.out;
 }
 
 TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {

@@ -20,6 +20,7 @@
 #include "bench.h"
 #include "pg/core/dataset.h"
 #include "pg/core/file_io.h"
+#include "pg/core/image_change.h"
 #include "pg/sim/scene_renderer.h"
 #include "presses.h"
 #include "sheet.h"
@@ -107,11 +108,27 @@ int run_render(const RenderArgs& a) {
                  "background only\n",
                  a.scene.c_str());
   }
+  // A sensor whose no-contact image is clipped white or black over much of it cannot show a
+  // press there (lights too bright or too dark): said, as recording and track say of a reference.
+  for (int k = 0; k < renderer.sensor_count(); ++k) {
+    const SensorRenderer& sensor = renderer.sensor(k);
+    if (!sensor.settings().color) continue;
+    const std::string what = "sensor " + renderer.scene().sensors[std::size_t(k)].name +
+                             "'s no-contact image (background.png)";
+    for (const std::string& warning : reference_warnings(sensor.background_color_u8(), what)) {
+      std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    }
+  }
   if (s.clamped_frames > 0) {
+    const std::vector<std::string>& outputs = renderer.scene().render.outputs;
+    const bool points = std::find(outputs.begin(), outputs.end(), "points") != outputs.end();
     std::fprintf(stderr,
                  "warning: %s: in %d frames an object penetrates beyond the gel's maximum "
-                 "indentation; the indentation was clamped there\n",
-                 a.scene.c_str(), s.clamped_frames);
+                 "indentation; the indentation was clamped there%s\n",
+                 a.scene.c_str(), s.clamped_frames,
+                 points ? ", and where the object reached past the gel's base no contact point "
+                          "is written"
+                        : "");
   }
   return kExitOk;
 }
@@ -125,6 +142,7 @@ long decode_every_frame(const Dataset& d) {
     for (int i = 0; i < d.frames(); ++i) {
       if (output == "color") d.color(i);
       if (output == "normal") d.normal(i);
+      if (output == "normal_png") d.normal_png(i);
       if (output == "depth") d.depth(i);
       if (output == "mask") d.mask(i);
       if (output == "points") d.contact_points(i);
@@ -169,6 +187,10 @@ int run_info(const std::string& dir, bool check) {
   }
   if (!info.scene.empty()) {
     std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
+    std::printf("render    %s gel, noise sigma %g, shadows %s, %s background\n",
+                info.sensor.gel.elastic.enabled ? "elastic" : "rigid", info.sensor.noise.sigma,
+                info.shadows ? "on" : "off",
+                info.background.empty() ? "the sensor's synthetic" : info.background.c_str());
   } else {
     std::printf("scene     none (a recording)\n");
   }
@@ -206,7 +228,8 @@ int main(int argc, char** argv) {
   cmd_render->add_option("--out,-o", render.out, "Output dataset folder")->required();
   cmd_render->add_option(
       "--outputs", render.outputs,
-      "Comma-separated outputs (color,normal,depth,mask,points); default: the scene's");
+      "Comma-separated outputs (color,normal,normal_png,depth,mask,points); default: the "
+      "scene's");
   cmd_render->add_option("--threads", render.threads, "Worker threads (default: all cores)")
       ->check(kThreads);
   add_image_size_options(*cmd_render, render.width, render.height, "the sensors' image");

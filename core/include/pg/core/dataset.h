@@ -7,6 +7,8 @@
 //   DIR/color/000000.png  8-bit RGB           DIR/normal/000000.exr  float xyz in S
 //   DIR/depth/000000.exr  indentation [m]     DIR/mask/000000.png    contact 0/255
 //   DIR/points/000000.ply the tracked object's contact points, in its own frame (optional)
+//   DIR/normal_png/000000.png  the normals as 16-bit RGB (n + 1) / 2, for tools without EXR
+//                         (optional)
 //   DIR/background.png    the sensor's no-contact colour image, noise free (with "color")
 #include <mutex>
 #include <string>
@@ -45,6 +47,10 @@ struct DatasetInfo {
   std::string object_name;  // the tracked object
   std::string object_mesh;  // its mesh file (absolute path), for model-based baselines
   double object_scale = 1.0;
+  // How a rendered dataset was shaded beyond its sensor (the scene's "render" block after tacsim
+  // render's overrides; unknown and left as here for a recording).
+  bool shadows = false;
+  std::string background;  // the real background image blended in (absolute path), "" if none
 
   bool has_output(const std::string& name) const;
   int width() const { return sensor.camera.width; }
@@ -107,6 +113,8 @@ class Dataset {
   // Each checks the image size and channel count against dataset.json.
   ImageU8 color(int frame) const;
   ImageF normal(int frame) const;
+  // The "normal_png" output decoded: 16-bit (n + 1) / 2, back to unit normals (about 3e-5 off).
+  ImageF normal_png(int frame) const;
   ImageF depth(int frame) const;
   ImageU8 mask(int frame) const;
   std::vector<Eigen::Vector3f> contact_points(int frame) const;

@@ -41,6 +41,9 @@ ImageF read_float_file(const std::string& path);
 // [0, 1] and quantised to 8 bits. Throws InputError naming the path on failure.
 void write_image(const std::string& path, const ImageF& image);
 void write_image(const std::string& path, const ImageU8& image);
+// Writes values in [0, 1] (clamped) as 16-bit integers 0-65535 (PNG, TIFF): images that tools
+// without float formats read. read_image_float reads them back scaled to [0, 1].
+void write_image_u16(const std::string& path, const ImageF& image);
 // Throws InputError naming the path unless write_image could write there: an image format that
 // OpenImageIO writes, in a folder that exists. For long jobs, to fail before the work.
 void check_image_output(const std::string& path);
