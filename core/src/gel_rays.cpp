@@ -5,6 +5,25 @@
 
 namespace pg {
 
+namespace {
+
+// The camera depth at which ray d (z = 1) meets the undeformed gel: the ray point at depth t is
+// (d.x t, d.y t, t - distance) in S, on the gel when z = surface_z(x, y); iterates
+// z <- surface_z(d (z + distance)).
+double gel_depth(const Eigen::Vector3d& d, const CameraModel& camera, const GelModel& gel) {
+  double z = 0.0;
+  for (int it = 0; it < 50; ++it) {
+    const double t = z + camera.distance_m;
+    const double z_next = gel.surface_z(d.x() * t, d.y() * t);
+    const bool done = std::abs(z_next - z) < 1e-13;
+    z = z_next;
+    if (done) break;
+  }
+  return z + camera.distance_m;
+}
+
+}  // namespace
+
 GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
   GelRays rays;
   rays.width = camera.width;
@@ -19,22 +38,27 @@ GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
   for (int y = 0; y < camera.height; ++y) {
     for (int x = 0; x < camera.width; ++x) {
       const Eigen::Vector3d d = camera.ray(x, y);
-      // The ray point at camera depth t is (d.x t, d.y t, t - distance) in S; on the gel when
-      // z = surface_z(x, y). Iterate z <- surface_z(d (z + distance)).
-      double z = 0.0;
-      for (int it = 0; it < 50; ++it) {
-        const double t = z + camera.distance_m;
-        const double z_next = gel.surface_z(d.x() * t, d.y() * t);
-        const bool done = std::abs(z_next - z) < 1e-13;
-        z = z_next;
-        if (done) break;
-      }
       const int i = rays.index(x, y);
       rays.dir_sensor[i] = d.cast<float>();
-      rays.t_gel[i] = float(z + camera.distance_m);
+      rays.t_gel[i] = float(gel_depth(d, camera, gel));
     }
   }
   return rays;
+}
+
+Eigen::Vector2d view_beyond_gel(const CameraModel& camera, const GelModel& gel) {
+  Eigen::Vector2d beyond = Eigen::Vector2d::Zero();
+  const auto reach = [&](int x, int y) {
+    const Eigen::Vector3d d = camera.ray(x, y);
+    const double t = gel_depth(d, camera, gel);
+    beyond.x() = std::max(beyond.x(), std::abs(d.x() * t) - 0.5 * gel.width_m);
+    beyond.y() = std::max(beyond.y(), std::abs(d.y() * t) - 0.5 * gel.height_m);
+  };
+  // The ray's x grows with the column and its y with the row: the image's border reaches
+  // farthest.
+  for (int x = 0; x < camera.width; ++x) reach(x, 0), reach(x, camera.height - 1);
+  for (int y = 0; y < camera.height; ++y) reach(0, y), reach(camera.width - 1, y);
+  return beyond;
 }
 
 ImageF sphere_indentation(const GelRays& rays, const Eigen::Vector3d& centre, double radius) {

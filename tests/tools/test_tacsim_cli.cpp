@@ -96,8 +96,9 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
 }
 
 // A sensor over-exposed into white (or dark into black) over much of its image cannot show a press
-// there: the render warns, naming the sensor; the preset's does not.
-TEST(TacsimCli, AnOverExposedSensorIsWarnedAbout) {
+// there, and one whose camera sees past the gel shows gel that is not there: the render warns,
+// naming the sensor; the preset's does not.
+TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
   TempDir tmp;
   const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
   for (const auto& [exposure, warned] : {std::pair<double, bool>{0.9, false}, {5.0, true}}) {
@@ -113,7 +114,20 @@ TEST(TacsimCli, AnOverExposedSensorIsWarnedAbout) {
         << exposure << ": " << r.out;
     EXPECT_EQ(r.out.find("of its pixels are clipped white or black") != std::string::npos, warned)
         << r.out;
+    EXPECT_EQ(r.out.find("past the gel"), std::string::npos) << r.out;
   }
+  // A camera whose view reaches past the gel (a field of view of 1.4 rad, the DIGIT's 1.05):
+  // the render draws gel where a real sensor shows its housing.
+  std::ofstream(tmp.str("wide.json"))
+      << R"({"frames": 1, "sensors": [{"name": "wide", "sensor": {"camera": {"fov_y_rad": 1.4}}}],
+             "objects": [{"mesh": ")"
+      << mesh << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": ["mask"]}})";
+  const CliRun r = tacsim("render " + tmp.str("wide.json") + " -q --out " + tmp.str("w"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: sensor wide's camera sees 2.3 mm past the gel's 20.0 x 30.0 mm "
+                       "along x and 0.4 mm along y"),
+            std::string::npos)
+      << r.out;
 }
 
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the

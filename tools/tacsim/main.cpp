@@ -20,6 +20,7 @@
 #include "bench.h"
 #include "pg/core/dataset.h"
 #include "pg/core/file_io.h"
+#include "pg/core/gel_rays.h"
 #include "pg/core/image_change.h"
 #include "pg/sim/scene_renderer.h"
 #include "presses.h"
@@ -108,13 +109,27 @@ int run_render(const RenderArgs& a) {
                  "background only\n",
                  a.scene.c_str());
   }
-  // A sensor whose no-contact image is clipped white or black over much of it cannot show a
-  // press there (lights too bright or too dark): said, as recording and track say of a reference.
   for (int k = 0; k < renderer.sensor_count(); ++k) {
     const SensorRenderer& sensor = renderer.sensor(k);
+    const std::string& name = renderer.scene().sensors[std::size_t(k)].name;
+    // A camera that sees past the gel (a wide field of view of a sensor of one's own): the
+    // renderer draws gel there, a real sensor its housing. More than a pixel is said.
+    const GelModel& gel = sensor.sensor().gel;
+    const CameraModel& camera = sensor.sensor().camera;
+    const Eigen::Vector2d beyond = view_beyond_gel(camera, gel);
+    if (beyond.maxCoeff() * camera.fy / camera.distance_m > 1.0) {
+      std::fprintf(stderr,
+                   "warning: sensor %s's camera sees %.1f mm past the gel's %.1f x %.1f mm along "
+                   "x and %.1f mm along y (gel.width_m, gel.height_m): the render draws gel "
+                   "there, where a real sensor's image shows its housing\n",
+                   name.c_str(), 1e3 * beyond.x(), 1e3 * gel.width_m, 1e3 * gel.height_m,
+                   1e3 * beyond.y());
+    }
+    // A sensor whose no-contact image is clipped white or black over much of it cannot show a
+    // press there (lights too bright or too dark): said, as recording and track say of a
+    // reference.
     if (!sensor.settings().color) continue;
-    const std::string what = "sensor " + renderer.scene().sensors[std::size_t(k)].name +
-                             "'s no-contact image (background.png)";
+    const std::string what = "sensor " + name + "'s no-contact image (background.png)";
     for (const std::string& warning : reference_warnings(sensor.background_color_u8(), what)) {
       std::fprintf(stderr, "warning: %s\n", warning.c_str());
     }

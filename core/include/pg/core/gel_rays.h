@@ -33,6 +33,11 @@ struct GelRays {
 // slope is small).
 GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel);
 
+// How far the image's pixel centres reach past the gel's own width_m x height_m on the undeformed
+// gel, along x and y [m] (0 where they stay within it). The renderer draws gel there, where a
+// real sensor shows its housing.
+Eigen::Vector2d view_beyond_gel(const CameraModel& camera, const GelModel& gel);
+
 // The rigid gel (TACTO's model) indented by a sphere of `radius` [m] centred at `centre` in S:
 // per pixel, how far in camera depth the sphere's near side lies in front of the undeformed
 // gel [m] (width x height x 1), 0 where it does not. Its surface normals there point to the centre.
