@@ -1,5 +1,8 @@
 #include "pg/core/file_io.h"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -67,8 +70,13 @@ void write_text_file(const std::string& path, std::string_view text) {
   if (const auto cause = try_write(path, text)) throw InputError(path + ": cannot write" + *cause);
 }
 
+std::string temporary_path_for(const std::string& path) {
+  static std::atomic<unsigned> count{0};
+  return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(count++);
+}
+
 void write_text_atomically(const std::string& path, std::string_view text) {
-  const std::string tmp = path + ".tmp";
+  const std::string tmp = temporary_path_for(path);
   std::error_code ec;
   if (const auto cause = try_write(tmp, text)) {
     fs::remove(tmp, ec);

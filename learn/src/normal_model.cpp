@@ -165,7 +165,7 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
   torch::serialize::OutputArchive weights;
   generator->save(weights);
   archive.write("generator", weights);
-  const std::string tmp = path + ".tmp";
+  const std::string tmp = temporary_path_for(path);
   std::error_code ec;
   try {
     archive.save_to(tmp);

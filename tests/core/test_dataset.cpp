@@ -1,9 +1,11 @@
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "../common/test_support.h"
@@ -514,12 +516,43 @@ TEST(FileIo, AFailedWriteNamesTheFileAndTheCause) {
   expect_input_error([&] { write_text_file(tmp.str("none/a.txt"), "x"); },
                      "none/a.txt: cannot write (No such file or directory)");
   write_text_atomically(tmp.str("a.txt"), "earlier");
-  fs::create_directory(tmp.str("a.txt.tmp/"));  // the temporary cannot be written
-  std::ofstream(tmp.str("a.txt.tmp/keep")) << "x";
+  // The next temporary name (this one's count plus one) made a folder: it cannot be written.
+  const std::string name = temporary_path_for(tmp.str("a.txt"));
+  const std::size_t dot = name.rfind('.');
+  const std::string next =
+      name.substr(0, dot + 1) + std::to_string(std::stoi(name.substr(dot + 1)) + 1);
+  fs::create_directory(next);
+  std::ofstream(next + "/keep") << "x";
   expect_input_error([&] { write_text_atomically(tmp.str("a.txt"), "new"); },
                      tmp.str("a.txt") + ": cannot write");
   std::ifstream in(tmp.str("a.txt"));
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "earlier");
+}
+
+// Two writers of one file at once (two runs given the same --out): each write is whole and none
+// fails (they shared one temporary name, and one's rename took the other's file away).
+TEST(FileIo, ConcurrentAtomicWritesOfOneFileEachLandWhole) {
+  TempDir tmp;
+  const std::string path = tmp.str("summary.json");
+  const std::string a(20000, 'a'), b(30000, 'b');
+  std::atomic<int> failures{0};
+  const auto writer = [&](const std::string& text) {
+    for (int i = 0; i < 200; ++i) {
+      try {
+        write_text_atomically(path, text);
+      } catch (const InputError&) {
+        ++failures;
+      }
+    }
+  };
+  std::thread first(writer, a), second(writer, b);
+  first.join();
+  second.join();
+  EXPECT_EQ(failures.load(), 0);
+  std::ifstream in(path);
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  EXPECT_TRUE(text == a || text == b) << text.size();
+  EXPECT_EQ(std::distance(fs::directory_iterator(tmp.path), fs::directory_iterator()), 1);
 }
 
 TEST(Image, FormatsRoundTrip) {

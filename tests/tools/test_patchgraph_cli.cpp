@@ -84,7 +84,9 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   };
   const std::string track = "track " + data() + " ";
   refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
-  refused(track + "--method icpgraph --out " + out("x"), 1, "unknown method 'icpgraph'");
+  refused(track + "--method icpgraph --out " + out("x"), 2, "--method: icpgraph not in");
+  refused("eval --datasets " + data() + " --methods icpgraph --out " + out("x"), 2,
+          "--methods: icpgraph not in");
   refused(track + "--normals unet.pt --out " + out("x"), 1, "unet.pt: model file not found");
   refused("eval-normals --model unet.pt --data " + data(), 1, "unet.pt: model file not found");
   refused("train-normals --data /no/such/data --out " + out("m.pt"), 1, "/no/such/data");
@@ -1137,6 +1139,8 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
       0);
   t = patchgraph(track + out("rec_still") + " --out " + out("rec_still_track"));
   ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("warning: no frame with contact: nothing was registered"), std::string::npos)
+      << t.out;
   EXPECT_GT(changed_regions(no_contact[1], no_contact[4]).changed, 30);  // more than a contact's
   EXPECT_EQ(parse_json_file(out("rec_still_track") + "/summary.json")["contact_frames"].get<int>(),
             0);
@@ -1401,6 +1405,34 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
       << short_frame.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
   EXPECT_EQ(Dataset::open(out("rec")).color(31).data, rendered.color(31).data);
+}
+
+// A run into an earlier run's --out that fails half-way (a damaged frame) leaves none of the
+// earlier run's outputs, which would look like its own (a CI step reading summary.json after a
+// failed or stopped run read the earlier one's); the folder's other files stay.
+TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
+  const std::string damaged = data_copy("damaged_frame");
+  const std::string frame = dataset_frame_path(damaged, "normal", 30);
+  fs::resize_file(frame, fs::file_size(frame) / 2);
+  for (const std::string sub : {"track", "eval"}) {
+    const std::string dir = out("earlier_" + sub);
+    fs::remove_all(dir);
+    const std::string args =
+        sub == "track" ? "track -q --out " + dir + " "
+                       : "eval -q --no-plots --methods constvel --out " + dir + " --datasets ";
+    ASSERT_EQ(patchgraph(args + data()).code, 0) << sub;
+    const std::vector<std::string> outputs =
+        sub == "track"
+            ? std::vector<std::string>{"poses.csv", "errors.csv", "summary.json", "patch.ply"}
+            : std::vector<std::string>{"results.csv", "summary.md", "runs"};
+    for (const auto& o : outputs) ASSERT_TRUE(fs::exists(dir + "/" + o)) << o;
+    std::ofstream(dir + "/notes.txt") << "mine";
+    const CliRun failed = patchgraph(args + damaged);
+    EXPECT_EQ(failed.code, 1) << failed.out;
+    EXPECT_NE(failed.out.find("normal/000030.exr"), std::string::npos) << failed.out;
+    for (const auto& o : outputs) EXPECT_FALSE(fs::exists(dir + "/" + o)) << sub << ": " << o;
+    EXPECT_TRUE(fs::exists(dir + "/notes.txt")) << sub;
+  }
 }
 
 // Ball presses as a real sensor records them (colour only) become a training set: each frame's

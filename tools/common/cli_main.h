@@ -160,10 +160,13 @@ inline void check_names_given_once(const std::vector<std::string>& names,
 
 // The output folder, created before the work so that a path that cannot be one fails at once
 // rather than after a long run; removed again at the end of the scope if this created it and
-// nothing was written into it (the work failed first).
+// nothing was written into it (the work failed first). An earlier run's `outputs` in it (file or
+// folder names; "a_*.png" matches by prefix and suffix) are removed first, so that a run that
+// fails or is stopped half-way leaves none that look like its own.
 class OutputFolder {
  public:
-  explicit OutputFolder(std::string dir) : dir_(std::move(dir)) {
+  explicit OutputFolder(std::string dir, const std::vector<std::string>& outputs = {})
+      : dir_(std::move(dir)) {
     check_output_is_no_dataset(dir_);
     std::error_code ec;
     created_ = std::filesystem::create_directories(dir_, ec);
@@ -171,6 +174,19 @@ class OutputFolder {
       throw InputError(dir_ + ": cannot create the output folder" +
                        (ec ? ": " + ec.message() : std::string(": not a folder")));
     }
+    std::vector<std::filesystem::path> earlier;
+    for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+      const std::string name = entry.path().filename().string();
+      const bool matches = std::any_of(outputs.begin(), outputs.end(), [&](const std::string& o) {
+        const std::size_t star = o.find('*');
+        if (star == std::string::npos) return name == o;
+        const std::size_t tail = o.size() - star - 1;
+        return name.size() >= o.size() - 1 && name.compare(0, star, o, 0, star) == 0 &&
+               name.compare(name.size() - tail, tail, o, star + 1, tail) == 0;
+      });
+      if (matches) earlier.push_back(entry.path());
+    }
+    for (const auto& path : earlier) std::filesystem::remove_all(path, ec);
   }
   ~OutputFolder() {
     std::error_code ec;

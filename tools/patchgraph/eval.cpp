@@ -166,7 +166,8 @@ int run_eval(const EvalArgs& args) {
                        "ground truth (track runs without it)");
     }
   }
-  const OutputFolder out(args.out);
+  const OutputFolder out(
+      args.out, {"results.csv", "summary.md", "runs", "boxplots.png", "trajectories_*.png"});
   std::vector<Row> rows;
   int done = 0;
   const int total = int(datasets.size() * methods.size());

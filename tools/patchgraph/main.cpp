@@ -110,7 +110,7 @@ int run_track(const TrackArgs& a) {
           d.dir().c_str(), frames.size(), frames.front(), frames.back());
     }
   }
-  const OutputFolder out(a.out);
+  const OutputFolder out(a.out, {"poses.csv", "errors.csv", "summary.json", "patch.ply"});
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run =
       track_dataset(sensors, options, [&](int done, int) { progress.update(done); });
@@ -123,6 +123,12 @@ int run_track(const TrackArgs& a) {
               names.c_str(), object.empty() ? "" : (" (" + object + ")").c_str(), s.frames,
               s.contact_frames, s.episodes);
   std::fflush(stdout);  // the warnings below (stderr) follow this line in a shared log too
+  if (s.contact_frames == 0) {
+    std::fprintf(stderr,
+                 "warning: no frame with contact: nothing was registered, the estimate is the "
+                 "first pose's prior carried on by the motion priors, and its errors say nothing "
+                 "of the tracking (an accuracy gate on this run checks only that prior)\n");
+  }
   if (s.rejected_registrations > 0) {
     std::fprintf(stderr, "warning: %d registrations were rejected as implausible jumps\n",
                  s.rejected_registrations);
@@ -262,7 +268,8 @@ int main(int argc, char** argv) {
                    "Dataset folders (a render of several sensors: its sensors together), "
                    "or folders of them")
       ->required();
-  cmd_eval->add_option("--methods", eval.methods, "Methods (default: all four)");
+  cmd_eval->add_option("--methods", eval.methods, "Methods (default: all four)")
+      ->check(CLI::IsMember(method_names()));
   cmd_eval->add_option("--out,-o", eval.out, "Output folder")->required();
   add_track_options(*cmd_eval, eval.track, /*with_method=*/false);
   cmd_eval->add_flag("--no-plots", eval.no_plots, "Skip the matplotlib plots");

@@ -19,8 +19,8 @@ namespace pg {
 
 void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   if (with_method) {
-    app.add_option("--method,-m", a.method,
-                   "constvel, imagetoimage, patchgraph (default), gtpatch");
+    app.add_option("--method,-m", a.method, "constvel, imagetoimage, patchgraph (default), gtpatch")
+        ->check(CLI::IsMember(method_names()));
   }
   app.add_option("--normals", a.normals,
                  "Normals source: gt (the dataset's normal images), a model file from "

@@ -25,8 +25,12 @@ std::ofstream open_for_writing(const std::string& path);
 void close_checked(std::ofstream& out, const std::string& path);
 // Writes `text` to `path`, replacing it; InputError as close_checked.
 void write_text_file(const std::string& path, std::string_view text);
-// The same through PATH.tmp and a rename, so no reader sees half a file: a write that fails leaves
-// the previous file as it was and no PATH.tmp.
+// The same through a temporary file beside it (temporary_path_for) and a rename, so no reader
+// sees half a file: a write that fails leaves the previous file as it was and no temporary file.
 void write_text_atomically(const std::string& path, std::string_view text);
+// A name beside `path` for the temporary file a write goes to before it is renamed to `path`:
+// PATH.tmp.PID.N, so that two processes (or threads) writing one file at once do not take each
+// other's temporary file away (the last rename wins, each file whole).
+std::string temporary_path_for(const std::string& path);
 
 }  // namespace pg
