@@ -255,13 +255,27 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
                      "or empty folder");
   }
   for (const auto& dir : dirs) DatasetWriter::check_folder(dir);
+  // A folder that cannot be made fails here, named as such (rather than as a disk with no free
+  // space: /proc/x). Made for the check, it goes again when the render is refused below.
+  std::error_code ec;
+  const bool made = fs::create_directories(out_dir, ec);
+  if (ec || !fs::is_directory(out_dir)) {
+    throw InputError(out_dir + ": cannot create the output folder" +
+                     (ec ? ": " + ec.message() : std::string(": not a folder")));
+  }
   // And the disk's space, before an earlier dataset there is touched: a render that cannot fit
   // would stop half-way with a full disk.
-  summary.bytes_estimate = estimate_dataset_bytes(renderer);
+  try {
+    summary.bytes_estimate = estimate_dataset_bytes(renderer);
+  } catch (...) {
+    if (made) fs::remove(out_dir, ec);
+    throw;
+  }
   std::uintmax_t replaced = 0;
   for (const auto& dir : dirs) replaced += replaced_bytes(dir, scene.render.outputs, scene.frames);
   const std::optional<std::uintmax_t> available = free_bytes(out_dir);
   if (available && summary.bytes_estimate > *available + replaced) {
+    if (made) fs::remove(out_dir, ec);
     throw InputError(
         out_dir + ": the render needs about " + size_text(summary.bytes_estimate) + " (" +
         std::to_string(scene.frames) + " frames x " + std::to_string(renderer.sensor_count()) +

@@ -31,9 +31,20 @@ const std::string kScenes = std::string(PG_SOURCE_DIR) + "/scenes/";
 
 TEST(TacsimCli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(tacsim("").code, 2);
-  EXPECT_EQ(tacsim("frobnicate").code, 2);
+  const CliRun unknown = tacsim("frobnicate");
+  EXPECT_EQ(unknown.code, 2);
+  EXPECT_NE(unknown.out.find("unknown subcommand 'frobnicate' (known: render, info, bench, sheet, "
+                             "presses)"),
+            std::string::npos)
+      << unknown.out;
   EXPECT_EQ(tacsim("render").code, 2);  // missing SCENE and --out
   EXPECT_EQ(tacsim("render x.json --out y --width 3").code, 2);
+  // An --out that cannot be a folder is named as such (/proc's "disk" has no free space).
+  if (fs::is_directory("/proc/self")) {
+    const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out /proc/x");
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find("/proc/x: cannot create the output folder"), std::string::npos) << r.out;
+  }
 }
 
 TEST(TacsimCli, HelpOnEverySubcommand) {

@@ -224,6 +224,20 @@ inline void check_no_empty_values(const CLI::App& app) {
 }
 
 inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int()>& body) {
+  // A first word that names no subcommand (a typo, a subcommand of the other tool): said so, where
+  // CLI11 says only that a subcommand is required.
+  const std::vector<CLI::App*> subcommands = app.get_subcommands({});
+  if (argc > 1 && argv[1][0] != '-' && !subcommands.empty() &&
+      std::none_of(subcommands.begin(), subcommands.end(),
+                   [&](const CLI::App* sub) { return sub->check_name(argv[1]); })) {
+    std::string known;
+    for (const CLI::App* sub : subcommands) known += (known.empty() ? "" : ", ") + sub->get_name();
+    std::fprintf(stderr,
+                 "error: unknown subcommand '%s' (known: %s)\nRun with --help for more "
+                 "information.\n",
+                 argv[1], known.c_str());
+    return kExitUsage;
+  }
   try {
     app.parse(argc, argv);
     check_no_empty_values(app);

@@ -78,7 +78,7 @@ struct Row {
 };
 
 void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
-  std::ofstream out = open_for_writing(path);
+  std::ostringstream out;
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
@@ -91,7 +91,7 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
         << csv_field(r.run) << "\n";
   }
-  close_checked(out, path);
+  write_text_atomically(path, out.str());
 }
 
 // One object and method's runs: final errors [m, rad] and per-frame update times [ms].
@@ -206,7 +206,7 @@ int run_eval(const EvalArgs& args) {
   write_results_csv(results, rows);
   const std::vector<Group> groups = group_runs(rows, methods);
   const std::string md = summary_markdown(groups);
-  write_text_file((fs::path(args.out) / "summary.md").string(), md);
+  write_text_atomically((fs::path(args.out) / "summary.md").string(), md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
   if (!args.no_plots) run_plot_script("plot_eval.py", args.out);
