@@ -42,6 +42,11 @@ RenderSettings settings_for(const SceneRender& render, const std::vector<std::st
 
 SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
     : scene_(std::move(scene)) {
+  if (overrides.frames > scene_.frames) {
+    throw InputError(scene_.path + ": has " + std::to_string(scene_.frames) +
+                     " frames, fewer than the " + std::to_string(overrides.frames) + " asked for");
+  }
+  if (overrides.frames > 0) scene_.frames = overrides.frames;
   if (!overrides.outputs.empty()) scene_.render.outputs = overrides.outputs;
   if (!overrides.background.empty()) scene_.render.background = overrides.background;
   if (overrides.shadows) scene_.render.shadows = *overrides.shadows;

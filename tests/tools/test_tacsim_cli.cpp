@@ -333,6 +333,19 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("--width requires --height"), std::string::npos) << r.out;
   EXPECT_EQ(tacsim("sheet " + scene + " --height 80 --out " + tmp.str("s.png")).code, 2);
+  // --frames renders the scene's first frames, as the whole render has them; no more than it has.
+  ASSERT_EQ(
+      tacsim("render " + scene + " -q --frames 3 --outputs color --out " + tmp.str("f3")).code, 0);
+  ASSERT_EQ(tacsim("render " + scene + " -q --outputs color --out " + tmp.str("all")).code, 0);
+  EXPECT_EQ(Dataset::open(tmp.str("f3")).frames(), 3);
+  EXPECT_EQ(Dataset::open(tmp.str("f3")).color(2).data,
+            Dataset::open(tmp.str("all")).color(2).data);
+  EXPECT_EQ(Dataset::open(tmp.str("f3")).poses()[2].T_world_object.translation(),
+            Dataset::open(tmp.str("all")).poses()[2].T_world_object.translation());
+  r = tacsim("render " + scene + " --frames 11 --out " + tmp.str("f11"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--frames 11: " + scene + " has 10 frames"), std::string::npos) << r.out;
+  EXPECT_EQ(tacsim("render " + scene + " --frames 0 --out " + tmp.str("f0")).code, 2);
   r = tacsim("render " + scene + " --outputs '' --out " + tmp.str("d"));
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.out.find("--outputs: an empty value"), std::string::npos) << r.out;

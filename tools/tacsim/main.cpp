@@ -41,7 +41,7 @@ std::vector<std::string> split_list(const std::string& s) {
 
 struct RenderArgs {
   std::string scene, out, outputs, background, shadows, elastic;
-  int threads = 0, width = 0, height = 0;
+  int threads = 0, width = 0, height = 0, frames = 0;
   bool quiet = false;
   bool outputs_given = false;  // --outputs was on the command line (perhaps empty)
 };
@@ -60,6 +60,7 @@ int run_render(const RenderArgs& a) {
   overrides.height = a.height;
   overrides.background = a.background;
   overrides.shadows = on_off(a.shadows);
+  overrides.frames = a.frames;
   overrides.elastic = on_off(a.elastic);
   std::unique_ptr<tbb::global_control> threads;
   if (a.threads > 0) {
@@ -67,6 +68,10 @@ int run_render(const RenderArgs& a) {
                                                     a.threads);
   }
   Scene scene = load_scene(a.scene);
+  if (a.frames > scene.frames) {
+    throw UsageError("--frames " + std::to_string(a.frames) + ": " + a.scene + " has " +
+                     std::to_string(scene.frames) + " frames");
+  }
   // --width and --height resize each camera's intrinsics per side: another shape of image
   // than a sensor's stretches its pixels (a sensor file says so as an error; here the scene's
   // sensors may be of several shapes).
@@ -254,6 +259,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"on", "off"}));
   cmd_render->add_option("--elastic", render.elastic, "Override the gel's elastic model: on or off")
       ->check(CLI::IsMember({"on", "off"}));
+  cmd_render
+      ->add_option("--frames", render.frames,
+                   "Render only the scene's first N frames (a quick run of a long scene)")
+      ->check(CLI::Range(1, 10000000));
   cmd_render->add_flag("--quiet,-q", render.quiet, "No progress line");
 
   std::string info_dir;

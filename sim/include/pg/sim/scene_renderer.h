@@ -19,6 +19,7 @@ struct RenderOverrides {
   std::string background;            // a real background image for every sensor ("": the scene's)
   std::optional<bool> shadows;       // unset: the scene's
   std::optional<bool> elastic;       // every sensor's elastic gel model on/off; unset: the scene's
+  int frames = 0;                    // the scene's first this many frames; 0: all of them
 };
 
 class SceneRenderer {
