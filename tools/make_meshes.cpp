@@ -19,15 +19,16 @@
 
 #include "common/cli_main.h"
 #include "pg/core/error.h"
+#include "pg/core/se3.h"
 #include "pg/sim/mesh.h"
 
 namespace {
 
 constexpr double kMm = 1e-3;
 constexpr double kInch = 25.4e-3;
-constexpr double kPi = 3.14159265358979323846;
 
 using Eigen::Vector3d;
+using pg::kPi;
 
 // A mesh under construction, in double precision.
 struct Part {

@@ -26,6 +26,7 @@
 #include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/random.h"
+#include "pg/core/se3.h"
 #include "pg/core/sensor.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/presses.h"
@@ -39,9 +40,10 @@ using Eigen::Quaterniond;
 using Eigen::Vector2d;
 using Eigen::Vector3d;
 using nlohmann::ordered_json;
+using pg::kPi;
+using pg::round_to;
 
 constexpr double kMm = 1e-3;
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 constexpr int kWaypointStep = 10;  // frames between waypoints
 
@@ -59,12 +61,6 @@ std::uint64_t scene_seed(const std::string& name) {
   for (const unsigned char c : name) h = (h ^ c) * 0x100000001b3ull;
   return h >> 11;
 }
-
-// ------------------------------------------------------------------------- contact geometry
-
-// x rounded to a multiple of 1 / per_unit; dividing by the exact integer per_unit gives the double
-// nearest the decimal, so the file shows it with few digits. (+ 0.0 turns -0 into 0.)
-double round_to(double x, double per_unit) { return std::round(x * per_unit) / per_unit + 0.0; }
 
 // ------------------------------------------------------------------------- motions
 

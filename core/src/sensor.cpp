@@ -5,12 +5,11 @@
 #include <nlohmann/json.hpp>
 
 #include "pg/core/json_fields.h"
+#include "pg/core/se3.h"
 
 namespace pg {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Three coloured point lights on a circle in a plane behind the gel (TACTO's DIGIT layout), at
 // angles from +x toward +y (image down). The colours follow a real DIGIT's background: red at

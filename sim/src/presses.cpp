@@ -8,16 +8,12 @@
 
 #include "pg/core/error.h"
 #include "pg/core/gel_rays.h"
+#include "pg/core/json_fields.h"
 #include "pg/core/random.h"
+#include "pg/core/se3.h"
 
 namespace pg {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-// x rounded to a multiple of 1 / per_unit; dividing by the exact integer per_unit gives the double
-// nearest the decimal, so a file shows it with few digits. (+ 0.0 turns -0 into 0.)
-double round_to(double x, double per_unit) { return std::round(x * per_unit) / per_unit + 0.0; }
 
 // A triangle's grid divisions: each edge in pieces of at most `spacing`.
 int grid_divisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,

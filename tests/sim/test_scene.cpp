@@ -32,7 +32,6 @@ namespace fs = std::filesystem;
 using Eigen::Vector3d;
 using nlohmann::json;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMm = 1e-3;
 
 // A fresh folder under the system temp dir per test, removed with its contents afterwards.

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "pg/core/image.h"
+#include "pg/core/se3.h"
 #include "pg/core/sensor.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/renderer.h"
@@ -25,7 +26,6 @@ inline ContactCloudOptions all_contact_pixels() {
   return o;
 }
 
-constexpr double kPi = 3.14159265358979323846;
 inline double deg(double rad) { return rad * 180.0 / kPi; }
 inline double rad(double deg) { return deg * kPi / 180.0; }
 

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <mutex>
 
+#include "pg/core/se3.h"
+
 namespace pg {
 
 namespace {
@@ -131,12 +133,11 @@ struct PoissonDstSolver::Entry {
       transposed.resize(n);
     }
     inverse_eigenvalues.resize(n);
-    const double pi = 3.14159265358979323846;
     const double scale = 4.0 * (nx + 1.0) * (ny + 1.0);
     std::vector<double> lx(nx);
-    for (int k = 0; k < nx; ++k) lx[k] = 2.0 * std::cos(pi * (k + 1) / (nx + 1.0)) - 2.0;
+    for (int k = 0; k < nx; ++k) lx[k] = 2.0 * std::cos(kPi * (k + 1) / (nx + 1.0)) - 2.0;
     for (int l = 0; l < ny; ++l) {
-      const double ly = 2.0 * std::cos(pi * (l + 1) / (ny + 1.0)) - 2.0;
+      const double ly = 2.0 * std::cos(kPi * (l + 1) / (ny + 1.0)) - 2.0;
       for (int k = 0; k < nx; ++k) {
         inverse_eigenvalues[std::size_t(l) * nx + k] = float(1.0 / ((lx[k] + ly) * scale));
       }

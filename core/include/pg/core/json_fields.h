@@ -4,13 +4,13 @@
 //   JsonFields f(json, "scene.json: objects[0]");
 //   double s = f.optional<double>("scale", 1.0);
 //   f.finish();  // any key not read above is an "unknown key" error
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 
 #include "pg/core/error.h"
 
@@ -40,6 +40,13 @@ std::string json_type_name(const nlohmann::json& j);
 // indented by two, unless the whole value fits in `width` columns (so a waypoint or a pose is
 // one line). Keys keep their order.
 std::string format_json(const nlohmann::ordered_json& j, std::size_t width = 120);
+
+// x rounded to a multiple of 1 / per_unit, for a file's numbers: dividing by the exact integer
+// per_unit gives the double nearest the decimal, so the file shows it with few digits (+ 0.0
+// turns -0 into 0).
+inline double round_to(double x, double per_unit) {
+  return std::round(x * per_unit) / per_unit + 0.0;
+}
 
 class JsonFields {
  public:

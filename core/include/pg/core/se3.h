@@ -10,6 +10,8 @@
 
 namespace pg {
 
+inline constexpr double kPi = 3.14159265358979323846;
+
 template <typename T>
 using Vec3 = Eigen::Matrix<T, 3, 1>;
 template <typename T>
