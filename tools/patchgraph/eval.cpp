@@ -1,6 +1,9 @@
 #include "eval.h"
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <climits>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -10,6 +13,7 @@
 
 #include "../common/cli_main.h"
 #include "../common/plot_script.h"
+#include "../common/progress.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 
@@ -172,6 +176,13 @@ int run_eval(const EvalArgs& args) {
   int done = 0;
   const int total = int(datasets.size() * methods.size());
   const std::string results = (fs::path(args.out) / "results.csv").string();
+  // Progress over every run's frames: a long sequence is minutes of tracking between two of the
+  // per-run lines. On a terminal each per-run line first clears the progress line it follows.
+  long total_frames = 0, frames_done = 0;
+  for (const auto& sensors : opened)
+    total_frames += long(sensors[0].frames()) * long(methods.size());
+  Progress progress("tracking", int(std::min<long>(total_frames, INT_MAX)), !args.track.quiet);
+  const bool tty = isatty(fileno(stderr));
   try {
     for (std::size_t k = 0; k < opened.size(); ++k) {
       const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
@@ -183,14 +194,19 @@ int run_eval(const EvalArgs& args) {
         TrackArgs a = args.track;
         a.method = m;
         a.seed = seed;
-        const TrackRun run = track_dataset(sensors, make_track_options(a, dataset, models));
+        const TrackRun run =
+            track_dataset(sensors, make_track_options(a, dataset, models), [&](int done, int) {
+              progress.update(int(std::min<long>(frames_done + done, INT_MAX)));
+            });
+        frames_done += dataset.frames();
         const std::string name = names[k] + "_" + m;
         write_track_outputs(run, sensors, (fs::path(args.out) / "runs" / name).string());
         rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
         ++done;
         if (!args.track.quiet) {
-          std::fprintf(stderr, "[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n", done, total,
-                       name.c_str(), dataset.info().object_name.c_str(),
+          std::fprintf(stderr, "%s[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n",
+                       tty ? "\r\033[K" : "", done, total, name.c_str(),
+                       dataset.info().object_name.c_str(),
                        run.summary.final_translation_error_m * 1e3,
                        run.summary.final_rotation_error_rad, run.summary.hz);
         }
