@@ -21,6 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using testing_support::CliRun;
 using testing_support::TempDir;
+using testing_support::run_command;
 
 CliRun tacsim(const std::string& args) { return testing_support::run_command(TACSIM_PATH, args); }
 
@@ -139,6 +140,39 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
                        "along x and 0.4 mm along y"),
             std::string::npos)
       << r.out;
+}
+
+// tools/pg_dataset.py, the Python reader of the format (numpy and Pillow), reads a render's
+// files as the C++ reader does: the same deepest indentation and count of contact points, unit
+// normals (its own check); a damaged normal file is named with exit 1.
+TEST(TacsimCli, ThePythonReaderReadsARender) {
+  const std::string python = "/usr/bin/python3";
+  if (run_command(python, "-c 'import numpy, PIL'").code != 0) {
+    GTEST_SKIP() << "no numpy or Pillow for " << python << " (python3-matplotlib brings both)";
+  }
+  TempDir tmp;
+  ASSERT_EQ(tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs " +
+                   "color,normal,depth,mask,points --out " + tmp.str("d"))
+                .code,
+            0);
+  const std::string reader = std::string(PG_SOURCE_DIR) + "/tools/pg_dataset.py ";
+  const CliRun r = run_command(python, reader + tmp.str("d") + " 5");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const Dataset d = Dataset::open(tmp.str("d"));
+  const ImageF depth = d.depth(5);
+  char deepest[64];
+  std::snprintf(deepest, sizeof deepest, "deepest %.6f mm",
+                1e3 * *std::max_element(depth.data.begin(), depth.data.end()));
+  EXPECT_NE(r.out.find(deepest), std::string::npos) << deepest << "\n" << r.out;
+  EXPECT_NE(r.out.find("points    frame 5: " + std::to_string(d.contact_points(5).size()) + "\n"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("normal    frame 5: unit"), std::string::npos) << r.out;
+  const std::string victim = dataset_frame_path(tmp.str("d"), "normal", 5);
+  fs::resize_file(victim, fs::file_size(victim) / 2);
+  const CliRun damaged = run_command(python, reader + tmp.str("d") + " 5");
+  EXPECT_EQ(damaged.code, 1) << damaged.out;
+  EXPECT_NE(damaged.out.find(victim + ": damaged or cut short"), std::string::npos) << damaged.out;
 }
 
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the

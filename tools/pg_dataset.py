@@ -1,0 +1,222 @@
+#!/usr/bin/python3
+"""Read a tacsim dataset in Python: numpy, and Pillow for the PNGs (both come with Debian's
+python3-matplotlib, which the README's commands install). No OpenEXR bindings needed: the float
+images (normals, depth) are read by the small OpenEXR reader below, which takes the files tacsim
+writes (single-part scan-line images of 32-bit float or 16-bit half channels, uncompressed or
+ZIP-compressed).
+
+    import sys; sys.path.insert(0, "tools")
+    from pg_dataset import Dataset
+    d = Dataset("out/default")
+    d.info["sensor"]["camera"]["fx"], d.frames
+    d.poses["obj_x"][7]            # poses.csv as a numpy structured array
+    d.color(7)                     # (H, W, 3) uint8
+    d.normal(7), d.depth(7)        # (H, W, 3) float32 unit normals in S; (H, W) float32 [m]
+    d.mask(7), d.points(7)         # (H, W) bool; (N, 3) float32, object frame [m]
+
+From the shell, `python3 tools/pg_dataset.py DIR [FRAME]` describes a dataset and checks one
+frame's files (unit normals, depth, mask and points that agree): exit 1 naming the file if not.
+The format: README.md, "Dataset format".
+"""
+import csv
+import json
+import os
+import struct
+import sys
+import zlib
+
+import numpy as np
+
+_EXR_MAGIC = 20000630
+_EXR_TYPES = {1: np.dtype("<f2"), 2: np.dtype("<f4")}  # half, float (0, uint, is not written)
+_EXR_LINES = {0: 1, 2: 1, 3: 16}  # lines per block: none, ZIPS, ZIP
+
+
+def _exr_header(data, path):
+    """The header's attributes (name -> (type, raw bytes)) and where the offset table starts."""
+    magic, version = struct.unpack_from("<ii", data, 0)
+    if magic != _EXR_MAGIC:
+        raise ValueError(f"{path}: not an OpenEXR file")
+    if version & 0x1A00:  # tiled, deep or multi-part
+        raise ValueError(f"{path}: a tiled, deep or multi-part OpenEXR file; tacsim writes none")
+    attrs, at = {}, 8
+    while data[at] != 0:
+        name_end = data.index(b"\0", at)
+        type_end = data.index(b"\0", name_end + 1)
+        (size,) = struct.unpack_from("<i", data, type_end + 1)
+        start = type_end + 5
+        attrs[data[at:name_end].decode()] = (data[name_end + 1:type_end].decode(),
+                                             data[start:start + size])
+        at = start + size
+    return attrs, at + 1
+
+
+def _exr_channels(raw):
+    """The channel list: [(name, numpy dtype)], in the file's (alphabetical) order."""
+    channels, at = [], 0
+    while raw[at] != 0:
+        end = raw.index(b"\0", at)
+        (pixel_type,) = struct.unpack_from("<i", raw, end + 1)
+        channels.append((raw[at:end].decode(), pixel_type))
+        at = end + 1 + 16  # type, pLinear + 3 reserved, x and y sampling
+    return channels
+
+
+def _unzip_block(packed, size):
+    """A ZIP block's bytes: inflated, the predictor undone, the two halves interleaved back."""
+    t = np.frombuffer(zlib.decompress(packed), dtype=np.uint8)
+    if t.size != size:
+        raise ValueError(f"a ZIP block inflates to {t.size} bytes, not {size}")
+    t = np.cumsum(t.astype(np.int64) - 128, dtype=np.int64)  # t[i] = t[i-1] + d[i] - 128
+    t = ((t + 128) & 0xFF).astype(np.uint8)
+    out = np.empty(size, dtype=np.uint8)
+    half = (size + 1) // 2
+    out[0::2] = t[:half]
+    out[1::2] = t[half:]
+    return out.tobytes()
+
+
+def read_exr(path):
+    """An OpenEXR image as float32 (H, W, C), channels in the file's order; tacsim's normals come
+    as B, G, R (z, y, x) there and are returned here as R, G, B (x, y, z); depth as (H, W, 1).
+    ValueError naming the file for one that is not such an image, damaged or cut short."""
+    with open(path, "rb") as f:
+        data = f.read()
+    try:
+        return _decode_exr(data, path)
+    except (struct.error, zlib.error, IndexError, KeyError) as e:
+        raise ValueError(f"{path}: damaged or cut short ({type(e).__name__}: {e})") from None
+
+
+def _decode_exr(data, path):
+    attrs, at = _exr_header(data, path)
+    compression = attrs["compression"][1][0]
+    if compression not in _EXR_LINES:
+        raise ValueError(f"{path}: compression {compression} is not read here (none, ZIPS, ZIP)")
+    channels = _exr_channels(attrs["channels"][1])
+    for name, pixel_type in channels:
+        if pixel_type not in _EXR_TYPES:
+            raise ValueError(f"{path}: channel {name} is of pixel type {pixel_type}")
+    x0, y0, x1, y1 = struct.unpack("<iiii", attrs["dataWindow"][1])
+    width, height = x1 - x0 + 1, y1 - y0 + 1
+    lines = _EXR_LINES[compression]
+    blocks = (height + lines - 1) // lines
+    offsets = struct.unpack_from(f"<{blocks}Q", data, at)
+    row_bytes = sum(_EXR_TYPES[t].itemsize for _, t in channels) * width
+    image = np.empty((height, len(channels), width), dtype=np.float32)
+    for offset in offsets:
+        y, packed_size = struct.unpack_from("<ii", data, offset)
+        n = min(lines, y1 + 1 - y)
+        packed = data[offset + 8:offset + 8 + packed_size]
+        size = n * row_bytes
+        block = packed if packed_size == size else _unzip_block(packed, size)
+        at_byte = 0
+        for row in range(y - y0, y - y0 + n):
+            for c, (_, pixel_type) in enumerate(channels):
+                dtype = _EXR_TYPES[pixel_type]
+                image[row, c] = np.frombuffer(block, dtype=dtype, count=width, offset=at_byte)
+                at_byte += dtype.itemsize * width
+    image = image.transpose(0, 2, 1)
+    names = [name for name, _ in channels]
+    if names == ["B", "G", "R"]:
+        image = image[:, :, ::-1]
+    return np.ascontiguousarray(image)
+
+
+def read_ply(path):
+    """tacsim's binary PLY (float x y z, perhaps nx ny nz) as float32 (N, 3 or 6)."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"end_header\n") + len(b"end_header\n")
+    header = data[:end].decode().splitlines()
+    if header[0] != "ply" or "format binary_little_endian 1.0" not in header:
+        raise ValueError(f"{path}: not a binary little-endian PLY file")
+    count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+    fields = sum(1 for line in header if line.startswith("property float"))
+    return np.frombuffer(data, dtype="<f4", count=count * fields, offset=end).reshape(count, fields)
+
+
+class Dataset:
+    """A dataset folder: dataset.json as `info`, poses.csv as `poses`, and its frames."""
+
+    def __init__(self, folder):
+        self.dir = folder
+        with open(os.path.join(folder, "dataset.json")) as f:
+            self.info = json.load(f)
+        self.frames = self.info["frames"]
+        with open(os.path.join(folder, "poses.csv")) as f:
+            rows = list(csv.reader(f))
+        header = rows[0]
+        types = [("frame", "i8")] + [(name, "f8") for name in header[1:]]
+        # Empty cells (a recording's unknown poses and contacts) become NaN.
+        values = [tuple([int(r[0])] + [float(v) if v else np.nan for v in r[1:]]) for r in rows[1:]]
+        self.poses = np.array(values, dtype=types)
+
+    def path(self, output, frame):
+        extension = {"normal": ".exr", "depth": ".exr", "points": ".ply"}.get(output, ".png")
+        return os.path.join(self.dir, output, f"{frame:06d}{extension}")
+
+    def color(self, frame):
+        from PIL import Image
+        return np.asarray(Image.open(self.path("color", frame)).convert("RGB"))
+
+    def background(self):
+        from PIL import Image
+        return np.asarray(Image.open(os.path.join(self.dir, "background.png")).convert("RGB"))
+
+    def normal(self, frame):
+        return read_exr(self.path("normal", frame))
+
+    def depth(self, frame):
+        return read_exr(self.path("depth", frame))[:, :, 0]
+
+    def mask(self, frame):
+        from PIL import Image
+        return np.asarray(Image.open(self.path("mask", frame))) > 0
+
+    def points(self, frame):
+        return read_ply(self.path("points", frame))[:, :3]
+
+
+def check(folder, frame):
+    """Prints what the dataset holds and checks one frame's files against each other."""
+    d = Dataset(folder)
+    if not 0 <= frame < d.frames:
+        raise ValueError(f"frame {frame}: {folder} has frames 0 to {d.frames - 1}")
+    outputs = d.info["outputs"]
+    width, height = d.info["width"], d.info["height"]
+    print(f"dataset   {folder}: {d.frames} frames at {width}x{height}, outputs {', '.join(outputs)}")
+    if "normal" in outputs:
+        n = d.normal(frame)
+        length = np.linalg.norm(n, axis=2)
+        assert n.shape == (height, width, 3), f"{d.path('normal', frame)}: shape {n.shape}"
+        assert np.abs(length - 1).max() < 1e-5, f"{d.path('normal', frame)}: normals not unit"
+        assert (n[:, :, 2] > 0).all(), f"{d.path('normal', frame)}: a normal faces the camera"
+        print(f"normal    frame {frame}: unit, tilted up to {np.degrees(np.arccos(n[:, :, 2].min())):.2f} deg")
+    if "depth" in outputs:
+        u = d.depth(frame)
+        assert u.shape == (height, width) and (u >= 0).all(), f"{d.path('depth', frame)}"
+        print(f"depth     frame {frame}: deepest {u.max() * 1e3:.6f} mm, {int((u > 0).sum())} px > 0")
+    if "mask" in outputs:
+        m = d.mask(frame)
+        if "depth" in outputs:
+            assert (u[m] > 0).all(), f"{d.path('mask', frame)}: contact where the depth is 0"
+        print(f"mask      frame {frame}: {int(m.sum())} px")
+        if "points" in outputs:
+            p = d.points(frame)
+            assert len(p) <= m.sum(), f"{d.path('points', frame)}: more points than mask pixels"
+            print(f"points    frame {frame}: {len(p)}")
+    row = d.poses[frame]
+    print(f"pose      frame {frame}: object at ({row['obj_x']:.9f}, {row['obj_y']:.9f}, "
+          f"{row['obj_z']:.9f}) m, contact {row['contact']:.0f}")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) not in (2, 3) or sys.argv[1].startswith("-"):
+        print(__doc__)
+        sys.exit(2)
+    try:
+        check(sys.argv[1], int(sys.argv[2]) if len(sys.argv) == 3 else 0)
+    except (OSError, ValueError, KeyError, AssertionError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        sys.exit(1)
