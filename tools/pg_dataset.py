@@ -25,7 +25,11 @@ import struct
 import sys
 import zlib
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:
+    sys.exit(f"error: {sys.executable} has no numpy: run /usr/bin/python3 (Debian's "
+             "python3-matplotlib brings numpy and Pillow), or install numpy for this one")
 
 _EXR_MAGIC = 20000630
 _EXR_TYPES = {1: np.dtype("<f2"), 2: np.dtype("<f4")}  # half, float (0, uint, is not written)
