@@ -83,7 +83,7 @@ nlohmann::json info_to_json(const DatasetInfo& info) {
       {"seed", info.seed},
       {"object",
        {{"name", info.object_name}, {"mesh", info.object_mesh}, {"scale", info.object_scale}}}};
-  if (!info.scene.empty()) {
+  if (info.render_known) {
     j["render"] = {{"shadows", info.shadows},
                    {"background", info.background.empty() ? "synthetic" : info.background}};
   }
@@ -124,7 +124,8 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
     info.object_scale = o.number_in("scale", 1e-9, 1e9, 1.0);
     o.finish();
   }
-  if (f.has("render")) {
+  info.render_known = f.has("render");
+  if (info.render_known) {
     JsonFields r(f.at("render"), f.field("render"));
     info.shadows = r.optional<bool>("shadows", false);
     info.background = r.optional<std::string>("background", "synthetic");

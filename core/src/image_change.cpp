@@ -117,18 +117,21 @@ double saturated_fraction(const ImageU8& image) {
   return double(saturated) / double(pixels);
 }
 
+std::string saturated_reference_warning(const ImageU8& reference, const std::string& what) {
+  const double saturated = saturated_fraction(reference);
+  if (!(saturated > kSaturatedReferenceFraction)) return "";
+  char percent[32];
+  std::snprintf(percent, sizeof percent, "%.0f %%", 100 * saturated);
+  return what + ": " + percent +
+         " of its pixels are clipped white or black (every colour channel at 0 or 255), where a "
+         "press cannot show: the sensor is over- or under-exposed (its exposure, or its lights)";
+}
+
 std::vector<std::string> reference_warnings(const ImageU8& reference, const std::string& what) {
   std::vector<std::string> warnings;
-  const std::string noisy = noisy_reference_warning(reference, what);
-  if (!noisy.empty()) warnings.push_back(noisy);
-  const double saturated = saturated_fraction(reference);
-  if (saturated > kSaturatedReferenceFraction) {
-    char percent[32];
-    std::snprintf(percent, sizeof percent, "%.0f %%", 100 * saturated);
-    warnings.push_back(what + ": " + percent +
-                       " of its pixels are clipped white or black (every colour channel at 0 or "
-                       "255), where a press cannot show: the sensor is over- or under-exposed "
-                       "(its exposure, or its lights)");
+  for (const std::string& warning :
+       {noisy_reference_warning(reference, what), saturated_reference_warning(reference, what)}) {
+    if (!warning.empty()) warnings.push_back(warning);
   }
   return warnings;
 }

@@ -409,14 +409,15 @@ void train_normals(const TrainOptions& options,
       a.write("opt_d", od);
     }
     std::error_code ec;
+    const std::string tmp = temporary_path_for(checkpoint);
     try {
-      a.save_to(checkpoint + ".tmp");
+      a.save_to(tmp);
     } catch (const c10::Error&) {
-      fs::remove(checkpoint + ".tmp", ec);
+      fs::remove(tmp, ec);
       throw InputError(checkpoint + ": cannot write the checkpoint" +
                        write_failure_cause(checkpoint, 0));
     }
-    fs::rename(checkpoint + ".tmp", checkpoint, ec);
+    fs::rename(tmp, checkpoint, ec);
     if (ec) throw InputError(checkpoint + ": cannot write the checkpoint: " + ec.message());
   };
 

@@ -121,6 +121,7 @@ DatasetInfo dataset_info(const SceneRenderer& renderer, int k) {
   info.object_name = tracked.name;
   info.object_mesh = fs::absolute(tracked.mesh_path).lexically_normal().string();
   info.object_scale = tracked.scale;
+  info.render_known = true;
   info.shadows = scene.render.shadows;
   if (!scene.render.background.empty()) {
     info.background = fs::absolute(scene.render.background).lexically_normal().string();
@@ -261,26 +262,28 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   }
   for (const auto& dir : dirs) DatasetWriter::check_folder(dir);
   // A folder that cannot be made fails here, named as such (rather than as a disk with no free
-  // space: /proc/x). Made for the check, it goes again when the render is refused below.
+  // space: /proc/x). Made for the check, it goes again (with the parents made for it) when the
+  // render is refused below.
   std::error_code ec;
-  const bool made = fs::create_directories(out_dir, ec);
+  fs::path first_made = fs::absolute(out_dir, ec).lexically_normal();
+  if (fs::exists(first_made, ec)) first_made.clear();
+  while (!first_made.empty() && first_made.has_parent_path() &&
+         first_made.parent_path() != first_made && !fs::exists(first_made.parent_path(), ec)) {
+    first_made = first_made.parent_path();
+  }
+  fs::create_directories(out_dir, ec);
   if (ec || !fs::is_directory(out_dir)) {
     throw InputError(out_dir + ": cannot create the output folder" +
                      (ec ? ": " + ec.message() : std::string(": not a folder")));
   }
   // And the disk's space, before an earlier dataset there is touched: a render that cannot fit
   // would stop half-way with a full disk.
-  try {
-    summary.bytes_estimate = estimate_dataset_bytes(renderer);
-  } catch (...) {
-    if (made) fs::remove(out_dir, ec);
-    throw;
-  }
+  summary.bytes_estimate = estimate_dataset_bytes(renderer);
   std::uintmax_t replaced = 0;
   for (const auto& dir : dirs) replaced += replaced_bytes(dir, scene.render.outputs, scene.frames);
   const std::optional<std::uintmax_t> available = free_bytes(out_dir);
   if (available && summary.bytes_estimate > *available + replaced) {
-    if (made) fs::remove(out_dir, ec);
+    if (!first_made.empty()) fs::remove_all(first_made, ec);  // only folders made just now
     throw InputError(
         out_dir + ": the render needs about " + size_text(summary.bytes_estimate) + " (" +
         std::to_string(scene.frames) + " frames x " + std::to_string(renderer.sensor_count()) +

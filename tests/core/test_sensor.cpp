@@ -5,6 +5,7 @@
 
 #include "../common/test_support.h"
 #include "pg/core/error.h"
+#include "pg/core/gel_rays.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/sensor.h"
 
@@ -55,6 +56,33 @@ TEST(SensorPreset, GelsightMiniScale) {
   EXPECT_EQ(s.camera.height, 320);
   const double mm_per_px = 1000.0 * s.camera.distance_m / s.camera.fx;
   EXPECT_NEAR(mm_per_px, 0.065, 0.002);
+}
+
+// How far a camera sees past its gel: nowhere on the presets; a wider field of view of the DIGIT
+// past its 20 mm width first (its image is 0.75 as wide as tall, its gel 0.67), by what the
+// pixel rays' hits on the flat part of the gel say.
+TEST(SensorPreset, TheCameraSeesPastTheGelOnlyWithAWiderView) {
+  for (const auto& name : sensor_preset_names()) {
+    const SensorModel s = sensor_preset(name);
+    EXPECT_EQ(view_beyond_gel(s.camera, s.gel), Eigen::Vector2d::Zero()) << name;
+  }
+  SensorModel wide = sensor_preset("digit");
+  const double fov = 1.4;
+  wide.camera.fy = (wide.camera.height / 2.0) / std::tan(fov / 2);
+  wide.camera.fx = wide.camera.fy;
+  const Eigen::Vector2d beyond = view_beyond_gel(wide.camera, wide.gel);
+  // The farthest along x: the first column's rays near the middle row, where the gel sags least.
+  // Where that ray meets the gel, by bisection on t - distance = surface_z(d t):
+  const Eigen::Vector3d d = wide.camera.ray(0, 79);
+  double lo = 0, hi = 2 * wide.camera.distance_m;
+  for (int it = 0; it < 100; ++it) {
+    const double t = 0.5 * (lo + hi);
+    const bool before = t - wide.camera.distance_m < wide.gel.surface_z(d.x() * t, d.y() * t);
+    (before ? lo : hi) = t;
+  }
+  EXPECT_NEAR(beyond.x(), std::abs(d.x()) * lo - wide.gel.width_m / 2, 1e-7);
+  EXPECT_GT(beyond.x(), 2e-3);
+  EXPECT_LT(beyond.y(), beyond.x());
 }
 
 TEST(SensorPreset, UnknownNameListsKnownOnes) {

@@ -85,6 +85,7 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   const std::string track = "track " + data() + " ";
   refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
   refused(track + "--method icpgraph --out " + out("x"), 2, "--method: icpgraph not in");
+  refused("trak " + data(), 2, "unknown subcommand 'trak' (known: track, eval, bench,");
   refused("eval --datasets " + data() + " --methods icpgraph --out " + out("x"), 2,
           "--methods: icpgraph not in");
   refused(track + "--normals unet.pt --out " + out("x"), 1, "unet.pt: model file not found");
@@ -1145,6 +1146,15 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
   EXPECT_EQ(parse_json_file(out("rec_still_track") + "/summary.json")["contact_frames"].get<int>(),
             0);
 
+  // eval says so of its runs without contact (the five frames, against their noise-free reference).
+  t = patchgraph("eval -q --no-plots --methods constvel --normals " + std::string(PG_SOURCE_DIR) +
+                 "/models/normals_unet.pt --datasets " + out("still_gel") + " --out " +
+                 out("still_eval"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("warning: 1 run(s) without any contact frame (runs/still_gel_constvel)"),
+            std::string::npos)
+      << t.out;
+
   t = patchgraph(track + out("rec_five_references") + " --out " + out("rec_five_track"));
   ASSERT_EQ(t.code, 0) << t.out;
   EXPECT_EQ(t.out.find("camera noise"), std::string::npos) << t.out;
@@ -1427,12 +1437,30 @@ TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
             : std::vector<std::string>{"results.csv", "summary.md", "runs"};
     for (const auto& o : outputs) ASSERT_TRUE(fs::exists(dir + "/" + o)) << o;
     std::ofstream(dir + "/notes.txt") << "mine";
+    if (sub == "eval") {  // the plots of an eval without --no-plots
+      std::ofstream(dir + "/boxplots.png") << "png";
+      std::ofstream(dir + "/trajectories_cube.png") << "png";
+    }
     const CliRun failed = patchgraph(args + damaged);
     EXPECT_EQ(failed.code, 1) << failed.out;
     EXPECT_NE(failed.out.find("normal/000030.exr"), std::string::npos) << failed.out;
     for (const auto& o : outputs) EXPECT_FALSE(fs::exists(dir + "/" + o)) << sub << ": " << o;
     EXPECT_TRUE(fs::exists(dir + "/notes.txt")) << sub;
+    EXPECT_FALSE(fs::exists(dir + "/boxplots.png") || fs::exists(dir + "/trajectories_cube.png"));
   }
+  // A runs/ folder that is not an earlier eval's (a dataset of the user's kept there, given to
+  // this very eval) is refused, and kept.
+  const std::string mine = out("own_runs");
+  fs::remove_all(mine);
+  fs::create_directories(mine + "/runs");
+  fs::copy(data(), mine + "/runs/cube", fs::copy_options::recursive);
+  const CliRun refused = patchgraph("eval -q --no-plots --methods constvel --out " + mine +
+                                    " --datasets " + mine + "/runs/cube");
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find(mine + "/runs: holds cube, not an earlier eval's runs"),
+            std::string::npos)
+      << refused.out;
+  EXPECT_EQ(Dataset::open(mine + "/runs/cube").frames(), Dataset::open(data()).frames());
 }
 
 // Ball presses as a real sensor records them (colour only) become a training set: each frame's

@@ -136,8 +136,8 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
       << mesh << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": ["mask"]}})";
   const CliRun r = tacsim("render " + tmp.str("wide.json") + " -q --out " + tmp.str("w"));
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("warning: sensor wide's camera sees 2.3 mm past the gel's 20.0 x 30.0 mm "
-                       "along x and 0.4 mm along y"),
+  EXPECT_NE(r.out.find("warning: sensor wide's camera sees past its gel's edges, by 2.3 mm along "
+                       "x and 0.4 mm along y (gel.width_m 20.0 mm, gel.height_m 30.0 mm)"),
             std::string::npos)
       << r.out;
 }
@@ -246,6 +246,18 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
                                info.background + " background"),
             std::string::npos)
       << described.out;
+  // A render's dataset.json from before these were recorded: not taken for "off".
+  const std::string json_path = tmp.str("d") + "/dataset.json";
+  std::ifstream json_in(json_path);
+  std::string json((std::istreambuf_iterator<char>(json_in)), std::istreambuf_iterator<char>());
+  json_in.close();
+  const std::size_t at = json.find(",\n  \"render\"");
+  ASSERT_NE(at, std::string::npos) << json;
+  json.erase(at, json.find('}', at) + 1 - at);
+  std::ofstream(json_path) << json;
+  EXPECT_FALSE(Dataset::open(tmp.str("d")).info().render_known);
+  const CliRun older = tacsim("info " + tmp.str("d"));
+  EXPECT_NE(older.out.find("shadows and background not recorded"), std::string::npos) << older.out;
 }
 
 TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {

@@ -2,6 +2,8 @@
 // integrated and back-projected by the tracker, give a cloud on the true object surface.
 #include <gtest/gtest.h>
 
+#include "pg/core/gel_rays.h"
+#include "pg/core/image_change.h"
 #include "pg/sim/primitives.h"
 #include "pg/tracker/contact_cloud.h"
 #include "pg/tracker/degeneracy.h"
@@ -218,6 +220,49 @@ TEST(ContactCore, EdgeKeepsTheWholeContactWhereOnlyItShowsTheTurn) {
   const CoreCase deeper = core_case(rc, press_pose(tip, {1, 1, 0}, 0.001, 0.3));
   EXPECT_EQ(deeper.core_free, 1);
   EXPECT_TRUE(deeper.chosen.core);
+}
+
+// With learned normals a frame goes to the network only when the pixels that changed beyond the
+// camera's noise, in regions of a contact's size (not specks), reach the smallest contact
+// (track_dataset). That must never drop a contact the mask can use: a sphere and a cube corner
+// pressed ever deeper (rigid gel, noise sigma 7 against the noise-free reference), at 120x160 and
+// at 60x80, where the smallest contact is 5 px: at the first depth at which the indentation
+// exceeds the mask's 0.1 mm over that many pixels, enough pixels have changed.
+TEST(ChangeRegions, AContactTheMaskCanUseIsNeverTakenForNoChange) {
+  const std::pair<std::string, Eigen::Vector3d> tips[] = {
+      {"sphere_r6mm.glb", Eigen::Vector3d(0, 0, -1)}, {"cube.glb", Eigen::Vector3d(-1, -1, -1)}};
+  for (const auto& [mesh, direction] : tips) {
+    const std::shared_ptr<const ObjectShape> shape = mesh_shape(mesh);
+    // The tip: the mesh's point farthest along the direction.
+    Eigen::Vector3d tip = shape->mesh().vertices[0].cast<double>();
+    for (const auto& v : shape->mesh().vertices) {
+      if (v.cast<double>().dot(direction) > tip.dot(direction)) tip = v.cast<double>();
+    }
+    for (const int width : {120, 60}) {
+      SensorModel sensor = sensor_preset("digit");
+      sensor.camera = sensor.camera.resized(width, width * 4 / 3);
+      sensor.gel.elastic.enabled = false;
+      RenderSettings settings;
+      settings.noise = true;
+      const SensorRenderer renderer(sensor, {shape}, settings);
+      const ContactCloudBuilder builder(sensor, ContactCloudOptions{});
+      const int min_pixels = builder.min_contact_pixels();
+      bool reached = false;
+      for (double press = 0.05e-3; press < 0.5e-3 && !reached; press += 0.01e-3) {
+        const RenderedFrame f = renderer.render({press_pose(tip, direction, press)}, 7);
+        const int deep = int(std::count_if(f.images.depth.data.begin(), f.images.depth.data.end(),
+                                           [](float u) { return u > 1e-4f; }));
+        if (deep < min_pixels) continue;
+        reached = true;
+        const ChangedRegions changes =
+            changed_regions(f.images.color, renderer.background_color_u8());
+        EXPECT_GE(changes.pixels_in_regions_of(std::min(kSpeckPixels, min_pixels)), min_pixels)
+            << mesh << " at " << width << " px wide, " << press * 1e3 << " mm: " << deep
+            << " px deeper than 0.1 mm, " << changes.changed << " changed";
+      }
+      EXPECT_TRUE(reached) << mesh << " at " << width;
+    }
+  }
 }
 
 }  // namespace

@@ -334,7 +334,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (const auto& s : settings) {
     if (s.normals != "gt" && outputs.size() == 1) outputs.push_back("color");
   }
-  const OutputFolder out(args.out);
+  const OutputFolder out(args.out, {"bench.csv", "bench.md", "bench.png"});
   const std::string head = "Command: `" + command(in, !own_scenes) + "`  \n" + machine_line() +
                            "  \nDate: " + utc_now() + "  \n" + std::to_string(args.scenes.size()) +
                            " scenes x " + std::to_string(settings.size()) +

@@ -144,6 +144,25 @@ std::string summary_markdown(const std::vector<Group>& groups) {
   return md.str();
 }
 
+// Throws InputError unless OUT/runs, which eval replaces, is absent or an earlier eval's: only
+// folders with a run's summary.json. A folder of the user's of that name (or datasets given to
+// this eval kept there) is not removed.
+void check_runs_folder_is_evals(const std::string& out) {
+  const fs::path runs = fs::path(out) / "runs";
+  std::error_code ec;
+  if (!fs::exists(fs::symlink_status(runs, ec))) return;
+  const auto refuse = [&](const std::string& why) {
+    throw InputError(runs.string() + ": " + why +
+                     ", not an earlier eval's runs, which eval would replace; give another --out");
+  };
+  if (!fs::is_directory(fs::symlink_status(runs, ec))) refuse("is not a folder");
+  for (const auto& entry : fs::directory_iterator(runs, ec)) {
+    if (!entry.is_directory() || !fs::is_regular_file(entry.path() / "summary.json")) {
+      refuse("holds " + entry.path().filename().string());
+    }
+  }
+}
+
 }  // namespace
 
 int run_eval(const EvalArgs& args) {
@@ -170,6 +189,7 @@ int run_eval(const EvalArgs& args) {
                        "ground truth (track runs without it)");
     }
   }
+  check_runs_folder_is_evals(args.out);
   const OutputFolder out(
       args.out, {"results.csv", "summary.md", "runs", "boxplots.png", "trajectories_*.png"});
   std::vector<Row> rows;
@@ -195,8 +215,8 @@ int run_eval(const EvalArgs& args) {
         a.method = m;
         a.seed = seed;
         const TrackRun run =
-            track_dataset(sensors, make_track_options(a, dataset, models), [&](int done, int) {
-              progress.update(int(std::min<long>(frames_done + done, INT_MAX)));
+            track_dataset(sensors, make_track_options(a, dataset, models), [&](int frame, int) {
+              progress.update(int(std::min<long>(frames_done + frame, INT_MAX)));
             });
         frames_done += dataset.frames();
         const std::string name = names[k] + "_" + m;
@@ -220,6 +240,20 @@ int run_eval(const EvalArgs& args) {
                      std::to_string(rows.size()) + " run(s) finished before it)");
   }
   write_results_csv(results, rows);
+  // Runs that never registered anything: their errors are the first pose's prior's, which a gate
+  // would pass (track says so of its one run).
+  std::string untouched;
+  int untouched_runs = 0;
+  for (const Row& r : rows) {
+    if (r.s.contact_frames > 0) continue;
+    if (++untouched_runs <= 3) untouched += (untouched.empty() ? "" : ", ") + r.run;
+  }
+  if (untouched_runs > 0) {
+    std::fprintf(stderr,
+                 "warning: %d run(s) without any contact frame (%s%s): nothing was registered, "
+                 "their errors are the first pose's prior's (results.csv: contact_frames)\n",
+                 untouched_runs, untouched.c_str(), untouched_runs > 3 ? ", ..." : "");
+  }
   const std::vector<Group> groups = group_runs(rows, methods);
   const std::string md = summary_markdown(groups);
   write_text_atomically((fs::path(args.out) / "summary.md").string(), md);

@@ -122,22 +122,22 @@ int run_render(const RenderArgs& a) {
     const GelModel& gel = sensor.sensor().gel;
     const CameraModel& camera = sensor.sensor().camera;
     const Eigen::Vector2d beyond = view_beyond_gel(camera, gel);
-    if (beyond.maxCoeff() * camera.fy / camera.distance_m > 1.0) {
+    if (std::max(beyond.x() * camera.fx, beyond.y() * camera.fy) / camera.distance_m > 1.0) {
       std::fprintf(stderr,
-                   "warning: sensor %s's camera sees %.1f mm past the gel's %.1f x %.1f mm along "
-                   "x and %.1f mm along y (gel.width_m, gel.height_m): the render draws gel "
-                   "there, where a real sensor's image shows its housing\n",
-                   name.c_str(), 1e3 * beyond.x(), 1e3 * gel.width_m, 1e3 * gel.height_m,
-                   1e3 * beyond.y());
+                   "warning: sensor %s's camera sees past its gel's edges, by %.1f mm along x and "
+                   "%.1f mm along y (gel.width_m %.1f mm, gel.height_m %.1f mm): the render "
+                   "draws gel there, where a real sensor's image shows its housing\n",
+                   name.c_str(), 1e3 * beyond.x(), 1e3 * beyond.y(), 1e3 * gel.width_m,
+                   1e3 * gel.height_m);
     }
     // A sensor whose no-contact image is clipped white or black over much of it cannot show a
     // press there (lights too bright or too dark): said, as recording and track say of a
     // reference.
     if (!sensor.settings().color) continue;
     const std::string what = "sensor " + name + "'s no-contact image (background.png)";
-    for (const std::string& warning : reference_warnings(sensor.background_color_u8(), what)) {
-      std::fprintf(stderr, "warning: %s\n", warning.c_str());
-    }
+    // (Not its noise: a real background's noise is in every frame, so no difference shows it.)
+    const std::string warning = saturated_reference_warning(sensor.background_color_u8(), what);
+    if (!warning.empty()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
   if (s.clamped_frames > 0) {
     const std::vector<std::string>& outputs = renderer.scene().render.outputs;
@@ -207,10 +207,14 @@ int run_info(const std::string& dir, bool check) {
   }
   if (!info.scene.empty()) {
     std::printf("scene     %s (seed %llu)\n", info.scene.c_str(), (unsigned long long)info.seed);
-    std::printf("render    %s gel, noise sigma %g, shadows %s, %s background\n",
-                info.sensor.gel.elastic.enabled ? "elastic" : "rigid", info.sensor.noise.sigma,
-                info.shadows ? "on" : "off",
-                info.background.empty() ? "the sensor's synthetic" : info.background.c_str());
+    std::printf("render    %s gel, noise sigma %g, ",
+                info.sensor.gel.elastic.enabled ? "elastic" : "rigid", info.sensor.noise.sigma);
+    if (info.render_known) {
+      std::printf("shadows %s, %s background\n", info.shadows ? "on" : "off",
+                  info.background.empty() ? "the sensor's synthetic" : info.background.c_str());
+    } else {
+      std::printf("shadows and background not recorded (an older render)\n");
+    }
   } else {
     std::printf("scene     none (a recording)\n");
   }

@@ -336,7 +336,10 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
       if (feed.frame >= 0 && learned && !dropout) {
         const ChangedRegions changes = changed_regions(feed.color, feed.background);
         changed = changes.changed;
-        in_regions = changes.pixels_in_regions_of(kSpeckPixels);
+        // (Specks of the camera's size, but never more than the smallest contact: at 60x80 that
+        // is 5 px, whose changes may come in regions of 7, 4 and 3 px.)
+        in_regions =
+            changes.pixels_in_regions_of(std::min(kSpeckPixels, feed.builder.min_contact_pixels()));
       }
       if (feed.frame < 0) {
         // No image of this sensor at this time: its measurement is missing, no pixel is bad.

@@ -48,7 +48,9 @@ struct DatasetInfo {
   std::string object_mesh;  // its mesh file (absolute path), for model-based baselines
   double object_scale = 1.0;
   // How a rendered dataset was shaded beyond its sensor (the scene's "render" block after tacsim
-  // render's overrides; unknown and left as here for a recording).
+  // render's overrides), when known: not for a recording, nor a render from before these were
+  // recorded.
+  bool render_known = false;
   bool shadows = false;
   std::string background;  // the real background image blended in (absolute path), "" if none
 

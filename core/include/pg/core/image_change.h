@@ -82,10 +82,11 @@ ChangedRegions changed_regions(const ImageU8& color, const ImageU8& reference);
 
 // A region of fewer changed pixels than this is a speck, not a contact: the camera's noise
 // clusters by the change test's 3x3 mean, and against one noisy frame as the reference (sigma 7
-// in both) its largest clusters held 3-6 px in each of 19 frames without contact, where the
-// smallest contact region of the renders' frames (four benchmark sequences, the validation
-// presses, the sphere press; 120x160) held 179 px. Specks are the camera's size, not the
-// contact's, so this does not scale with the image.
+// in both) its largest clusters held 3-6 px in each of 19 frames without contact (up to 10 px in
+// 2 of 400 in a review's scan), where the smallest contact region of the renders' frames (four
+// benchmark sequences, the validation presses, the sphere press; 120x160) held 179 px. Specks are
+// the camera's size, not the contact's, so this does not scale with the image; a user of it with
+// a smaller least contact (a small image's) takes the smaller of the two.
 constexpr int kSpeckPixels = 12;
 
 // The per-pixel and per-channel median of images of one size (of an even count, the two middle
@@ -121,6 +122,9 @@ std::string noisy_reference_warning(const ImageU8& reference, const std::string&
 // of two white lights whose presses label-ball mislabelled, 100 % with the light off.
 double saturated_fraction(const ImageU8& image);
 constexpr double kSaturatedReferenceFraction = 0.2;
+// "" unless `reference` is saturated over more than kSaturatedReferenceFraction of it; else a
+// warning naming `what`.
+std::string saturated_reference_warning(const ImageU8& reference, const std::string& what);
 
 // The warnings about a no-contact reference (`what` names it): noisy, or saturated over more
 // than kSaturatedReferenceFraction of it.
