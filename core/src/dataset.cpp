@@ -165,6 +165,8 @@ bool DatasetInfo::has_output(const std::string& name) const {
   return std::find(outputs.begin(), outputs.end(), name) != outputs.end();
 }
 
+bool DatasetInfo::has_normals() const { return has_output("normal") || has_output("normal_png"); }
+
 std::string dataset_frame_path(const std::string& dir, const std::string& output, int frame) {
   char name[32];
   std::snprintf(name, sizeof(name), "%06d", frame);
@@ -552,6 +554,7 @@ std::vector<int> Dataset::reference_frames() const {
 }
 
 ImageF Dataset::normal(int frame) const {
+  if (!info_.has_output("normal") && info_.has_output("normal_png")) return normal_png(frame);
   return read_checked<float>(*this, "normal", frame, read_float_file);
 }
 ImageF Dataset::normal_png(int frame) const {

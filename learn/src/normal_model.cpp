@@ -429,7 +429,8 @@ std::vector<Dataset> open_evaluation_data(const NormalEstimator& model,
   for (const auto& dir : datasets) {
     sets.push_back(Dataset::open(dir));
     for (const char* output : {"color", "normal", "mask"}) {
-      if (!sets.back().info().has_output(output)) {
+      if (!(std::string(output) == "normal" ? sets.back().info().has_normals()
+                                            : sets.back().info().has_output(output))) {
         throw InputError(dir + ": dataset has no '" + output +
                          "' output, needed to evaluate normals");
       }

@@ -57,7 +57,8 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
   for (const std::string& dir : dirs) {
     const Dataset d = Dataset::open(dir);
     for (const char* output : {"color", "normal", "mask"}) {
-      if (!d.info().has_output(output)) {
+      if (!(std::string(output) == "normal" ? d.info().has_normals()
+                                            : d.info().has_output(output))) {
         throw InputError(dir + ": dataset has no '" + output +
                          "' output, needed for training (a recording of ball presses gets them "
                          "from patchgraph label-ball)");

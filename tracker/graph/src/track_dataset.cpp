@@ -93,10 +93,10 @@ std::string number(double v) {
 }  // namespace
 
 void check_normals_source(const Dataset& dataset, const std::string& normals) {
-  if (normals == "gt" && !dataset.info().has_output("normal")) {
+  if (normals == "gt" && !dataset.info().has_normals()) {
     throw InputError(dataset.dir() +
-                     ": dataset has no 'normal' output, needed for --normals gt (--normals MODEL "
-                     "estimates them from its colour images)");
+                     ": dataset has no 'normal' (or 'normal_png') output, needed for --normals gt "
+                     "(--normals MODEL estimates them from its colour images)");
   }
   if (normals != "gt" && !dataset.info().has_output("color")) {
     throw InputError(dataset.dir() + ": dataset has no 'color' output, needed for --normals " +

@@ -55,6 +55,9 @@ struct DatasetInfo {
   std::string background;  // the real background image blended in (absolute path), "" if none
 
   bool has_output(const std::string& name) const;
+  // Normals in either form: "normal" (float EXR) or "normal_png" (16-bit), which Dataset::normal
+  // reads.
+  bool has_normals() const;
   int width() const { return sensor.camera.width; }
   int height() const { return sensor.camera.height; }
 };
@@ -114,6 +117,7 @@ class Dataset {
 
   // Each checks the image size and channel count against dataset.json.
   ImageU8 color(int frame) const;
+  // The "normal" output, or without it the "normal_png" one (normal_png()).
   ImageF normal(int frame) const;
   // The "normal_png" output decoded: 16-bit (n + 1) / 2, back to unit normals (about 3e-5 off).
   ImageF normal_png(int frame) const;
