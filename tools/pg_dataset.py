@@ -169,6 +169,10 @@ class Dataset:
         return np.asarray(Image.open(os.path.join(self.dir, "background.png")).convert("RGB"))
 
     def normal(self, frame):
+        if "normal" not in self.info["outputs"] and "normal_png" in self.info["outputs"]:
+            raise ValueError(f"{self.dir}: its normals are 16-bit PNGs only (normal_png), which "
+                             "Pillow reads as 8 bits: read them with a 16-bit reader such as "
+                             "imageio or cv2.IMREAD_UNCHANGED, n = png / 65535 * 2 - 1")
         return read_exr(self.path("normal", frame))
 
     def depth(self, frame):
