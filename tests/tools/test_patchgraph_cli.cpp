@@ -1486,6 +1486,17 @@ TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
             std::string::npos)
       << refused.out;
   EXPECT_EQ(Dataset::open(mine + "/runs/cube").frames(), Dataset::open(data()).frames());
+  // An earlier eval stopped while writing a run's files left it partly written: still its own.
+  const std::string stopped = out("stopped_eval");
+  fs::remove_all(stopped);
+  fs::create_directories(stopped + "/runs/data_constvel");
+  std::ofstream(stopped + "/runs/data_constvel/poses.csv") << "frame\n";
+  std::ofstream(stopped + "/runs/data_constvel/errors.csv.tmp.123.0") << "frame\n";
+  const CliRun again = patchgraph("eval -q --no-plots --methods constvel --out " + stopped +
+                                  " --datasets " + data());
+  EXPECT_EQ(again.code, 0) << again.out;
+  EXPECT_FALSE(fs::exists(stopped + "/runs/data_constvel/errors.csv.tmp.123.0"));
+  EXPECT_TRUE(fs::exists(stopped + "/runs/data_constvel/summary.json"));
 }
 
 // Ball presses as a real sensor records them (colour only) become a training set: each frame's

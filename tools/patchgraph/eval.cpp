@@ -144,9 +144,24 @@ std::string summary_markdown(const std::vector<Group>& groups) {
   return md.str();
 }
 
+// Whether `folder` holds nothing but a track run's outputs (write_track_outputs'), whole or
+// partly written (an eval stopped while writing them), or their temporary files.
+bool is_track_run(const fs::path& folder) {
+  std::error_code ec;
+  if (!fs::is_directory(fs::symlink_status(folder, ec))) return false;
+  for (const auto& entry : fs::directory_iterator(folder, ec)) {
+    const std::string name = entry.path().filename().string();
+    const bool output = std::any_of(
+        kTrackOutputFiles.begin(), kTrackOutputFiles.end(),
+        [&](const std::string& o) { return name == o || name.rfind(o + ".tmp.", 0) == 0; });
+    if (!output || !fs::is_regular_file(entry.symlink_status())) return false;
+  }
+  return true;
+}
+
 // Throws InputError unless OUT/runs, which eval replaces, is absent or an earlier eval's: only
-// folders with a run's summary.json. A folder of the user's of that name (or datasets given to
-// this eval kept there) is not removed.
+// track runs' folders. A folder of the user's of that name (or datasets given to this eval kept
+// there) is not removed.
 void check_runs_folder_is_evals(const std::string& out) {
   const fs::path runs = fs::path(out) / "runs";
   std::error_code ec;
@@ -157,9 +172,7 @@ void check_runs_folder_is_evals(const std::string& out) {
   };
   if (!fs::is_directory(fs::symlink_status(runs, ec))) refuse("is not a folder");
   for (const auto& entry : fs::directory_iterator(runs, ec)) {
-    if (!entry.is_directory() || !fs::is_regular_file(entry.path() / "summary.json")) {
-      refuse("holds " + entry.path().filename().string());
-    }
+    if (!is_track_run(entry.path())) refuse("holds " + entry.path().filename().string());
   }
 }
 

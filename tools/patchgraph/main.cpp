@@ -110,7 +110,7 @@ int run_track(const TrackArgs& a) {
           d.dir().c_str(), frames.size(), frames.front(), frames.back());
     }
   }
-  const OutputFolder out(a.out, {"poses.csv", "errors.csv", "summary.json", "patch.ply"});
+  const OutputFolder out(a.out, kTrackOutputFiles);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run =
       track_dataset(sensors, options, [&](int done, int) { progress.update(done); });

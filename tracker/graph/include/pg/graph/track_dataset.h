@@ -188,8 +188,10 @@ SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s, int frame
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
 
 // OUT/poses.csv (the dataset's pose columns, estimated; the primary's with several sensors),
-// OUT/errors.csv, OUT/summary.json, OUT/patch.ply (every sensor's patch, object frame). Throws
-// InputError naming the path.
+// OUT/errors.csv, OUT/summary.json, OUT/patch.ply (every sensor's patch, object frame), the
+// files kTrackOutputFiles names. Throws InputError naming the path.
+inline const std::vector<std::string> kTrackOutputFiles = {"poses.csv", "errors.csv",
+                                                           "summary.json", "patch.ply"};
 void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>& datasets,
                          const std::string& out_dir);
 void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir);
