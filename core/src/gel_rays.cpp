@@ -46,13 +46,18 @@ GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
   return rays;
 }
 
+Eigen::Vector3d undeformed_gel_point(const CameraModel& camera, const GelModel& gel, double x,
+                                     double y) {
+  const Eigen::Vector3d d = camera.ray(x, y);
+  return d * gel_depth(d, camera, gel) - Eigen::Vector3d(0, 0, camera.distance_m);
+}
+
 Eigen::Vector2d view_beyond_gel(const CameraModel& camera, const GelModel& gel) {
   Eigen::Vector2d beyond = Eigen::Vector2d::Zero();
   const auto reach = [&](int x, int y) {
-    const Eigen::Vector3d d = camera.ray(x, y);
-    const double t = gel_depth(d, camera, gel);
-    beyond.x() = std::max(beyond.x(), std::abs(d.x() * t) - 0.5 * gel.width_m);
-    beyond.y() = std::max(beyond.y(), std::abs(d.y() * t) - 0.5 * gel.height_m);
+    const Eigen::Vector3d p = undeformed_gel_point(camera, gel, x, y);
+    beyond.x() = std::max(beyond.x(), std::abs(p.x()) - 0.5 * gel.width_m);
+    beyond.y() = std::max(beyond.y(), std::abs(p.y()) - 0.5 * gel.height_m);
   };
   // The ray's x grows with the column and its y with the row: the image's border reaches
   // farthest.

@@ -140,10 +140,9 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
 }
 
 GelArea visible_gel_area(const SensorModel& sensor) {
-  const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
-  const int w = rays.width, h = rays.height;
-  const auto p = [&](int x, int y) -> Eigen::Vector3d {
-    return rays.point(rays.index(x, y), 0.0f).cast<double>();
+  const int w = sensor.camera.width, h = sensor.camera.height;
+  const auto p = [&](int x, int y) {
+    return undeformed_gel_point(sensor.camera, sensor.gel, x, y);
   };
   // Inside every row's first and last pixel, and every column's.
   Eigen::Vector2d lo(-0.5 * sensor.gel.width_m, -0.5 * sensor.gel.height_m), hi = -lo;

@@ -33,6 +33,11 @@ struct GelRays {
 // slope is small).
 GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel);
 
+// Where the ray of pixel (x, y) meets the undeformed gel, in S [m] (make_gel_rays' point, in
+// double precision, for the few pixels that need one).
+Eigen::Vector3d undeformed_gel_point(const CameraModel& camera, const GelModel& gel, double x,
+                                     double y);
+
 // How far the image's pixel centres reach past the gel's own width_m x height_m on the undeformed
 // gel, along x and y [m] (0 where they stay within it). The renderer draws gel there, where a
 // real sensor shows its housing.
