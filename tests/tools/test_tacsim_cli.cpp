@@ -113,12 +113,19 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
 TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
   TempDir tmp;
   const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
+  // One frame of the sphere pressed 0.5 mm into a sensor named `name` (`sensor`: its JSON).
+  const auto render_sensor = [&](const std::string& name, const std::string& sensor,
+                                 const std::string& output) {
+    std::ofstream(tmp.str(name + ".json"))
+        << R"({"frames": 1, "sensors": [{"name": ")" << name << R"(", "sensor": )" << sensor
+        << R"(}], "objects": [{"mesh": ")" << mesh
+        << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": [")" << output
+        << R"("]}})";
+    return tacsim("render " + tmp.str(name + ".json") + " -q --out " + tmp.str(name));
+  };
   for (const auto& [exposure, warned] : {std::pair<double, bool>{0.9, false}, {5.0, true}}) {
-    std::ofstream(tmp.str("bright.json"))
-        << R"({"frames": 1, "sensors": [{"name": "left", "sensor": {"shading": {"exposure": )"
-        << exposure << R"(}}}], "objects": [{"mesh": ")" << mesh
-        << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": ["color"]}})";
-    const CliRun r = tacsim("render " + tmp.str("bright.json") + " -q --out " + tmp.str("d"));
+    const CliRun r = render_sensor(
+        "left", R"({"shading": {"exposure": )" + std::to_string(exposure) + "}}", "color");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(r.out.find("warning: sensor left's no-contact image (background.png): ") !=
                   std::string::npos,
@@ -130,11 +137,7 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
   }
   // A camera whose view reaches past the gel (a field of view of 1.4 rad, the DIGIT's 1.05):
   // the render draws gel where a real sensor shows its housing.
-  std::ofstream(tmp.str("wide.json"))
-      << R"({"frames": 1, "sensors": [{"name": "wide", "sensor": {"camera": {"fov_y_rad": 1.4}}}],
-             "objects": [{"mesh": ")"
-      << mesh << R"(", "pose": {"position": [0, 0, 0.0055]}}], "render": {"outputs": ["mask"]}})";
-  const CliRun r = tacsim("render " + tmp.str("wide.json") + " -q --out " + tmp.str("w"));
+  const CliRun r = render_sensor("wide", R"({"camera": {"fov_y_rad": 1.4}})", "mask");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("warning: sensor wide's camera sees past its gel's edges, by 2.3 mm along "
                        "x and 0.4 mm along y (gel.width_m 20.0 mm, gel.height_m 30.0 mm)"),

@@ -140,8 +140,7 @@ int run_render(const RenderArgs& a) {
     if (!warning.empty()) std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
   if (s.clamped_frames > 0) {
-    const std::vector<std::string>& outputs = renderer.scene().render.outputs;
-    const bool points = std::find(outputs.begin(), outputs.end(), "points") != outputs.end();
+    const bool points = renderer.sensor(0).settings().contact_points;
     std::fprintf(stderr,
                  "warning: %s: in %d frames an object penetrates beyond the gel's maximum "
                  "indentation; the indentation was clamped there%s\n",
