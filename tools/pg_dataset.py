@@ -1,9 +1,10 @@
 #!/usr/bin/python3
-"""Read a tacsim dataset in Python: numpy, and Pillow for the PNGs (both come with Debian's
+"""Read a tacsim dataset in Python: numpy, and Pillow for the 8-bit PNGs (both come with Debian's
 python3-matplotlib, which the README's commands install). No OpenEXR bindings needed: the float
 images (normals, depth) are read by the small OpenEXR reader below, which takes the files tacsim
 writes (single-part scan-line images of 32-bit float or 16-bit half channels, uncompressed or
-ZIP-compressed).
+ZIP-compressed); the 16-bit PNG normals (normal_png), which Pillow would reduce to 8 bits, by the
+small PNG reader below.
 
     import sys; sys.path.insert(0, "tools")
     from pg_dataset import Dataset
@@ -12,6 +13,7 @@ ZIP-compressed).
     d.poses["obj_x"][7]            # poses.csv as a numpy structured array
     d.color(7)                     # (H, W, 3) uint8
     d.normal(7), d.depth(7)        # (H, W, 3) float32 unit normals in S; (H, W) float32 [m]
+                                   # (normal: from normal_png where the dataset has only that)
     d.mask(7), d.points(7)         # (H, W) bool; (N, 3) float32, object frame [m]
 
 From the shell, `python3 tools/pg_dataset.py DIR [FRAME]` describes a dataset and checks one
@@ -127,6 +129,89 @@ def _decode_exr(data, path):
     return np.ascontiguousarray(image)
 
 
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_CHANNELS = {0: 1, 2: 3, 4: 2, 6: 4}  # colour type -> channels (gray, RGB, gray+alpha, RGBA)
+
+
+def read_png(path):
+    """A PNG image as uint8 or uint16 (H, W, C) with its own bit depth: Pillow reduces 16-bit
+    colour PNGs (tacsim's normal_png) to 8 bits. Takes 8- and 16-bit, non-interlaced gray or
+    colour images without palette, as tacsim writes; ValueError naming the file otherwise."""
+    with open(path, "rb") as f:
+        data = f.read()
+    try:
+        return _decode_png(data, path)
+    except (struct.error, zlib.error, IndexError) as e:
+        raise ValueError(f"{path}: damaged or cut short ({type(e).__name__}: {e})") from None
+
+
+def _decode_png(data, path):
+    if not data.startswith(_PNG_SIGNATURE):
+        raise ValueError(f"{path}: not a PNG file")
+    at, header, packed = len(_PNG_SIGNATURE), None, []
+    while True:
+        size, kind = struct.unpack_from(">I4s", data, at)
+        body = data[at + 8:at + 8 + size]
+        (crc,) = struct.unpack_from(">I", data, at + 8 + size)
+        if len(body) != size or zlib.crc32(kind + body) != crc:
+            raise ValueError(f"{path}: damaged or cut short (chunk {kind.decode('latin-1')})")
+        if kind == b"IHDR":
+            header = struct.unpack(">IIBBBBB", body)
+        elif kind == b"IDAT":
+            packed.append(body)
+        elif kind == b"IEND":
+            break
+        at += 12 + size
+    width, height, bits, colour, _, _, interlace = header
+    if bits not in (8, 16) or colour not in _PNG_CHANNELS or interlace:
+        raise ValueError(f"{path}: a PNG of bit depth {bits}, colour type {colour}, interlace "
+                         f"{interlace}: tacsim writes 8 or 16 bits, no palette, not interlaced")
+    step = _PNG_CHANNELS[colour] * bits // 8  # bytes per pixel, the filters' left neighbour
+    row_bytes = width * step
+    raw = zlib.decompress(b"".join(packed))
+    if len(raw) != height * (row_bytes + 1):
+        raise ValueError(f"{path}: the image data inflates to {len(raw)} bytes, not "
+                         f"{height * (row_bytes + 1)}")
+    rows = np.frombuffer(raw, dtype=np.uint8).reshape(height, row_bytes + 1)
+    image = np.zeros((height + 1, row_bytes), dtype=np.uint8)  # row 0: the zeros above the first
+    for y in range(height):
+        kind, line, above = rows[y, 0], rows[y, 1:], image[y]
+        if kind == 0:
+            image[y + 1] = line
+        elif kind == 1:  # Sub: a running sum of each byte position in the pixel, modulo 256
+            image[y + 1] = np.cumsum(line.reshape(width, step), axis=0, dtype=np.uint8).ravel()
+        elif kind == 2:  # Up
+            image[y + 1] = line + above
+        elif kind in (3, 4):  # Average, Paeth: each byte depends on the one just decoded
+            image[y + 1] = _unfilter_sequential(kind, line.tolist(), above.tolist(), step)
+        else:
+            raise ValueError(f"{path}: row {y} has filter type {kind}")
+    image = image[1:]
+    if bits == 16:
+        image = image.view(">u2").astype(np.uint16)
+    return image.reshape(height, width, _PNG_CHANNELS[colour])
+
+
+def _unfilter_sequential(kind, line, above, step):
+    out = [0] * len(line)
+    for i, value in enumerate(line):
+        left = out[i - step] if i >= step else 0
+        if kind == 3:
+            out[i] = (value + ((left + above[i]) >> 1)) & 0xFF
+            continue
+        upper_left = above[i - step] if i >= step else 0
+        estimate = left + above[i] - upper_left
+        distances = (abs(estimate - left), abs(estimate - above[i]), abs(estimate - upper_left))
+        if distances[0] <= distances[1] and distances[0] <= distances[2]:
+            predictor = left
+        elif distances[1] <= distances[2]:
+            predictor = above[i]
+        else:
+            predictor = upper_left
+        out[i] = (value + predictor) & 0xFF
+    return out
+
+
 def read_ply(path):
     """tacsim's binary PLY (float x y z, perhaps nx ny nz) as float32 (N, 3 or 6)."""
     with open(path, "rb") as f:
@@ -170,10 +255,15 @@ class Dataset:
 
     def normal(self, frame):
         if "normal" not in self.info["outputs"] and "normal_png" in self.info["outputs"]:
-            raise ValueError(f"{self.dir}: its normals are 16-bit PNGs only (normal_png), which "
-                             "Pillow reads as 8 bits: read them with a 16-bit reader such as "
-                             "imageio or cv2.IMREAD_UNCHANGED, n = png / 65535 * 2 - 1")
+            return self.normal_png(frame)
         return read_exr(self.path("normal", frame))
+
+    def normal_png(self, frame):
+        """The normal_png output decoded as the C++ reader does: n = png / 65535 * 2 - 1, made
+        unit length again (within 3e-5 of the float normals)."""
+        n = read_png(self.path("normal_png", frame)).astype(np.float32) / 65535 * 2 - 1
+        length = np.linalg.norm(n, axis=2, keepdims=True)
+        return np.where(length > 0, n / np.where(length > 0, length, 1), n).astype(np.float32)
 
     def depth(self, frame):
         return read_exr(self.path("depth", frame))[:, :, 0]
@@ -201,6 +291,16 @@ def check(folder, frame):
         assert np.abs(length - 1).max() < 1e-5, f"{d.path('normal', frame)}: normals not unit"
         assert (n[:, :, 2] > 0).all(), f"{d.path('normal', frame)}: a normal faces the camera"
         print(f"normal    frame {frame}: unit, tilted up to {np.degrees(np.arccos(n[:, :, 2].min())):.2f} deg")
+    if "normal_png" in outputs:
+        n16 = d.normal_png(frame)
+        assert n16.shape == (height, width, 3), f"{d.path('normal_png', frame)}: shape {n16.shape}"
+        if "normal" in outputs:
+            off = np.abs(n16 - n).max()
+            assert off < 1e-4, f"{d.path('normal_png', frame)}: {off:.2e} off the normal output"
+            print(f"normal_png frame {frame}: within {off:.1e} of normal")
+        else:
+            print(f"normal_png frame {frame}: tilted up to "
+                  f"{np.degrees(np.arccos(min(1.0, n16[:, :, 2].min()))):.2f} deg")
     if "depth" in outputs:
         u = d.depth(frame)
         assert u.shape == (height, width) and (u >= 0).all(), f"{d.path('depth', frame)}"

@@ -147,7 +147,8 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
 
 // tools/pg_dataset.py, the Python reader of the format (numpy and Pillow), reads a render's
 // files as the C++ reader does: the same deepest indentation and count of contact points, unit
-// normals (its own check); a damaged normal file is named with exit 1.
+// normals and 16-bit PNG normals within 1e-4 of them (its own checks); a damaged normal file is
+// named with exit 1.
 TEST(TacsimCli, ThePythonReaderReadsARender) {
   const std::string python = "/usr/bin/python3";
   if (run_command(python, "-c 'import numpy, PIL'").code != 0) {
@@ -155,7 +156,7 @@ TEST(TacsimCli, ThePythonReaderReadsARender) {
   }
   TempDir tmp;
   ASSERT_EQ(tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs " +
-                   "color,normal,depth,mask,points --out " + tmp.str("d"))
+                   "color,normal,normal_png,depth,mask,points --out " + tmp.str("d"))
                 .code,
             0);
   const std::string reader = std::string(PG_SOURCE_DIR) + "/tools/pg_dataset.py ";
@@ -171,6 +172,8 @@ TEST(TacsimCli, ThePythonReaderReadsARender) {
             std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("normal    frame 5: unit"), std::string::npos) << r.out;
+  // Its own 16-bit PNG reader (Pillow's gives 8 bits) decodes normal_png to the EXR's normals.
+  EXPECT_NE(r.out.find("normal_png frame 5: within"), std::string::npos) << r.out;
   const std::string victim = dataset_frame_path(tmp.str("d"), "normal", 5);
   fs::resize_file(victim, fs::file_size(victim) / 2);
   const CliRun damaged = run_command(python, reader + tmp.str("d") + " 5");

@@ -162,7 +162,8 @@ inline void check_names_given_once(const std::vector<std::string>& names,
 // rather than after a long run; removed again at the end of the scope if this created it and
 // nothing was written into it (the work failed first). An earlier run's `outputs` in it (file or
 // folder names; "a_*.png" matches by prefix and suffix) are removed first, so that a run that
-// fails or is stopped half-way leaves none that look like its own.
+// fails or is stopped half-way leaves none that look like its own (one that cannot be removed is
+// an error, before the work).
 class OutputFolder {
  public:
   explicit OutputFolder(std::string dir, const std::vector<std::string>& outputs = {})
@@ -175,7 +176,9 @@ class OutputFolder {
                        (ec ? ": " + ec.message() : std::string(": not a folder")));
     }
     std::vector<std::filesystem::path> earlier;
-    for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
+    std::filesystem::directory_iterator entries(dir_, ec);
+    if (ec) throw InputError(dir_ + ": cannot list the output folder: " + ec.message());
+    for (const auto& entry : entries) {
       const std::string name = entry.path().filename().string();
       const bool matches = std::any_of(outputs.begin(), outputs.end(), [&](const std::string& o) {
         const std::size_t star = o.find('*');
@@ -186,7 +189,14 @@ class OutputFolder {
       });
       if (matches) earlier.push_back(entry.path());
     }
-    for (const auto& path : earlier) std::filesystem::remove_all(path, ec);
+    for (const auto& path : earlier) {
+      // Left in place, an earlier run's file would pass for this run's if this one stops.
+      std::filesystem::remove_all(path, ec);
+      if (ec) {
+        throw InputError(path.string() + ": cannot remove this output of an earlier run: " +
+                         ec.message());
+      }
+    }
   }
   ~OutputFolder() {
     std::error_code ec;
