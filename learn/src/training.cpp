@@ -222,7 +222,7 @@ double learning_rate_at(const TrainOptions& o, int epoch) {
 
 void train_normals(const TrainOptions& options,
                    const std::function<void(const EpochReport&)>& on_epoch,
-                   const std::function<void(int, int)>& on_step) {
+                   const std::function<void(int, int, int)>& on_step) {
   TrainOptions o = options;
   // Fine-tuning: the network (and its normalisation, below) is the starting model's.
   NormalModelInfo init;
@@ -440,7 +440,7 @@ void train_normals(const TrainOptions& options,
     r.learning_rate = learning_rate_at(o, epoch);
     set_learning_rate(opt_g, r.learning_rate);
     if (gan) set_learning_rate(*opt_d, r.learning_rate);
-    if (on_step) on_step(0, batches);
+    if (on_step) on_step(r.epoch, 0, batches);
     for (int b = 0; b < batches; ++b) {
       const std::vector<int> index(
           order.begin() + b * o.batch,
@@ -490,7 +490,7 @@ void train_normals(const TrainOptions& options,
       }
       loss.backward();
       opt_g.step();
-      if (on_step) on_step(b + 1, batches);
+      if (on_step) on_step(r.epoch, b + 1, batches);
     }
     r.loss_l1 /= batches;
     r.loss_gan /= batches;

@@ -1,11 +1,15 @@
 #pragma once
 // Helpers shared by the test suites: a per-test temporary folder, and running a command line.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <array>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <fstream>
 #include <filesystem>
 #include <initializer_list>
 #include <sstream>
@@ -44,6 +48,48 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
   while (std::fgets(buf.data(), int(buf.size()), pipe)) r.out += buf.data();
   const int status = pclose(pipe);
   r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+// Runs `binary args` (through /bin/sh, SIGINT and SIGTERM at their defaults, as from a terminal),
+// sends it `signal_number` once its output (stdout and stderr together, in `log`) holds `text`,
+// and waits for it to end. code: its exit status, or -1 if it never showed `text` (it ended
+// first, or not within 5 minutes) or was killed outright by the signal.
+inline CliRun run_and_signal(const std::string& binary, const std::string& args,
+                             const std::string& text, int signal_number, const std::string& log) {
+  const std::string command = "exec " + binary + " " + args;
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    dup2(fd, 1);
+    dup2(fd, 2);
+    execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  const auto read_log = [&] {
+    std::ifstream in(log);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
+  int status = 0;
+  bool signalled = false, ended = false;
+  while (!ended && std::chrono::steady_clock::now() < deadline) {
+    ended = waitpid(pid, &status, WNOHANG) == pid;
+    if (!ended && !signalled && read_log().find(text) != std::string::npos) {
+      kill(pid, signal_number);
+      signalled = true;
+    }
+    if (!ended) usleep(10000);
+  }
+  if (!ended) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+  }
+  CliRun r;
+  r.out = read_log();
+  r.code = signalled && ended && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
 }
 

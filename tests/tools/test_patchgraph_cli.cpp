@@ -1445,6 +1445,65 @@ TEST_F(PatchgraphCli, NormalsAsSixteenBitPngTrackAsTheExrDo) {
 // A run into an earlier run's --out that fails half-way (a damaged frame) leaves none of the
 // earlier run's outputs, which would look like its own (a CI step reading summary.json after a
 // failed or stopped run read the earlier one's); the folder's other files stay.
+// Ctrl-C (SIGINT) or SIGTERM stops a run at its next frame or batch: exit 128 + the signal, a
+// message saying what the run leaves, and nothing that passes for a finished run's output. A
+// stopped track leaves no folder it made; a stopped eval keeps the runs it finished; a stopped
+// training's checkpoint resumes.
+TEST_F(PatchgraphCli, ASignalStopsARunAndSaysWhatItLeaves) {
+  const std::string log = out("signal.log");
+  const std::string long_data = out("long_cube");  // 300 frames: a second or more of tracking
+  fs::remove_all(long_data);
+  ASSERT_EQ(render_scene("benchmark/cube_00.json", "-q --outputs color,normal,mask --out " +
+                                                       long_data)
+                .code,
+            0);
+  const std::string track_out = out("stopped_track");
+  fs::remove_all(track_out);
+  CliRun r = testing_support::run_and_signal(
+      PATCHGRAPH_PATH, "track " + long_data + " --out " + track_out, "tracking ", SIGTERM, log);
+  EXPECT_EQ(r.code, 128 + SIGTERM) << r.out;
+  EXPECT_NE(r.out.find("error: stopped by signal 15 (SIGTERM): nothing written to " + track_out),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(track_out));
+
+  const std::string eval_out = out("stopped_eval");
+  fs::remove_all(eval_out);
+  r = testing_support::run_and_signal(PATCHGRAPH_PATH,
+                                      "eval --no-plots --methods patchgraph --out " + eval_out +
+                                          " --datasets " + data() + " " + long_data,
+                                      "[1/2]", SIGINT, log);
+  EXPECT_EQ(r.code, 128 + SIGINT) << r.out;
+  EXPECT_NE(r.out.find("error: interrupted (SIGINT, Ctrl-C): " + eval_out +
+                       "/results.csv holds the 1 run(s) finished before it"),
+            std::string::npos)
+      << r.out;
+  std::ifstream results(eval_out + "/results.csv");
+  std::string line;
+  int rows = 0;
+  while (std::getline(results, line)) ++rows;
+  EXPECT_EQ(rows, 2) << "a header and the finished run";
+  EXPECT_FALSE(fs::exists(eval_out + "/summary.md"));
+
+  const std::string model = out("stopped_model.pt");
+  const std::string train = "train-normals --data " + data() +
+                            " --depth 2 --width 4 --threads 1 --checkpoint-every 1 --out " + model;
+  r = testing_support::run_and_signal(PATCHGRAPH_PATH, train + " --epochs 1000", "epoch   1/1000",
+                                      SIGINT, log);
+  EXPECT_EQ(r.code, 128 + SIGINT) << r.out;
+  const std::size_t at = r.out.find(model + ".ckpt holds epoch ");
+  ASSERT_NE(at, std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(model));
+  const int held = std::stoi(r.out.substr(at + model.size() + 18));
+  EXPECT_GE(held, 1);
+  r = patchgraph(train + " --resume --epochs " + std::to_string(held + 1));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("resumed from " + model + ".ckpt after epoch " + std::to_string(held)),
+            std::string::npos)
+      << r.out;
+  EXPECT_TRUE(fs::exists(model));
+}
+
 TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
   const std::string damaged = data_copy("damaged_frame");
   const std::string frame = dataset_frame_path(damaged, "normal", 30);

@@ -328,6 +328,24 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_EQ(Dataset::open(d).frames(), 5);
 }
 
+// Ctrl-C stops a render at its next frame: exit 130 and a message naming the unfinished dataset,
+// which does not open (no poses.csv) and which a render replaces.
+TEST(TacsimCli, CtrlCStopsARenderAndSaysWhatItLeaves) {
+  TempDir tmp;
+  const std::string d = tmp.str("d");
+  const CliRun r = testing_support::run_and_signal(
+      TACSIM_PATH, "render " + kScenes + "benchmark/cube_00.json --outputs color,mask --out " + d,
+      "rendering ", SIGINT, tmp.str("log"));
+  EXPECT_EQ(r.code, 130) << r.out;
+  EXPECT_NE(r.out.find("error: interrupted (SIGINT, Ctrl-C): " + d + " holds an unfinished dataset"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(d + "/poses.csv"));
+  testing_support::expect_input_error([&] { Dataset::open(d); }, {"poses.csv"});
+  ASSERT_EQ(tacsim("render " + kScenes + "benchmark/cube_00.json -q --frames 3 --out " + d).code, 0);
+  EXPECT_EQ(Dataset::open(d).frames(), 3);
+}
+
 // A render that the disk cannot hold is refused before anything is written (it would stop
 // half-way with a full disk); an earlier dataset in the folder stays whole. The render line says
 // how much a render wrote.

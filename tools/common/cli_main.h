@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pg/core/error.h"
+#include "stop.h"
 
 namespace pg {
 
@@ -259,8 +260,12 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     app.exit(e);
     return kExitUsage;
   }
+  stop_on_signals();
   try {
     return body();
+  } catch (const Stopped& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return e.exit_code();
   } catch (const UsageError& e) {
     std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
     return kExitUsage;

@@ -1,11 +1,14 @@
 #pragma once
 // A progress line for long jobs: frames done, rate, ETA. On a terminal it redraws one line;
-// otherwise (CI logs) it prints a line every 10%.
+// otherwise (CI logs) it prints a line every 10%. Each update is also where a job stops on
+// Ctrl-C (stop.h), shown or not.
 #include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
 #include <string>
+
+#include "stop.h"
 
 namespace pg {
 
@@ -16,7 +19,9 @@ class Progress {
       : label_(std::move(label)), unit_(std::move(unit)), total_(total), enabled_(enabled),
         tty_(isatty(fileno(stderr))), start_(std::chrono::steady_clock::now()) {}
 
+  // Throws Stopped when SIGINT or SIGTERM has come.
   void update(int done) {
+    stop_if_asked();
     if (!enabled_ || total_ <= 0) return;
     const auto now = std::chrono::steady_clock::now();
     const double elapsed = std::chrono::duration<double>(now - start_).count();

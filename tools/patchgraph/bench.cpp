@@ -368,7 +368,8 @@ int run_track_bench(const TrackBenchArgs& in) {
           cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
       const Dataset dataset = Dataset::open(dir);
       const TrackRun run =
-          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name), models));
+          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name), models),
+                        [](int, int) { stop_if_asked(); });
       row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
       ++done;
       if (!args.quiet) {

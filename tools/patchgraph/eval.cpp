@@ -251,6 +251,12 @@ int run_eval(const EvalArgs& args) {
     write_results_csv(results, rows);
     throw InputError(std::string(e.what()) + "\n(eval stopped there; " + results + " holds the " +
                      std::to_string(rows.size()) + " run(s) finished before it)");
+  } catch (const Stopped& e) {
+    // Ctrl-C on a long matrix keeps what it measured; the run cut short is not among them.
+    if (rows.empty()) throw e.with_note("no run finished; nothing written");
+    write_results_csv(results, rows);
+    throw e.with_note(results + " holds the " + std::to_string(rows.size()) +
+                      " run(s) finished before it (no summary.md or plots)");
   }
   write_results_csv(results, rows);
   // Runs that never registered anything: their errors are the first pose's prior's, which a gate

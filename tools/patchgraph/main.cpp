@@ -112,8 +112,13 @@ int run_track(const TrackArgs& a) {
   }
   const OutputFolder out(a.out, kTrackOutputFiles);
   Progress progress("tracking", dataset.frames(), !a.quiet);
-  const TrackRun run =
-      track_dataset(sensors, options, [&](int done, int) { progress.update(done); });
+  const TrackRun run = [&] {
+    try {
+      return track_dataset(sensors, options, [&](int done, int) { progress.update(done); });
+    } catch (const Stopped& e) {
+      throw e.with_note("nothing written to " + a.out);
+    }
+  }();
   write_track_outputs(run, sensors, a.out);
   const TrackSummary& s = run.summary;
   std::string names;

@@ -1,5 +1,7 @@
 #include "normals_cli.h"
 
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -142,17 +144,21 @@ int run_train_normals(const TrainNormalsArgs& a) {
                      "another file (the starting model would be replaced)");
   }
   std::unique_ptr<Progress> progress;
-  int epoch = 0;
+  int epoch = 0;             // the one in progress
+  int checkpoint_epoch = -1;  // what OUT.ckpt holds by this run: -1 none
   std::printf("%s on %zu dataset(s) for %d epochs -> %s\n",
               o.init_model.empty() ? ("training " + describe(o.spec)).c_str()
                                    : ("fine-tuning " + o.init_model).c_str(),
               o.train_data.size(), o.epochs, o.out.c_str());
   std::fflush(stdout);
+  const std::string checkpoint = o.out + ".ckpt";
+  try {
   train_normals(
       o,
       [&](const EpochReport& r) {
         progress.reset();
-        epoch = r.epoch;
+        // train_normals writes the checkpoint right after this report.
+        if (r.epoch % std::max(1, o.checkpoint_every) == 0) checkpoint_epoch = r.epoch;
         std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
                     r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
         if (r.val.frames == 0) {
@@ -164,14 +170,32 @@ int run_train_normals(const TrainNormalsArgs& a) {
         }
         std::fflush(stdout);
       },
-      [&](int done, int total) {
-        if (a.quiet) return;
+      [&](int in_epoch, int done, int total) {
+        if (o.resume && epoch == 0) {
+          std::printf("resumed from %s after epoch %d\n", checkpoint.c_str(), in_epoch - 1);
+          std::fflush(stdout);
+          checkpoint_epoch = in_epoch - 1;
+        }
+        epoch = in_epoch;
+        // The batches' line on a terminal only: in a log, each epoch's line says enough (the
+        // line every tenth of an epoch was ten more lines an epoch).
+        if (a.quiet || !isatty(fileno(stderr))) return stop_if_asked();
         if (!progress) {
-          progress = std::make_unique<Progress>("epoch " + std::to_string(epoch + 1), total, true,
+          progress = std::make_unique<Progress>("epoch " + std::to_string(epoch), total, true,
                                                 "batches");
         }
         progress->update(done);
       });
+  } catch (const Stopped& e) {
+    progress.reset();
+    std::string where = epoch == 0 ? "before the first epoch" : "in epoch " + std::to_string(epoch);
+    throw e.with_note(where + "; " + o.out + " not written; " +
+                      (checkpoint_epoch > 0
+                           ? checkpoint + " holds epoch " + std::to_string(checkpoint_epoch) +
+                                 ": --resume continues from it"
+                           : "no checkpoint written yet (one every " +
+                                 std::to_string(o.checkpoint_every) + " epochs)"));
+  }
   std::printf("wrote %s\n", o.out.c_str());
   return kExitOk;
 }

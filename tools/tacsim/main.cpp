@@ -88,8 +88,15 @@ int run_render(const RenderArgs& a) {
   }
   const SceneRenderer renderer(std::move(scene), overrides);
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
-  const RenderSummary s =
-      render_scene_to_dataset(renderer, a.out, [&](int done, int) { progress.update(done); });
+  const RenderSummary s = [&] {
+    try {
+      return render_scene_to_dataset(renderer, a.out,
+                                     [&](int done, int) { progress.update(done); });
+    } catch (const Stopped& e) {
+      throw e.with_note(a.out + " holds an unfinished dataset (no poses.csv, it does not open); "
+                        "render again to replace it");
+    }
+  }();
   // Each sensor's image size ("120x160", or "120x160 + 240x320" for sensors of two sizes).
   std::vector<std::string> seen;
   std::string sizes;

@@ -152,9 +152,10 @@ struct EpochReport {
 };
 
 // Trains and writes OUT (and OUT.ckpt every checkpoint_every epochs). Throws InputError for bad
-// data (naming the folder or file). `on_step(done, total)` reports batches within an epoch.
+// data (naming the folder or file). `on_step(epoch, done, total)` reports batches within an
+// epoch (counted from 1, as EpochReport::epoch; a resumed run starts after its checkpoint's).
 void train_normals(const TrainOptions& options,
                    const std::function<void(const EpochReport&)>& on_epoch = nullptr,
-                   const std::function<void(int, int)>& on_step = nullptr);
+                   const std::function<void(int, int, int)>& on_step = nullptr);
 
 }  // namespace pg
