@@ -8,7 +8,7 @@ packages=(
   cmake g++ make pkg-config
   libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
-  libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev libopenblas0-openmp
+  libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev libopenblas0-openmp zlib1g-dev
   python3-matplotlib
 )
 missing=()

@@ -29,7 +29,8 @@ std::string write_failure_cause(const std::string& path, int error_number) {
   if (folder.empty()) folder = ".";
   std::error_code ec;
   const fs::space_info space = fs::space(folder, ec);
-  if (!ec && space.available < kLowDiskSpace) {
+  // A file system of no capacity (/proc, /sys) is no full disk.
+  if (!ec && space.capacity > 0 && space.available < kLowDiskSpace) {
     cause += (cause.empty() ? "" : "; ") + std::string("the disk holding ") + folder.string() +
              " is full: " + std::to_string(space.available / 1024) + " KB free";
   }

@@ -63,6 +63,14 @@ torch::Tensor mask_tensor(const ImageU8& mask);
 // integrates normals, copes with such pixels; a loss or a metric would turn NaN).
 ImageF true_normals(const Dataset& dataset, int frame);
 
+// The network's output as the tracker gets it: of unit length, and +z (the undeformed gel) where
+// it does not face the camera's side of the gel by more than kMinFacingZ (the network is unsure
+// there). NormalEstimator::predict applies it per pixel after averaging the phases; the
+// validation metrics of training through `as_predicted` (N x 3 x H x W), so that they are the
+// metrics eval-normals reports.
+constexpr float kMinFacingZ = 0.05f;
+torch::Tensor as_predicted(const torch::Tensor& raw);
+
 // Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
 void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info);
 // Throws InputError naming the path.

@@ -12,6 +12,7 @@
 #include "pg/core/file_io.h"
 #include "pg/core/gel_rays.h"
 #include "pg/core/statistics.h"
+#include "zip_check.h"
 
 namespace pg {
 
@@ -174,7 +175,11 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
     throw InputError(path + ": cannot write the model file" + write_failure_cause(path, 0));
   }
   fs::rename(tmp, path, ec);
-  if (ec) throw InputError(path + ": cannot write the model file: " + ec.message());
+  if (ec) {
+    const std::string why = ec.message();
+    fs::remove(tmp, ec);
+    throw InputError(path + ": cannot write the model file: " + why);
+  }
 }
 
 Generator load_model(const std::string& path, NormalModelInfo& info) {
@@ -182,6 +187,7 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
   if (!fs::is_regular_file(path)) {
     throw InputError(path + ": is not a model file (a folder, device or pipe)");
   }
+  learn::check_zip_checksums(path, "model file");
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(path);
@@ -211,8 +217,8 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
   }
-  // A damaged file may still unpack (the archive's checksums are not verified): weights that are
-  // not finite (NaN, inf: bytes overwritten) would turn every prediction into noise.
+  // Checked again after the checksums: weights that are not finite (a file written so by a
+  // diverged run of some other tool) would turn every prediction into noise.
   for (const auto& list : {generator->parameters(), generator->buffers()}) {
     for (const torch::Tensor& t : list) {
       if (!torch::isfinite(t).all().item<bool>()) {
@@ -222,6 +228,13 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
   }
   generator->eval();
   return generator;
+}
+
+torch::Tensor as_predicted(const torch::Tensor& raw) {
+  const torch::Tensor unit = raw / raw.norm(2, 1, true).clamp_min(1e-6);
+  torch::Tensor up = torch::zeros_like(unit);
+  up.select(1, 2).fill_(1.0f);
+  return torch::where(unit.narrow(1, 2, 1) > kMinFacingZ, unit, up);
 }
 
 void MetricSums::add(const torch::Tensor& predicted, const torch::Tensor& truth,
@@ -408,7 +421,7 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
       }
       const float inv = 1.0f / std::max(std::sqrt(nx * nx + ny * ny + nz * nz), 1e-6f);
       float* o = &normals.data[(std::size_t(y) * w + x) * 3];
-      if (nz * inv > 0.05f) {
+      if (nz * inv > learn::kMinFacingZ) {
         o[0] = nx * inv, o[1] = ny * inv, o[2] = nz * inv;
       } else {
         o[0] = 0.0f, o[1] = 0.0f, o[2] = 1.0f;

@@ -15,6 +15,7 @@
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "zip_check.h"
 
 namespace pg {
 
@@ -146,7 +147,8 @@ NormalMetrics validate(learn::Generator& g, const FrameSet& set, const torch::Te
     std::vector<torch::Tensor> x(set.input.begin() + i, set.input.begin() + i + n);
     std::vector<torch::Tensor> y(set.target.begin() + i, set.target.begin() + i + n);
     std::vector<torch::Tensor> m(set.mask.begin() + i, set.mask.begin() + i + n);
-    sums.add(g->forward((torch::stack(x) - mean) / std), torch::stack(y), torch::stack(m));
+    sums.add(learn::as_predicted(g->forward((torch::stack(x) - mean) / std)), torch::stack(y),
+             torch::stack(m));
   }
   g->train();
   return sums.metrics(int(set.size()));
@@ -183,8 +185,10 @@ std::string canonical_or_given(const std::string& path) {
 // --epochs and --decay-epochs may change on resuming (to train longer); the schedule is a
 // function of the epoch, so it then continues as the new values say.
 nlohmann::json run_settings(const TrainOptions& o) {
-  nlohmann::json data = nlohmann::json::array();
+  nlohmann::json data = nlohmann::json::array(), val = nlohmann::json::array();
   for (const std::string& folder : o.train_data) data.push_back(canonical_or_given(folder));
+  // Without --val every 10th training frame is held out: dropping it changes the training set.
+  for (const std::string& folder : o.val_data) val.push_back(canonical_or_given(folder));
   return {{"--lr", o.learning_rate},
           {"beta1", o.beta1},
           {"--batch", o.batch},
@@ -196,6 +200,7 @@ nlohmann::json run_settings(const TrainOptions& o) {
           {"--gain-jitter", o.gain_jitter},
           {"--offset-jitter", o.offset_jitter},
           {"--data", data},
+          {"--val", val},
           {"--init", o.init_model.empty() ? std::string() : canonical_or_given(o.init_model)}};
 }
 
@@ -208,8 +213,37 @@ void check_run_settings(const nlohmann::json& recorded, const TrainOptions& o,
     if (!recorded.contains(option) || recorded.at(option) == value) continue;
     throw InputError(checkpoint + ": trained with " + option + " " + recorded.at(option).dump() +
                      ", resumed with " + value.dump() +
-                     "; resume with the same value, or start a new run without --resume");
+                     "; resume with the same value, or train into another --out");
   }
+}
+
+// How far a checkpoint's run got: the epochs done and the epochs it was to train (0: not
+// recorded, a checkpoint written before the record existed).
+struct CheckpointProgress {
+  int epoch = 0, epochs = 0;
+};
+CheckpointProgress checkpoint_progress(const std::string& checkpoint) {
+  learn::check_zip_checksums(checkpoint, "checkpoint");
+  torch::serialize::InputArchive a;
+  c10::IValue format, text, epoch;
+  try {
+    a.load_from(checkpoint);
+  } catch (const c10::Error&) {
+    throw InputError(checkpoint + ": corrupt checkpoint");
+  }
+  if (!a.try_read("format", format) || !format.isString() ||
+      format.toStringRef() != kCheckpointFormat || !a.try_read("info", text) || !text.isString() ||
+      !a.try_read("epoch", epoch) || !epoch.isInt()) {
+    throw InputError(checkpoint + ": not a normals training checkpoint");
+  }
+  CheckpointProgress p;
+  p.epoch = int(epoch.toInt());
+  try {
+    p.epochs = nlohmann::json::parse(text.toStringRef()).value("epochs", 0);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
+  }
+  return p;
 }
 
 // The learning rate of epoch `epoch` (0-based) under TrainOptions::decay_epochs' schedule.
@@ -255,6 +289,27 @@ void train_normals(const TrainOptions& options,
     const fs::path probe = o.out + ".ckpt.tmp";
     if (!std::ofstream(probe)) throw InputError(o.out + ": cannot write in " + folder.string());
     fs::remove(probe);
+    // The checkpoint's place, and the work it may hold: a new run would replace an unfinished
+    // run's checkpoint at its first save (a forgotten --resume).
+    const std::string checkpoint = o.out + ".ckpt";
+    if (fs::exists(checkpoint, ec) && !fs::is_regular_file(checkpoint, ec)) {
+      throw InputError(checkpoint + ": is not a file (a folder?), where the run keeps its "
+                       "checkpoint; remove it or train into another --out");
+    }
+    if (!o.resume && fs::is_regular_file(checkpoint, ec)) {
+      CheckpointProgress p;
+      try {
+        p = checkpoint_progress(checkpoint);
+      } catch (const InputError& e) {
+        throw InputError(std::string(e.what()) + "; remove it to start a new run into " + o.out);
+      }
+      if (p.epochs == 0 || p.epoch < p.epochs) {
+        throw InputError(checkpoint + ": holds an unfinished training run (epoch " +
+                         std::to_string(p.epoch) +
+                         (p.epochs > 0 ? " of " + std::to_string(p.epochs) : std::string()) +
+                         "): --resume continues it; remove it to start a new run into " + o.out);
+      }
+    }
   }
   const int threads =
       o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
@@ -305,6 +360,21 @@ void train_normals(const TrainOptions& options,
   }
   const bool mlp = o.spec.arch == "mlp";
   const bool gan = !mlp && o.gan_weight > 0;
+  // Settings of the other networks given to the MLP (or its to them) would be silently ignored.
+  // (Compared with the defaults: the arch of an --init model is known only now.)
+  const TrainOptions defaults;
+  if (mlp && (o.l1_weight != defaults.l1_weight || o.gan_weight != defaults.gan_weight)) {
+    throw InputError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
+                     ": the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
+                     "--gan-weight do not apply to it");
+  }
+  if (o.init_model.empty() && mlp &&
+      (o.spec.depth != defaults.spec.depth || o.spec.base_width != defaults.spec.base_width)) {
+    throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
+  }
+  if (o.init_model.empty() && !mlp && o.spec.mlp_hidden != defaults.spec.mlp_hidden) {
+    throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
+  }
   // The PatchGAN's three stride-2 and two 4x4 layers need 12 px a side.
   constexpr int kMinGanSide = 12;
   if (gan && std::min(train.width, train.height) < kMinGanSide) {
@@ -327,6 +397,7 @@ void train_normals(const TrainOptions& options,
   if (o.resume) {
     if (!fs::is_regular_file(checkpoint))
       throw InputError(checkpoint + ": no checkpoint to resume");
+    learn::check_zip_checksums(checkpoint, "checkpoint");
     torch::serialize::InputArchive a;
     try {
       a.load_from(checkpoint);
@@ -360,6 +431,12 @@ void train_normals(const TrainOptions& options,
       }
       history = j.at("history");
       first_epoch = int(epoch.toInt());
+      // A run that went further than asked would write a model of more epochs than --epochs.
+      if (first_epoch > o.epochs) {
+        throw InputError(checkpoint + ": holds epoch " + std::to_string(first_epoch) +
+                         ", past --epochs " + std::to_string(o.epochs) + "; give --epochs " +
+                         std::to_string(first_epoch) + " to write its model, or more to train on");
+      }
       torch::serialize::InputArchive sub;
       a.read("generator", sub);
       g->load(sub);
@@ -393,6 +470,7 @@ void train_normals(const TrainOptions& options,
                         {"mlp_hidden", o.spec.mlp_hidden},
                         {"gan", gan},
                         {"gel_relative", o.gel_relative},
+                        {"epochs", o.epochs},
                         {"run", run_settings(o)},
                         {"history", history}};
     a.write("info", c10::IValue(j.dump()));
@@ -419,7 +497,11 @@ void train_normals(const TrainOptions& options,
                        write_failure_cause(checkpoint, 0));
     }
     fs::rename(tmp, checkpoint, ec);
-    if (ec) throw InputError(checkpoint + ": cannot write the checkpoint: " + ec.message());
+    if (ec) {
+      const std::string why = ec.message();
+      fs::remove(tmp, ec);
+      throw InputError(checkpoint + ": cannot write the checkpoint: " + why);
+    }
   };
 
   const int batches = int((train.size() + o.batch - 1) / o.batch);
@@ -436,6 +518,9 @@ void train_normals(const TrainOptions& options,
     EpochReport r;
     r.epoch = epoch + 1;
     r.epochs = o.epochs;
+    r.squared_loss = mlp;
+    r.train_frames = int(train.size());
+    r.batches = batches;
     // A function of the epoch alone, so a resumed run follows the same schedule.
     r.learning_rate = learning_rate_at(o, epoch);
     set_learning_rate(opt_g, r.learning_rate);

@@ -114,6 +114,27 @@ TEST_F(NormalsTraining, LossFallsAndTheModelFileRoundTripsExactly) {
   const auto history = nlohmann::json::parse(model.info().history_json);
   EXPECT_EQ(history.size(), 6u);
 
+  // So do those of a network barely trained, whose output faces away from the camera in places
+  // (where inference puts the undeformed gel's +z): training validates what inference returns.
+  TrainOptions early = tiny_options(train_, val_, tmp_->str("early.pt"));
+  early.epochs = 1;
+  early.learning_rate = 2e-5;
+  std::vector<EpochReport> first;
+  train_normals(early, [&](const EpochReport& r) { first.push_back(r); });
+  const NormalEstimator barely = NormalEstimator::load(early.out);
+  const NormalMetrics b = evaluate_normals(barely, {val_});
+  int turned_up = 0;  // pixels inference set to +z
+  const Dataset val = Dataset::open(val_);
+  for (int f = 0; f < val.frames(); ++f) {
+    const ImageF n = barely.predict(val.color(f), val.background());
+    for (std::size_t p = 0; p < n.data.size(); p += 3) turned_up += n.data[p + 2] == 1.0f;
+  }
+  EXPECT_GT(turned_up, 0) << "the case this checks did not occur";
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_NEAR(b.angle_image_deg, first[0].val.angle_image_deg, 1e-4);
+  EXPECT_NEAR(b.angle_contact_deg, first[0].val.angle_contact_deg, 1e-4);
+  EXPECT_NEAR(b.mse_image, first[0].val.mse_image, 1e-6 * b.mse_image + 1e-9);
+
   // Unit normals facing the camera side, of the image's size.
   const Dataset d = Dataset::open(val_);
   const ImageF n = model.predict(d.color(0), d.background());
@@ -249,9 +270,28 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   other_data.train_data = {val_};
   EXPECT_NE(input_error_message([&] { train_normals(other_data); }).find("--data"),
             std::string::npos);
+  // Without --val every 10th training frame is held out: another training set.
+  TrainOptions no_val = part;
+  no_val.val_data.clear();
+  EXPECT_NE(input_error_message([&] { train_normals(no_val); }).find("--val"), std::string::npos);
+  // A new run into the same --out (a forgotten --resume) would replace the unfinished run's
+  // checkpoint at its first save; a resumed run cannot stop short of the checkpoint's epoch.
+  TrainOptions fresh = part;
+  fresh.resume = false;
+  EXPECT_NE(input_error_message([&] { train_normals(fresh); })
+                .find("holds an unfinished training run (epoch 2 of 4): --resume continues it"),
+            std::string::npos);
+  TrainOptions shorter = part;
+  shorter.epochs = 1;
+  shorter.decay_epochs = 0;
+  EXPECT_NE(input_error_message([&] { train_normals(shorter); })
+                .find("holds epoch 2, past --epochs 1"),
+            std::string::npos);
   // Another network says which one each is, briefly (not the checkpoint's whole description).
   TrainOptions other_net = part;
   other_net.spec.arch = "mlp";
+  other_net.spec.depth = NetworkSpec().depth;  // the MLP takes neither
+  other_net.spec.base_width = NetworkSpec().base_width;
   const std::string net_error = input_error_message([&] { train_normals(other_net); });
   EXPECT_NE(net_error.find("holds " + describe(part.spec) + " with"), std::string::npos)
       << net_error;
@@ -291,16 +331,36 @@ TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
   for (const std::string arch : {"resnet", "mlp"}) {
     TrainOptions o = tiny_options(train_, val_, tmp_->str(arch + ".pt"));
     o.spec.arch = arch;
-    o.spec.depth = 2;
+    if (arch == "mlp") {
+      o.spec.depth = NetworkSpec().depth;  // the MLP takes neither (refused otherwise)
+      o.spec.base_width = NetworkSpec().base_width;
+    } else {
+      o.spec.depth = 2;
+    }
     o.epochs = 2;
     std::vector<EpochReport> epochs;
     train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
     EXPECT_LT(epochs.back().loss_l1, epochs.front().loss_l1) << arch;
+    EXPECT_EQ(epochs.back().squared_loss, arch == "mlp");
     const NormalEstimator model = NormalEstimator::load(o.out);
     EXPECT_EQ(model.info().spec.arch, arch);
     const Dataset d = Dataset::open(val_);
     EXPECT_TRUE(model.predict(d.color(0), d.background()).same_shape(40, 30, 3)) << arch;
   }
+  // Settings of the other architecture are refused rather than silently ignored.
+  TrainOptions mlp = tiny_options(train_, val_, tmp_->str("mlp_wide.pt"));
+  mlp.spec.arch = "mlp";
+  EXPECT_NE(input_error_message([&] { train_normals(mlp); })
+                .find("--arch mlp: --depth and --width do not apply"),
+            std::string::npos);
+  mlp.spec = NetworkSpec{"mlp"};
+  mlp.l1_weight = 10;
+  EXPECT_NE(input_error_message([&] { train_normals(mlp); }).find("--l1-weight"),
+            std::string::npos);
+  TrainOptions unet = tiny_options(train_, val_, tmp_->str("unet_hidden.pt"));
+  unet.spec.mlp_hidden = 8;
+  EXPECT_NE(input_error_message([&] { train_normals(unet); }).find("--hidden applies to the MLP"),
+            std::string::npos);
 }
 
 // Gel-relative labels: the network learns normals in each pixel's undeformed-gel frame and the
@@ -403,8 +463,16 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
       }
     }
     ASSERT_GT(best_size, 64u) << "no weight data found in " << o.out;
-    std::fill_n(bytes.begin() + std::ptrdiff_t(best_at + (best_size / 8) * 4), 4, '\xff');
+    // One bit of a float's lowest mantissa byte: a finite weight, a little off, that only the
+    // archive's checksum tells from the written one.
+    std::string slightly = bytes;
+    slightly[best_at + (best_size / 8) * 4] ^= 1;
     const std::string damaged = tmp_->str("damaged.pt");
+    std::ofstream(damaged, std::ios::binary) << slightly;
+    msg = input_error_message([&] { NormalEstimator::load(damaged); });
+    EXPECT_NE(msg.find("damaged.pt: corrupt model file"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("does not match its checksum"), std::string::npos) << msg;
+    std::fill_n(bytes.begin() + std::ptrdiff_t(best_at + (best_size / 8) * 4), 4, '\xff');
     std::ofstream(damaged, std::ios::binary) << bytes;
     msg = input_error_message([&] { NormalEstimator::load(damaged); });
     EXPECT_NE(msg.find("damaged.pt: corrupt model file"), std::string::npos) << msg;

@@ -125,6 +125,9 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused("eval-normals --model " + model + " --data " + data() + " --json " +
               out("no_such_folder/m.json"),
           1, "no_such_folder/m.json: cannot write: ");
+  // Also in a folder where nothing can be written (and /proc, of no capacity, is no full disk).
+  refused("eval-normals --model " + model + " --data " + data() + " --json /proc/m.json", 1,
+          "/proc/m.json: cannot write (No such file or directory)\n");
   refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
           "given twice");
   // Fine-tuning takes the starting model's network, and does not write over it.
@@ -1496,12 +1499,26 @@ TEST_F(PatchgraphCli, ASignalStopsARunAndSaysWhatItLeaves) {
   EXPECT_FALSE(fs::exists(model));
   const int held = std::stoi(r.out.substr(at + model.size() + 18));
   EXPECT_GE(held, 1);
+  // A new run into the same --out is refused: it would replace the checkpoint.
+  r = patchgraph(train + " --epochs 3");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(model + ".ckpt: holds an unfinished training run (epoch " +
+                       std::to_string(held) + " of 1000)"),
+            std::string::npos)
+      << r.out;
   r = patchgraph(train + " --resume --epochs " + std::to_string(held + 1));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("resumed from " + model + ".ckpt after epoch " + std::to_string(held)),
             std::string::npos)
       << r.out;
   EXPECT_TRUE(fs::exists(model));
+  // Resumed once more at the epoch it holds, it says there is nothing left to train.
+  r = patchgraph(train + " --resume --epochs " + std::to_string(held + 1));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("nothing left to train: " + model + ".ckpt holds epoch " +
+                       std::to_string(held + 1)),
+            std::string::npos)
+      << r.out;
 }
 
 TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {

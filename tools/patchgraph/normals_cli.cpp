@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -44,7 +45,8 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                       "unet: down-sampling levels (default 5); resnet: residual blocks")
           ->check(CLI::Range(1, 8));
   CLI::Option* width =
-      cmd->add_option("--width", o.spec.base_width, "Channels of the first layer (default 16)")
+      cmd->add_option("--width", o.spec.base_width,
+                      "unet, resnet: channels of the first layer (default 16)")
           ->check(CLI::Range(1, 256));
   CLI::Option* hidden =
       cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
@@ -63,9 +65,11 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                   "Lower the learning rate linearly towards 0 over the last this many epochs "
                   "(pix2pix's schedule; default 0: constant)")
       ->check(kNonNegative);
-  cmd->add_option("--l1-weight", o.l1_weight, "Weight of the L1 loss (default 100)")
+  cmd->add_option("--l1-weight", o.l1_weight,
+                  "Weight of the L1 loss (default 100; the MLP's L2 loss has none)")
       ->check(kNonNegative);
-  cmd->add_option("--gan-weight", o.gan_weight, "Weight of the GAN loss; 0 = no discriminator")
+  cmd->add_option("--gan-weight", o.gan_weight,
+                  "Weight of the GAN loss (default 1); 0 = no discriminator")
       ->check(kNonNegative);
   cmd->add_option("--contact-weight", o.contact_weight,
                   "Contact pixels' loss counts 1 + this times a background pixel's (default 0)")
@@ -74,21 +78,26 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                   "Frame of the network's normals: sensor (default) or gel (relative to each "
                   "pixel's undeformed gel; the datasets must share one gel shape and camera)")
       ->check(CLI::IsMember({"sensor", "gel"}));
-  cmd->add_option("--shift", o.shift_px, "Augmentation: random shifts up to this many pixels")
+  cmd->add_option("--shift", o.shift_px,
+                  "Augmentation: random shifts up to this many pixels (default 8)")
       ->check(range_check(0, 64));
-  cmd->add_option("--gain-jitter", o.gain_jitter, "Augmentation: contrast scaled by 1 +- this")
+  cmd->add_option("--gain-jitter", o.gain_jitter,
+                  "Augmentation: contrast scaled by 1 +- this (default 0.3)")
       ->check(range_check(0, 0.9));
   cmd->add_option("--offset-jitter", o.offset_jitter,
                   "Augmentation: each colour channel shifted by up to +- this many levels (a "
                   "brightness drift since the reference image; default 0)")
       ->check(range_check(0, 64));
-  cmd->add_option("--seed", o.seed, "Seed of the initialisation, shuffling and augmentation")
+  cmd->add_option("--seed", o.seed,
+                  "Seed of the initialisation, shuffling and augmentation (default 0)")
       ->check(kSeed);
   cmd->add_option("--threads", o.threads, "Torch threads (default: all cores)")->check(kThreads);
-  cmd->add_option("--checkpoint-every", o.checkpoint_every, "Epochs between checkpoints")
+  cmd->add_option("--checkpoint-every", o.checkpoint_every,
+                  "Epochs between checkpoints in OUT.ckpt (default 1; the last epoch's always)")
       ->check(kPositive);
   cmd->add_flag("--resume", o.resume,
-                "Continue from OUT.ckpt (same settings; --epochs and --decay-epochs may change)");
+                "Continue from OUT.ckpt (same settings; --epochs and --decay-epochs may change); "
+                "without it, an unfinished run's OUT.ckpt is refused");
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }
@@ -146,6 +155,7 @@ int run_train_normals(const TrainNormalsArgs& a) {
   std::unique_ptr<Progress> progress;
   int epoch = 0;             // the one in progress
   int checkpoint_epoch = -1;  // what OUT.ckpt holds by this run: -1 none
+  bool reported = false;      // an epoch's line printed
   std::printf("%s on %zu dataset(s) for %d epochs -> %s\n",
               o.init_model.empty() ? ("training " + describe(o.spec)).c_str()
                                    : ("fine-tuning " + o.init_model).c_str(),
@@ -157,10 +167,26 @@ int run_train_normals(const TrainNormalsArgs& a) {
       o,
       [&](const EpochReport& r) {
         progress.reset();
+        if (!reported) {
+          reported = true;
+          std::printf("%d training frames in %d batch(es) an epoch, %d validation frames\n",
+                      r.train_frames, r.batches, r.val.frames);
+          if (o.batch > r.train_frames) {
+            std::fprintf(stderr,
+                         "warning: --batch %d is more than the %d training frames: each epoch is "
+                         "one batch of all of them\n",
+                         o.batch, r.train_frames);
+          }
+        }
         // train_normals writes the checkpoint right after this report.
         if (r.epoch % std::max(1, o.checkpoint_every) == 0) checkpoint_epoch = r.epoch;
-        std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
-                    r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
+        if (r.squared_loss) {  // the MLP: no GAN, no discriminator
+          std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L2 %.4f  |  ", r.epoch, r.epochs, r.seconds,
+                      r.learning_rate, r.loss_l1);
+        } else {
+          std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
+                      r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
+        }
         if (r.val.frames == 0) {
           std::printf("no validation frames\n");
         } else {
@@ -196,6 +222,11 @@ int run_train_normals(const TrainNormalsArgs& a) {
                            : "no checkpoint written yet (one every " +
                                  std::to_string(o.checkpoint_every) + " epochs)"));
   }
+  if (o.resume && epoch == 0) {
+    std::printf("nothing left to train: %s holds epoch %d, the last of --epochs; the model is "
+                "written from it\n",
+                checkpoint.c_str(), o.epochs);
+  }
   std::printf("wrote %s\n", o.out.c_str());
   return kExitOk;
 }
@@ -214,6 +245,14 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     check_output_is_no_dataset(a.json, true, "--json");
     for (const std::string& dir : a.data)
       check_output_is_not_input(a.json, dir, "the dataset", "--json");
+    // A folder the file cannot be written in fails now, not after the evaluation.
+    const std::string probe = temporary_path_for(a.json);
+    errno = 0;
+    if (!std::ofstream(probe)) {
+      throw InputError(a.json + ": cannot write" + write_failure_cause(a.json, errno));
+    }
+    std::error_code ec;
+    std::filesystem::remove(probe, ec);
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);
