@@ -195,6 +195,13 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     throw InputError(path + ": not a readable model file (corrupt or not a Torch archive)");
   }
   c10::IValue format, text;
+  if (archive.try_read("format", format) && format.isString() &&
+      format.toStringRef().rfind("patchgraph-normals-checkpoint", 0) == 0) {
+    throw InputError(path +
+                     ": is a training checkpoint, not a model; train-normals writes the model "
+                     "at its end (or, stopped, `--resume --epochs E` with the checkpoint's epoch "
+                     "E writes it now, and a later --resume trains on)");
+  }
   if (!archive.try_read("format", format) || !format.isString() ||
       format.toStringRef() != kFormat || !archive.try_read("info", text) || !text.isString()) {
     throw InputError(path + ": not a patchgraph normals model (expected format '" +
@@ -333,8 +340,10 @@ void NormalEstimator::check_sensor(const SensorModel& sensor, const std::string&
 
 std::string NormalEstimator::sensor_difference(const SensorModel& sensor) const {
   const NormalModelInfo& m = impl_->info;
-  if (!m.sensor_known) return "";
-  const SensorModel& t = m.sensor;
+  return m.sensor_known ? optics_difference(m.sensor, sensor) : "";
+}
+
+std::string optics_difference(const SensorModel& t, const SensorModel& sensor) {
   std::vector<std::string> differ;
   bool lights = t.lights.size() != sensor.lights.size();
   for (std::size_t k = 0; !lights && k < t.lights.size(); ++k) {

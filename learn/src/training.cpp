@@ -61,7 +61,8 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
       if (!(std::string(output) == "normal" ? d.info().has_normals()
                                             : d.info().has_output(output))) {
         throw InputError(dir + ": dataset has no '" + output +
-                         "' output, needed for training (a recording of ball presses gets them "
+                         "' output, needed for training and validation (a recording of ball "
+                         "presses gets them "
                          "from patchgraph label-ball)");
       }
     }
@@ -328,7 +329,9 @@ void train_normals(const TrainOptions& options,
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
-    throw InputError("--val: images are " + std::to_string(val.width) + "x" +
+    std::string folders;
+    for (const std::string& dir : o.val_data) folders += " " + dir;
+    throw InputError("--val" + folders + ": images are " + std::to_string(val.width) + "x" +
                      std::to_string(val.height) + ", the training images " +
                      std::to_string(train.width) + "x" + std::to_string(train.height));
   }
@@ -571,7 +574,8 @@ void train_normals(const TrainOptions& options,
         std::snprintf(text, sizeof text, "%g", total);
         throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) +
                                  ", batch " + std::to_string(b + 1) + ": the loss is " + text +
-                                 " (try a lower --lr); " + o.out + " not written");
+                                 " (try a lower --lr or lower loss weights); " + o.out +
+                                 " not written");
       }
       loss.backward();
       opt_g.step();

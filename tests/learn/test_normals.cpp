@@ -428,6 +428,9 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   msg = input_error_message([&] { model.check_sensor(sensor, "wide"); });
   EXPECT_NE(msg.find("takes 40x30 images; wide has 80x30"), std::string::npos) << msg;
 
+  ASSERT_TRUE(fs::exists(o.out + ".ckpt"));
+  msg = input_error_message([&] { NormalEstimator::load(o.out + ".ckpt"); });
+  EXPECT_NE(msg.find(".pt.ckpt: is a training checkpoint, not a model"), std::string::npos) << msg;
   msg = input_error_message([&] { NormalEstimator::load(tmp_->str("missing.pt")); });
   EXPECT_NE(msg.find("missing.pt: model file not found"), std::string::npos) << msg;
   const std::string corrupt = tmp_->str("corrupt.pt");

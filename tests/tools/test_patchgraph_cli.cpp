@@ -755,6 +755,15 @@ TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {
       patchgraph("train-normals --data " + side +
                  " --depth 2 --width 4 --epochs 1 --threads 1 -q --out " + side_model);
   ASSERT_EQ(trained.code, 0) << trained.out;
+  // Training on both sensors' frames says that the model records only the first's sensor (and
+  // then stops at the second's image size).
+  const CliRun both = patchgraph("train-normals --data " + below + " " + side +
+                                 " --epochs 1 --threads 1 -q --out " + out("both.pt"));
+  EXPECT_EQ(both.code, 1) << both.out;
+  EXPECT_NE(both.out.find("warning: --data " + side + ": its sensor's camera differs from those of " +
+                          below + " (digit), the sensor the model records"),
+            std::string::npos)
+      << both.out;
   // One model for both: the side sensor's images are not its size.
   CliRun r = patchgraph("track " + render + " -q --normals " + kDefaultModel + " --out " +
                         out("mixed_one"));

@@ -109,7 +109,10 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
   const auto [i_end, o_at] = std::mismatch(i.begin(), i.end(), o.begin(), o.end());
   if (i_end == i.end()) {  // o is i, or below it
     throw InputError(out_what + " " + out + (o == i ? " is " : " is inside ") + input_what + " " +
-                     input + "; write the outputs to another folder");
+                     input +
+                     (o == i && fs::is_regular_file(i, ec)
+                          ? "; give " + out_what + " another file name"
+                          : std::string("; write the outputs to another folder")));
   }
 }
 

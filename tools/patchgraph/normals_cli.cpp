@@ -142,6 +142,25 @@ int run_train_normals(const TrainNormalsArgs& a) {
       }
     }
   }
+  // The model records the first dataset's sensor; another sensor's shading among the data is one
+  // network learning two mappings, and track/eval-normals would warn of that sensor's datasets.
+  {
+    const Dataset first = Dataset::open(o.train_data[0]);
+    for (const auto* datasets : {&o.train_data, &o.val_data}) {
+      for (const std::string& dir : *datasets) {
+        const std::string differ =
+            optics_difference(first.info().sensor, Dataset::open(dir).info().sensor);
+        if (differ.empty()) continue;
+        std::fprintf(stderr,
+                     "warning: %s %s: its sensor's %s %s from those of %s (%s), the sensor "
+                     "the model records: the network learns two sensors' shading at once, and "
+                     "track and eval-normals will warn on this sensor's datasets\n",
+                     datasets == &o.val_data ? "--val" : "--data", dir.c_str(), differ.c_str(),
+                     differ.find(" and ") == std::string::npos ? "differs" : "differ",
+                     o.train_data[0].c_str(), first.info().sensor.name.c_str());
+      }
+    }
+  }
   o.gel_relative = a.labels == "gel";
   if (!o.init_model.empty() && !std::filesystem::is_regular_file(o.init_model)) {
     throw InputError(o.init_model + ": model file not found (--init)");
@@ -286,7 +305,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
                        {"ms_per_frame", m.ms_per_frame}});
   }
   if (!a.json.empty()) {
-    write_text_file(
+    write_text_atomically(
         a.json,
         nlohmann::json{{"model", a.model}, {"arch", model.info().spec.arch}, {"results", results}}
                 .dump(2) +

@@ -98,6 +98,11 @@ struct NormalMetrics {
   double ms_per_frame = 0;  // median inference time
 };
 
+// Which optics of sensor `b` differ from `a`'s for a network that reads shading ("lights",
+// "shading" and "camera", joined with commas and "and"; "" if none): NormalEstimator's
+// sensor_difference, and train-normals on datasets of several sensors.
+std::string optics_difference(const SensorModel& a, const SensorModel& b);
+
 // Throws InputError naming the dataset unless each can be evaluated with `model`: color, normal
 // and mask outputs, images the model takes, a no-contact reference. Before any work, so that a
 // bad last dataset does not cost the results of the others.
