@@ -322,6 +322,11 @@ int NormalEstimator::phases() const { return impl_->phases; }
 
 const NormalModelInfo& NormalEstimator::info() const { return impl_->info; }
 const std::string& NormalEstimator::path() const { return impl_->path; }
+long NormalEstimator::parameter_count() const {
+  long n = 0;
+  for (const torch::Tensor& t : impl_->generator->parameters()) n += long(t.numel());
+  return n;
+}
 
 void NormalEstimator::check_sensor(const SensorModel& sensor, const std::string& where) const {
   const NormalModelInfo& m = impl_->info;

@@ -300,6 +300,8 @@ int main(int argc, char** argv) {
   CLI::App* cmd_train_normals = add_train_normals_command(app, train_normals_args);
   EvalNormalsArgs eval_normals_args;
   CLI::App* cmd_eval_normals = add_eval_normals_command(app, eval_normals_args);
+  ModelInfoArgs model_info_args;
+  CLI::App* cmd_model_info = add_model_info_command(app, model_info_args);
   RecordingArgs recording_args;
   CLI::App* cmd_recording = add_recording_command(app, recording_args);
   LabelBallArgs label_ball_args;
@@ -308,6 +310,7 @@ int main(int argc, char** argv) {
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_train_normals->parsed()) return run_train_normals(train_normals_args);
     if (cmd_eval_normals->parsed()) return run_eval_normals(eval_normals_args);
+    if (cmd_model_info->parsed()) return run_model_info(model_info_args);
     if (cmd_recording->parsed()) return run_recording(recording_args);
     if (cmd_label_ball->parsed()) return run_label_ball(label_ball_args);
     if (cmd_bench->parsed()) return run_track_bench(bench);

@@ -250,6 +250,56 @@ int run_train_normals(const TrainNormalsArgs& a) {
   return kExitOk;
 }
 
+CLI::App* add_model_info_command(CLI::App& app, ModelInfoArgs& a) {
+  CLI::App* cmd = app.add_subcommand(
+      "model-info", "Describe a normals model file: network, images, sensor, training, last epoch");
+  cmd->add_option("model", a.model, "Model file (from train-normals)")->required();
+  return cmd;
+}
+
+// Loads the model (its checksums, weights and description checked as track and eval-normals
+// do) and prints what it is, what it takes and how it was trained.
+int run_model_info(const ModelInfoArgs& a) {
+  const NormalEstimator model = NormalEstimator::load(a.model);
+  const NormalModelInfo& i = model.info();
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(a.model, ec);
+  std::printf("model     %s (%s, checksums and weights ok)\n", a.model.c_str(),
+              bytes < 1'000'000 ? format_number(double(bytes) / 1e3, "%.0f kB").c_str()
+                                : format_number(double(bytes) / 1e6, "%.1f MB").c_str());
+  std::printf("network   %s, %ld parameters, normals in the %s frame\n", describe(i.spec).c_str(),
+              model.parameter_count(), i.gel_relative ? "undeformed gel's" : "sensor");
+  std::printf("images    %dx%d (the only size it takes); input mean %.4f %.4f %.4f, std %.4f "
+              "%.4f %.4f\n",
+              i.width, i.height, double(i.input_mean[0]), double(i.input_mean[1]),
+              double(i.input_mean[2]), double(i.input_std[0]), double(i.input_std[1]),
+              double(i.input_std[2]));
+  if (i.sensor_known) {
+    std::printf("sensor    %s: %zu lights, camera fx %.2f px at %.2f mm (track and eval-normals "
+                "warn on other optics)\n",
+                i.sensor.name.c_str(), i.sensor.lights.size(), i.sensor.camera.fx,
+                i.sensor.camera.distance_m * 1e3);
+  } else {
+    std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
+  }
+  std::printf("trained   %d epochs on %zu dataset(s):\n", i.epochs, i.training_data.size());
+  for (const std::string& dir : i.training_data) std::printf("            %s\n", dir.c_str());
+  const auto history = nlohmann::json::parse(i.history_json, nullptr, false);
+  if (history.is_array() && !history.empty()) {
+    const nlohmann::json& last = history.back();
+    const auto number = [&](const char* key, const char* format) {
+      const auto it = last.find(key);
+      return it == last.end() || !it->is_number() ? std::string("n/a")
+                                                  : format_number(it->get<double>(), format);
+    };
+    std::printf("last      epoch %s: loss %s, val MSE contact %s, angle contact %s deg\n",
+                number("epoch", "%.0f").c_str(), number("loss_l1", "%.4f").c_str(),
+                number("val_mse_contact", "%.2e").c_str(),
+                number("val_angle_contact_deg", "%.2f").c_str());
+  }
+  return kExitOk;
+}
+
 int run_eval_normals(const EvalNormalsArgs& a) {
   check_given_once(a.data);
   if (!a.json.empty()) {  // checked before the evaluation, written after it

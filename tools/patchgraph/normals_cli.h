@@ -23,7 +23,13 @@ struct EvalNormalsArgs {
   bool quiet = false;
 };
 
+struct ModelInfoArgs {
+  std::string model;
+};
+
 CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& args);
+CLI::App* add_model_info_command(CLI::App& app, ModelInfoArgs& args);
+int run_model_info(const ModelInfoArgs& args);
 CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& args);
 int run_train_normals(const TrainNormalsArgs& args);
 int run_eval_normals(const EvalNormalsArgs& args);

@@ -71,6 +71,8 @@ class NormalEstimator {
   int phases() const;
   const NormalModelInfo& info() const;
   const std::string& path() const;
+  // The network's trainable weights (scalars).
+  long parameter_count() const;
   // Throws InputError (naming `where` and the model) when images of `sensor` do not suit the
   // model: another image size, or, for a gel-relative model, another undeformed gel (camera or
   // gel shape) than the one it composes its output with.
