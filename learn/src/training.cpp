@@ -156,14 +156,16 @@ NormalMetrics validate(learn::Generator& g, const FrameSet& set, const torch::Te
 }
 
 nlohmann::json epoch_json(const EpochReport& r) {
+  // Without validation frames there are no metrics: null, not a perfect 0.
+  const auto val = [&](double v) { return r.val.frames == 0 ? nlohmann::json() : nlohmann::json(v); };
   return {{"epoch", r.epoch},
           {"loss_l1", r.loss_l1},
           {"loss_gan", r.loss_gan},
           {"loss_d", r.loss_d},
           {"learning_rate", r.learning_rate},
-          {"val_mse_contact", r.val.mse_contact},
-          {"val_mse_image", r.val.mse_image},
-          {"val_angle_contact_deg", r.val.angle_contact_deg},
+          {"val_mse_contact", val(r.val.mse_contact)},
+          {"val_mse_image", val(r.val.mse_image)},
+          {"val_angle_contact_deg", val(r.val.angle_contact_deg)},
           {"seconds", r.seconds}};
 }
 

@@ -509,6 +509,18 @@ TEST_F(NormalsTraining, WithoutValidationDataFramesAreHeldOut) {
   EXPECT_EQ(epochs[0].val.frames, Dataset::open(train_).frames() / 10);
   EXPECT_TRUE(std::isfinite(epochs[0].val.angle_contact_deg));
   EXPECT_GT(epochs[0].val.angle_contact_deg, 0.0);
+  // With none held out there are no validation metrics: the model's history says null, not 0.
+  o.val_fraction = 0;
+  o.out = tmp_->str("none_held_out.pt");
+  epochs.clear();
+  train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
+  ASSERT_EQ(epochs.size(), 1u);
+  EXPECT_EQ(epochs[0].val.frames, 0);
+  const auto history = nlohmann::json::parse(NormalEstimator::load(o.out).info().history_json);
+  ASSERT_EQ(history.size(), 1u);
+  EXPECT_TRUE(history[0]["val_mse_contact"].is_null()) << history.dump();
+  EXPECT_TRUE(history[0]["val_angle_contact_deg"].is_null()) << history.dump();
+  EXPECT_TRUE(history[0]["loss_l1"].is_number()) << history.dump();
 }
 
 // A diverging training stops with an error instead of writing a NaN network as a model; ground

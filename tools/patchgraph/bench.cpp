@@ -334,7 +334,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (const auto& s : settings) {
     if (s.normals != "gt" && outputs.size() == 1) outputs.push_back("color");
   }
-  const OutputFolder out(args.out, {"bench.csv", "bench.md", "bench.png"});
+  const OutputFolder out(args.out, {"bench.csv", "bench.md", "runs.csv", "bench.png"});
   const std::string head = "Command: `" + command(in, !own_scenes) + "`  \n" + machine_line() +
                            "  \nDate: " + utc_now() + "  \n" + std::to_string(args.scenes.size()) +
                            " scenes x " + std::to_string(settings.size()) +
@@ -367,9 +367,16 @@ int run_track_bench(const TrackBenchArgs& in) {
       const std::string dir =
           cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
       const Dataset dataset = Dataset::open(dir);
-      const TrackRun run =
-          track_dataset(dataset, options_for(s, dataset, sequence_seed(0, scene_name), models),
-                        [](int, int) { stop_if_asked(); });
+      const TrackRun run = [&] {
+        try {
+          return track_dataset(dataset,
+                               options_for(s, dataset, sequence_seed(0, scene_name), models),
+                               [](int, int) { stop_if_asked(); });
+        } catch (const Stopped& e) {
+          throw e.with_note("nothing written to " + args.out + " (after " +
+                            std::to_string(done) + " of " + std::to_string(total) + " runs)");
+        }
+      }();
       row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
       ++done;
       if (!args.quiet) {

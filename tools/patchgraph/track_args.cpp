@@ -27,8 +27,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "train-normals (applied to the colour images), or one model per sensor in the "
                  "sequence's order, separated by commas (sensors of different sizes or "
                  "illumination; so a model's path cannot hold a comma)");
-  app.add_option("--normals-threads", a.normals_threads, "Torch threads for --normals MODEL")
-      ->check(range_check(1, kMaxThreads));
+  app.add_option("--normals-threads", a.normals_threads,
+                 "Torch threads for --normals MODEL (default 1; 0: all cores)")
+      ->check(kThreads);
   app.add_option("--normals-phases", a.normals_phases,
                  "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "
                  "4 passes per frame, less error for more time")
