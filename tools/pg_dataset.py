@@ -162,6 +162,8 @@ def _decode_png(data, path):
         elif kind == b"IEND":
             break
         at += 12 + size
+    if header is None:
+        raise ValueError(f"{path}: a PNG without its header chunk (IHDR)")
     width, height, bits, colour, _, _, interlace = header
     if bits not in (8, 16) or colour not in _PNG_CHANNELS or interlace:
         raise ValueError(f"{path}: a PNG of bit depth {bits}, colour type {colour}, interlace "

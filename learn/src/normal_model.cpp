@@ -191,7 +191,7 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
   torch::serialize::InputArchive archive;
   try {
     archive.load_from(path);
-  } catch (const c10::Error&) {
+  } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
     throw InputError(path + ": not a readable model file (corrupt or not a Torch archive)");
   }
   c10::IValue format, text;
@@ -199,8 +199,9 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
       format.toStringRef().rfind("patchgraph-normals-checkpoint", 0) == 0) {
     throw InputError(path +
                      ": is a training checkpoint, not a model; train-normals writes the model "
-                     "at its end (or, stopped, `--resume --epochs E` with the checkpoint's epoch "
-                     "E writes it now, and a later --resume trains on)");
+                     "at its end (or, stopped, the same command with `--resume --epochs E`, E "
+                     "the checkpoint's epoch and --decay-epochs at most E, writes it now; a later "
+                     "--resume trains on)");
   }
   if (!archive.try_read("format", format) || !format.isString() ||
       format.toStringRef() != kFormat || !archive.try_read("info", text) || !text.isString()) {
@@ -218,9 +219,11 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     torch::serialize::InputArchive weights;
     if (!archive.try_read("generator", weights)) throw InputError(path + ": no generator weights");
     generator->load(weights);
+  } catch (const InputError&) {
+    throw;
   } catch (const std::invalid_argument& e) {
     throw InputError(path + ": " + e.what());
-  } catch (const c10::Error&) {
+  } catch (const std::exception&) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
   }

@@ -216,7 +216,8 @@ void check_run_settings(const nlohmann::json& recorded, const TrainOptions& o,
     if (!recorded.contains(option) || recorded.at(option) == value) continue;
     throw InputError(checkpoint + ": trained with " + option + " " + recorded.at(option).dump() +
                      ", resumed with " + value.dump() +
-                     "; resume with the same value, or train into another --out");
+                     "; resume with the same value, or remove it (or train into another --out) "
+                     "to start a new run");
   }
 }
 
@@ -231,7 +232,7 @@ CheckpointProgress checkpoint_progress(const std::string& checkpoint) {
   c10::IValue format, text, epoch;
   try {
     a.load_from(checkpoint);
-  } catch (const c10::Error&) {
+  } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
     throw InputError(checkpoint + ": corrupt checkpoint");
   }
   if (!a.try_read("format", format) || !format.isString() ||
@@ -273,6 +274,24 @@ void train_normals(const TrainOptions& options,
     }
     o.spec = init.spec;
   }
+  // Settings of the other networks given to the MLP (or its to them) would be silently ignored.
+  // (Compared with the defaults, as the arch of an --init model is known only here; a GAN weight
+  // of 0 is what the MLP trains with anyway.)
+  const TrainOptions defaults;
+  const bool mlp = o.spec.arch == "mlp";
+  if (mlp && (o.l1_weight != defaults.l1_weight ||
+              (o.gan_weight != defaults.gan_weight && o.gan_weight != 0))) {
+    throw InputError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
+                     ": the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
+                     "--gan-weight do not apply to it");
+  }
+  if (o.init_model.empty() && mlp &&
+      (o.spec.depth != defaults.spec.depth || o.spec.base_width != defaults.spec.base_width)) {
+    throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
+  }
+  if (o.init_model.empty() && !mlp && o.spec.mlp_hidden != defaults.spec.mlp_hidden) {
+    throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
+  }
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");
   if (o.out.empty()) throw InputError("--out: no model file given");
   if (o.epochs < 1 || o.batch < 1) throw InputError("--epochs and --batch must be at least 1");
@@ -306,10 +325,14 @@ void train_normals(const TrainOptions& options,
       } catch (const InputError& e) {
         throw InputError(std::string(e.what()) + "; remove it to start a new run into " + o.out);
       }
-      if (p.epochs == 0 || p.epoch < p.epochs) {
+      if (p.epochs == 0) {  // written before the run's length was recorded
+        throw InputError(checkpoint + ": holds a training run at epoch " + std::to_string(p.epoch) +
+                         " whose length it does not record (an older checkpoint): --resume "
+                         "continues it; remove it to start a new run into " + o.out);
+      }
+      if (p.epoch < p.epochs) {
         throw InputError(checkpoint + ": holds an unfinished training run (epoch " +
-                         std::to_string(p.epoch) +
-                         (p.epochs > 0 ? " of " + std::to_string(p.epochs) : std::string()) +
+                         std::to_string(p.epoch) + " of " + std::to_string(p.epochs) +
                          "): --resume continues it; remove it to start a new run into " + o.out);
       }
     }
@@ -363,23 +386,7 @@ void train_normals(const TrainOptions& options,
     }
     g = learn::Generator(o.spec);
   }
-  const bool mlp = o.spec.arch == "mlp";
   const bool gan = !mlp && o.gan_weight > 0;
-  // Settings of the other networks given to the MLP (or its to them) would be silently ignored.
-  // (Compared with the defaults: the arch of an --init model is known only now.)
-  const TrainOptions defaults;
-  if (mlp && (o.l1_weight != defaults.l1_weight || o.gan_weight != defaults.gan_weight)) {
-    throw InputError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
-                     ": the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
-                     "--gan-weight do not apply to it");
-  }
-  if (o.init_model.empty() && mlp &&
-      (o.spec.depth != defaults.spec.depth || o.spec.base_width != defaults.spec.base_width)) {
-    throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
-  }
-  if (o.init_model.empty() && !mlp && o.spec.mlp_hidden != defaults.spec.mlp_hidden) {
-    throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
-  }
   // The PatchGAN's three stride-2 and two 4x4 layers need 12 px a side.
   constexpr int kMinGanSide = 12;
   if (gan && std::min(train.width, train.height) < kMinGanSide) {
@@ -453,10 +460,12 @@ void train_normals(const TrainOptions& options,
         a.read("opt_d", sub);
         opt_d->load(sub);
       }
-    } catch (const c10::Error&) {
-      throw InputError(checkpoint + ": corrupt checkpoint");
+    } catch (const InputError&) {
+      throw;
     } catch (const nlohmann::json::exception& e) {
       throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
+    } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
+      throw InputError(checkpoint + ": corrupt checkpoint");
     }
   }
 
@@ -576,8 +585,14 @@ void train_normals(const TrainOptions& options,
         std::snprintf(text, sizeof text, "%g", total);
         throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) +
                                  ", batch " + std::to_string(b + 1) + ": the loss is " + text +
-                                 " (try a lower --lr or lower loss weights); " + o.out +
-                                 " not written");
+                                 (mlp ? " (try a lower --lr or --contact-weight); "
+                                      : " (try a lower --lr or lower loss weights); ") +
+                                 o.out + " not written" +
+                                 (fs::exists(checkpoint)
+                                      ? "; " + checkpoint +
+                                            " holds the last epoch before it: remove it to "
+                                            "start over with other settings"
+                                      : std::string()));
       }
       loss.backward();
       opt_g.step();

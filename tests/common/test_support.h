@@ -53,8 +53,10 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
 
 // Runs `binary args` (through /bin/sh, SIGINT and SIGTERM at their defaults, as from a terminal),
 // sends it `signal_number` once its output (stdout and stderr together, in `log`) holds `text`,
-// and waits for it to end. code: its exit status, or -1 if it never showed `text` (it ended
-// first, or not within 5 minutes) or was killed outright by the signal.
+// and waits for it to end. code: its exit status; -1 if it never showed `text` (it ended first,
+// or not within 5 minutes), was killed outright by the signal, or the log could not be made. A
+// run that ends on its own between showing `text` and the signal gives its own exit status
+// (the callers' runs take a second or more after the text they wait for).
 inline CliRun run_and_signal(const std::string& binary, const std::string& args,
                              const std::string& text, int signal_number, const std::string& log) {
   const std::string command = "exec " + binary + " " + args;
@@ -63,6 +65,7 @@ inline CliRun run_and_signal(const std::string& binary, const std::string& args,
     std::signal(SIGINT, SIG_DFL);
     std::signal(SIGTERM, SIG_DFL);
     const int fd = open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd < 0) _exit(126);
     dup2(fd, 1);
     dup2(fd, 2);
     execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));

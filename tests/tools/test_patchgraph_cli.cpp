@@ -782,8 +782,8 @@ TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {
   const CliRun both = patchgraph("train-normals --data " + below + " " + side +
                                  " --epochs 1 --threads 1 -q --out " + out("both.pt"));
   EXPECT_EQ(both.code, 1) << both.out;
-  EXPECT_NE(both.out.find("warning: --data " + side + ": its sensor's camera differs from those of " +
-                          below + " (digit), the sensor the model records"),
+  EXPECT_NE(both.out.find("warning: --data " + side + ": its sensor differs in camera from the " +
+                          "sensor of " + below + " (digit), which the model records"),
             std::string::npos)
       << both.out;
   // One model for both: the side sensor's images are not its size.
@@ -1476,9 +1476,6 @@ TEST_F(PatchgraphCli, NormalsAsSixteenBitPngTrackAsTheExrDo) {
       << none.out;
 }
 
-// A run into an earlier run's --out that fails half-way (a damaged frame) leaves none of the
-// earlier run's outputs, which would look like its own (a CI step reading summary.json after a
-// failed or stopped run read the earlier one's); the folder's other files stay.
 // Ctrl-C (SIGINT) or SIGTERM stops a run at its next frame or batch: exit 128 + the signal, a
 // message saying what the run leaves, and nothing that passes for a finished run's output. A
 // stopped track leaves no folder it made; a stopped eval keeps the runs it finished; a stopped
@@ -1552,6 +1549,9 @@ TEST_F(PatchgraphCli, ASignalStopsARunAndSaysWhatItLeaves) {
       << r.out;
 }
 
+// A run into an earlier run's --out that fails half-way (a damaged frame) leaves none of the
+// earlier run's outputs, which would look like its own (a CI step reading summary.json after a
+// failed or stopped run read the earlier one's); the folder's other files stay.
 TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
   const std::string damaged = data_copy("damaged_frame");
   const std::string frame = dataset_frame_path(damaged, "normal", 30);

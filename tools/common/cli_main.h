@@ -2,6 +2,8 @@
 // Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage, 3 an accuracy
 // gate missed (patchgraph track/eval --max-translation/--max-rotation).
 #include <CLI/CLI.hpp>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -263,11 +265,11 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     app.exit(e);
     return kExitUsage;
   }
-  stop_on_signals();
   try {
     return body();
   } catch (const Stopped& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    // On a terminal the progress line it stopped is still open.
+    std::fprintf(stderr, "%serror: %s\n", isatty(fileno(stderr)) ? "\n" : "", e.what());
     return e.exit_code();
   } catch (const UsageError& e) {
     std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());

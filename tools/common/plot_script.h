@@ -8,8 +8,6 @@
 #include <filesystem>
 #include <string>
 
-#include "stop.h"
-
 extern char** environ;
 
 namespace pg {
@@ -18,7 +16,6 @@ namespace pg {
 // python3-matplotlib is installed (not a user's own python3), started with its arguments as they
 // are (no shell: an --out of any name is one argument, never a command). On failure warns on
 // stderr, with the script's exit status, and returns false: a missing plot does not fail the run.
-// Ctrl-C (which the script gets too) throws Stopped once it has ended.
 inline bool run_plot_script(const std::string& script, const std::string& out_dir) {
   const std::string python = "/usr/bin/python3";
   const std::string path = (std::filesystem::path(PG_SOURCE_DIR) / "tools" / script).string();
@@ -28,12 +25,10 @@ inline bool run_plot_script(const std::string& script, const std::string& out_di
   pid_t pid = 0;
   const int spawned = posix_spawn(&pid, python.c_str(), nullptr, nullptr, argv, environ);
   int status = 0;
-  const bool ran = spawned == 0 && waitpid(pid, &status, 0) == pid;
-  if (g_stop_signal != 0) {
-    throw Stopped(g_stop_signal).with_note("while plotting into " + out_dir +
-                                           " (the other outputs are written)");
+  if (spawned == 0 && waitpid(pid, &status, 0) == pid && WIFEXITED(status) &&
+      WEXITSTATUS(status) == 0) {
+    return true;
   }
-  if (ran && WIFEXITED(status) && WEXITSTATUS(status) == 0) return true;
   const std::string why =
       spawned != 0        ? std::string("cannot start ") + python + ": " + std::strerror(spawned)
       : WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))

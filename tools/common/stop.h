@@ -2,32 +2,60 @@
 // Ctrl-C (SIGINT) and SIGTERM stop a long job at its next step (a frame, a batch) instead of
 // killing it where it stands: the error unwinds, so an output folder the run made and left empty
 // goes again, no temporary file stays, and run_cli exits with 128 + the signal's number, as a
-// shell reports a job it stopped. A second signal ends the process at once.
+// shell reports a job it stopped. Only inside a StopOnSignals scope, around work that checks
+// (stop_if_asked, Progress::update); elsewhere a signal ends the process at once, as by default.
+// A second signal, of either kind, ends the process at once.
 #include <signal.h>
 
+#include <atomic>
 #include <csignal>
+#include <exception>
 #include <stdexcept>
 #include <string>
 
 namespace pg {
 
-inline volatile std::sig_atomic_t g_stop_signal = 0;
+inline std::atomic<int> g_stop_signal{0};
+static_assert(std::atomic<int>::is_always_lock_free, "read in a signal handler");
 
-inline void on_stop_signal(int signal_number) { g_stop_signal = signal_number; }
-
-// Installs the handler for SIGINT and SIGTERM, except where the signal is ignored (a job started
-// with nohup, or in the background of a script, keeps ignoring it).
-inline void stop_on_signals() {
-  for (const int signal_number : {SIGINT, SIGTERM}) {
-    struct sigaction current {};
-    if (sigaction(signal_number, nullptr, &current) != 0 || current.sa_handler == SIG_IGN) continue;
-    struct sigaction action {};
-    action.sa_handler = on_stop_signal;
-    sigemptyset(&action.sa_mask);
-    action.sa_flags = SA_RESTART | SA_RESETHAND;  // one-shot: the second signal acts as unhandled
-    sigaction(signal_number, &action, nullptr);
-  }
+inline void on_stop_signal(int signal_number) {
+  g_stop_signal.store(signal_number);
+  struct sigaction fallback {};  // the next signal of either kind acts as unhandled
+  fallback.sa_handler = SIG_DFL;
+  sigemptyset(&fallback.sa_mask);
+  sigaction(SIGINT, &fallback, nullptr);
+  sigaction(SIGTERM, &fallback, nullptr);
 }
+
+// While it lives, SIGINT and SIGTERM set the flag that stop_if_asked turns into Stopped, except
+// where the signal is ignored (a job started with nohup, or in the background of a script, keeps
+// ignoring it). Ending normally with a signal come after the last check, it restores the old
+// handling and raises the signal again: the process stops then, as it would have without.
+class StopOnSignals {
+ public:
+  StopOnSignals() {
+    for (int k = 0; k < 2; ++k) {
+      sigaction(kSignals[k], nullptr, &previous_[k]);
+      if (previous_[k].sa_handler == SIG_IGN) continue;
+      struct sigaction action {};
+      action.sa_handler = on_stop_signal;
+      sigemptyset(&action.sa_mask);
+      action.sa_flags = SA_RESTART;
+      sigaction(kSignals[k], &action, nullptr);
+    }
+  }
+  ~StopOnSignals() {
+    for (int k = 0; k < 2; ++k) sigaction(kSignals[k], &previous_[k], nullptr);
+    const int pending = g_stop_signal.load();
+    if (pending != 0 && std::uncaught_exceptions() == 0) raise(pending);
+  }
+  StopOnSignals(const StopOnSignals&) = delete;
+  StopOnSignals& operator=(const StopOnSignals&) = delete;
+
+ private:
+  static constexpr int kSignals[2] = {SIGINT, SIGTERM};
+  struct sigaction previous_[2] {};
+};
 
 // A job stopped by a signal; `what()` says which, and what the job leaves behind where a command
 // adds that (see `with_note`).
@@ -53,10 +81,11 @@ class Stopped : public std::runtime_error {
   int signal_number_;
 };
 
-// Throws Stopped once SIGINT or SIGTERM has come. Long loops call it at each step (Progress's
-// update does).
+// Throws Stopped once SIGINT or SIGTERM has come inside a StopOnSignals scope. Long loops call it
+// at each step (Progress's update does).
 inline void stop_if_asked() {
-  if (g_stop_signal != 0) throw Stopped(g_stop_signal);
+  const int signal_number = g_stop_signal.load();
+  if (signal_number != 0) throw Stopped(signal_number);
 }
 
 }  // namespace pg

@@ -153,7 +153,8 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
   overrides.height = height;
   // Rendered again into the folder of an unfinished or incomplete render; a folder of anything
   // else is refused (DatasetWriter::check_folder), not deleted.
-  render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir);
+  render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir,
+                          [](int, int) { stop_if_asked(); });
   return dir;
 }
 
@@ -360,6 +361,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
   const int total = int(args.scenes.size() * settings.size());
   int done = 0;
+  const StopOnSignals stop;
   for (const auto& scene : args.scenes) {
     const std::string scene_name = fs::path(scene).stem().string();
     for (Row& row : rows) {

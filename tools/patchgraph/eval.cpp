@@ -217,6 +217,7 @@ int run_eval(const EvalArgs& args) {
   Progress progress("tracking", int(std::min<long>(total_frames, INT_MAX)), !args.track.quiet);
   const bool tty = isatty(fileno(stderr));
   try {
+    const StopOnSignals stop;
     for (std::size_t k = 0; k < opened.size(); ++k) {
       const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
       const Dataset& dataset = *sensors[0];

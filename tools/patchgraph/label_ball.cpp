@@ -327,6 +327,7 @@ int run_label_ball(const LabelBallArgs& a) {
   info.sensor.gel = gel;  // the gel the labels model
   const bool out_existed = fs::exists(a.out);
   try {
+    const StopOnSignals stop;
     DatasetWriter writer(a.out, info);
     writer.write_background(reference);
     const ImageF flat = undeformed_gel_normals(rays);

@@ -114,6 +114,7 @@ int run_track(const TrackArgs& a) {
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run = [&] {
     try {
+      const StopOnSignals stop;
       return track_dataset(sensors, options, [&](int done, int) { progress.update(done); });
     } catch (const Stopped& e) {
       throw e.with_note("nothing written to " + a.out);

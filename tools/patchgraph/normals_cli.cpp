@@ -151,13 +151,15 @@ int run_train_normals(const TrainNormalsArgs& a) {
         const std::string differ =
             optics_difference(first.info().sensor, Dataset::open(dir).info().sensor);
         if (differ.empty()) continue;
+        const bool val = datasets == &o.val_data;
         std::fprintf(stderr,
-                     "warning: %s %s: its sensor's %s %s from those of %s (%s), the sensor "
-                     "the model records: the network learns two sensors' shading at once, and "
-                     "track and eval-normals will warn on this sensor's datasets\n",
-                     datasets == &o.val_data ? "--val" : "--data", dir.c_str(), differ.c_str(),
-                     differ.find(" and ") == std::string::npos ? "differs" : "differ",
-                     o.train_data[0].c_str(), first.info().sensor.name.c_str());
+                     "warning: %s %s: its sensor differs in %s from the sensor of %s (%s), which "
+                     "the model records: %s, and track and eval-normals will warn on this "
+                     "sensor's datasets\n",
+                     val ? "--val" : "--data", dir.c_str(), differ.c_str(),
+                     o.train_data[0].c_str(), first.info().sensor.name.c_str(),
+                     val ? "its metrics measure the model on another sensor's images"
+                         : "the network learns two sensors' shading at once");
       }
     }
   }
@@ -182,7 +184,8 @@ int run_train_normals(const TrainNormalsArgs& a) {
   std::fflush(stdout);
   const std::string checkpoint = o.out + ".ckpt";
   try {
-  train_normals(
+    const StopOnSignals stop;
+    train_normals(
       o,
       [&](const EpochReport& r) {
         progress.reset();
@@ -238,8 +241,11 @@ int run_train_normals(const TrainNormalsArgs& a) {
                       (checkpoint_epoch > 0
                            ? checkpoint + " holds epoch " + std::to_string(checkpoint_epoch) +
                                  ": --resume continues from it"
-                           : "no checkpoint written yet (one every " +
-                                 std::to_string(o.checkpoint_every) + " epochs)"));
+                           : "no checkpoint written by this run yet (one every " +
+                                 std::to_string(o.checkpoint_every) + " epochs)" +
+                                 (std::filesystem::exists(checkpoint)
+                                      ? "; " + checkpoint + " is an earlier, finished run's"
+                                      : std::string())));
   }
   if (o.resume && epoch == 0) {
     std::printf("nothing left to train: %s holds epoch %d, the last of --epochs; the model is "
@@ -334,10 +340,13 @@ int run_eval_normals(const EvalNormalsArgs& a) {
               "MSE image", "angle contact", "angle image", "ms/frame");
   for (const std::string& dir : a.data) {
     std::unique_ptr<Progress> progress;
-    const NormalMetrics m = evaluate_normals(model, {dir}, [&](int done, int total) {
-      if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
-      progress->update(done);
-    });
+    const NormalMetrics m = [&] {
+      const StopOnSignals stop;
+      return evaluate_normals(model, {dir}, [&](int done, int total) {
+        if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
+        progress->update(done);
+      });
+    }();
     std::printf("%-40s %7d %12s %12.3e %10s deg %8.2f deg %9.2f\n", dir.c_str(), m.frames,
                 metric(m.mse_contact, "%.3e").c_str(), m.mse_image,
                 metric(m.angle_contact_deg, "%.2f").c_str(), m.angle_image_deg, m.ms_per_frame);

@@ -325,6 +325,7 @@ int run_recording(const RecordingArgs& a) {
   // A frame that turns out unreadable half-way leaves no half-written dataset behind (unless the
   // folder was there before: then it is not ours to delete).
   try {
+    const StopOnSignals stop;
     DatasetWriter writer(a.out, info);
     writer.write_background(background);
     Progress progress("importing", frames, !a.quiet);

@@ -177,12 +177,10 @@ void warn_of_other_optics(const NormalEstimator& model, const SensorModel& senso
   const std::string differ = model.sensor_difference(sensor);
   if (differ.empty()) return;
   std::fprintf(stderr,
-               "warning: %s: its sensor's %s %s from those of the sensor %s was trained on "
+               "warning: %s: its sensor differs in %s from the sensor %s was trained on "
                "(%s): the network reads other shading as other slopes; train a model on this "
                "sensor's images (docs/learned_normals.md \"Training data of your own\")\n",
-               where.c_str(), differ.c_str(),
-               differ.find(" and ") == std::string::npos ? "differs" : "differ",
-               model.path().c_str(),
+               where.c_str(), differ.c_str(), model.path().c_str(),
                model.info().sensor.name.c_str());
 }
 

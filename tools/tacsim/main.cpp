@@ -90,6 +90,7 @@ int run_render(const RenderArgs& a) {
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
   const RenderSummary s = [&] {
     try {
+      const StopOnSignals stop;
       return render_scene_to_dataset(renderer, a.out,
                                      [&](int done, int) { progress.update(done); });
     } catch (const Stopped& e) {
