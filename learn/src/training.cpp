@@ -157,7 +157,9 @@ NormalMetrics validate(learn::Generator& g, const FrameSet& set, const torch::Te
 
 nlohmann::json epoch_json(const EpochReport& r) {
   // Without validation frames there are no metrics: null, not a perfect 0.
-  const auto val = [&](double v) { return r.val.frames == 0 ? nlohmann::json() : nlohmann::json(v); };
+  const auto val = [&](double v) {
+    return r.val.frames == 0 ? nlohmann::json() : nlohmann::json(v);
+  };
   return {{"epoch", r.epoch},
           {"loss_l1", r.loss_l1},
           {"loss_gan", r.loss_gan},
@@ -315,7 +317,8 @@ void train_normals(const TrainOptions& options,
     // run's checkpoint at its first save (a forgotten --resume).
     const std::string checkpoint = o.out + ".ckpt";
     if (fs::exists(checkpoint, ec) && !fs::is_regular_file(checkpoint, ec)) {
-      throw InputError(checkpoint + ": is not a file (a folder?), where the run keeps its "
+      throw InputError(checkpoint +
+                       ": is not a file (a folder?), where the run keeps its "
                        "checkpoint; remove it or train into another --out");
     }
     if (!o.resume && fs::is_regular_file(checkpoint, ec)) {
@@ -328,7 +331,8 @@ void train_normals(const TrainOptions& options,
       if (p.epochs == 0) {  // written before the run's length was recorded
         throw InputError(checkpoint + ": holds a training run at epoch " + std::to_string(p.epoch) +
                          " whose length it does not record (an older checkpoint): --resume "
-                         "continues it; remove it to start a new run into " + o.out);
+                         "continues it; remove it to start a new run into " +
+                         o.out);
       }
       if (p.epoch < p.epochs) {
         throw InputError(checkpoint + ": holds an unfinished training run (epoch " +

@@ -279,15 +279,16 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   // checkpoint at its first save; a resumed run cannot stop short of the checkpoint's epoch.
   TrainOptions fresh = part;
   fresh.resume = false;
-  EXPECT_NE(input_error_message([&] { train_normals(fresh); })
-                .find("holds an unfinished training run (epoch 2 of 4): --resume continues it"),
+  EXPECT_NE(input_error_message([&] {
+              train_normals(fresh);
+            }).find("holds an unfinished training run (epoch 2 of 4): --resume continues it"),
             std::string::npos);
   TrainOptions shorter = part;
   shorter.epochs = 1;
   shorter.decay_epochs = 0;
-  EXPECT_NE(input_error_message([&] { train_normals(shorter); })
-                .find("holds epoch 2, past --epochs 1"),
-            std::string::npos);
+  EXPECT_NE(
+      input_error_message([&] { train_normals(shorter); }).find("holds epoch 2, past --epochs 1"),
+      std::string::npos);
   // Another network says which one each is, briefly (not the checkpoint's whole description).
   TrainOptions other_net = part;
   other_net.spec.arch = "mlp";
@@ -351,8 +352,9 @@ TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
   // Settings of the other architecture are refused rather than silently ignored.
   TrainOptions mlp = tiny_options(train_, val_, tmp_->str("mlp_wide.pt"));
   mlp.spec.arch = "mlp";
-  EXPECT_NE(input_error_message([&] { train_normals(mlp); })
-                .find("--arch mlp: --depth and --width do not apply"),
+  EXPECT_NE(input_error_message([&] {
+              train_normals(mlp);
+            }).find("--arch mlp: --depth and --width do not apply"),
             std::string::npos);
   mlp.spec = NetworkSpec{"mlp"};
   mlp.l1_weight = 10;

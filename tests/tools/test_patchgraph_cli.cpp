@@ -1484,10 +1484,10 @@ TEST_F(PatchgraphCli, ASignalStopsARunAndSaysWhatItLeaves) {
   const std::string log = out("signal.log");
   const std::string long_data = out("long_cube");  // 300 frames: a second or more of tracking
   fs::remove_all(long_data);
-  ASSERT_EQ(render_scene("benchmark/cube_00.json", "-q --outputs color,normal,mask --out " +
-                                                       long_data)
-                .code,
-            0);
+  ASSERT_EQ(
+      render_scene("benchmark/cube_00.json", "-q --outputs color,normal,mask --out " + long_data)
+          .code,
+      0);
   const std::string track_out = out("stopped_track");
   fs::remove_all(track_out);
   CliRun r = testing_support::run_and_signal(

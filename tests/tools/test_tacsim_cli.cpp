@@ -337,12 +337,14 @@ TEST(TacsimCli, CtrlCStopsARenderAndSaysWhatItLeaves) {
       TACSIM_PATH, "render " + kScenes + "benchmark/cube_00.json --outputs color,mask --out " + d,
       "rendering ", SIGINT, tmp.str("log"));
   EXPECT_EQ(r.code, 130) << r.out;
-  EXPECT_NE(r.out.find("error: interrupted (SIGINT, Ctrl-C): " + d + " holds an unfinished dataset"),
-            std::string::npos)
+  EXPECT_NE(
+      r.out.find("error: interrupted (SIGINT, Ctrl-C): " + d + " holds an unfinished dataset"),
+      std::string::npos)
       << r.out;
   EXPECT_FALSE(fs::exists(d + "/poses.csv"));
   testing_support::expect_input_error([&] { Dataset::open(d); }, {"poses.csv"});
-  ASSERT_EQ(tacsim("render " + kScenes + "benchmark/cube_00.json -q --frames 3 --out " + d).code, 0);
+  ASSERT_EQ(tacsim("render " + kScenes + "benchmark/cube_00.json -q --frames 3 --out " + d).code,
+            0);
   EXPECT_EQ(Dataset::open(d).frames(), 3);
 }
 

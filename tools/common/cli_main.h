@@ -1,9 +1,9 @@
 #pragma once
 // Shared exit-code policy of the command-line tools: 0 ok, 1 failure, 2 usage, 3 an accuracy
 // gate missed (patchgraph track/eval --max-translation/--max-rotation).
-#include <CLI/CLI.hpp>
 #include <unistd.h>
 
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -199,8 +199,8 @@ class OutputFolder {
       // Left in place, an earlier run's file would pass for this run's if this one stops.
       std::filesystem::remove_all(path, ec);
       if (ec) {
-        throw InputError(path.string() + ": cannot remove this output of an earlier run: " +
-                         ec.message());
+        throw InputError(path.string() +
+                         ": cannot remove this output of an earlier run: " + ec.message());
       }
     }
   }

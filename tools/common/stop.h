@@ -54,7 +54,7 @@ class StopOnSignals {
 
  private:
   static constexpr int kSignals[2] = {SIGINT, SIGTERM};
-  struct sigaction previous_[2] {};
+  struct sigaction previous_[2]{};
 };
 
 // A job stopped by a signal; `what()` says which, and what the job leaves behind where a command
@@ -64,12 +64,11 @@ class Stopped : public std::runtime_error {
   Stopped(int signal_number, const std::string& message)
       : std::runtime_error(message), signal_number_(signal_number) {}
   explicit Stopped(int signal_number)
-      : Stopped(signal_number, signal_number == SIGINT ? "interrupted (SIGINT, Ctrl-C)"
-                                                       : "stopped by signal " +
-                                                             std::to_string(signal_number) +
-                                                             (signal_number == SIGTERM
-                                                                  ? " (SIGTERM)"
-                                                                  : std::string())) {}
+      : Stopped(signal_number,
+                signal_number == SIGINT
+                    ? "interrupted (SIGINT, Ctrl-C)"
+                    : "stopped by signal " + std::to_string(signal_number) +
+                          (signal_number == SIGTERM ? " (SIGTERM)" : std::string())) {}
   int signal_number() const { return signal_number_; }
   int exit_code() const { return 128 + signal_number_; }
   // The same stop, its message followed by `note` (what the stopped job leaves).

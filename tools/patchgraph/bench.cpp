@@ -375,8 +375,8 @@ int run_track_bench(const TrackBenchArgs& in) {
                                options_for(s, dataset, sequence_seed(0, scene_name), models),
                                [](int, int) { stop_if_asked(); });
         } catch (const Stopped& e) {
-          throw e.with_note("nothing written to " + args.out + " (after " +
-                            std::to_string(done) + " of " + std::to_string(total) + " runs)");
+          throw e.with_note("nothing written to " + args.out + " (after " + std::to_string(done) +
+                            " of " + std::to_string(total) + " runs)");
         }
       }();
       row.runs.push_back({scene_name, dataset.info().object_name, run.summary});

@@ -44,10 +44,9 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       cmd->add_option("--depth", o.spec.depth,
                       "unet: down-sampling levels (default 5); resnet: residual blocks")
           ->check(CLI::Range(1, 8));
-  CLI::Option* width =
-      cmd->add_option("--width", o.spec.base_width,
-                      "unet, resnet: channels of the first layer (default 16)")
-          ->check(CLI::Range(1, 256));
+  CLI::Option* width = cmd->add_option("--width", o.spec.base_width,
+                                       "unet, resnet: channels of the first layer (default 16)")
+                           ->check(CLI::Range(1, 256));
   CLI::Option* hidden =
       cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
           ->check(CLI::Range(1, 1024));
@@ -156,8 +155,8 @@ int run_train_normals(const TrainNormalsArgs& a) {
                      "warning: %s %s: its sensor differs in %s from the sensor of %s (%s), which "
                      "the model records: %s, and track and eval-normals will warn on this "
                      "sensor's datasets\n",
-                     val ? "--val" : "--data", dir.c_str(), differ.c_str(),
-                     o.train_data[0].c_str(), first.info().sensor.name.c_str(),
+                     val ? "--val" : "--data", dir.c_str(), differ.c_str(), o.train_data[0].c_str(),
+                     first.info().sensor.name.c_str(),
                      val ? "its metrics measure the model on another sensor's images"
                          : "the network learns two sensors' shading at once");
       }
@@ -174,7 +173,7 @@ int run_train_normals(const TrainNormalsArgs& a) {
                      "another file (the starting model would be replaced)");
   }
   std::unique_ptr<Progress> progress;
-  int epoch = 0;             // the one in progress
+  int epoch = 0;              // the one in progress
   int checkpoint_epoch = -1;  // what OUT.ckpt holds by this run: -1 none
   bool reported = false;      // an epoch's line printed
   std::printf("%s on %zu dataset(s) for %d epochs -> %s\n",
@@ -186,54 +185,54 @@ int run_train_normals(const TrainNormalsArgs& a) {
   try {
     const StopOnSignals stop;
     train_normals(
-      o,
-      [&](const EpochReport& r) {
-        progress.reset();
-        if (!reported) {
-          reported = true;
-          std::printf("%d training frames in %d batch(es) an epoch, %d validation frames\n",
-                      r.train_frames, r.batches, r.val.frames);
-          if (o.batch > r.train_frames) {
-            std::fprintf(stderr,
-                         "warning: --batch %d is more than the %d training frames: each epoch is "
-                         "one batch of all of them\n",
-                         o.batch, r.train_frames);
+        o,
+        [&](const EpochReport& r) {
+          progress.reset();
+          if (!reported) {
+            reported = true;
+            std::printf("%d training frames in %d batch(es) an epoch, %d validation frames\n",
+                        r.train_frames, r.batches, r.val.frames);
+            if (o.batch > r.train_frames) {
+              std::fprintf(stderr,
+                           "warning: --batch %d is more than the %d training frames: each epoch is "
+                           "one batch of all of them\n",
+                           o.batch, r.train_frames);
+            }
           }
-        }
-        // train_normals writes the checkpoint right after this report.
-        if (r.epoch % std::max(1, o.checkpoint_every) == 0) checkpoint_epoch = r.epoch;
-        if (r.squared_loss) {  // the MLP: no GAN, no discriminator
-          std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L2 %.4f  |  ", r.epoch, r.epochs, r.seconds,
-                      r.learning_rate, r.loss_l1);
-        } else {
-          std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
-                      r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
-        }
-        if (r.val.frames == 0) {
-          std::printf("no validation frames\n");
-        } else {
-          std::printf("val MSE contact %s image %.2e  angle contact %s deg\n",
-                      metric(r.val.mse_contact, "%.2e").c_str(), r.val.mse_image,
-                      metric(r.val.angle_contact_deg, "%.2f").c_str());
-        }
-        std::fflush(stdout);
-      },
-      [&](int in_epoch, int done, int total) {
-        if (o.resume && epoch == 0) {
-          std::printf("resumed from %s after epoch %d\n", checkpoint.c_str(), in_epoch - 1);
+          // train_normals writes the checkpoint right after this report.
+          if (r.epoch % std::max(1, o.checkpoint_every) == 0) checkpoint_epoch = r.epoch;
+          if (r.squared_loss) {  // the MLP: no GAN, no discriminator
+            std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L2 %.4f  |  ", r.epoch, r.epochs,
+                        r.seconds, r.learning_rate, r.loss_l1);
+          } else {
+            std::printf("epoch %3d/%d  %5.1f s  lr %.2e  L1 %.4f  GAN %.3f  D %.3f  |  ", r.epoch,
+                        r.epochs, r.seconds, r.learning_rate, r.loss_l1, r.loss_gan, r.loss_d);
+          }
+          if (r.val.frames == 0) {
+            std::printf("no validation frames\n");
+          } else {
+            std::printf("val MSE contact %s image %.2e  angle contact %s deg\n",
+                        metric(r.val.mse_contact, "%.2e").c_str(), r.val.mse_image,
+                        metric(r.val.angle_contact_deg, "%.2f").c_str());
+          }
           std::fflush(stdout);
-          checkpoint_epoch = in_epoch - 1;
-        }
-        epoch = in_epoch;
-        // The batches' line on a terminal only: in a log, each epoch's line says enough (the
-        // line every tenth of an epoch was ten more lines an epoch).
-        if (a.quiet || !isatty(fileno(stderr))) return stop_if_asked();
-        if (!progress) {
-          progress = std::make_unique<Progress>("epoch " + std::to_string(epoch), total, true,
-                                                "batches");
-        }
-        progress->update(done);
-      });
+        },
+        [&](int in_epoch, int done, int total) {
+          if (o.resume && epoch == 0) {
+            std::printf("resumed from %s after epoch %d\n", checkpoint.c_str(), in_epoch - 1);
+            std::fflush(stdout);
+            checkpoint_epoch = in_epoch - 1;
+          }
+          epoch = in_epoch;
+          // The batches' line on a terminal only: in a log, each epoch's line says enough (the
+          // line every tenth of an epoch was ten more lines an epoch).
+          if (a.quiet || !isatty(fileno(stderr))) return stop_if_asked();
+          if (!progress) {
+            progress = std::make_unique<Progress>("epoch " + std::to_string(epoch), total, true,
+                                                  "batches");
+          }
+          progress->update(done);
+        });
   } catch (const Stopped& e) {
     progress.reset();
     std::string where = epoch == 0 ? "before the first epoch" : "in epoch " + std::to_string(epoch);
@@ -248,9 +247,10 @@ int run_train_normals(const TrainNormalsArgs& a) {
                                       : std::string())));
   }
   if (o.resume && epoch == 0) {
-    std::printf("nothing left to train: %s holds epoch %d, the last of --epochs; the model is "
-                "written from it\n",
-                checkpoint.c_str(), o.epochs);
+    std::printf(
+        "nothing left to train: %s holds epoch %d, the last of --epochs; the model is "
+        "written from it\n",
+        checkpoint.c_str(), o.epochs);
   }
   std::printf("wrote %s\n", o.out.c_str());
   return kExitOk;
@@ -275,16 +275,17 @@ int run_model_info(const ModelInfoArgs& a) {
                                 : format_number(double(bytes) / 1e6, "%.1f MB").c_str());
   std::printf("network   %s, %ld parameters, normals in the %s frame\n", describe(i.spec).c_str(),
               model.parameter_count(), i.gel_relative ? "undeformed gel's" : "sensor");
-  std::printf("images    %dx%d (the only size it takes); input mean %.4f %.4f %.4f, std %.4f "
-              "%.4f %.4f\n",
-              i.width, i.height, double(i.input_mean[0]), double(i.input_mean[1]),
-              double(i.input_mean[2]), double(i.input_std[0]), double(i.input_std[1]),
-              double(i.input_std[2]));
+  std::printf(
+      "images    %dx%d (the only size it takes); input mean %.4f %.4f %.4f, std %.4f "
+      "%.4f %.4f\n",
+      i.width, i.height, double(i.input_mean[0]), double(i.input_mean[1]), double(i.input_mean[2]),
+      double(i.input_std[0]), double(i.input_std[1]), double(i.input_std[2]));
   if (i.sensor_known) {
-    std::printf("sensor    %s: %zu lights, camera fx %.2f px at %.2f mm (track and eval-normals "
-                "warn on other optics)\n",
-                i.sensor.name.c_str(), i.sensor.lights.size(), i.sensor.camera.fx,
-                i.sensor.camera.distance_m * 1e3);
+    std::printf(
+        "sensor    %s: %zu lights, camera fx %.2f px at %.2f mm (track and eval-normals "
+        "warn on other optics)\n",
+        i.sensor.name.c_str(), i.sensor.lights.size(), i.sensor.camera.fx,
+        i.sensor.camera.distance_m * 1e3);
   } else {
     std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
   }

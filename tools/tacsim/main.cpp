@@ -94,7 +94,8 @@ int run_render(const RenderArgs& a) {
       return render_scene_to_dataset(renderer, a.out,
                                      [&](int done, int) { progress.update(done); });
     } catch (const Stopped& e) {
-      throw e.with_note(a.out + " holds an unfinished dataset (no poses.csv, it does not open); "
+      throw e.with_note(a.out +
+                        " holds an unfinished dataset (no poses.csv, it does not open); "
                         "render again to replace it");
     }
   }();

@@ -142,7 +142,7 @@ struct TrainOptions {
   double offset_jitter = 0.0;
   std::uint64_t seed = 0;
   int threads = 0;            // 0 = all cores
-  int checkpoint_every = 1;  // epochs
+  int checkpoint_every = 1;   // epochs
   bool resume = false;        // continue from OUT.ckpt
   // Fine-tuning: start from this model's weights, with its network and its input normalisation
   // (`spec` is then taken from it; the training images must be of its size and its label frame,
@@ -154,8 +154,8 @@ struct EpochReport {
   int epoch = 0, epochs = 0;
   double learning_rate = 0;
   double loss_l1 = 0, loss_gan = 0, loss_d = 0;  // means over the epoch (mlp: loss_l1 = L2)
-  bool squared_loss = false;                      // loss_l1 is the MLP's L2
-  int train_frames = 0, batches = 0;              // per epoch
+  bool squared_loss = false;                     // loss_l1 is the MLP's L2
+  int train_frames = 0, batches = 0;             // per epoch
   NormalMetrics val;
   double seconds = 0;
 };
