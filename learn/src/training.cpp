@@ -11,11 +11,10 @@
 #include <stdexcept>
 #include <thread>
 
+#include "checkpoint.h"
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
-#include "pg/core/file_io.h"
-#include "zip_check.h"
 
 namespace pg {
 
@@ -23,8 +22,6 @@ namespace fs = std::filesystem;
 namespace F = torch::nn::functional;
 
 namespace {
-
-constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
 
 // Frames as tensors: the raw difference input, the true normals and the contact mask.
 struct FrameSet {
@@ -177,81 +174,6 @@ void set_learning_rate(torch::optim::Adam& optimizer, double lr) {
   }
 }
 
-// A path as one file is always named (symbolic links and ".." resolved), or as given.
-std::string canonical_or_given(const std::string& path) {
-  std::error_code ec;
-  const fs::path canonical = fs::weakly_canonical(path, ec);
-  return ec ? path : canonical.string();
-}
-
-// The settings that make a training run what it is, recorded in the checkpoint so that a resumed
-// run can be held to them: resuming with another learning rate, batch, seed, loss weight,
-// augmentation, training data or starting model would silently continue a different run.
-// --epochs and --decay-epochs may change on resuming (to train longer); the schedule is a
-// function of the epoch, so it then continues as the new values say.
-nlohmann::json run_settings(const TrainOptions& o) {
-  nlohmann::json data = nlohmann::json::array(), val = nlohmann::json::array();
-  for (const std::string& folder : o.train_data) data.push_back(canonical_or_given(folder));
-  // Without --val every 10th training frame is held out: dropping it changes the training set.
-  for (const std::string& folder : o.val_data) val.push_back(canonical_or_given(folder));
-  return {{"--lr", o.learning_rate},
-          {"beta1", o.beta1},
-          {"--batch", o.batch},
-          {"--seed", o.seed},
-          {"--l1-weight", o.l1_weight},
-          {"--gan-weight", o.gan_weight},
-          {"--contact-weight", o.contact_weight},
-          {"--shift", o.shift_px},
-          {"--gain-jitter", o.gain_jitter},
-          {"--offset-jitter", o.offset_jitter},
-          {"--data", data},
-          {"--val", val},
-          {"--init", o.init_model.empty() ? std::string() : canonical_or_given(o.init_model)}};
-}
-
-// Throws InputError naming the first setting of `o` that differs from the checkpoint's record
-// (a checkpoint written before the record existed is not checked).
-void check_run_settings(const nlohmann::json& recorded, const TrainOptions& o,
-                        const std::string& checkpoint) {
-  const nlohmann::json now = run_settings(o);
-  for (const auto& [option, value] : now.items()) {
-    if (!recorded.contains(option) || recorded.at(option) == value) continue;
-    throw InputError(checkpoint + ": trained with " + option + " " + recorded.at(option).dump() +
-                     ", resumed with " + value.dump() +
-                     "; resume with the same value, or remove it (or train into another --out) "
-                     "to start a new run");
-  }
-}
-
-// How far a checkpoint's run got: the epochs done and the epochs it was to train (0: not
-// recorded, a checkpoint written before the record existed).
-struct CheckpointProgress {
-  int epoch = 0, epochs = 0;
-};
-CheckpointProgress checkpoint_progress(const std::string& checkpoint) {
-  learn::check_zip_checksums(checkpoint, "checkpoint");
-  torch::serialize::InputArchive a;
-  c10::IValue format, text, epoch;
-  try {
-    a.load_from(checkpoint);
-  } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
-    throw InputError(checkpoint + ": corrupt checkpoint");
-  }
-  if (!a.try_read("format", format) || !format.isString() ||
-      format.toStringRef() != kCheckpointFormat || !a.try_read("info", text) || !text.isString() ||
-      !a.try_read("epoch", epoch) || !epoch.isInt()) {
-    throw InputError(checkpoint + ": not a normals training checkpoint");
-  }
-  CheckpointProgress p;
-  p.epoch = int(epoch.toInt());
-  try {
-    p.epochs = nlohmann::json::parse(text.toStringRef()).value("epochs", 0);
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
-  }
-  return p;
-}
-
 // The learning rate of epoch `epoch` (0-based) under TrainOptions::decay_epochs' schedule.
 double learning_rate_at(const TrainOptions& o, int epoch) {
   const double left = double(o.epochs - epoch) / double(o.decay_epochs + 1);
@@ -313,34 +235,8 @@ void train_normals(const TrainOptions& options,
     const fs::path probe = o.out + ".ckpt.tmp";
     if (!std::ofstream(probe)) throw InputError(o.out + ": cannot write in " + folder.string());
     fs::remove(probe);
-    // The checkpoint's place, and the work it may hold: a new run would replace an unfinished
-    // run's checkpoint at its first save (a forgotten --resume).
-    const std::string checkpoint = o.out + ".ckpt";
-    if (fs::exists(checkpoint, ec) && !fs::is_regular_file(checkpoint, ec)) {
-      throw InputError(checkpoint +
-                       ": is not a file (a folder?), where the run keeps its "
-                       "checkpoint; remove it or train into another --out");
-    }
-    if (!o.resume && fs::is_regular_file(checkpoint, ec)) {
-      CheckpointProgress p;
-      try {
-        p = checkpoint_progress(checkpoint);
-      } catch (const InputError& e) {
-        throw InputError(std::string(e.what()) + "; remove it to start a new run into " + o.out);
-      }
-      if (p.epochs == 0) {  // written before the run's length was recorded
-        throw InputError(checkpoint + ": holds a training run at epoch " + std::to_string(p.epoch) +
-                         " whose length it does not record (an older checkpoint): --resume "
-                         "continues it; remove it to start a new run into " +
-                         o.out);
-      }
-      if (p.epoch < p.epochs) {
-        throw InputError(checkpoint + ": holds an unfinished training run (epoch " +
-                         std::to_string(p.epoch) + " of " + std::to_string(p.epochs) +
-                         "): --resume continues it; remove it to start a new run into " + o.out);
-      }
-    }
   }
+  learn::check_checkpoint_place(o);
   const int threads =
       o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   torch::set_num_threads(threads);
@@ -408,70 +304,9 @@ void train_normals(const TrainOptions& options,
   if (gan) opt_d = std::make_unique<torch::optim::Adam>(d->parameters(), adam);
 
   const std::string checkpoint = o.out + ".ckpt";
-  int first_epoch = 0;
   nlohmann::json history = nlohmann::json::array();
-  if (o.resume) {
-    if (!fs::is_regular_file(checkpoint))
-      throw InputError(checkpoint + ": no checkpoint to resume");
-    learn::check_zip_checksums(checkpoint, "checkpoint");
-    torch::serialize::InputArchive a;
-    try {
-      a.load_from(checkpoint);
-      c10::IValue format, text, epoch;
-      if (!a.try_read("format", format) || format.toStringRef() != kCheckpointFormat ||
-          !a.try_read("info", text) || !a.try_read("epoch", epoch)) {
-        throw InputError(checkpoint + ": not a normals training checkpoint");
-      }
-      const nlohmann::json j = nlohmann::json::parse(text.toStringRef());
-      // The run's settings first: a run resumed without its --init would otherwise be told only
-      // that the network differs.
-      if (j.contains("run")) check_run_settings(j.at("run"), o, checkpoint);
-      NetworkSpec trained;
-      trained.arch = j.at("arch").get<std::string>();
-      trained.depth = j.at("depth").get<int>();
-      trained.base_width = j.at("base_width").get<int>();
-      trained.mlp_hidden = j.at("mlp_hidden").get<int>();
-      const bool trained_gan = j.at("gan").get<bool>();
-      const bool trained_gel = j.value("gel_relative", false);
-      if (trained.arch != o.spec.arch || trained.depth != o.spec.depth ||
-          trained.base_width != o.spec.base_width || trained.mlp_hidden != o.spec.mlp_hidden ||
-          trained_gan != gan || trained_gel != o.gel_relative) {
-        const auto what = [](const NetworkSpec& spec, bool with_gan, bool gel) {
-          return describe(spec) + (with_gan ? " with" : " without") + " the GAN loss, labels " +
-                 (gel ? "gel" : "sensor");
-        };
-        throw InputError(checkpoint + ": holds " + what(trained, trained_gan, trained_gel) +
-                         ", this run asks for " + what(o.spec, gan, o.gel_relative) +
-                         "; resume with the checkpoint's --arch, --depth, --width, --hidden, "
-                         "--gan-weight and --labels, or train into another --out");
-      }
-      history = j.at("history");
-      first_epoch = int(epoch.toInt());
-      // A run that went further than asked would write a model of more epochs than --epochs.
-      if (first_epoch > o.epochs) {
-        throw InputError(checkpoint + ": holds epoch " + std::to_string(first_epoch) +
-                         ", past --epochs " + std::to_string(o.epochs) + "; give --epochs " +
-                         std::to_string(first_epoch) + " to write its model, or more to train on");
-      }
-      torch::serialize::InputArchive sub;
-      a.read("generator", sub);
-      g->load(sub);
-      a.read("opt_g", sub);
-      opt_g.load(sub);
-      if (gan) {
-        a.read("discriminator", sub);
-        d->load(sub);
-        a.read("opt_d", sub);
-        opt_d->load(sub);
-      }
-    } catch (const InputError&) {
-      throw;
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
-    } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
-      throw InputError(checkpoint + ": corrupt checkpoint");
-    }
-  }
+  learn::TrainingState state{g, opt_g, gan ? &d : nullptr, opt_d.get(), history};
+  const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =
       torch::tensor(std::vector<float>(info.input_mean.begin(), info.input_mean.end()))
@@ -479,49 +314,6 @@ void train_normals(const TrainOptions& options,
   const torch::Tensor std =
       torch::tensor(std::vector<float>(info.input_std.begin(), info.input_std.end()))
           .view({1, 3, 1, 1});
-  auto save_checkpoint = [&](int epochs_done) {
-    torch::serialize::OutputArchive a;
-    a.write("format", c10::IValue(std::string(kCheckpointFormat)));
-    nlohmann::json j = {{"arch", o.spec.arch},
-                        {"depth", o.spec.depth},
-                        {"base_width", o.spec.base_width},
-                        {"mlp_hidden", o.spec.mlp_hidden},
-                        {"gan", gan},
-                        {"gel_relative", o.gel_relative},
-                        {"epochs", o.epochs},
-                        {"run", run_settings(o)},
-                        {"history", history}};
-    a.write("info", c10::IValue(j.dump()));
-    a.write("epoch", c10::IValue(int64_t(epochs_done)));
-    torch::serialize::OutputArchive gw, og;
-    g->save(gw);
-    opt_g.save(og);
-    a.write("generator", gw);
-    a.write("opt_g", og);
-    if (gan) {
-      torch::serialize::OutputArchive dw, od;
-      d->save(dw);
-      opt_d->save(od);
-      a.write("discriminator", dw);
-      a.write("opt_d", od);
-    }
-    std::error_code ec;
-    const std::string tmp = temporary_path_for(checkpoint);
-    try {
-      a.save_to(tmp);
-    } catch (const c10::Error&) {
-      fs::remove(tmp, ec);
-      throw InputError(checkpoint + ": cannot write the checkpoint" +
-                       write_failure_cause(checkpoint, 0));
-    }
-    fs::rename(tmp, checkpoint, ec);
-    if (ec) {
-      const std::string why = ec.message();
-      fs::remove(tmp, ec);
-      throw InputError(checkpoint + ": cannot write the checkpoint: " + why);
-    }
-  };
-
   const int batches = int((train.size() + o.batch - 1) / o.batch);
   std::vector<int> order(train.size());
   for (int epoch = first_epoch; epoch < o.epochs; ++epoch) {
@@ -610,7 +402,7 @@ void train_normals(const TrainOptions& options,
     history.push_back(epoch_json(r));
     if (on_epoch) on_epoch(r);
     if ((epoch + 1) % std::max(1, o.checkpoint_every) == 0 || epoch + 1 == o.epochs) {
-      save_checkpoint(epoch + 1);
+      learn::save_checkpoint(o, epoch + 1, state);
     }
   }
   g->eval();
