@@ -263,7 +263,11 @@ class Dataset:
     def normal_png(self, frame):
         """The normal_png output decoded as the C++ reader does: n = png / 65535 * 2 - 1, made
         unit length again (within 3e-5 of the float normals)."""
-        n = read_png(self.path("normal_png", frame)).astype(np.float32) / 65535 * 2 - 1
+        png = read_png(self.path("normal_png", frame))
+        if png.dtype != np.uint16 or png.shape[2] != 3:
+            raise ValueError(f"{self.path('normal_png', frame)}: {png.dtype.itemsize * 8}-bit with "
+                             f"{png.shape[2]} channels; normal_png is 16-bit RGB")
+        n = png.astype(np.float32) / 65535 * 2 - 1
         length = np.linalg.norm(n, axis=2, keepdims=True)
         return np.where(length > 0, n / np.where(length > 0, length, 1), n).astype(np.float32)
 

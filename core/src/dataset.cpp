@@ -558,7 +558,7 @@ ImageF Dataset::normal(int frame) const {
   return read_checked<float>(*this, "normal", frame, read_float_file);
 }
 ImageF Dataset::normal_png(int frame) const {
-  ImageF n = read_checked<float>(*this, "normal_png", frame, read_image_float);
+  ImageF n = read_checked<float>(*this, "normal_png", frame, read_u16_file);
   for (std::size_t i = 0; i < n.data.size(); i += 3) {
     Eigen::Vector3f v(2 * n.data[i] - 1, 2 * n.data[i + 1] - 1, 2 * n.data[i + 2] - 1);
     const float norm = v.norm();

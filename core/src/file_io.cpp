@@ -76,14 +76,38 @@ std::string temporary_path_for(const std::string& path) {
   return path + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(count++);
 }
 
+bool is_special_file(const std::string& path) {
+  std::error_code ec;
+  const fs::file_status s = fs::status(path, ec);
+  return !ec && fs::exists(s) && !fs::is_regular_file(s) && !fs::is_directory(s);
+}
+
+std::string replaceable_file(const std::string& path) {
+  if (is_special_file(path)) {
+    throw InputError(path +
+                     ": is a device or pipe; a file written here would replace it: give a "
+                     "file name");
+  }
+  std::error_code ec;
+  if (!fs::is_symlink(path, ec)) return path;
+  const fs::path target = fs::weakly_canonical(path, ec);
+  return ec ? path : target.string();
+}
+
 void write_text_atomically(const std::string& path, std::string_view text) {
-  const std::string tmp = temporary_path_for(path);
+  if (is_special_file(path)) {  // /dev/stdout, /dev/null, a FIFO: written to, not replaced
+    if (const auto cause = try_write(path, text))
+      throw InputError(path + ": cannot write" + *cause);
+    return;
+  }
+  const std::string target = replaceable_file(path);
+  const std::string tmp = temporary_path_for(target);
   std::error_code ec;
   if (const auto cause = try_write(tmp, text)) {
     fs::remove(tmp, ec);
     throw InputError(path + ": cannot write" + *cause);
   }
-  fs::rename(tmp, path, ec);
+  fs::rename(tmp, target, ec);
   if (ec) {
     const std::string message = path + ": cannot replace it with " + tmp + ": " + ec.message();
     fs::remove(tmp, ec);

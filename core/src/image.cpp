@@ -25,12 +25,17 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
 }
 
 template <typename T>
-Image<T> read_image(const std::string& path, OIIO::TypeDesc type, bool float_file = false) {
+Image<T> read_image(const std::string& path, OIIO::TypeDesc type,
+                    OIIO::TypeDesc stored = OIIO::TypeDesc::UNKNOWN) {
   auto in = open_input(path);
   const OIIO::ImageSpec& spec = in->spec();
-  if (float_file && !spec.format.is_floating_point()) {
+  if (stored == OIIO::TypeDesc::FLOAT && !spec.format.is_floating_point()) {
     throw InputError(path + ": is a " + in->format_name() + " file of " + spec.format.c_str() +
                      " pixels, not floating-point data");
+  }
+  if (stored == OIIO::TypeDesc::UINT16 && spec.format != OIIO::TypeDesc::UINT16) {
+    throw InputError(path + ": is a " + in->format_name() + " file of " + spec.format.c_str() +
+                     " pixels, not 16-bit ones");
   }
   if (spec.nchannels < 1 || spec.width < 1 || spec.height < 1) {
     throw InputError(path + ": image has no pixels");
@@ -86,7 +91,11 @@ ImageF read_image_float(const std::string& path) {
 }
 
 ImageF read_float_file(const std::string& path) {
-  return read_image<float>(path, OIIO::TypeDesc::FLOAT, true);
+  return read_image<float>(path, OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::FLOAT);
+}
+
+ImageF read_u16_file(const std::string& path) {
+  return read_image<float>(path, OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::UINT16);
 }
 
 ImageU8 read_image_u8(const std::string& path) {

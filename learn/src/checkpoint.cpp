@@ -149,7 +149,8 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
     a.write("opt_d", od);
   }
   std::error_code ec;
-  const std::string tmp = temporary_path_for(checkpoint);
+  const std::string target = replaceable_file(checkpoint);
+  const std::string tmp = temporary_path_for(target);
   try {
     a.save_to(tmp);
   } catch (const c10::Error&) {
@@ -157,7 +158,7 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
     throw InputError(checkpoint + ": cannot write the checkpoint" +
                      write_failure_cause(checkpoint, 0));
   }
-  fs::rename(tmp, checkpoint, ec);
+  fs::rename(tmp, target, ec);
   if (ec) {
     const std::string why = ec.message();
     fs::remove(tmp, ec);

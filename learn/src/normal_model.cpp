@@ -166,7 +166,8 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
   torch::serialize::OutputArchive weights;
   generator->save(weights);
   archive.write("generator", weights);
-  const std::string tmp = temporary_path_for(path);
+  const std::string target = replaceable_file(path);
+  const std::string tmp = temporary_path_for(target);
   std::error_code ec;
   try {
     archive.save_to(tmp);
@@ -174,7 +175,7 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
     fs::remove(tmp, ec);
     throw InputError(path + ": cannot write the model file" + write_failure_cause(path, 0));
   }
-  fs::rename(tmp, path, ec);
+  fs::rename(tmp, target, ec);
   if (ec) {
     const std::string why = ec.message();
     fs::remove(tmp, ec);

@@ -15,6 +15,7 @@
 #include "networks.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 
 namespace pg {
 
@@ -232,6 +233,8 @@ void train_normals(const TrainOptions& options,
       throw InputError(o.out + ": cannot create the folder " + folder.string() + ": " +
                        ec.message());
     }
+    replaceable_file(o.out);  // a device or pipe would be replaced by the model
+    replaceable_file(o.out + ".ckpt");
     const fs::path probe = o.out + ".ckpt.tmp";
     if (!std::ofstream(probe)) throw InputError(o.out + ": cannot write in " + folder.string());
     fs::remove(probe);

@@ -121,12 +121,17 @@ void check_zip_checksums(const std::string& path, const std::string& what) {
   }
   if (!found) zip.fail("no zip directory at its end: cut short?");
   std::uint64_t entries = zip.get(end + 10, 2), at = zip.get(end + 16, 4);
-  if ((entries == 0xFFFF || at == 0xFFFFFFFF) && end >= 20 &&
-      zip.get(end - 20, 4) == kDirectoryEnd64Locator) {
+  // Torch reads the zip64 record wherever there is one (every model and checkpoint has it), so
+  // the check reads the same; the 16-bit record must agree with it where it is not all ones.
+  if (end >= 20 && zip.get(end - 20, 4) == kDirectoryEnd64Locator) {
     const std::uint64_t end64 = zip.get(end - 20 + 8, 8);
     if (zip.get(end64, 4) != kDirectoryEnd64) zip.fail("damaged zip64 directory record");
-    entries = zip.get(end64 + 32, 8);
-    at = zip.get(end64 + 48, 8);
+    const std::uint64_t entries64 = zip.get(end64 + 32, 8), at64 = zip.get(end64 + 48, 8);
+    if ((entries != 0xFFFF && entries != entries64) || (at != 0xFFFFFFFF && at != at64)) {
+      zip.fail("its two directory records disagree");
+    }
+    entries = entries64;
+    at = at64;
   }
   for (std::uint64_t k = 0; k < entries; ++k) {
     if (zip.get(at, 4) != kDirectoryEntry) zip.fail("damaged zip directory");

@@ -1,4 +1,7 @@
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <filesystem>
@@ -553,6 +556,33 @@ TEST(FileIo, ConcurrentAtomicWritesOfOneFileEachLandWhole) {
   const std::string text(std::istreambuf_iterator<char>(in), {});
   EXPECT_TRUE(text == a || text == b) << text.size();
   EXPECT_EQ(std::distance(fs::directory_iterator(tmp.path), fs::directory_iterator()), 1);
+}
+
+// A pipe (as /dev/stdout or /dev/null) given as an output is written to, never replaced by a
+// plain file (which, as root, would have replaced /dev/null itself); a symbolic link stays a link
+// to the replaced file; a file written whole over a device or pipe is refused, naming it.
+TEST(FileIo, DevicesAndPipesAreWrittenToAndLinksStayLinks) {
+  TempDir tmp;
+  const std::string fifo = tmp.str("pipe");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const int reader = open(fifo.c_str(), O_RDONLY | O_NONBLOCK);  // so the writer's open returns
+  ASSERT_GE(reader, 0);
+  write_text_atomically(fifo, "{\"a\": 1}\n");
+  char got[64] = {};
+  const ssize_t n = read(reader, got, sizeof got - 1);
+  close(reader);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_EQ(std::string(got, n > 0 ? std::size_t(n) : 0), "{\"a\": 1}\n");
+  testing_support::expect_input_error([&] { replaceable_file(fifo); }, {fifo, "device or pipe"});
+
+  const std::string file = tmp.str("real.json"), link = tmp.str("link.json");
+  std::ofstream(file) << "old";
+  fs::create_symlink(file, link);
+  write_text_atomically(link, "new");
+  EXPECT_TRUE(fs::is_symlink(link));
+  std::ifstream in(file);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), "new");
+  EXPECT_EQ(std::distance(fs::directory_iterator(tmp.path), fs::directory_iterator()), 3);
 }
 
 TEST(Image, FormatsRoundTrip) {

@@ -469,6 +469,18 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
       }
     }
     EXPECT_GT(refused, 250) << "most bytes of a model are its weights, under a checksum";
+    // Torch reads the zip64 directory record: a damaged 16-bit one must not narrow the check to
+    // fewer entries than Torch loads (here one, with a damaged weight further on).
+    std::string two = bytes;
+    const std::size_t end = two.rfind(std::string("PK\x05\x06", 4));
+    ASSERT_NE(end, std::string::npos);
+    two[end + 10] = 1, two[end + 11] = 0;
+    two[two.size() / 2] ^= 1;
+    std::ofstream(damaged, std::ios::binary | std::ios::trunc) << two;
+    EXPECT_NE(input_error_message([&] {
+                NormalEstimator::load(damaged);
+              }).find("its two directory records disagree"),
+              std::string::npos);
   }
   // Bytes overwritten inside a weight tensor's data: the archive still unpacks (Torch does not
   // verify the checksums), so they are checked before it reads. The file is a zip of stored

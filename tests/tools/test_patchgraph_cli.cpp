@@ -16,6 +16,7 @@
 
 #include "../common/test_support.h"
 #include "pg/core/dataset.h"
+#include "pg/core/image.h"
 #include "pg/core/image_change.h"
 #include "pg/core/json_fields.h"
 
@@ -597,7 +598,7 @@ TEST_F(PatchgraphCli, ModelInfoDescribesTheModel) {
   for (const std::string line :
        {"network   unet (depth 5, width 12), 587931 parameters, normals in the sensor frame",
         "images    120x160 (the only size it takes)", "sensor    digit: 3 lights",
-        "trained   25 epochs on 12 dataset(s)", "last      epoch 25: loss "}) {
+        "trained   25 epoch(s) on 12 dataset(s)", "last      epoch 25: loss "}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
   }
   std::ifstream in(kDefaultModel, std::ios::binary);
@@ -1468,6 +1469,14 @@ TEST_F(PatchgraphCli, NormalsAsSixteenBitPngTrackAsTheExrDo) {
     EXPECT_LT(translation_distance(a[i].T_world_object, b[i].T_world_object), 1e-6) << i;
     EXPECT_LT(rotation_distance(a[i].T_world_object, b[i].T_world_object), 1e-4) << i;
   }
+  // An 8-bit PNG in its place (a converted copy) is named, not read as coarse normals.
+  const std::string frame = dataset_frame_path(out("png_normals"), "normal_png", 5);
+  write_image(frame, read_image_float(frame));  // float to PNG: 8 bits
+  const CliRun coarse = patchgraph("track -q " + out("png_normals") + " --out " + out("track_8"));
+  EXPECT_EQ(coarse.code, 1) << coarse.out;
+  EXPECT_NE(coarse.out.find("normal_png/000005.png: is a png file of uint8 pixels, not 16-bit"),
+            std::string::npos)
+      << coarse.out;
   // Neither form: the error names both.
   ASSERT_EQ(render_scene("default.json", "-q --outputs mask --out " + out("no_normals")).code, 0);
   const CliRun none = patchgraph("track -q " + out("no_normals") + " --out " + out("track_none"));

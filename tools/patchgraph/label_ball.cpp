@@ -263,7 +263,8 @@ int run_label_ball(const LabelBallArgs& a) {
   std::vector<FrameLabel> labels(std::size_t(d.frames()));
   int presses = 0, no_press = 0;
   ReferenceChange reference_change(reference, d.frames());
-  {
+  try {
+    const StopOnSignals stop;
     Progress progress("finding presses", d.frames(), !a.quiet);
     for (int f = 0; f < d.frames(); ++f) {
       const ImageU8 color = d.color(f);
@@ -289,6 +290,8 @@ int run_label_ball(const LabelBallArgs& a) {
       no_press += l.kind == FrameLabel::kNoPress;
       progress.update(f + 1);
     }
+  } catch (const Stopped& e) {
+    throw e.with_note("while finding the presses; nothing written");
   }
   const int persistent = reference_change.persistent_pixels();
   if (persistent >= kMinPressPixels) {
@@ -360,6 +363,13 @@ int run_label_ball(const LabelBallArgs& a) {
     }
     writer.finish();
     write_text_atomically((fs::path(a.out) / "circles.csv").string(), circles_csv(labels));
+  } catch (const Stopped& e) {
+    std::error_code ignored;
+    if (!out_existed) fs::remove_all(a.out, ignored);
+    throw e.with_note(out_existed ? a.out +
+                                        " holds an unfinished dataset (no poses.csv, it does "
+                                        "not open); run again to replace it"
+                                  : "nothing written (" + a.out + " removed)");
   } catch (...) {
     std::error_code ignored;
     if (!out_existed) fs::remove_all(a.out, ignored);

@@ -163,8 +163,11 @@ int run_train_normals(const TrainNormalsArgs& a) {
     }
   }
   o.gel_relative = a.labels == "gel";
-  if (!o.init_model.empty() && !std::filesystem::is_regular_file(o.init_model)) {
+  if (!o.init_model.empty() && !std::filesystem::exists(o.init_model)) {
     throw InputError(o.init_model + ": model file not found (--init)");
+  }
+  if (!o.init_model.empty() && !std::filesystem::is_regular_file(o.init_model)) {
+    throw InputError(o.init_model + ": is not a model file (a folder, device or pipe; --init)");
   }
   std::error_code ec;
   if (!o.init_model.empty() && std::filesystem::equivalent(o.out, o.init_model, ec)) {
@@ -289,7 +292,7 @@ int run_model_info(const ModelInfoArgs& a) {
   } else {
     std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
   }
-  std::printf("trained   %d epochs on %zu dataset(s):\n", i.epochs, i.training_data.size());
+  std::printf("trained   %d epoch(s) on %zu dataset(s):\n", i.epochs, i.training_data.size());
   for (const std::string& dir : i.training_data) std::printf("            %s\n", dir.c_str());
   const auto history = nlohmann::json::parse(i.history_json, nullptr, false);
   if (history.is_array() && !history.empty()) {
@@ -299,10 +302,10 @@ int run_model_info(const ModelInfoArgs& a) {
       return it == last.end() || !it->is_number() ? std::string("n/a")
                                                   : format_number(it->get<double>(), format);
     };
-    std::printf("last      epoch %s: loss %s, val MSE contact %s, angle contact %s deg\n",
+    std::printf("last      epoch %s: loss %s, val MSE contact %s, angle contact %s\n",
                 number("epoch", "%.0f").c_str(), number("loss_l1", "%.4f").c_str(),
                 number("val_mse_contact", "%.2e").c_str(),
-                number("val_angle_contact_deg", "%.2f").c_str());
+                number("val_angle_contact_deg", "%.2f deg").c_str());
   }
   return kExitOk;
 }
@@ -321,14 +324,17 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     check_output_is_no_dataset(a.json, true, "--json");
     for (const std::string& dir : a.data)
       check_output_is_not_input(a.json, dir, "the dataset", "--json");
-    // A folder the file cannot be written in fails now, not after the evaluation.
-    const std::string probe = temporary_path_for(a.json);
-    errno = 0;
-    if (!std::ofstream(probe)) {
-      throw InputError(a.json + ": cannot write" + write_failure_cause(a.json, errno));
+    // A folder the file cannot be written in fails now, not after the evaluation (a device or
+    // pipe, /dev/stdout, is written to as it is).
+    if (!is_special_file(a.json)) {
+      const std::string probe = temporary_path_for(replaceable_file(a.json));
+      errno = 0;
+      if (!std::ofstream(probe)) {
+        throw InputError(a.json + ": cannot write" + write_failure_cause(a.json, errno));
+      }
+      std::error_code ec;
+      std::filesystem::remove(probe, ec);
     }
-    std::error_code ec;
-    std::filesystem::remove(probe, ec);
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);
@@ -342,11 +348,17 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   for (const std::string& dir : a.data) {
     std::unique_ptr<Progress> progress;
     const NormalMetrics m = [&] {
-      const StopOnSignals stop;
-      return evaluate_normals(model, {dir}, [&](int done, int total) {
-        if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
-        progress->update(done);
-      });
+      try {
+        const StopOnSignals stop;
+        return evaluate_normals(model, {dir}, [&](int done, int total) {
+          if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
+          progress->update(done);
+        });
+      } catch (const Stopped& e) {
+        throw e.with_note("in " + dir +
+                          (a.json.empty() ? "" : "; --json " + a.json + " not written") +
+                          (results.empty() ? "" : "; the datasets before it are printed above"));
+      }
     }();
     std::printf("%-40s %7d %12s %12.3e %10s deg %8.2f deg %9.2f\n", dir.c_str(), m.frames,
                 metric(m.mse_contact, "%.3e").c_str(), m.mse_image,

@@ -27,7 +27,16 @@ void close_checked(std::ofstream& out, const std::string& path);
 void write_text_file(const std::string& path, std::string_view text);
 // The same through a temporary file beside it (temporary_path_for) and a rename, so no reader
 // sees half a file: a write that fails leaves the previous file as it was and no temporary file.
+// A device or pipe at `path` (/dev/stdout, a FIFO) is written to directly, a symbolic link's
+// file replaced (replaceable_file).
 void write_text_atomically(const std::string& path, std::string_view text);
+// The file that a whole-file replacement (a temporary file renamed over it) of `path` renames
+// onto: `path`, or the file a symbolic link there points to (the link stays a link). Throws
+// InputError naming `path` when it is a device, pipe or socket, which a rename would replace
+// with a plain file (as root, /dev/null itself).
+std::string replaceable_file(const std::string& path);
+// Whether `path` (links followed) is a device, pipe or socket.
+bool is_special_file(const std::string& path);
 // A name beside `path` for the temporary file a write goes to before it is renamed to `path`:
 // PATH.tmp.PID.N, so that two processes (or threads) writing one file at once do not take each
 // other's temporary file away (the last rename wins, each file whole).

@@ -36,6 +36,9 @@ ImageU8 read_image_u8(const std::string& path);
 // Like read_image_float, but refuses a file that does not store floating-point pixels (a
 // dataset's normal and depth images are float EXR; a PNG renamed .exr is not one).
 ImageF read_float_file(const std::string& path);
+// Like read_image_float, scaled to [0, 1], but refuses a file that does not store 16-bit pixels
+// (a dataset's normal_png: an 8-bit file would read as normals a hundredth of a radian coarse).
+ImageF read_u16_file(const std::string& path);
 
 // Writes by extension. Float images go to EXR as 32-bit float; to PNG/JPEG they are clamped to
 // [0, 1] and quantised to 8 bits. Throws InputError naming the path on failure.
