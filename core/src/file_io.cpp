@@ -94,6 +94,16 @@ std::string replaceable_file(const std::string& path) {
   return ec ? path : target.string();
 }
 
+void check_can_write(const std::string& path) {
+  if (is_special_file(path)) return;
+  const std::string probe = temporary_path_for(replaceable_file(path));
+  errno = 0;
+  if (!std::ofstream(probe))
+    throw InputError(path + ": cannot write" + write_failure_cause(path, errno));
+  std::error_code ec;
+  fs::remove(probe, ec);
+}
+
 void write_text_atomically(const std::string& path, std::string_view text) {
   if (is_special_file(path)) {  // /dev/stdout, /dev/null, a FIFO: written to, not replaced
     if (const auto cause = try_write(path, text))

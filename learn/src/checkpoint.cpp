@@ -3,7 +3,6 @@
 #include <filesystem>
 
 #include "pg/core/error.h"
-#include "pg/core/file_io.h"
 #include "zip_check.h"
 
 namespace pg::learn {
@@ -148,22 +147,7 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
     a.write("discriminator", dw);
     a.write("opt_d", od);
   }
-  std::error_code ec;
-  const std::string target = replaceable_file(checkpoint);
-  const std::string tmp = temporary_path_for(target);
-  try {
-    a.save_to(tmp);
-  } catch (const c10::Error&) {
-    fs::remove(tmp, ec);
-    throw InputError(checkpoint + ": cannot write the checkpoint" +
-                     write_failure_cause(checkpoint, 0));
-  }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    const std::string why = ec.message();
-    fs::remove(tmp, ec);
-    throw InputError(checkpoint + ": cannot write the checkpoint: " + why);
-  }
+  save_archive(a, checkpoint, "checkpoint");
 }
 
 int load_checkpoint(const TrainOptions& o, TrainingState& s) {

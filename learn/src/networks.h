@@ -71,6 +71,12 @@ ImageF true_normals(const Dataset& dataset, int frame);
 constexpr float kMinFacingZ = 0.05f;
 torch::Tensor as_predicted(const torch::Tensor& raw);
 
+// Writes `archive` to `path` through a temporary file (a symbolic link's file replaced, a device
+// or pipe refused: replaceable_file); InputError "PATH: cannot write the WHAT (CAUSE)" leaves no
+// temporary file and the previous file as it was.
+void save_archive(torch::serialize::OutputArchive& archive, const std::string& path,
+                  const std::string& what);
+
 // Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
 void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info);
 // Throws InputError naming the path.

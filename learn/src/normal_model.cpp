@@ -166,6 +166,11 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
   torch::serialize::OutputArchive weights;
   generator->save(weights);
   archive.write("generator", weights);
+  save_archive(archive, path, "model file");
+}
+
+void save_archive(torch::serialize::OutputArchive& archive, const std::string& path,
+                  const std::string& what) {
   const std::string target = replaceable_file(path);
   const std::string tmp = temporary_path_for(target);
   std::error_code ec;
@@ -173,13 +178,13 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
     archive.save_to(tmp);
   } catch (const c10::Error&) {
     fs::remove(tmp, ec);
-    throw InputError(path + ": cannot write the model file" + write_failure_cause(path, 0));
+    throw InputError(path + ": cannot write the " + what + write_failure_cause(path, 0));
   }
   fs::rename(tmp, target, ec);
   if (ec) {
     const std::string why = ec.message();
     fs::remove(tmp, ec);
-    throw InputError(path + ": cannot write the model file: " + why);
+    throw InputError(path + ": cannot write the " + what + ": " + why);
   }
 }
 

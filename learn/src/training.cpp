@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <stdexcept>
@@ -233,11 +232,8 @@ void train_normals(const TrainOptions& options,
       throw InputError(o.out + ": cannot create the folder " + folder.string() + ": " +
                        ec.message());
     }
-    replaceable_file(o.out);  // a device or pipe would be replaced by the model
-    replaceable_file(o.out + ".ckpt");
-    const fs::path probe = o.out + ".ckpt.tmp";
-    if (!std::ofstream(probe)) throw InputError(o.out + ": cannot write in " + folder.string());
-    fs::remove(probe);
+    replaceable_file(o.out + ".ckpt");  // a device or pipe would be replaced by the checkpoint
+    check_can_write(replaceable_file(o.out));  // ... or by the model
   }
   learn::check_checkpoint_place(o);
   const int threads =

@@ -216,6 +216,27 @@ class OutputFolder {
   bool created_ = false;
 };
 
+// What a dataset write stopped half-way leaves in `out`: it does not open (its poses.csv is
+// written last), and the same command (`again`: "render", "run") replaces it.
+inline std::string unfinished_dataset_note(const std::string& out, const std::string& again) {
+  return out + " holds an unfinished dataset (no poses.csv, it does not open); " + again +
+         " again to replace it";
+}
+
+// For the catch-all of a dataset write into `out` (label-ball, recording): removes `out` if the
+// run made it (`out_existed` false) and rethrows the error being handled, a Stopped with what the
+// stop leaves.
+[[noreturn]] inline void rethrow_after_dataset_write(const std::string& out, bool out_existed) {
+  std::error_code ignored;
+  if (!out_existed) std::filesystem::remove_all(out, ignored);
+  try {
+    throw;
+  } catch (const Stopped& e) {
+    throw e.with_note(out_existed ? unfinished_dataset_note(out, "run")
+                                  : "nothing written (" + out + " removed)");
+  }
+}
+
 // A combination of options that cannot run, found after parsing (one of two options that
 // exclude each other must be given, say): exit 2, as CLI11's own usage errors.
 class UsageError : public InputError {

@@ -363,17 +363,8 @@ int run_label_ball(const LabelBallArgs& a) {
     }
     writer.finish();
     write_text_atomically((fs::path(a.out) / "circles.csv").string(), circles_csv(labels));
-  } catch (const Stopped& e) {
-    std::error_code ignored;
-    if (!out_existed) fs::remove_all(a.out, ignored);
-    throw e.with_note(out_existed ? a.out +
-                                        " holds an unfinished dataset (no poses.csv, it does "
-                                        "not open); run again to replace it"
-                                  : "nothing written (" + a.out + " removed)");
   } catch (...) {
-    std::error_code ignored;
-    if (!out_existed) fs::remove_all(a.out, ignored);
-    throw;
+    rethrow_after_dataset_write(a.out, out_existed);
   }
   const int skipped = d.frames() - presses - no_press;
   std::vector<double> rms, depth;

@@ -2,7 +2,6 @@
 
 #include <unistd.h>
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -324,17 +323,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     check_output_is_no_dataset(a.json, true, "--json");
     for (const std::string& dir : a.data)
       check_output_is_not_input(a.json, dir, "the dataset", "--json");
-    // A folder the file cannot be written in fails now, not after the evaluation (a device or
-    // pipe, /dev/stdout, is written to as it is).
-    if (!is_special_file(a.json)) {
-      const std::string probe = temporary_path_for(replaceable_file(a.json));
-      errno = 0;
-      if (!std::ofstream(probe)) {
-        throw InputError(a.json + ": cannot write" + write_failure_cause(a.json, errno));
-      }
-      std::error_code ec;
-      std::filesystem::remove(probe, ec);
-    }
+    check_can_write(a.json);  // now, not after the evaluation
   }
   NormalEstimator model = NormalEstimator::load(a.model, a.threads);
   model.set_phases(a.phases);

@@ -342,17 +342,8 @@ int run_recording(const RecordingArgs& a) {
       sources += std::to_string(i) + "," + csv_field(files[std::size_t(i)].string()) + "\n";
     }
     write_text_atomically((fs::path(a.out) / "sources.csv").string(), sources);
-  } catch (const Stopped& e) {
-    std::error_code ignored;
-    if (!out_existed) fs::remove_all(a.out, ignored);
-    throw e.with_note(out_existed ? a.out +
-                                        " holds an unfinished dataset (no poses.csv, it does "
-                                        "not open); run again to replace it"
-                                  : "nothing written (" + a.out + " removed)");
   } catch (...) {
-    std::error_code ignored;
-    if (!out_existed) fs::remove_all(a.out, ignored);
-    throw;
+    rethrow_after_dataset_write(a.out, out_existed);
   }
   int object_poses = 0;
   for (const auto& p : poses) object_poses += p.object_known;

@@ -94,9 +94,7 @@ int run_render(const RenderArgs& a) {
       return render_scene_to_dataset(renderer, a.out,
                                      [&](int done, int) { progress.update(done); });
     } catch (const Stopped& e) {
-      throw e.with_note(a.out +
-                        " holds an unfinished dataset (no poses.csv, it does not open); "
-                        "render again to replace it");
+      throw e.with_note(unfinished_dataset_note(a.out, "render"));
     }
   }();
   // Each sensor's image size ("120x160", or "120x160 + 240x320" for sensors of two sizes).

@@ -37,6 +37,10 @@ void write_text_atomically(const std::string& path, std::string_view text);
 std::string replaceable_file(const std::string& path);
 // Whether `path` (links followed) is a device, pipe or socket.
 bool is_special_file(const std::string& path);
+// Throws InputError "PATH: cannot write (CAUSE)" when no file can be made where a whole-file
+// write of `path` puts its temporary file (a folder not writable, /proc): checked before long
+// work rather than after it. A device or pipe passes (write_text_atomically writes to it).
+void check_can_write(const std::string& path);
 // A name beside `path` for the temporary file a write goes to before it is renamed to `path`:
 // PATH.tmp.PID.N, so that two processes (or threads) writing one file at once do not take each
 // other's temporary file away (the last rename wins, each file whole).
