@@ -51,6 +51,12 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
   return r;
 }
 
+// The whole text of a file ("" when it cannot be read).
+inline std::string file_text(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 // Runs `binary args` (through /bin/sh, SIGINT and SIGTERM at their defaults, as from a terminal),
 // sends it `signal_number` once its output (stdout and stderr together, in `log`) holds `text`,
 // and waits for it to end. code: its exit status; -1 if it never showed `text` (it ended first,
@@ -71,10 +77,7 @@ inline CliRun run_and_signal(const std::string& binary, const std::string& args,
     execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
-  const auto read_log = [&] {
-    std::ifstream in(log);
-    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  };
+  const auto read_log = [&] { return file_text(log); };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
   int status = 0;
   bool signalled = false, ended = false;

@@ -348,6 +348,26 @@ TEST(TacsimCli, CtrlCStopsARenderAndSaysWhatItLeaves) {
   EXPECT_EQ(Dataset::open(d).frames(), 3);
 }
 
+// A benchmark stopped part-way leaves an earlier report as it was (the file was emptied as the
+// benchmark started); a finished one replaces it whole.
+TEST(TacsimCli, AStoppedBenchmarkLeavesTheEarlierReport) {
+  TempDir tmp;
+  const std::string md = tmp.str("bench.md");
+  std::ofstream(md) << "the earlier report\n";
+  const std::string bench = "bench --quick --frames 100 --repeats 2 --markdown " + md;
+  const CliRun stopped =
+      testing_support::run_and_signal(TACSIM_PATH, bench, "| (a)", SIGINT, tmp.str("log"));
+  ASSERT_NE(stopped.out.find("| (a)"), std::string::npos) << stopped.out;
+  EXPECT_EQ(testing_support::file_text(md), "the earlier report\n");
+  const CliRun done = tacsim("bench --quick --frames 2 --repeats 1 --markdown " + md);
+  ASSERT_EQ(done.code, 0) << done.out;
+  const std::string report = testing_support::file_text(md);
+  EXPECT_EQ(report.rfind("Command: `tacsim bench", 0), 0u) << report;
+  EXPECT_NE(report.find("| (d) 200k-triangle sphere pressed 1 mm | 240x320 | on |"),
+            std::string::npos)
+      << report;
+}
+
 // A render that the disk cannot hold is refused before anything is written (it would stop
 // half-way with a full disk); an earlier dataset in the folder stays whole. The render line says
 // how much a render wrote.

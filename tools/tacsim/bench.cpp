@@ -5,13 +5,10 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <ctime>
-#include <fstream>
 #include <memory>
 #include <sstream>
 #include <thread>
@@ -156,6 +153,7 @@ double time_frames(const SensorRenderer& renderer, const std::vector<SE3>& poses
 // every skip on. The runs of one case are interleaved, as in the speed table.
 int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const BenchArgs& in) {
   const double budget_s = args.quick ? 0.02 : 0.15;
+  std::string report;  // the whole markdown file
   std::ostringstream out;
   out << "Command: `" << command(in) << "`  \n"
       << machine_line() << "  \n"
@@ -206,19 +204,11 @@ int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const Be
     out << "\n";
     std::printf("%s", out.str().c_str());
     std::fflush(stdout);
-    if (!args.markdown.empty()) {
-      errno = 0;
-      std::ofstream file(args.markdown,
-                         preset == std::string("digit") ? std::ios::trunc : std::ios::app);
-      if (!file) {
-        throw InputError(args.markdown + ": cannot write" +
-                         write_failure_cause(args.markdown, errno));
-      }
-      file << out.str();
-      close_checked(file, args.markdown);
-    }
+    report += out.str();
     out.str("");
   }
+  // Written once, whole: a stopped or failed run leaves an earlier report as it was.
+  if (!args.markdown.empty()) write_text_atomically(args.markdown, report);
   return 0;
 }
 
@@ -237,9 +227,7 @@ int run_bench(const BenchArgs& in) {
   }
   const int threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
   // A path that cannot be written fails now, not after the whole benchmark.
-  if (!args.markdown.empty() && !std::ofstream(args.markdown)) {
-    throw InputError(args.markdown + ": cannot write (" + std::strerror(errno) + ")");
-  }
+  if (!args.markdown.empty()) check_can_write(args.markdown);
   const std::vector<Case> cases = bench_cases();
   if (args.ablation) return run_ablation(cases, args, in);
   std::ostringstream head, table;
@@ -272,7 +260,7 @@ int run_bench(const BenchArgs& in) {
     }
   }
   if (!args.markdown.empty()) {
-    write_text_file(args.markdown, head.str() + table.str());
+    write_text_atomically(args.markdown, head.str() + table.str());
   }
   return 0;
 }
