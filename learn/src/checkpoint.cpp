@@ -14,13 +14,6 @@ constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
 
 std::string checkpoint_path(const TrainOptions& o) { return o.out + ".ckpt"; }
 
-// A path as one file is always named (symbolic links and ".." resolved), or as given.
-std::string canonical_or_given(const std::string& path) {
-  std::error_code ec;
-  const fs::path canonical = fs::weakly_canonical(path, ec);
-  return ec ? path : canonical.string();
-}
-
 // The settings that make a training run what it is, recorded in the checkpoint so that a resumed
 // run can be held to them: resuming with another learning rate, batch, seed, loss weight,
 // augmentation, training or validation data or starting model would silently continue a
@@ -89,6 +82,13 @@ void open_checkpoint(const std::string& checkpoint, Opened& c) {
 }
 
 }  // namespace
+
+// A path as one file is always named (symbolic links and ".." resolved), or as given.
+std::string canonical_or_given(const std::string& path) {
+  std::error_code ec;
+  const std::filesystem::path canonical = std::filesystem::weakly_canonical(path, ec);
+  return ec ? path : canonical.string();
+}
 
 void check_checkpoint_place(const TrainOptions& o) {
   const std::string checkpoint = checkpoint_path(o);

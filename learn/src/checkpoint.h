@@ -22,6 +22,9 @@ struct TrainingState {
   nlohmann::json& history;  // one epoch_json per epoch done
 };
 
+// A path as one file is always named (symbolic links and ".." resolved), or as given.
+std::string canonical_or_given(const std::string& path);
+
 // Throws InputError before any work when OUT.ckpt cannot be the checkpoint (a folder), or when a
 // new run (no --resume) would replace at its first save a checkpoint of an unfinished run (a
 // forgotten --resume) or of a run of unrecorded length; a finished run's is replaced.

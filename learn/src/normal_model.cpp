@@ -43,6 +43,8 @@ nlohmann::json info_to_json(const NormalModelInfo& info) {
   j["epochs"] = info.epochs;
   j["training_data"] = info.training_data;
   if (info.gel_relative) j["labels"] = "gel";
+  if (!info.fine_tuned_from_json.empty())
+    j["fine_tuned_from"] = nlohmann::json::parse(info.fine_tuned_from_json);
   if (info.sensor_known) j["sensor"] = sensor_to_json(info.sensor);
   j["history"] = info.history_json.empty() ? nlohmann::json::array()
                                            : nlohmann::json::parse(info.history_json);
@@ -62,6 +64,13 @@ NormalModelInfo info_from_json(const nlohmann::json& j) {
   info.epochs = j.at("epochs").get<int>();
   info.training_data = j.at("training_data").get<std::vector<std::string>>();
   info.history_json = j.at("history").dump();
+  if (j.contains("fine_tuned_from")) {
+    const nlohmann::json& base = j.at("fine_tuned_from");
+    if (!base.is_object()) {
+      throw nlohmann::json::other_error::create(501, "fine_tuned_from is not an object", &j);
+    }
+    info.fine_tuned_from_json = base.dump();
+  }
   const std::string labels = j.value("labels", std::string("sensor"));
   if (labels != "sensor" && labels != "gel") {
     throw nlohmann::json::other_error::create(501, "unknown labels '" + labels + "'", &j);

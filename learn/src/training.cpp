@@ -276,6 +276,12 @@ void train_normals(const TrainOptions& options,
     }
     info.input_mean = init.input_mean;
     info.input_std = init.input_std;
+    nlohmann::json base = {{"model", learn::canonical_or_given(o.init_model)},
+                           {"epochs", init.epochs},
+                           {"training_data", init.training_data}};
+    if (!init.fine_tuned_from_json.empty())
+      base["fine_tuned_from"] = nlohmann::json::parse(init.fine_tuned_from_json);
+    info.fine_tuned_from_json = base.dump();
   } else {
     const torch::Tensor all = torch::stack(train.input);
     const torch::Tensor mean = all.mean({0, 2, 3}), std = all.std({0, 2, 3}).clamp_min(1e-3);

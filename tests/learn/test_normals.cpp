@@ -199,6 +199,30 @@ TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
   const NormalEstimator model = NormalEstimator::load(tmp_->str("tuned.pt"));
   EXPECT_EQ(model.info().spec.base_width, 8);
   EXPECT_EQ(model.info().input_mean, NormalEstimator::load(base).info().input_mean);
+  // The fine-tuned model records what it started from, and a model fine-tuned from it both
+  // (model-info prints the chain); one trained from random weights records nothing.
+  EXPECT_EQ(NormalEstimator::load(base).info().fine_tuned_from_json, "");
+  const auto from = nlohmann::json::parse(model.info().fine_tuned_from_json);
+  EXPECT_EQ(from.at("model"), fs::canonical(base).string());
+  EXPECT_EQ(from.at("epochs"), int(trained.size()));
+  EXPECT_EQ(from.at("training_data"), std::vector<std::string>{train_});
+  EXPECT_FALSE(from.contains("fine_tuned_from"));
+  one_epoch(tmp_->str("tuned.pt"), "twice.pt");
+  const auto twice =
+      nlohmann::json::parse(NormalEstimator::load(tmp_->str("twice.pt")).info().fine_tuned_from_json);
+  EXPECT_EQ(twice.at("model"), fs::canonical(tmp_->str("tuned.pt")).string());
+  EXPECT_EQ(twice.at("epochs"), 1);
+  EXPECT_EQ(twice.at("fine_tuned_from"), from);
+  const testing_support::CliRun info =
+      testing_support::run_command(PATCHGRAPH_PATH, "model-info " + tmp_->str("twice.pt"));
+  ASSERT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("trained   1 epoch(s) on 1 dataset(s):\n            " + train_ +
+                          "\nfrom      " + fs::canonical(tmp_->str("tuned.pt")).string() +
+                          ", 1 epoch(s) on 1 dataset(s):\n            " + train_ +
+                          "\nfrom      " + fs::canonical(base).string() + ", " +
+                          std::to_string(trained.size()) + " epoch(s) on 1 dataset(s):\n"),
+            std::string::npos)
+      << info.out;
 
   TrainOptions gel = tiny_options(train_, val_, tmp_->str("gel.pt"));
   gel.init_model = base;

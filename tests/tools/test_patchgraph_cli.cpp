@@ -601,6 +601,7 @@ TEST_F(PatchgraphCli, ModelInfoDescribesTheModel) {
         "trained   25 epoch(s) on 12 dataset(s)", "last      epoch 25: loss "}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
   }
+  EXPECT_EQ(r.out.find("\nfrom "), std::string::npos) << "trained from random weights\n" << r.out;
   std::ifstream in(kDefaultModel, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   bytes[bytes.size() / 2] ^= 1;  // inside the largest tensors

@@ -293,6 +293,15 @@ int run_model_info(const ModelInfoArgs& a) {
   }
   std::printf("trained   %d epoch(s) on %zu dataset(s):\n", i.epochs, i.training_data.size());
   for (const std::string& dir : i.training_data) std::printf("            %s\n", dir.c_str());
+  // A fine-tuned model's starting points, back to the one trained from random weights.
+  auto base = nlohmann::json::parse(i.fine_tuned_from_json.empty() ? "null" : i.fine_tuned_from_json,
+                                    nullptr, false);
+  for (; base.is_object(); base = base.value("fine_tuned_from", nlohmann::json())) {
+    const auto data = base.value("training_data", std::vector<std::string>());
+    std::printf("from      %s, %d epoch(s) on %zu dataset(s):\n",
+                base.value("model", std::string("?")).c_str(), base.value("epochs", 0), data.size());
+    for (const std::string& dir : data) std::printf("            %s\n", dir.c_str());
+  }
   const auto history = nlohmann::json::parse(i.history_json, nullptr, false);
   if (history.is_array() && !history.empty()) {
     const nlohmann::json& last = history.back();

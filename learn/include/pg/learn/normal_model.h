@@ -38,6 +38,11 @@ struct NormalModelInfo {
   int epochs = 0;
   std::vector<std::string> training_data;  // dataset folders
   std::string history_json;                // per-epoch losses and validation metrics (JSON array)
+  // A fine-tuned model's starting point (train-normals --init), as a JSON object: "model" (its
+  // file), "epochs", "training_data" and, when that model was fine-tuned too, its own
+  // "fine_tuned_from". Empty for a model trained from random weights (or a file from before
+  // 2026-11-27, which did not record it).
+  std::string fine_tuned_from_json;
   // The network's output frame: false = the sensor frame S; true = each pixel's undeformed gel
   // (+z along the gel's normal there, the minimal rotation from S), composed with the gel of
   // `sensor` at inference.
