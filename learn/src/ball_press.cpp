@@ -187,13 +187,13 @@ BallPress fit_press(const GelRays& rays, const std::vector<Eigen::Vector2d>& bou
     angles.push_back(std::atan2(p.y() - press.centre_px.y(), p.x() - press.centre_px.x()));
   }
   std::sort(angles.begin(), angles.end());
-  double gap = angles.front() + 2 * M_PI - angles.back();
+  double gap = angles.front() + 2 * kPi - angles.back();
   for (std::size_t k = 1; k < angles.size(); ++k) gap = std::max(gap, angles[k] - angles[k - 1]);
-  if (gap > M_PI) {
+  if (gap > kPi) {
     press.reason = format(
         "less than half of the contact's circle is in the image (%.0f of 360 "
         "deg): too little to place the ball",
-        360.0 - gap * 180.0 / M_PI);
+        360.0 - gap * 180.0 / kPi);
     return press;
   }
   // The gel's depth limit is checked once the ball is placed (by the shading): through the circle
@@ -452,7 +452,7 @@ BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
   std::vector<Eigen::Vector2d> boundary;
   const int n = 90;
   for (int k = 0; k < n; ++k) {
-    const double a = 2 * M_PI * k / n;
+    const double a = 2 * kPi * k / n;
     const Eigen::Vector2d p = centre_px + radius_px * Eigen::Vector2d(std::cos(a), std::sin(a));
     if (p.x() >= 0 && p.y() >= 0 && p.x() <= rays.width - 1 && p.y() <= rays.height - 1) {
       boundary.push_back(p);

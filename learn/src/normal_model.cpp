@@ -267,7 +267,7 @@ void MetricSums::add(const torch::Tensor& predicted, const torch::Tensor& truth,
   const torch::Tensor p = predicted / predicted.norm(2, 1, true).clamp_min(1e-6);
   const torch::Tensor t = truth / truth.norm(2, 1, true).clamp_min(1e-6);
   const torch::Tensor se = ((p - t) * 0.5).pow(2).mean(1, true);  // encoded as (n + 1) / 2
-  const torch::Tensor angle = torch::acos((p * t).sum(1, true).clamp(-1.0, 1.0)) * (180.0 / M_PI);
+  const torch::Tensor angle = torch::acos((p * t).sum(1, true).clamp(-1.0, 1.0)) * (180.0 / kPi);
   se_image += se.sum().item<double>();
   angle_image += angle.sum().item<double>();
   se_contact += (se * mask).sum().item<double>();

@@ -2,15 +2,17 @@
 
 #include <cmath>
 
+#include "pg/core/numbers.h"
+
 namespace pg {
 
 TriangleMesh make_uv_sphere(float radius_m, int rings, int segments) {
   TriangleMesh m;
   m.vertices.push_back({0, 0, radius_m});
   for (int r = 1; r < rings; ++r) {
-    const float theta = float(M_PI) * float(r) / float(rings);
+    const float theta = float(kPi) * float(r) / float(rings);
     for (int s = 0; s < segments; ++s) {
-      const float phi = 2.0f * float(M_PI) * float(s) / float(segments);
+      const float phi = 2.0f * float(kPi) * float(s) / float(segments);
       m.vertices.push_back(radius_m * Eigen::Vector3f(std::sin(theta) * std::cos(phi),
                                                       std::sin(theta) * std::sin(phi),
                                                       std::cos(theta)));

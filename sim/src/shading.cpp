@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "pg/core/random.h"
+
 #if defined(__AVX2__) || defined(__AVX512BW__)
 #include <immintrin.h>
 #endif
@@ -143,11 +145,12 @@ const std::vector<float>& unit_normal_samples() {
   static const std::vector<float> samples = [] {
     std::vector<float> s(std::size_t(1) << 20);
     std::uint64_t state = 0x5eed;
-    auto uniform = [&] { return (double((state = splitmix64(state)) >> 11) + 0.5) * 0x1.0p-53; };
+    auto uniform = [&] { return open_unit(state = splitmix64(state)); };
     for (std::size_t i = 0; i < s.size(); i += 2) {
-      const double r = std::sqrt(-2.0 * std::log(uniform())), a = 2.0 * M_PI * uniform();
-      s[i] = float(r * std::cos(a));
-      s[i + 1] = float(r * std::sin(a));
+      const double u1 = uniform(), u2 = uniform();
+      const auto [a, b] = box_muller(u1, u2);
+      s[i] = float(a);
+      s[i + 1] = float(b);
     }
     return s;
   }();

@@ -116,7 +116,7 @@ TEST(SE3, RpyRoundTripAndConvention) {
   const Eigen::Vector3d rpy(0.3, -0.7, 2.0);
   EXPECT_TRUE(near_vec(rpy_from_quaternion(quaternion_from_rpy(rpy)), rpy, 1e-12));
   // Pure yaw of 90 degrees turns +x into +y.
-  const Eigen::Vector3d y = quaternion_from_rpy({0, 0, M_PI / 2}) * Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d y = quaternion_from_rpy({0, 0, kPi / 2}) * Eigen::Vector3d::UnitX();
   EXPECT_TRUE(near_vec(y, Eigen::Vector3d::UnitY(), 1e-12));
 }
 

@@ -19,7 +19,7 @@ TEST(SensorPreset, DigitMatchesDesignDefaults) {
   EXPECT_EQ(s.camera.width, 120);
   EXPECT_EQ(s.camera.height, 160);
   // Vertical FOV of 60 degrees: the half-height subtends 30 degrees.
-  EXPECT_NEAR(std::atan(0.5 * 160 / s.camera.fy), M_PI / 6, 1e-12);
+  EXPECT_NEAR(std::atan(0.5 * 160 / s.camera.fy), kPi / 6, 1e-12);
   EXPECT_DOUBLE_EQ(s.camera.distance_m, 0.022);
   EXPECT_DOUBLE_EQ(s.camera.near_m, 0.001);
   EXPECT_DOUBLE_EQ(s.gel.width_m, 0.020);

@@ -50,7 +50,7 @@ std::string render_presses(const SuiteDir& dir, const std::string& variant) {
 double angle_deg(const ImageF& a, const ImageF& b, int i) {
   double dot = 0;
   for (int c = 0; c < 3; ++c) dot += double(a.data[3 * i + c]) * b.data[3 * i + c];
-  return std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / M_PI;
+  return std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / kPi;
 }
 
 struct Accuracy {

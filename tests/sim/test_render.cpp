@@ -56,7 +56,7 @@ double analytic_sphere_t(const CameraModel& cam, const Eigen::Vector3d& centre, 
 }
 
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / kPi;
 }
 
 Eigen::Vector3d normal_at(const ImageF& n, int x, int y) {

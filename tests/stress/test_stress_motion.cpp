@@ -72,7 +72,7 @@ TEST(StressMotion, FourMillimetreJump) {
 TEST(StressMotion, TenDegreeJump) {
   // 10 degrees about the sensor's y axis through the corner's contact point (the gel centre).
   const StressRun run = track_jump(
-      SE3(Eigen::Quaterniond(Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY())),
+      SE3(Eigen::Quaterniond(Eigen::AngleAxisd(10 * kPi / 180, Eigen::Vector3d::UnitY())),
           Eigen::Vector3d::Zero()));
   run.print("TenDegreeJump");
   expect_jump_reported_or_followed(run);

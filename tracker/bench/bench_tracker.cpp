@@ -248,7 +248,7 @@ void BM_GraphUpdate(benchmark::State& state) {
   }
   std::vector<TrackerInput> inputs(kPeriod);
   for (int f = 0; f < kPeriod; ++f) {
-    const double phase = 2 * M_PI * f / kPeriod;
+    const double phase = 2 * kPi * f / kPeriod;
     const SE3 T_world_object = SE3::exp(
         (Vector6d() << 3e-4 * std::sin(phase), 0, 0, 0.05 * std::sin(phase), 0.03 * std::cos(phase), 0)
             .finished());

@@ -17,6 +17,7 @@
 #include "pg/core/file_io.h"
 #include "pg/core/image_change.h"
 #include "pg/core/point_io.h"
+#include "pg/core/random.h"
 #include "pg/core/statistics.h"
 #include "pg/tracker/contact_cloud.h"
 
@@ -32,8 +33,8 @@ class Gaussian {
  public:
   explicit Gaussian(std::uint64_t seed) : rng_(seed) {}
   double operator()() {
-    auto uniform = [&] { return (double(rng_() >> 11) + 0.5) * 0x1.0p-53; };
-    return std::sqrt(-2.0 * std::log(uniform())) * std::cos(2.0 * M_PI * uniform());
+    const double u1 = open_unit(rng_()), u2 = open_unit(rng_());
+    return box_muller(u1, u2).first;
   }
   SE3 perturb(const SE3& pose, double sigma) {
     Vector6d xi;

@@ -2,10 +2,25 @@
 // Seeded random numbers that are the same on every standard library: mt19937_64 with explicit
 // mappings (the std:: distributions differ between implementations, and generated scene files
 // must not).
+#include <cmath>
 #include <cstdint>
 #include <random>
+#include <utility>
+
+#include "pg/core/numbers.h"
 
 namespace pg {
+
+// A uniform sample in (0, 1) from 64 random bits (their top 53): never 0, so its logarithm is
+// finite.
+inline double open_unit(std::uint64_t bits) { return (double(bits >> 11) + 0.5) * 0x1.0p-53; }
+
+// Box-Muller: two independent standard normal samples from two uniform ones in (0, 1], written
+// out so that every standard library gives the same.
+inline std::pair<double, double> box_muller(double u1, double u2) {
+  const double r = std::sqrt(-2.0 * std::log(u1)), a = 2.0 * kPi * u2;
+  return {r * std::cos(a), r * std::sin(a)};
+}
 
 class Random {
  public:

@@ -8,9 +8,9 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
-namespace pg {
+#include "pg/core/numbers.h"
 
-inline constexpr double kPi = 3.14159265358979323846;
+namespace pg {
 
 template <typename T>
 using Vec3 = Eigen::Matrix<T, 3, 1>;
