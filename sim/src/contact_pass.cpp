@@ -114,10 +114,9 @@ long SensorRenderer::State::near_gel_pixels(const SlabClusters& slab, const Pixe
 }
 
 // Fine pass: keeps the deepest penetration over objects at pixel i, from a first hit at camera
-// depth t (a hit that faces away, on a closed mesh, means the ray started inside).
+// depth t (`inside`: the hit faces away on a closed part, so the ray started inside).
 void SensorRenderer::State::record_hit(Workspace& ws, int i, int obj, float t,
-                                       bool back_face) const {
-  const bool inside = objects[obj]->closed() && back_face;
+                                       bool inside) const {
   const float pen = inside ? std::numeric_limits<float>::infinity() : gel.t_gel[i] - t;
   if (pen <= 0.0f || pen <= ws.rigid[i]) return;
   ws.rigid[i] = pen;
@@ -151,8 +150,8 @@ void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vect
     for (int obj : objs) {
       const ObjectShape& shape = *objects[obj];
       for (int k = 0; k < rays.count; ++k) {
-        // A closed mesh needs its first surface beyond the gel too, to tell inside from outside.
-        rays.tfar[k] = shape.closed() ? std::numeric_limits<float>::infinity()
+        // A closed part needs its first surface beyond the gel too, to tell inside from outside.
+        rays.tfar[k] = shape.any_part_closed() ? std::numeric_limits<float>::infinity()
                                       : gel.t_gel[pixels[start + k]] + extra;
       }
       intersect(shape, poses[obj], rays, hits);
@@ -161,10 +160,10 @@ void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vect
         const int i = pixels[start + k];
         if (!std::isfinite(hits.t[k])) continue;
         if (!coarse) {
-          record_hit(ws, i, obj, hits.t[k], hits.back_face[k]);
+          record_hit(ws, i, obj, hits.t[k], hits.inside[k]);
           continue;
         }
-        const bool inside = shape.closed() && hits.back_face[k];
+        const bool inside = hits.inside[k];
         const float pen = gel.t_gel[i] - hits.t[k];
         if (inside || pen > -margin_m) ws.near[start + k] = 1;
         if (inside || pen >= slab) *deep = true;

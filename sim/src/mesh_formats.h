@@ -5,9 +5,11 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 namespace pg::mesh_formats {
@@ -23,6 +25,30 @@ struct RawMesh {
   std::vector<std::array<std::int64_t, 3>> triangles;  // 0-based vertex indices, unchecked
   std::vector<int> triangle_lines;  // 1-based source line per triangle (text formats), else empty
   int index_base = 0;               // how the file counts vertices (1 for OBJ), for messages
+};
+
+// Identical points, bitwise (-0 folded into +0): find_or_add(p, next) returns the index first
+// given with a point equal to p, or records `next` for p and returns it. Welds STL's corners and
+// every format's split vertices.
+template <typename Scalar>
+class PointIndex {
+ public:
+  std::int64_t find_or_add(Eigen::Matrix<Scalar, 3, 1> p, std::int64_t next) {
+    p.array() += Scalar(0);  // -0 + 0 == +0
+    Key key{};
+    std::memcpy(key.data(), p.data(), sizeof(Scalar) * 3);
+    return index_.emplace(key, next).first->second;
+  }
+
+ private:
+  using Key = std::array<std::uint64_t, 3>;  // three doubles, or three floats and zeros
+  struct KeyHash {
+    size_t operator()(const Key& k) const {
+      return std::hash<std::uint64_t>()(k[0] ^ (k[1] * 0x9e3779b97f4a7c15ULL) ^
+                                        (k[2] * 0xc2b2ae3d27d4eb4fULL));
+    }
+  };
+  std::unordered_map<Key, std::int64_t, KeyHash> index_;
 };
 
 // Fan-triangulates a polygon (assumed convex, as OBJ/OFF/PLY writers produce) into `mesh`.

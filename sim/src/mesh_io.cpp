@@ -104,6 +104,154 @@ bool is_degenerate(const TriangleMesh& mesh, const Eigen::Vector3i& triangle) {
   return (b - a).cross(c - a).norm() <= kDegenerateRelativeArea * longest_squared;
 }
 
+std::uint64_t undirected_edge(int a, int b) {
+  return (std::uint64_t(std::uint32_t(std::min(a, b))) << 32) | std::uint32_t(std::max(a, b));
+}
+
+// The triangles on each undirected edge.
+using EdgeTriangles = std::unordered_map<std::uint64_t, std::vector<int>>;
+
+EdgeTriangles triangles_by_edge(const std::vector<Eigen::Vector3i>& triangles) {
+  EdgeTriangles by_edge;
+  by_edge.reserve(triangles.size() * 3 / 2);
+  for (int t = 0; t < static_cast<int>(triangles.size()); ++t) {
+    for (int k = 0; k < 3; ++k) by_edge[undirected_edge(triangles[t][k], triangles[t][(k + 1) % 3])].push_back(t);
+  }
+  return by_edge;
+}
+
+// Gives vertices at bitwise-identical positions one index, as STL's reader does: exporters that
+// give each face its own corners (flat shading, UV seams) would otherwise load a closed surface
+// as an open one, and the renderer tells a closed mesh's inside from its shared edges. Returns how
+// many vertices became another's (they stay in the list, unused).
+int weld_vertices(TriangleMesh& mesh) {
+  mesh_formats::PointIndex<float> points;
+  std::vector<int> first(mesh.vertices.size());
+  int welded = 0;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    first[v] = static_cast<int>(points.find_or_add(mesh.vertices[v], std::int64_t(v)));
+    welded += first[v] != static_cast<int>(v);
+  }
+  if (welded == 0) return 0;
+  for (Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) t[k] = first[static_cast<size_t>(t[k])];
+  }
+  return welded;
+}
+
+// Drops the degenerate triangles; returns how many. A sliver (three distinct corners on a line)
+// inside a surface borders, across its longest edge, a triangle whose edge its middle corner
+// lies on: that triangle is split at the corner, so that the surface stays closed without the
+// sliver (left alone, the edge would belong to one triangle and the sliver's two short edges to
+// one each, and a closed mesh would render as an open one).
+int drop_degenerate_triangles(TriangleMesh& mesh) {
+  std::vector<Eigen::Vector3i> kept;
+  kept.reserve(mesh.triangles.size());
+  std::vector<Eigen::Vector3i> slivers;  // (a, b, c): b the middle corner
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    if (!is_degenerate(mesh, t)) {
+      kept.push_back(t);
+      continue;
+    }
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    int middle = 0;  // the corner opposite the longest edge
+    double longest = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      const double l = (mesh.vertices[static_cast<size_t>(t[(k + 1) % 3])] -
+                        mesh.vertices[static_cast<size_t>(t[(k + 2) % 3])])
+                           .cast<double>()
+                           .squaredNorm();
+      if (l > longest) longest = l, middle = k;
+    }
+    slivers.emplace_back(t[(middle + 2) % 3], t[middle], t[(middle + 1) % 3]);
+  }
+  const int dropped = static_cast<int>(mesh.triangles.size() - kept.size());
+  if (!slivers.empty()) {
+    EdgeTriangles by_edge = triangles_by_edge(kept);
+    const auto edges_of = [&](int t, bool add) {
+      for (int k = 0; k < 3; ++k) {
+        std::vector<int>& on = by_edge[undirected_edge(kept[t][k], kept[t][(k + 1) % 3])];
+        if (add) {
+          on.push_back(t);
+        } else {
+          on.erase(std::remove(on.begin(), on.end(), t), on.end());
+        }
+      }
+    };
+    for (const Eigen::Vector3i& sliver : slivers) {
+      const auto across = by_edge.find(undirected_edge(sliver[0], sliver[2]));
+      if (across == by_edge.end() || across->second.size() != 1) continue;
+      const int u = across->second[0];
+      const Eigen::Vector3i t = kept[u];
+      int k = 0;
+      while (undirected_edge(t[k], t[(k + 1) % 3]) != undirected_edge(sliver[0], sliver[2])) ++k;
+      const int b = sliver[1];
+      const Eigen::Vector3i first(t[k], b, t[(k + 2) % 3]), second(b, t[(k + 1) % 3], t[(k + 2) % 3]);
+      if (is_degenerate(mesh, first) || is_degenerate(mesh, second)) continue;
+      edges_of(u, false);
+      kept[u] = first;
+      kept.push_back(second);
+      edges_of(u, true);
+      edges_of(static_cast<int>(kept.size()) - 1, true);
+    }
+  }
+  mesh.triangles = std::move(kept);
+  return dropped;
+}
+
+// Turns the triangles of each surface (triangles joined by edges of two) that face against most
+// of their neighbours: neighbours on a consistently oriented surface run through their shared
+// edge in opposite directions. A surface that cannot be oriented (a Moebius strip) stays as it
+// is. Returns how many triangles it turned.
+int orient_surfaces_consistently(TriangleMesh& mesh) {
+  const int n = static_cast<int>(mesh.triangles.size());
+  const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
+  std::vector<std::int8_t> flip(static_cast<size_t>(n), -1);  // -1: not reached yet
+  std::vector<int> surface, queue;
+  int turned = 0;
+  for (int seed = 0; seed < n; ++seed) {
+    if (flip[seed] >= 0) continue;
+    surface.clear();
+    queue.assign(1, seed);
+    flip[seed] = 0;
+    bool orientable = true;
+    while (!queue.empty()) {
+      const int t = queue.back();
+      queue.pop_back();
+      surface.push_back(t);
+      const Eigen::Vector3i& tri = mesh.triangles[t];
+      for (int k = 0; k < 3; ++k) {
+        const int a = tri[k], b = tri[(k + 1) % 3];
+        const std::vector<int>& on = by_edge.at(undirected_edge(a, b));
+        if (on.size() != 2) continue;  // a border, or an edge of more than two triangles
+        const int u = on[0] == t ? on[1] : on[0];
+        const Eigen::Vector3i& other = mesh.triangles[u];
+        bool same_direction = false;  // u also runs a -> b
+        for (int j = 0; j < 3; ++j) same_direction |= other[j] == a && other[(j + 1) % 3] == b;
+        const std::int8_t want = std::int8_t(flip[t] ^ std::int8_t(same_direction));
+        if (flip[u] < 0) {
+          flip[u] = want;
+          queue.push_back(u);
+        } else if (flip[u] != want) {
+          orientable = false;
+        }
+      }
+    }
+    std::size_t flipped = 0;
+    for (int t : surface) flipped += flip[t] == 1;
+    const bool invert = 2 * flipped > surface.size();  // keep the majority's direction
+    for (int t : surface) {
+      const bool turn = orientable && ((flip[t] == 1) != invert);
+      flip[t] = std::int8_t(turn);
+      turned += turn;
+    }
+  }
+  for (int t = 0; t < n; ++t) {
+    if (flip[t] == 1) std::swap(mesh.triangles[t][1], mesh.triangles[t][2]);
+  }
+  return turned;
+}
+
 int find_part(std::vector<int>& parent, int v) {
   while (parent[v] != v) v = parent[v] = parent[parent[v]];
   return v;
@@ -153,8 +301,8 @@ int orient_closed_parts_outward(TriangleMesh& mesh) {
   return turned;
 }
 
-// Checks the reader's output, applies `scale`, drops degenerate triangles and turns inside-out
-// closed parts outward.
+// Checks the reader's output, applies `scale`, welds identical vertices, drops degenerate
+// triangles, orients each surface consistently and turns inside-out closed parts outward.
 TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
                       MeshLoadReport& report) {
   if (raw.vertices.empty()) throw InputError(path + ": empty mesh: no vertices");
@@ -178,7 +326,6 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
   }
 
   mesh.triangles.reserve(raw.triangles.size());
-  int dropped = 0;
   for (size_t t = 0; t < raw.triangles.size(); ++t) {
     Eigen::Vector3i triangle;
     for (int c = 0; c < 3; ++c) {
@@ -191,12 +338,10 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
       }
       triangle[c] = static_cast<int>(index);
     }
-    if (is_degenerate(mesh, triangle)) {
-      ++dropped;
-    } else {
-      mesh.triangles.push_back(triangle);
-    }
+    mesh.triangles.push_back(triangle);
   }
+  weld_vertices(mesh);
+  const int dropped = drop_degenerate_triangles(mesh);
   if (mesh.triangles.empty()) {
     throw InputError(path + ": empty mesh: all " + std::to_string(dropped) +
                      " triangles are degenerate");
@@ -204,6 +349,12 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
   report.degenerate_triangles_dropped = dropped;
   if (dropped > 0) {
     std::cerr << "warning: " << path << ": dropped " << dropped << " degenerate triangles\n";
+  }
+  report.triangles_turned_to_match = orient_surfaces_consistently(mesh);
+  if (report.triangles_turned_to_match > 0) {
+    std::cerr << "warning: " << path << ": " << report.triangles_turned_to_match
+              << " triangle(s) faced against their neighbours (corners in the other order); "
+                 "turned them to match\n";
   }
   report.inside_out_parts_turned = orient_closed_parts_outward(mesh);
   if (report.inside_out_parts_turned > 0) {

@@ -6,7 +6,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <unordered_map>
 
 #include "mesh_formats.h"
 #include "pg/core/error.h"
@@ -41,24 +40,15 @@ class VertexWelder {
 
   std::int64_t add(Eigen::Vector3d p) {
     p.array() += 0.0;  // -0.0 + 0.0 == +0.0
-    Key key;
-    std::memcpy(key.data(), p.data(), sizeof key);
-    const auto [it, inserted] =
-        index_.emplace(key, static_cast<std::int64_t>(mesh_.vertices.size()));
-    if (inserted) mesh_.vertices.push_back(p);
-    return it->second;
+    const auto next = static_cast<std::int64_t>(mesh_.vertices.size());
+    const std::int64_t index = points_.find_or_add(p, next);
+    if (index == next) mesh_.vertices.push_back(p);
+    return index;
   }
 
  private:
-  using Key = std::array<std::uint64_t, 3>;
-  struct KeyHash {
-    size_t operator()(const Key& k) const {
-      return std::hash<std::uint64_t>()(k[0] ^ (k[1] * 0x9e3779b97f4a7c15ULL) ^
-                                        (k[2] * 0xc2b2ae3d27d4eb4fULL));
-    }
-  };
   RawMesh& mesh_;
-  std::unordered_map<Key, std::int64_t, KeyHash> index_;
+  PointIndex<double> points_;
 };
 
 RawMesh parse_binary_stl(std::string_view bytes, std::uint64_t num_triangles) {

@@ -1,7 +1,10 @@
 #include <embree3/rtcore.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <limits>
 #include <map>
+#include <vector>
 #include <mutex>
 #include <stdexcept>
 #include <utility>
@@ -29,8 +32,20 @@ std::shared_ptr<RTCDeviceTy> shared_device() {
   return device;
 }
 
-// Every undirected edge used by exactly two triangles.
-bool is_closed(const TriangleMesh& mesh) {
+int find_part(std::vector<int>& parent, int v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+
+// Per triangle: whether its part (triangles joined by shared vertices) is closed, every edge of
+// it used by exactly two triangles. One stray open triangle does not open the other parts.
+std::vector<std::uint8_t> closed_parts(const TriangleMesh& mesh) {
+  std::vector<int> parent(mesh.vertices.size());
+  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = int(v);
+  for (const auto& t : mesh.triangles) {
+    parent[find_part(parent, t[1])] = find_part(parent, t[0]);
+    parent[find_part(parent, t[2])] = find_part(parent, t[0]);
+  }
   std::map<std::pair<int, int>, int> edge_count;
   for (const auto& t : mesh.triangles) {
     for (int k = 0; k < 3; ++k) {
@@ -38,10 +53,15 @@ bool is_closed(const TriangleMesh& mesh) {
       ++edge_count[{std::min(a, b), std::max(a, b)}];
     }
   }
+  std::vector<std::uint8_t> open_part(mesh.vertices.size(), 0);  // by part root
   for (const auto& [edge, count] : edge_count) {
-    if (count != 2) return false;
+    if (count != 2) open_part[find_part(parent, edge.first)] = 1;
   }
-  return !edge_count.empty();
+  std::vector<std::uint8_t> closed(mesh.triangles.size());
+  for (std::size_t t = 0; t < closed.size(); ++t) {
+    closed[t] = !open_part[find_part(parent, mesh.triangles[t][0])];
+  }
+  return closed;
 }
 
 }  // namespace
@@ -50,6 +70,7 @@ struct ObjectShape::Impl {
   std::shared_ptr<RTCDeviceTy> device;
   RTCScene scene = nullptr;
   std::vector<Eigen::Vector3f> face_normals;  // (v1 - v0) x (v2 - v0): outward for CCW
+  std::vector<std::uint8_t> closed_part;      // per triangle: its part is closed
   TriangleClusters clusters;                  // for rasterizing the triangles near the gel
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -62,7 +83,11 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
     throw InputError("ObjectShape: empty mesh");
   }
   bounds_ = mesh_bounds(mesh_);
-  closed_ = is_closed(mesh_);
+  impl_->closed_part = closed_parts(mesh_);
+  closed_ = std::all_of(impl_->closed_part.begin(), impl_->closed_part.end(),
+                        [](std::uint8_t c) { return c != 0; });
+  any_closed_ = std::any_of(impl_->closed_part.begin(), impl_->closed_part.end(),
+                            [](std::uint8_t c) { return c != 0; });
   impl_->device = shared_device();
   RTCDevice device = impl_->device.get();
   RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -134,15 +159,17 @@ void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPa
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   rtcIntersect16(valid, shape.impl().scene, &context, &rh);
   const auto& normals = shape.impl().face_normals;
+  const auto& closed = shape.impl().closed_part;
   for (int i = 0; i < rays.count; ++i) {
     if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
       hits.t[i] = std::numeric_limits<float>::infinity();
-      hits.back_face[i] = false;
+      hits.inside[i] = false;
       continue;
     }
     hits.t[i] = rh.ray.tfar[i];
     const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
-    hits.back_face[i] = normals[rh.hit.primID[i]].dot(d) > 0.0f;
+    const unsigned triangle = rh.hit.primID[i];
+    hits.inside[i] = closed[triangle] && normals[triangle].dot(d) > 0.0f;
   }
 }
 

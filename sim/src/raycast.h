@@ -21,7 +21,8 @@ struct RayPacket {
 
 struct PacketHits {
   float t[kPacket];           // +inf where no hit
-  bool back_face[kPacket];    // the hit surface faces away from the ray (ray started inside)
+  // The hit is a face of a closed part turned away from the ray: the ray started inside it.
+  bool inside[kPacket];
 };
 
 struct TriangleClusters;

@@ -102,7 +102,7 @@ struct SensorRenderer::State {
   void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect, Workspace& ws,
                         RenderStats& stats, PixelRect& touched) const;
   long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;
-  void record_hit(Workspace& ws, int i, int obj, float t, bool back_face) const;
+  void record_hit(Workspace& ws, int i, int obj, float t, bool inside) const;
   void write_color(std::uint64_t seed, FrameRegions& frame, bool reuse, Workspace& ws,
                    RenderedFrame& out) const;
   int shade_cast_shadows(FrameRegions& frame, Workspace& ws) const;

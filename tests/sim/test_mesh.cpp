@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "pg/core/error.h"
+#include "pg/core/numbers.h"
 #include "pg/sim/mesh.h"
 
 namespace pg {
@@ -456,18 +457,18 @@ TEST_F(MeshIoTest, GarbageIsQuotedShortAndPrintable) {
 
 TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {
   const std::string path = write("degenerate.obj",
-                                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0.5 1e-7 0\n"
+                                 "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 0.5 -1e-7 0\n"
                                  "f 1 2 3\n"    // fine
                                  "f 1 1 2\n"    // repeated index
                                  "f 1 2 4\n"    // collinear: zero area
-                                 "f 1 2 5\n");  // thin (height 1e-7 of its length) but valid
+                                 "f 2 1 5\n");  // thin (height 1e-7 of its length) but valid
   MeshLoadReport report;
   ::testing::internal::CaptureStderr();
   const TriangleMesh mesh = load_mesh(path, 1.0, &report);
   const std::string err = ::testing::internal::GetCapturedStderr();
   EXPECT_EQ(report.degenerate_triangles_dropped, 2);
   ASSERT_EQ(mesh.triangles.size(), 2u);
-  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 1, 4));
+  EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(1, 0, 4));
   EXPECT_EQ(err, "warning: " + path + ": dropped 2 degenerate triangles\n");
 
   const std::string all = write("all.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
@@ -476,32 +477,52 @@ TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {
   ::testing::internal::GetCapturedStderr();
 }
 
+// The unit cube's 12 outward (counter-clockwise) triangles, 1-based as in an OBJ file.
+const std::vector<std::array<int, 3>> kCubeFaces = {{1, 3, 2}, {1, 4, 3}, {5, 6, 7}, {5, 7, 8},
+                                                    {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6},
+                                                    {3, 4, 8}, {3, 8, 7}, {4, 1, 5}, {4, 5, 8}};
+const char* kCubeVertices =
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
+
+std::string obj_face(int a, int b, int c) {
+  return "f " + std::to_string(a) + " " + std::to_string(b) + " " + std::to_string(c) + "\n";
+}
+
+// Directed edges that do not pair with exactly one reverse edge: 0 for a closed, consistently
+// oriented mesh (as the renderer needs it to tell a closed part's inside).
+int unpaired_edges(const TriangleMesh& mesh) {
+  std::map<std::pair<int, int>, int> directed;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    for (int k = 0; k < 3; ++k) ++directed[{t[k], t[(k + 1) % 3]}];
+  }
+  int unpaired = 0;
+  for (const auto& [edge, count] : directed) {
+    const auto reverse = directed.find({edge.second, edge.first});
+    unpaired += count != 1 || reverse == directed.end() || reverse->second != 1;
+  }
+  return unpaired;
+}
+
+double signed_volume(const TriangleMesh& m) {
+  double v = 0;
+  for (const auto& t : m.triangles) {
+    v += m.vertices[t[0]].cast<double>().dot(
+             m.vertices[t[1]].cast<double>().cross(m.vertices[t[2]].cast<double>())) /
+         6.0;
+  }
+  return v;
+}
+
 // A closed cube exported with every triangle clockwise seen from outside (CAD's flipped normals)
 // is turned outward: the renderer tells inside from outside by the faces' direction, and rendered
 // it inside-out as no contact at all. An open or inconsistently oriented part stays as it was.
 TEST_F(MeshIoTest, AnInsideOutClosedPartIsTurnedOutwardAndWarned) {
-  const std::string cube =
-      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n";
   // Outward (counter-clockwise) faces; the inside-out file lists each with two corners swapped.
-  const std::vector<std::array<int, 3>> faces = {{1, 3, 2}, {1, 4, 3}, {5, 6, 7}, {5, 7, 8},
-                                                 {1, 2, 6}, {1, 6, 5}, {2, 3, 7}, {2, 7, 6},
-                                                 {3, 4, 8}, {3, 8, 7}, {4, 1, 5}, {4, 5, 8}};
-  std::string outward = cube, inward = cube;
-  for (const auto& f : faces) {
-    outward += "f " + std::to_string(f[0]) + " " + std::to_string(f[1]) + " " +
-               std::to_string(f[2]) + "\n";
-    inward += "f " + std::to_string(f[0]) + " " + std::to_string(f[2]) + " " +
-              std::to_string(f[1]) + "\n";
+  std::string outward = kCubeVertices, inward = kCubeVertices;
+  for (const auto& f : kCubeFaces) {
+    outward += obj_face(f[0], f[1], f[2]);
+    inward += obj_face(f[0], f[2], f[1]);
   }
-  const auto signed_volume = [](const TriangleMesh& m) {
-    double v = 0;
-    for (const auto& t : m.triangles) {
-      v += m.vertices[t[0]].cast<double>().dot(
-               m.vertices[t[1]].cast<double>().cross(m.vertices[t[2]].cast<double>())) /
-           6.0;
-    }
-    return v;
-  };
   MeshLoadReport report;
   ::testing::internal::CaptureStderr();
   const TriangleMesh good = load_mesh(write("outward.obj", outward), 1.0, &report);
@@ -524,6 +545,116 @@ TEST_F(MeshIoTest, AnInsideOutClosedPartIsTurnedOutwardAndWarned) {
   ::testing::internal::GetCapturedStderr();
   EXPECT_EQ(report.inside_out_parts_turned, 0);
   EXPECT_EQ(kept.triangles[0], Eigen::Vector3i(0, 1, 2));
+}
+
+// Exporters that give every face its own corners (flat shading, UV seams; GLB and PLY as often
+// as OBJ) load closed: vertices at identical positions are welded, as STL's always were. The
+// renderer had taken such a cube for an open sheet (a deep press rendered a hole).
+TEST_F(MeshIoTest, SplitVerticesAreWeldedSoAClosedSurfaceLoadsClosed) {
+  const double v[8][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                          {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+  std::string split;
+  int next = 1;
+  for (const auto& f : kCubeFaces) {
+    for (int c : f) {
+      split += "v " + std::to_string(v[c - 1][0]) + " " + std::to_string(v[c - 1][1]) + " " +
+               std::to_string(v[c - 1][2]) + "\n";
+    }
+    split += obj_face(next, next + 1, next + 2);
+    next += 3;
+  }
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(write("split.obj", split));
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");  // a repair nobody needs to hear of
+  ASSERT_EQ(mesh.triangles.size(), 12u);
+  EXPECT_EQ(unpaired_edges(mesh), 0);
+  EXPECT_NEAR(signed_volume(mesh), 1.0, 1e-9);
+}
+
+// A closed mesh with some triangles listed clockwise (the cube's bottom face here) is turned to
+// match the rest of its surface, with a warning: the renderer had skipped those faces as turned
+// away and found no contact at all. A surface that cannot be oriented stays as it is.
+TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
+  std::string good = kCubeVertices, flipped = kCubeVertices;
+  for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
+    const auto& f = kCubeFaces[i];
+    good += obj_face(f[0], f[1], f[2]);
+    flipped += i < 2 ? obj_face(f[0], f[2], f[1]) : obj_face(f[0], f[1], f[2]);
+  }
+  const TriangleMesh expected = load_mesh(write("good.obj", good));
+  MeshLoadReport report;
+  const std::string path = write("flipped.obj", flipped);
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(path, 1.0, &report);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.triangles_turned_to_match, 2);
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
+  EXPECT_EQ(err, "warning: " + path +
+                     ": 2 triangle(s) faced against their neighbours (corners in the other "
+                     "order); turned them to match\n");
+  EXPECT_EQ(unpaired_edges(mesh), 0);
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Eigen::Vector3i& a = mesh.triangles[t];
+    const Eigen::Vector3i& b = expected.triangles[t];
+    EXPECT_TRUE(a == b || a == Eigen::Vector3i(b[1], b[2], b[0]) ||
+                a == Eigen::Vector3i(b[2], b[0], b[1]))
+        << "triangle " << t << ": " << a.transpose() << " against " << b.transpose();
+  }
+  // Most triangles flipped: the few right ones are turned, then the closed part outward.
+  std::string mostly = kCubeVertices;
+  for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
+    const auto& f = kCubeFaces[i];
+    mostly += i < 3 ? obj_face(f[0], f[1], f[2]) : obj_face(f[0], f[2], f[1]);
+  }
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh turned = load_mesh(write("mostly.obj", mostly), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.triangles_turned_to_match, 3);
+  EXPECT_EQ(report.inside_out_parts_turned, 1);
+  EXPECT_NEAR(signed_volume(turned), 1.0, 1e-9);
+  // A Moebius strip of four quads has no consistent orientation: left as it was.
+  std::string strip;  // rung i: its two ends, the rung turned by half of i's angle
+  for (int i = 0; i < 4; ++i) {
+    const double a = i * kPi / 2;
+    for (double end : {0.3, -0.3}) {
+      const double r = 1 + end * std::sin(a / 2);
+      strip += "v " + std::to_string(r * std::cos(a)) + " " + std::to_string(r * std::sin(a)) +
+               " " + std::to_string(end * std::cos(a / 2)) + "\n";
+    }
+  }
+  // Quad i joins rungs i and i + 1; the last joins rung 3 to rung 0 with its ends swapped.
+  std::string strip_faces;
+  for (int i = 0; i < 4; ++i) {
+    const int a = 2 * i + 1, b = a + 1;
+    const int c = i < 3 ? a + 2 : 2, d = i < 3 ? a + 3 : 1;
+    strip_faces += obj_face(a, b, d) + obj_face(a, d, c);
+  }
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh moebius = load_mesh(write("moebius.obj", strip + strip_faces), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.triangles_turned_to_match, 0);
+  EXPECT_EQ(moebius.triangles[0], Eigen::Vector3i(0, 1, 3));
+}
+
+// A zero-area sliver that closes a T-junction (a CAD export's way of splitting an edge) is
+// dropped, and the triangle across its long edge is split at its middle corner, so that the
+// surface stays closed (dropping it alone had opened the mesh).
+TEST_F(MeshIoTest, ASliversNeighbourIsSplitSoTheSurfaceStaysClosed) {
+  // The bottom face's first triangle (1 3 2) split at m, the middle of its diagonal 1-3; the
+  // sliver (3 m 1) closes the diagonal against the second triangle (1 4 3).
+  std::string cube = std::string(kCubeVertices) + "v 0.5 0.5 0\n";  // m = 9
+  cube += obj_face(1, 9, 2) + obj_face(9, 3, 2) + obj_face(3, 9, 1);
+  for (std::size_t i = 1; i < kCubeFaces.size(); ++i) {
+    cube += obj_face(kCubeFaces[i][0], kCubeFaces[i][1], kCubeFaces[i][2]);
+  }
+  MeshLoadReport report;
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(write("sliver.obj", cube), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.degenerate_triangles_dropped, 1);
+  EXPECT_EQ(mesh.triangles.size(), 14u);  // 15 - the sliver + one more half
+  EXPECT_EQ(unpaired_edges(mesh), 0);
+  EXPECT_NEAR(signed_volume(mesh), 1.0, 1e-9);
 }
 
 TEST_F(MeshIoTest, AFileThatIsNotARegularFileIsRefused) {

@@ -423,6 +423,29 @@ TEST(RenderBadInput, PenetrationBeyondTheGelIsClampedAndCounted) {
   for (const auto& p : points) ASSERT_NEAR(p.norm(), kRadius, 2e-6);
 }
 
+// Closedness is a part's own: a stray open triangle elsewhere in the file (a label, a leftover
+// of the export) leaves the sphere's deep press as the sphere alone renders it, clamped at the
+// gel's limit (the whole mesh had counted as open: a ring around a hole, no clamping).
+TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
+  TriangleMesh mesh = make_uv_sphere(float(kRadius), 90, 180);
+  const int n = int(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(),
+                       {{0.0f, 0.0f, 0.02f}, {0.001f, 0.0f, 0.02f}, {0.0f, 0.001f, 0.02f}});
+  mesh.triangles.emplace_back(n, n + 1, n + 2);
+  const auto stray = std::make_shared<ObjectShape>(mesh);
+  EXPECT_FALSE(stray->closed());
+  EXPECT_TRUE(stray->any_part_closed());
+  const auto alone = std::make_shared<ObjectShape>(make_uv_sphere(float(kRadius), 90, 180));
+  const SensorModel sensor = flat_digit("digit");
+  const SE3 deep = pressed_sphere(0, 0, 0.003);
+  const RenderedFrame a = SensorRenderer(sensor, {alone}, quiet_settings()).render({deep}, 0);
+  const RenderedFrame b = SensorRenderer(sensor, {stray}, quiet_settings()).render({deep}, 0);
+  EXPECT_GT(a.stats.clamped_pixels, 100);
+  EXPECT_EQ(b.stats.clamped_pixels, a.stats.clamped_pixels);
+  EXPECT_EQ(b.stats.contact_pixels, a.stats.contact_pixels);
+  EXPECT_EQ(b.images.depth.data, a.images.depth.data);
+}
+
 TEST(RenderBadInput, MissingBackgroundImageNamesThePath) {
   RenderSettings s;
   s.background = "/no/such/bg.jpg";

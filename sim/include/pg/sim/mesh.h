@@ -14,14 +14,17 @@ struct TriangleMesh {
 
 struct MeshLoadReport {
   int degenerate_triangles_dropped = 0;  // zero-area or repeated-index triangles
+  int triangles_turned_to_match = 0;     // faced against their neighbours on one surface
   int inside_out_parts_turned = 0;       // closed parts whose triangles all faced inward
 };
 
 // Loads a mesh and multiplies its vertices by `scale`. Throws pg::InputError naming the file for:
 // a missing/unreadable file, an unknown extension, an empty mesh, NaN/inf vertices, out-of-range
-// indices, a path that is not a regular file. Degenerate triangles are dropped and counted in
-// `report` (and a warning is printed to stderr when any are dropped); a closed part whose
-// triangles all face inward is turned outward (counted and warned likewise).
+// indices, a path that is not a regular file. Vertices at identical positions become one (split
+// vertices of flat-shaded exports); degenerate triangles are dropped (a sliver's neighbour split
+// so that a closed surface stays closed); triangles that face against the rest of their surface
+// are turned to match it; a closed part whose triangles all face inward is turned outward. Each
+// repair is counted in `report`, and a warning is printed to stderr when it changed anything.
 TriangleMesh load_mesh(const std::string& path, double scale = 1.0,
                        MeshLoadReport* report = nullptr);
 

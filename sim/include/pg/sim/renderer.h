@@ -23,9 +23,11 @@ class ObjectShape {
 
   const TriangleMesh& mesh() const { return mesh_; }
   const Bounds3& bounds() const { return bounds_; }
-  // Every edge shared by exactly two triangles. For closed meshes a ray that starts inside the
-  // object is recognised (its first hit faces away) and counts as full penetration.
+  // Every part (triangles joined by shared vertices) closed: each edge shared by exactly two
+  // triangles. A ray that starts inside a closed part is recognised (its first hit faces away)
+  // and counts as full penetration; an open part counts only where its surface is.
   bool closed() const { return closed_; }
+  bool any_part_closed() const { return any_closed_; }
 
   struct Impl;
   const Impl& impl() const { return *impl_; }
@@ -33,7 +35,7 @@ class ObjectShape {
  private:
   TriangleMesh mesh_;
   Bounds3 bounds_;
-  bool closed_ = false;
+  bool closed_ = false, any_closed_ = false;
   std::unique_ptr<Impl> impl_;
 };
 
