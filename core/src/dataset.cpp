@@ -371,6 +371,7 @@ void DatasetWriter::write_background(const ImageU8& color) {
   const std::string path = (fs::path(dir_) / "background.png").string();
   check_image(path, color, info_.width(), info_.height(), 3);
   write_image(path, color);
+  background_written_ = true;
 }
 
 void DatasetWriter::finish() {
@@ -387,7 +388,7 @@ void DatasetWriter::finish() {
 // this one did not overwrite: they are removed, so the folder holds one dataset. Only files named
 // as a dataset's frames (000042.png in an output's folder) go, an output folder that is left
 // empty, and circles.csv and sources.csv (label-ball's and recording's lists of the earlier
-// frames); anything else in the folder stays.
+// frames) and background.png unless this dataset wrote one; anything else in the folder stays.
 void DatasetWriter::remove_stale_frames() const {
   for (const std::string& output : dataset_output_names()) {
     const fs::path folder = fs::path(dir_) / output;
@@ -411,6 +412,8 @@ void DatasetWriter::remove_stale_frames() const {
   std::error_code ec;
   fs::remove(fs::path(dir_) / "circles.csv", ec);
   fs::remove(fs::path(dir_) / "sources.csv", ec);
+  // An earlier dataset's reference image would pass for this one's.
+  if (!background_written_) fs::remove(fs::path(dir_) / "background.png", ec);
 }
 
 void write_sensor_index(const std::string& dir, const std::vector<std::string>& names) {

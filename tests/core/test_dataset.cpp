@@ -144,7 +144,8 @@ TEST(Dataset, ReaderRejectsMissingFiles) {
 
 // Writing a shorter dataset with fewer outputs into the folder of an earlier one leaves one
 // dataset: the earlier frames past the new last one and its other outputs' frames are gone, and
-// label-ball's circles.csv of them; files that are not a dataset's frames stay.
+// label-ball's circles.csv of them, and a background.png the new one did not write; files that
+// are not a dataset's frames stay.
 TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   TempDir tmp;
   const std::string dir = tmp.str("d");
@@ -155,6 +156,7 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   std::ofstream(dir + "/circles.csv") << "frame,u_px,v_px,radius_px\n";  // label-ball's
   std::ofstream(dir + "/sources.csv") << "frame,file\n";                 // recording's
   std::ofstream(dir + "/README.txt") << "mine";
+  std::ofstream(dir + "/background.png") << "the earlier dataset's";
   DatasetInfo info = small_info(2);
   info.outputs = {"color"};
   DatasetWriter writer(dir, info);
@@ -176,6 +178,9 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   EXPECT_FALSE(fs::exists(dir + "/circles.csv")) << "the earlier frames' circles";
   EXPECT_FALSE(fs::exists(dir + "/sources.csv")) << "the earlier frames' files";
   EXPECT_TRUE(fs::exists(dir + "/README.txt"));
+  // This one wrote no reference image: the earlier one's would pass for it (of another size, it
+  // failed `tacsim info --check`; of the same, it was silently the wrong reference).
+  EXPECT_FALSE(fs::exists(dir + "/background.png"));
   EXPECT_EQ(Dataset::open(dir).frames(), 2);
 }
 

@@ -92,7 +92,8 @@ class DatasetWriter {
   void write_background(const ImageU8& color);
   // Writes poses.csv; every frame 0..frames-1 must have been written. Then removes the frame
   // files an earlier dataset in the folder left that this one did not overwrite (frames past its
-  // last, outputs it does not have), so that the folder holds one dataset.
+  // last, outputs it does not have, a background.png it did not write), so that the folder holds
+  // one dataset.
   void finish();
 
  private:
@@ -101,6 +102,7 @@ class DatasetWriter {
   DatasetInfo info_;
   std::vector<FramePose> poses_;
   std::vector<char> written_;
+  bool background_written_ = false;
   std::mutex mutex_;
 };
 
