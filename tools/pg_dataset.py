@@ -218,12 +218,19 @@ def read_ply(path):
     """tacsim's binary PLY (float x y z, perhaps nx ny nz) as float32 (N, 3 or 6)."""
     with open(path, "rb") as f:
         data = f.read()
-    end = data.index(b"end_header\n") + len(b"end_header\n")
-    header = data[:end].decode().splitlines()
-    if header[0] != "ply" or "format binary_little_endian 1.0" not in header:
+    at = data.find(b"end_header\n")
+    header = data[:max(at, 0)].decode("latin-1").splitlines()
+    if at < 0 or not header or header[0] != "ply" or "format binary_little_endian 1.0" not in header:
         raise ValueError(f"{path}: not a binary little-endian PLY file")
-    count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+    end = at + len(b"end_header\n")
+    try:
+        count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+    except (StopIteration, IndexError, ValueError):
+        raise ValueError(f"{path}: no vertex count in the PLY header") from None
     fields = sum(1 for line in header if line.startswith("property float"))
+    if len(data) - end < 4 * count * fields:
+        raise ValueError(f"{path}: cut short: {count} points of {fields} floats need "
+                         f"{4 * count * fields} bytes after the header, the file has {len(data) - end}")
     return np.frombuffer(data, dtype="<f4", count=count * fields, offset=end).reshape(count, fields)
 
 

@@ -4,6 +4,7 @@
 // out-of-range indices and garbles every vertex of an ASCII PLY once one coordinate is "nan";
 // load_mesh() needs to see such content to count or report it.
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 
@@ -70,6 +71,14 @@ RawMesh parse_binary_stl(std::string_view bytes, std::uint64_t num_triangles) {
   return mesh;
 }
 
+// ASCII STL's keywords, in any case: some exporters write them in capitals (SOLID, VERTEX).
+bool keyword_is(std::string_view text, std::string_view keyword) {
+  return text.size() == keyword.size() &&
+         std::equal(text.begin(), text.end(), keyword.begin(), [](char a, char b) {
+           return std::tolower(static_cast<unsigned char>(a)) == b;
+         });
+}
+
 // facet normal nx ny nz / outer loop / vertex x y z (x3) / endloop / endfacet; only the vertex
 // lines matter (the normals are implied by the winding).
 RawMesh parse_ascii_stl(std::string_view text) {
@@ -79,14 +88,14 @@ RawMesh parse_ascii_stl(std::string_view text) {
   Token token;
   std::vector<std::int64_t> loop;
   while (tokens.next(token)) {
-    if (token.text == "vertex") {
+    if (keyword_is(token.text, "vertex")) {
       Token xyz[3];
       if (!tokens.next(xyz[0]) || !tokens.next(xyz[1]) || !tokens.next(xyz[2])) {
         throw FormatError("line " + std::to_string(token.line) + ": vertex needs 3 coordinates");
       }
       loop.push_back(welder.add({parse_double(xyz[0], "vertex x"), parse_double(xyz[1], "vertex y"),
                                  parse_double(xyz[2], "vertex z")}));
-    } else if (token.text == "endloop") {
+    } else if (keyword_is(token.text, "endloop")) {
       if (loop.size() < 3) {
         throw FormatError("line " + std::to_string(token.line) +
                           ": facet loop has fewer than 3 vertices");
@@ -212,7 +221,7 @@ RawMesh parse_stl(std::string_view bytes) {
     if (84 + 50 * num_triangles == bytes.size()) return parse_binary_stl(bytes, num_triangles);
   }
   const size_t first = bytes.find_first_not_of(" \t\r\n");
-  if (first != std::string_view::npos && bytes.substr(first, 5) == "solid") {
+  if (first != std::string_view::npos && keyword_is(bytes.substr(first, 5), "solid")) {
     return parse_ascii_stl(bytes);
   }
   throw FormatError("neither binary STL (the size " + std::to_string(bytes.size()) +

@@ -322,6 +322,15 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   });
   for (auto& w : writers) w->finish();
   if (renderer.sensor_count() > 1) {
+    try {
+      for (const std::string& earlier : sensor_dataset_dirs(out_dir)) {
+        const bool kept = std::any_of(dirs.begin(), dirs.end(), [&](const std::string& d) {
+          return fs::equivalent(d, earlier, ec);
+        });
+        if (!kept && fs::exists(earlier, ec)) summary.earlier_sensor_dirs.push_back(earlier);
+      }
+    } catch (const InputError&) {  // a malformed earlier list: replaced below
+    }
     std::vector<std::string> names;
     for (const auto& sensor : scene.sensors) names.push_back(sensor.name);
     write_sensor_index(out_dir, names);

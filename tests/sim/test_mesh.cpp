@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -131,6 +132,21 @@ TEST_F(MeshIoTest, AsciiStlWeldsSharedCorners) {
   ASSERT_EQ(mesh.triangles.size(), 2u);
   EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(0, 2, 3));
   expect_vertex(mesh, 3, {0, 1.5f, 0});
+  // Keywords in capitals, as some exporters write them (read as no vertices before).
+  std::string upper = read_bytes(path);
+  for (const char* word : {"solid", "facet", "normal", "outer", "loop", "vertex", "endloop",
+                           "endfacet", "endsolid"}) {
+    const std::string w = word;
+    std::string W = w;
+    for (char& c : W) c = char(std::toupper(static_cast<unsigned char>(c)));
+    for (std::size_t at; (at = upper.find(w + " ")) != std::string::npos ||
+                         (at = upper.find(w + "\n")) != std::string::npos;)
+      upper.replace(at, w.size(), W);
+  }
+  ASSERT_EQ(upper.find("vertex"), std::string::npos) << upper;
+  const TriangleMesh capitals = load_mesh(write("upper.stl", upper));
+  EXPECT_EQ(capitals.vertices, mesh.vertices);
+  EXPECT_EQ(capitals.triangles, mesh.triangles);
 }
 
 std::string binary_stl(const std::vector<std::array<Eigen::Vector3f, 3>>& facets) {

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "../common/test_support.h"
@@ -68,7 +69,7 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
   EXPECT_NE(r.out.find("bad.json:3:"), std::string::npos) << r.out;
   r = tacsim("render " + kScenes + "examples/sphere_press.json --outputs color,colour --out " +
              tmp.str("o"));
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);  // a bad option value: a usage error, as CLI11's own
   EXPECT_NE(r.out.find("colour"), std::string::npos) << r.out;
   r = tacsim("info " + tmp.str("nothing"));
   EXPECT_EQ(r.code, 1);
@@ -179,6 +180,12 @@ TEST(TacsimCli, ThePythonReaderReadsARender) {
   const CliRun damaged = run_command(python, reader + tmp.str("d") + " 5");
   EXPECT_EQ(damaged.code, 1) << damaged.out;
   EXPECT_NE(damaged.out.find(victim + ": damaged or cut short"), std::string::npos) << damaged.out;
+  // So is a cut contact-point file (numpy's complaint named none).
+  const std::string points = dataset_frame_path(tmp.str("d"), "points", 4);
+  fs::resize_file(points, fs::file_size(points) - 10);
+  const CliRun cut = run_command(python, reader + tmp.str("d") + " 4");
+  EXPECT_EQ(cut.code, 1) << cut.out;
+  EXPECT_NE(cut.out.find(points + ": cut short: "), std::string::npos) << cut.out;
 }
 
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the
@@ -298,6 +305,27 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
                           tmp.str("d") + " itself"),
             std::string::npos)
       << info.out;
+  // Rendered again with a sensor of another name: the new one's folder is listed, the earlier
+  // one's is left as it was and said so (it had stayed without a word).
+  std::ifstream in(kScenes + "examples/two_digits_pinch.json");
+  std::string scene(std::istreambuf_iterator<char>(in), {});
+  for (std::size_t at; (at = scene.find("\"digit_top\"")) != std::string::npos;)
+    scene.replace(at, 11, "\"digit_upper\"");
+  std::string meshes = kScenes + "../meshes/";
+  for (std::size_t at = 0; (at = scene.find("\"../../meshes/", at)) != std::string::npos;)
+    scene.replace(at + 1, 13, meshes), at += meshes.size();
+  std::ofstream(tmp.str("renamed.json")) << scene;
+  const CliRun again =
+      tacsim("render " + tmp.str("renamed.json") + " -q --outputs mask --out " + tmp.str("d"));
+  ASSERT_EQ(again.code, 0) << again.out;
+  EXPECT_EQ(sensor_dataset_dirs(tmp.str("d")),
+            (std::vector<std::string>{tmp.str("d") + "/digit_bottom",
+                                      tmp.str("d") + "/digit_upper"}));
+  EXPECT_NE(again.out.find("note: " + tmp.str("d") + "/digit_top, from an earlier render into " +
+                           tmp.str("d") + ", is not a sensor of this scene: left as it was"),
+            std::string::npos)
+      << again.out;
+  EXPECT_EQ(Dataset::open(tmp.str("d") + "/digit_top").frames(), Dataset::open(dirs[0]).frames());
 }
 
 // --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder, is
@@ -595,14 +623,21 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   // Another sensor is the scene's.
   ASSERT_EQ(tacsim(args + " --sensor gelsight_mini --out " + tmp.str("mini.json")).code, 0);
   EXPECT_NE(text("mini.json").find("\"sensor\": \"gelsight_mini\""), std::string::npos);
+  // The command it suggests runs as printed, whatever the scene's name.
+  r = tacsim(args + " --out \"" + tmp.str("it's mine.json") + "\"");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("render it: tacsim render '" + tmp.str("it'\\''s mine.json") + "' --out DIR"),
+            std::string::npos)
+      << r.out;
 
-  for (const auto& [bad, says] : std::vector<std::pair<std::string, std::string>>{
-           {" --max-depth 1.5", "--max-depth = 1.5: must be from 1e-06 to 0.002 [m]"},
-           {" --min-depth 0.002 --max-depth 0.001", "--min-depth = 0.002"},
-           {" --sensor digit2", "unknown sensor preset 'digit2'"},
-           {" --sensor-file " + tmp.str("none.json"), "none.json"}}) {
+  // Bad option values are usage errors (exit 2), a file that cannot be read an input error (1).
+  for (const auto& [bad, says, code] : std::vector<std::tuple<std::string, std::string, int>>{
+           {" --max-depth 1.5", "--max-depth = 1.5: must be from 1e-06 to 0.002 [m]", 2},
+           {" --min-depth 0.002 --max-depth 0.001", "--min-depth = 0.002", 2},
+           {" --sensor digit2", "--sensor: unknown sensor preset 'digit2'", 2},
+           {" --sensor-file " + tmp.str("none.json"), "none.json", 1}}) {
     r = tacsim("presses " + mesh + bad + " --out " + tmp.str("bad.json"));
-    EXPECT_EQ(r.code, 1) << bad;
+    EXPECT_EQ(r.code, code) << bad;
     EXPECT_NE(r.out.find(says), std::string::npos) << r.out;
   }
   r = tacsim("presses " + tmp.str("none.glb") + " --out " + tmp.str("bad.json"));
@@ -618,6 +653,12 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   r = tacsim("presses " + mesh + " --scale 1e-4 --out " + tmp.str("bad.json"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("no thicker than the deepest press"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("bad.json")));
+  // The other slip, millimetres read as metres (a 12 m sphere's presses had reached past the
+  // image's edges while the tool reported them inside).
+  r = tacsim("presses " + mesh + " --scale 1000 --out " + tmp.str("bad.json"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("31.8 x 15.8 x 11.3 m, larger than a metre"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("bad.json")));
   EXPECT_EQ(tacsim("presses " + mesh + " --sensor digit --sensor-file x.json --out " +
                    tmp.str("bad.json"))

@@ -5,8 +5,10 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <functional>
@@ -69,6 +71,18 @@ inline std::string csv_field(const std::string& text) {
   std::string quoted = "\"";
   for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
   return quoted + "\"";
+}
+
+// One word of a shell command line a message suggests: as it is when it holds only characters no
+// shell treats specially, else in single quotes (a path with a space split into two words).
+inline std::string shell_word(const std::string& text) {
+  const bool plain = !text.empty() && std::all_of(text.begin(), text.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("_./+-:=,@%", c) != nullptr;
+  });
+  if (plain) return text;
+  std::string quoted = "'";
+  for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
 }
 
 // A markdown table cell: a '|' escaped, line breaks as spaces.
@@ -243,6 +257,19 @@ class UsageError : public InputError {
  public:
   using InputError::InputError;
 };
+
+// Runs `check`, a check of option values that throws InputError, and throws its complaint as a
+// UsageError (exit 2): a bad option value is a usage error, whichever function finds it.
+template <typename F>
+void as_usage_error(F&& check) {
+  try {
+    check();
+  } catch (const UsageError&) {
+    throw;
+  } catch (const InputError& e) {
+    throw UsageError(e.what());
+  }
+}
 
 // Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
 // matching exit code.

@@ -45,20 +45,31 @@ int run_presses(const PressesArgs& a) {
     throw InputError("--out " + a.out + ": is a folder; give the scene file to write (a .json)");
   }
   if (!a.sensor.empty() && !a.sensor_file.empty()) {
-    throw InputError("--sensor and --sensor-file: give one");
+    throw UsageError("--sensor and --sensor-file: give one");
   }
-  const SensorModel sensor = !a.sensor_file.empty()
-                                 ? load_sensor_file(a.sensor_file)
-                                 : sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
+  SensorModel sensor;
+  if (!a.sensor_file.empty()) {
+    sensor = load_sensor_file(a.sensor_file);
+  } else {
+    as_usage_error([&] {
+      try {
+        sensor = sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
+      } catch (const InputError& e) {
+        throw InputError(std::string("--sensor: ") + e.what());
+      }
+    });
+  }
   // The defaults follow the sensor (0.3-1.5 mm on the presets' 2 mm gels), so that only what
   // was given is blamed.
   const double max_indentation = sensor.gel.max_indentation_m;
   const double max_depth = a.max_depth_m > 0 ? a.max_depth_m : 0.75 * max_indentation;
   const double min_depth = a.min_depth_m > 0 ? a.min_depth_m : 0.2 * max_depth;
-  check_in_range("--max-depth", max_depth, 1e-6, max_indentation,
-                 " [m]: the gel takes at most its max_indentation_m");
-  check_in_range("--min-depth", min_depth, 1e-6, max_depth,
-                 " [m]: positive and at most --max-depth");
+  as_usage_error([&] {
+    check_in_range("--max-depth", max_depth, 1e-6, max_indentation,
+                   " [m]: the gel takes at most its max_indentation_m");
+    check_in_range("--min-depth", min_depth, 1e-6, max_depth,
+                   " [m]: positive and at most --max-depth");
+  });
   std::error_code ec;
   if (fs::equivalent(a.out, a.mesh, ec)) {
     throw InputError("--out " + a.out + ": is the mesh; give the scene file to write (a .json)");
@@ -77,6 +88,18 @@ int run_presses(const PressesArgs& a) {
                   a.mesh.c_str(),
                   a.scale != 1.0 ? (" at scale " + format_number(a.scale)).c_str() : "",
                   1e3 * extent.x(), 1e3 * extent.y(), 1e3 * extent.z(), 1e3 * max_depth);
+    throw InputError(text);
+  }
+  // One larger than a metre (a mesh in millimetres read as metres) would cover the gel in every
+  // press, and its surface grid is too coarse to keep each contact inside the image.
+  if (extent.maxCoeff() > 1.0) {
+    char text[320];
+    std::snprintf(text, sizeof text,
+                  "%s%s: %.3g x %.3g x %.3g m, larger than a metre: each press would cover the "
+                  "gel; is --scale right (meshes are in metres: --scale 0.001 for millimetres)?",
+                  a.mesh.c_str(),
+                  a.scale != 1.0 ? (" at scale " + format_number(a.scale)).c_str() : "",
+                  extent.x(), extent.y(), extent.z());
     throw InputError(text);
   }
   // Grid points 0.25 mm apart (the repository's scenes), closer on a small object so that a
@@ -161,7 +184,7 @@ int run_presses(const PressesArgs& a) {
                  "--max-depth, a smaller object, or a sensor that sees more of its gel)\n",
                  1e3 * deepest, 1e3 * max_depth);
   }
-  std::printf("render it: tacsim render %s --out DIR\n", a.out.c_str());
+  std::printf("render it: tacsim render %s --out DIR\n", shell_word(a.out).c_str());
   return kExitOk;
 }
 

@@ -50,6 +50,9 @@ struct RenderSummary {
   int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
+  // Datasets of an earlier render into the folder (its sensors.json) of sensors this scene does
+  // not have: left as they were, no longer listed.
+  std::vector<std::string> earlier_sensor_dirs;
   std::uintmax_t bytes_estimate = 0;      // estimate_dataset_bytes (0: not known)
 };
 
