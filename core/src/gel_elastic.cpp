@@ -12,7 +12,7 @@ ElasticKernel make_elastic_kernel(const ElasticModel& model, float px_per_m, int
   k.enabled = true;
   k.alpha = float(1.0 / (2.0 * model.bend_radius_m * double(px_per_m) * double(px_per_m)));
   const double sigma_px = model.smoothing_m * px_per_m;
-  k.blur_radius = sigma_px < 0.3 ? 0 : gaussian_box_radius(sigma_px);
+  k.blur = gaussian_kernel(sigma_px);
   k.inv_2alpha_k.resize(std::size_t(longest_line) + 1, 0.0f);
   for (int d = 1; d <= longest_line; ++d) k.inv_2alpha_k[d] = 1.0f / (2.0f * k.alpha * float(d));
   return k;
@@ -182,58 +182,50 @@ void erode(const ElasticKernel& k, int width, int height, const PixelRect& rect,
                    });
 }
 
-// One box pass of radius r over n values of a line that has r zeros of padding on each side
-// (in[-r .. n + r)): out[x] = mean of in[x - r .. x + r]. A direct sum, so that it vectorises.
-void box_line(const float* in, float* out, int n, int r) {
-  const float inv = 1.0f / float(2 * r + 1);
-  for (int x = 0; x < n; ++x) out[x] = in[x - r];
-  for (int j = 1 - r; j <= r; ++j)
-    for (int x = 0; x < n; ++x) out[x] += in[x + j];
-  for (int x = 0; x < n; ++x) out[x] *= inv;
-}
-
 }  // namespace
 
-int gaussian_box_radius(double sigma_px) {
-  // Three box passes of width w have variance 3 (w^2 - 1) / 12 = sigma^2.
-  const double w = std::sqrt(4.0 * sigma_px * sigma_px + 1.0);
-  return std::max(1, int(std::lround((w - 1.0) / 2.0)));
+GaussianKernel gaussian_kernel(double sigma_px) {
+  GaussianKernel k;
+  if (!(sigma_px > 0.0) || std::exp(-0.5 / (sigma_px * sigma_px)) < 1e-6) return k;
+  const int radius = int(std::ceil(3.0 * sigma_px));
+  std::vector<double> w(std::size_t(radius) + 1);
+  double sum = 0.0;
+  for (int j = 0; j <= radius; ++j) {
+    w[j] = std::exp(-0.5 * double(j) * double(j) / (sigma_px * sigma_px));
+    sum += j == 0 ? w[j] : 2.0 * w[j];
+  }
+  for (double v : w) k.weights.push_back(float(v / sum));
+  return k;
 }
 
 void gaussian_blur(const float* src, float* dst, float* scratch, int width, const PixelRect& rect,
-                   int r) {
+                   const GaussianKernel& kernel) {
   if (rect.empty()) return;
-  const int n = rect.width();
-  // Rows: three passes along a zero-padded copy of each row, src -> scratch (may be src).
-  thread_local std::vector<float> line_a, line_b;
-  line_a.assign(std::size_t(n + 2 * r), 0.0f);
-  line_b.assign(line_a.size(), 0.0f);
-  float* a = line_a.data() + r;
-  float* b = line_b.data() + r;
+  const int n = rect.width(), r = kernel.radius();
+  const std::vector<float>& w = kernel.weights;
+  // Rows: along a zero-padded copy of each row, src -> scratch (which may be src).
+  thread_local std::vector<float> line;
+  line.assign(std::size_t(n + 2 * r), 0.0f);
+  const float* a = line.data() + r;
   for (int y = rect.y0; y < rect.y1; ++y) {
     const std::size_t row = std::size_t(y) * width + rect.x0;
-    std::copy_n(src + row, n, a);
-    box_line(a, b, n, r);
-    box_line(b, a, n, r);
-    box_line(a, scratch + row, n, r);
+    std::copy_n(src + row, n, line.data() + r);
+    float* o = scratch + row;
+    for (int x = 0; x < n; ++x) o[x] = w[0] * a[x];
+    for (int j = 1; j <= r; ++j)
+      for (int x = 0; x < n; ++x) o[x] += w[j] * (a[x - j] + a[x + j]);
   }
-  // Columns: three passes, each a row of outputs at a time so that the inner loops run along x:
-  // scratch -> dst -> scratch -> dst. Rows outside rect count as zero.
-  const float inv = 1.0f / float(2 * r + 1);
-  auto column_pass = [&](const float* in, float* out) {
-    for (int y = rect.y0; y < rect.y1; ++y) {
-      float* o = out + std::size_t(y) * width + rect.x0;
-      std::fill_n(o, n, 0.0f);
-      for (int yy = std::max(y - r, rect.y0); yy <= std::min(y + r, rect.y1 - 1); ++yy) {
-        const float* i = in + std::size_t(yy) * width + rect.x0;
-        for (int x = 0; x < n; ++x) o[x] += i[x];
-      }
-      for (int x = 0; x < n; ++x) o[x] *= inv;
+  // Columns: a row of outputs at a time, so that the inner loop runs along x; scratch -> dst.
+  // Rows outside rect count as zero.
+  for (int y = rect.y0; y < rect.y1; ++y) {
+    float* o = dst + std::size_t(y) * width + rect.x0;
+    std::fill_n(o, n, 0.0f);
+    for (int yy = std::max(y - r, rect.y0); yy <= std::min(y + r, rect.y1 - 1); ++yy) {
+      const float* i = scratch + std::size_t(yy) * width + rect.x0;
+      const float wy = w[std::abs(yy - y)];
+      for (int x = 0; x < n; ++x) o[x] += wy * i[x];
     }
-  };
-  column_pass(scratch, dst);
-  column_pass(dst, scratch);
-  column_pass(scratch, dst);
+  }
 }
 
 PixelRect elastic_displacement(const ElasticKernel& kernel, int width, int height,
@@ -255,10 +247,10 @@ PixelRect elastic_displacement(const ElasticKernel& kernel, int width, int heigh
   erode(kernel, width, height, dilated, scratch_b, scratch_a, u, s);
   PixelRect moved = dilated;
   const float* surface = u;
-  if (kernel.blur_radius > 0) {
+  if (!kernel.blur.weights.empty()) {
     // u is zero around `dilated`, as the blur requires.
-    moved = dilated.dilated(3 * kernel.blur_radius).clipped(width, height);
-    gaussian_blur(u, scratch_b, scratch_a, width, moved, kernel.blur_radius);
+    moved = dilated.dilated(kernel.blur.radius()).clipped(width, height);
+    gaussian_blur(u, scratch_b, scratch_a, width, moved, kernel.blur);
     surface = scratch_b;
   }
   for (int y = moved.y0; y < moved.y1; ++y) {

@@ -225,14 +225,14 @@ void SensorRenderer::State::write_color(std::uint64_t seed, FrameRegions& frame,
     out.stats.shaded_pixels += shade_cast_shadows(frame, ws);
     shaded_runs = &ws.color_runs;
     frame.color = frame.shaded;
-    if (blend_radius > 0) frame.color = frame.shaded.dilated(3 * blend_radius).clipped(w, h);
+    if (background_blend) frame.color = frame.shaded.dilated(blend_blur.radius()).clipped(w, h);
   }
   // Where `rgb` holds this frame's colour: the runs, or with a real background (blended with a
   // blur) all of frame.color. Everywhere else the frame shows the background.
   const RowRuns* runs = shaded_runs;
   PixelRect runs_rect = frame.shaded;
   thread_local RowRuns full_rows;
-  if (blend_radius > 0 && !frame.shaded.empty()) {
+  if (background_blend && !frame.shaded.empty()) {
     // TACTO's blend: real background + blur(sim - sim_bg) * gain, channel by channel.
     const PixelRect& cr = frame.color;
     const float gain = float(sensor.shading.background_gain);
@@ -244,10 +244,14 @@ void SensorRenderer::State::write_color(std::uint64_t seed, FrameRegions& frame,
         for (int i = gel.index(x0, y); i < gel.index(x1, y); ++i)
           diff[i] = rgb[3 * i + c] - sim0.data[3 * i + c];
       });
-      gaussian_blur(diff, blurred, diff, w, cr, blend_radius);
+      const float* smoothed = diff;
+      if (!blend_blur.weights.empty()) {
+        gaussian_blur(diff, blurred, diff, w, cr, blend_blur);
+        smoothed = blurred;
+      }
       for (int y = cr.y0; y < cr.y1; ++y)
         for (int i = gel.index(cr.x0, y); i < gel.index(cr.x1, y); ++i)
-          rgb[3 * i + c] = background.data[3 * i + c] + gain * blurred[i];
+          rgb[3 * i + c] = background.data[3 * i + c] + gain * smoothed[i];
     }
     full_rows.assign(std::size_t(cr.height()), {cr.x0, cr.x1});
     runs = &full_rows;

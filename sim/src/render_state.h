@@ -61,7 +61,8 @@ struct SensorRenderer::State {
   std::optional<NoiseTable> noise;  // when noise is on
   int tile = 4;                     // coarse-pass tile size [px], a multiple of the 4x4 ray packets
   float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
-  int blend_radius = 0;  // box radius of the real-background blend blur, 0 without one
+  bool background_blend = false;  // a real background: the shading is blended into it
+  GaussianKernel blend_blur;      // the blend's blur (no weights: none)
   ImageF normals0;       // undeformed gel normals
   ImageF sim0;           // shading of the undeformed gel, linear [0, 1]
   ImageF background;     // what a no-contact frame shows: sim0, or the real background

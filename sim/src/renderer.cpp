@@ -97,8 +97,8 @@ void SensorRenderer::State::deform(Workspace& ws, RenderStats& stats, FrameRegio
   }
   frame.shaded = frame.region;
   frame.color = frame.region;
-  if (s.blend_radius > 0 && !frame.region.empty()) {
-    frame.color = frame.region.dilated(3 * s.blend_radius).clipped(w, h);
+  if (s.background_blend && !frame.region.empty()) {
+    frame.color = frame.region.dilated(s.blend_blur.radius()).clipped(w, h);
   }
   for (const auto& r : ws.runs) stats.shaded_pixels += std::max(0, r.second - r.first);
 }
@@ -167,7 +167,8 @@ void SensorRenderer::State::prepare() {
       for (int x = 0; x < real.width; ++x)
         for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
     background = resample_bilinear(rgb, w, h);
-    blend_radius = gaussian_box_radius(sensor.shading.background_blur_m * float(gel.px_per_m));
+    background_blend = true;
+    blend_blur = gaussian_kernel(sensor.shading.background_blur_m * gel.px_per_m);
   }
   background_u8 = ImageU8(w, h, 3);
   if (noise) background_fixed.resize(background.data.size());

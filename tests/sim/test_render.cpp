@@ -149,6 +149,34 @@ TEST(RenderSphere, ElasticGelConformsInsideAndFallsOffSmoothlyOutside) {
 
 // Two renders of the same frame agree: the same contact mask up to pixels whose centre lies on
 // the contact edge, indentation within 1 um, colour within 2 levels (rounding of the two paths).
+// The elastic gel's sink-in ring (indented, but outside the contact mask) in m^2, for a press of
+// the sphere on a flat DIGIT of `preset` with the coating's smoothing `smoothing_m`.
+double sink_in_area_m2(const std::string& preset, double smoothing_m) {
+  SensorModel sensor = flat_digit(preset, true);
+  sensor.gel.elastic.smoothing_m = smoothing_m;
+  const RenderedFrame f =
+      SensorRenderer(sensor, {sphere_shape()}, quiet_settings()).render({pressed_sphere()}, 0);
+  int ring = 0;
+  for (std::size_t i = 0; i < f.images.mask.data.size(); ++i) {
+    ring += f.images.depth.data[i] > 1e-7f && f.images.mask.data[i] == 0.0f;
+  }
+  const double pixel_m = sensor.camera.distance_m / sensor.camera.fx;
+  return ring * pixel_m * pixel_m;
+}
+
+// The coating's smoothing is the Gaussian its sigma says at any resolution: the sink-in ring has
+// one area at 120x160 and 240x320, and grows with the sigma. (Three box passes of radius at
+// least 1 had smoothed 50 um as 225 um at 120x160 and as 112 um at 240x320: a ring of 15.5 and
+// 8.6 mm^2, and 50 and 200 um gave the same images.)
+TEST(RenderSphere, TheElasticGelsSmoothingIsTheSameAtEveryResolution) {
+  const double low = sink_in_area_m2("digit", 5e-5), high = sink_in_area_m2("digit_240x320", 5e-5);
+  std::printf("sink-in ring at 50 um: %.2f mm^2 at 120x160, %.2f at 240x320\n", low * 1e6,
+              high * 1e6);
+  EXPECT_GT(high, 1e-6);
+  EXPECT_NEAR(low / high, 1.0, 0.15);
+  EXPECT_GT(sink_in_area_m2("digit", 2e-4), 1.3 * low);
+}
+
 void expect_same_frame(const RenderedFrame& a, const RenderedFrame& b, const std::string& what) {
   std::size_t mask_diff = 0;
   for (std::size_t i = 0; i < a.images.mask.data.size(); ++i)

@@ -11,13 +11,20 @@
 
 namespace pg {
 
-// Box-radius for which three box passes approximate a Gaussian of `sigma_px` (at least 1).
-int gaussian_box_radius(double sigma_px);
-// Three box passes of radius r along rows and three along columns over `rect`, values outside
-// `rect` taken as zero at each pass (so `rect` should reach 3 r beyond any non-zero input, or
-// end at the image's edge). src -> dst; scratch is image-sized and may be src, but not dst.
+// A Gaussian of sigma_px pixels, sampled at whole pixels out to 3 sigma and normalised: weights[k]
+// for the offsets +-k. No weights (no blur) for a sigma whose neighbouring weight would be below
+// 1e-6 of the centre's (under 0.19 px), where the blur would change nothing.
+struct GaussianKernel {
+  std::vector<float> weights;
+  int radius() const { return weights.empty() ? 0 : int(weights.size()) - 1; }
+};
+GaussianKernel gaussian_kernel(double sigma_px);
+// The kernel along rows, then along columns, over `rect`, values outside `rect` taken as zero
+// (so `rect` should reach kernel.radius() beyond any non-zero input, or end at the image's
+// edge). src -> dst; scratch is image-sized and may be src, but not dst. Needs a kernel with
+// weights.
 void gaussian_blur(const float* src, float* dst, float* scratch, int width, const PixelRect& rect,
-                   int r);
+                   const GaussianKernel& kernel);
 
 // Elastic model: the coated gel surface cannot bend more sharply than rho =
 // elastic.bend_radius_m. With r the rigid indentation (image-sized, zero away from the contact),
@@ -34,7 +41,7 @@ void gaussian_blur(const float* src, float* dst, float* scratch, int width, cons
 struct ElasticKernel {
   bool enabled = false;
   float alpha = 0;      // paraboloid coefficient 1 / (2 rho) in image units [m / px^2]
-  int blur_radius = 0;  // box radius of the smoothing, 0 for none
+  GaussianKernel blur;  // the smoothing (no weights: none)
   // 1 / (2 alpha k) for k = 0 .. the longest image line: where two parabolas k pixels apart meet.
   std::vector<float> inv_2alpha_k;
   // Pixels the dilation reaches beyond a contact whose deepest indentation is `depth_m`.
