@@ -78,29 +78,24 @@ int run_presses(const PressesArgs& a) {
   const TriangleMesh mesh = load_mesh(a.mesh, a.scale);
   const Bounds3 bounds = mesh_bounds(mesh);
   const Eigen::Vector3d extent = (bounds.max - bounds.min).cast<double>();
-  // An object thinner than the press would sink into the gel whole (and one of a few microns
-  // never shows): a wrong --scale, most likely.
+  // A wrong --scale, most likely: an object thinner than the deepest press would sink into the
+  // gel whole (and one of a few microns never shows); one larger than a metre (millimetres read
+  // as metres) would cover the gel in every press, its surface grid too coarse to keep each
+  // contact inside the image.
+  const auto scale_slip = [&](double unit, const char* unit_name, const std::string& why) {
+    const auto size = [&](double v) { return format_number(v / unit, "%.3g"); };
+    return InputError(a.mesh + (a.scale != 1.0 ? " at scale " + format_number(a.scale) : "") +
+                      ": " + size(extent.x()) + " x " + size(extent.y()) + " x " +
+                      size(extent.z()) + " " + unit_name + ", " + why +
+                      "; is --scale right (meshes are in metres: --scale 0.001 for millimetres)?");
+  };
   if (extent.minCoeff() <= max_depth) {
-    char text[320];
-    std::snprintf(text, sizeof text,
-                  "%s%s: %.3g x %.3g x %.3g mm, no thicker than the deepest press (%.3g mm): it "
-                  "would sink into the gel whole; is --scale right (meshes are in metres)?",
-                  a.mesh.c_str(),
-                  a.scale != 1.0 ? (" at scale " + format_number(a.scale)).c_str() : "",
-                  1e3 * extent.x(), 1e3 * extent.y(), 1e3 * extent.z(), 1e3 * max_depth);
-    throw InputError(text);
+    throw scale_slip(1e-3, "mm",
+                     "no thicker than the deepest press (" + format_number(1e3 * max_depth, "%.3g") +
+                         " mm): it would sink into the gel whole");
   }
-  // One larger than a metre (a mesh in millimetres read as metres) would cover the gel in every
-  // press, and its surface grid is too coarse to keep each contact inside the image.
   if (extent.maxCoeff() > 1.0) {
-    char text[320];
-    std::snprintf(text, sizeof text,
-                  "%s%s: %.3g x %.3g x %.3g m, larger than a metre: each press would cover the "
-                  "gel; is --scale right (meshes are in metres: --scale 0.001 for millimetres)?",
-                  a.mesh.c_str(),
-                  a.scale != 1.0 ? (" at scale " + format_number(a.scale)).c_str() : "",
-                  extent.x(), extent.y(), extent.z());
-    throw InputError(text);
+    throw scale_slip(1.0, "m", "larger than a metre: each press would cover the gel");
   }
   // Grid points 0.25 mm apart (the repository's scenes), closer on a small object so that a
   // press's depth is measured to a small part of it; the spacing grows until there are at most
