@@ -12,11 +12,11 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
-#include <map>
 #include <sstream>
 #include <unordered_map>
 
 #include "mesh_formats.h"
+#include "mesh_topology.h"
 #include "pg/core/error.h"
 #include "pg/sim/mesh.h"
 
@@ -104,22 +104,6 @@ bool is_degenerate(const TriangleMesh& mesh, const Eigen::Vector3i& triangle) {
   return (b - a).cross(c - a).norm() <= kDegenerateRelativeArea * longest_squared;
 }
 
-std::uint64_t undirected_edge(int a, int b) {
-  return (std::uint64_t(std::uint32_t(std::min(a, b))) << 32) | std::uint32_t(std::max(a, b));
-}
-
-// The triangles on each undirected edge.
-using EdgeTriangles = std::unordered_map<std::uint64_t, std::vector<int>>;
-
-EdgeTriangles triangles_by_edge(const std::vector<Eigen::Vector3i>& triangles) {
-  EdgeTriangles by_edge;
-  by_edge.reserve(triangles.size() * 3 / 2);
-  for (int t = 0; t < static_cast<int>(triangles.size()); ++t) {
-    for (int k = 0; k < 3; ++k) by_edge[undirected_edge(triangles[t][k], triangles[t][(k + 1) % 3])].push_back(t);
-  }
-  return by_edge;
-}
-
 // Gives vertices at bitwise-identical positions one index, as STL's reader does: exporters that
 // give each face its own corners (flat shading, UV seams) would otherwise load a closed surface
 // as an open one, and the renderer tells a closed mesh's inside from its shared edges. Returns how
@@ -166,6 +150,17 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
     slivers.emplace_back(t[(middle + 2) % 3], t[middle], t[(middle + 1) % 3]);
   }
   const int dropped = static_cast<int>(mesh.triangles.size() - kept.size());
+  // The longest first: a sliver whose long edge is part of a longer one's (several corners on
+  // one line) finds its neighbour split by the longer one's repair.
+  const auto length = [&](const Eigen::Vector3i& t) {
+    return (mesh.vertices[static_cast<size_t>(t[0])] - mesh.vertices[static_cast<size_t>(t[2])])
+        .cast<double>()
+        .squaredNorm();
+  };
+  std::stable_sort(slivers.begin(), slivers.end(), [&](const Eigen::Vector3i& a,
+                                                      const Eigen::Vector3i& b) {
+    return length(a) > length(b);
+  });
   if (!slivers.empty()) {
     EdgeTriangles by_edge = triangles_by_edge(kept);
     const auto edges_of = [&](int t, bool add) {
@@ -199,26 +194,59 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
   return dropped;
 }
 
-// Turns the triangles of each surface (triangles joined by edges of two) that face against most
-// of their neighbours: neighbours on a consistently oriented surface run through their shared
-// edge in opposite directions. A surface that cannot be oriented (a Moebius strip) stays as it
-// is. Returns how many triangles it turned.
-int orient_surfaces_consistently(TriangleMesh& mesh) {
+// Drops triangles with the same three corners as an earlier one, in either order: a double-sided
+// export, or a body listed twice, whose shared edges (four triangles each once welded) would make
+// it no closed surface. Returns how many.
+int drop_duplicate_triangles(TriangleMesh& mesh) {
+  std::unordered_map<std::uint64_t, std::vector<int>> seen;  // hash of the sorted corners
+  std::vector<Eigen::Vector3i> kept;
+  kept.reserve(mesh.triangles.size());
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    Eigen::Vector3i sorted = t;
+    std::sort(sorted.data(), sorted.data() + 3);
+    const std::uint64_t key = (std::uint64_t(std::uint32_t(sorted[0])) * 0x9e3779b97f4a7c15ULL) ^
+                              (std::uint64_t(std::uint32_t(sorted[1])) << 21) ^
+                              std::uint64_t(std::uint32_t(sorted[2]));
+    std::vector<int>& same_key = seen[key];
+    const bool repeated = std::any_of(same_key.begin(), same_key.end(), [&](int k) {
+      Eigen::Vector3i other = kept[static_cast<size_t>(k)];
+      std::sort(other.data(), other.data() + 3);
+      return other == sorted;
+    });
+    if (repeated) continue;
+    same_key.push_back(static_cast<int>(kept.size()));
+    kept.push_back(t);
+  }
+  const int dropped = static_cast<int>(mesh.triangles.size() - kept.size());
+  mesh.triangles = std::move(kept);
+  return dropped;
+}
+
+// Orients each surface (triangles joined by shared edges; find_surfaces) as its triangles say:
+// the triangles that face against most of their neighbours (neighbours on a consistently
+// oriented surface run through their shared edge in opposite directions; edges of more than two
+// triangles are not followed) are turned to match, and then a closed surface that faces inward
+// (a negative signed volume: clockwise seen from outside, as a CAD export with flipped normals
+// has it) is turned outward, since the renderer tells a closed surface's inside from the way its
+// faces point. A surface that cannot be oriented (a Moebius strip) stays as it is. Counts, against
+// the file: the closed surfaces whose every triangle was turned, and the triangles turned on
+// the others.
+void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   const int n = static_cast<int>(mesh.triangles.size());
   const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
+  const Surfaces surfaces = find_surfaces(mesh.triangles);
   std::vector<std::int8_t> flip(static_cast<size_t>(n), -1);  // -1: not reached yet
-  std::vector<int> surface, queue;
-  int turned = 0;
+  std::vector<int> part, queue;
   for (int seed = 0; seed < n; ++seed) {
     if (flip[seed] >= 0) continue;
-    surface.clear();
+    part.clear();
     queue.assign(1, seed);
     flip[seed] = 0;
     bool orientable = true;
     while (!queue.empty()) {
       const int t = queue.back();
       queue.pop_back();
-      surface.push_back(t);
+      part.push_back(t);
       const Eigen::Vector3i& tri = mesh.triangles[t];
       for (int k = 0; k < 3; ++k) {
         const int a = tri[k], b = tri[(k + 1) % 3];
@@ -238,71 +266,39 @@ int orient_surfaces_consistently(TriangleMesh& mesh) {
       }
     }
     std::size_t flipped = 0;
-    for (int t : surface) flipped += flip[t] == 1;
-    const bool invert = 2 * flipped > surface.size();  // keep the majority's direction
-    for (int t : surface) {
+    for (int t : part) flipped += flip[t] == 1;
+    bool invert = 2 * flipped > part.size();  // the majority's direction
+    // A closed surface (part is all of it when every edge has two triangles) faces outward.
+    if (orientable && surfaces.closed[surfaces.of_triangle[part[0]]]) {
+      double volume = 0.0;
+      for (int t : part) {
+        const Eigen::Vector3i& tri = mesh.triangles[t];
+        const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(tri[0])].cast<double>();
+        const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(tri[1])].cast<double>();
+        const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(tri[2])].cast<double>();
+        volume += flip[t] == 1 ? -a.dot(b.cross(c)) : a.dot(b.cross(c));
+      }
+      invert = volume < 0.0;
+    }
+    int turned = 0;
+    for (int t : part) {
       const bool turn = orientable && ((flip[t] == 1) != invert);
       flip[t] = std::int8_t(turn);
       turned += turn;
+    }
+    if (turned == static_cast<int>(part.size()) && surfaces.closed[surfaces.of_triangle[part[0]]]) {
+      ++report.inside_out_parts_turned;
+    } else {
+      report.triangles_turned_to_match += turned;
     }
   }
   for (int t = 0; t < n; ++t) {
     if (flip[t] == 1) std::swap(mesh.triangles[t][1], mesh.triangles[t][2]);
   }
-  return turned;
 }
 
-int find_part(std::vector<int>& parent, int v) {
-  while (parent[v] != v) v = parent[v] = parent[parent[v]];
-  return v;
-}
-
-// Turns every closed part whose triangles all face inward (clockwise seen from outside: a
-// negative signed volume) outward, as a CAD export with flipped normals has them; the renderer
-// tells inside from outside by which way a closed mesh's faces point. Returns how many parts it
-// turned. A part that is open or not consistently oriented (some directed edge used twice, or
-// without its reverse) has no inside to speak of and is left as it is.
-int orient_closed_parts_outward(TriangleMesh& mesh) {
-  const int n = static_cast<int>(mesh.vertices.size());
-  std::vector<int> parent(static_cast<size_t>(n));
-  for (int v = 0; v < n; ++v) parent[static_cast<size_t>(v)] = v;
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    parent[static_cast<size_t>(find_part(parent, t[1]))] = find_part(parent, t[0]);
-    parent[static_cast<size_t>(find_part(parent, t[2]))] = find_part(parent, t[0]);
-  }
-  const auto edge_key = [](int from, int to) {
-    return (std::uint64_t(std::uint32_t(from)) << 32) | std::uint32_t(to);
-  };
-  std::unordered_map<std::uint64_t, int> directed_edges;
-  std::map<int, double> volume;  // part root -> signed volume
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) ++directed_edges[edge_key(t[k], t[(k + 1) % 3])];
-    const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(t[0])].cast<double>();
-    const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(t[1])].cast<double>();
-    const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(t[2])].cast<double>();
-    volume[find_part(parent, t[0])] += a.dot(b.cross(c));
-  }
-  std::map<int, bool> oriented;  // part root -> closed and consistently oriented
-  for (const auto& [root, v] : volume) oriented[root] = true;
-  for (const auto& [edge, count] : directed_edges) {
-    const int from = int(edge >> 32), to = int(edge & 0xffffffffu);
-    const auto reverse = directed_edges.find(edge_key(to, from));
-    if (count != 1 || reverse == directed_edges.end() || reverse->second != 1) {
-      oriented[find_part(parent, from)] = false;
-    }
-  }
-  int turned = 0;
-  for (const auto& [root, v] : volume) turned += oriented[root] && v < 0.0;
-  if (turned == 0) return 0;
-  for (Eigen::Vector3i& t : mesh.triangles) {
-    const int root = find_part(parent, t[0]);
-    if (oriented[root] && volume[root] < 0.0) std::swap(t[1], t[2]);
-  }
-  return turned;
-}
-
-// Checks the reader's output, applies `scale`, welds identical vertices, drops degenerate
-// triangles, orients each surface consistently and turns inside-out closed parts outward.
+// Checks the reader's output, applies `scale`, welds identical vertices, drops degenerate and
+// duplicate triangles, and orients each surface (orient_surfaces).
 TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
                       MeshLoadReport& report) {
   if (raw.vertices.empty()) throw InputError(path + ": empty mesh: no vertices");
@@ -340,7 +336,7 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
     }
     mesh.triangles.push_back(triangle);
   }
-  weld_vertices(mesh);
+  report.vertices_welded = weld_vertices(mesh);
   const int dropped = drop_degenerate_triangles(mesh);
   if (mesh.triangles.empty()) {
     throw InputError(path + ": empty mesh: all " + std::to_string(dropped) +
@@ -350,13 +346,18 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
   if (dropped > 0) {
     std::cerr << "warning: " << path << ": dropped " << dropped << " degenerate triangles\n";
   }
-  report.triangles_turned_to_match = orient_surfaces_consistently(mesh);
+  report.duplicate_triangles_dropped = drop_duplicate_triangles(mesh);
+  if (report.duplicate_triangles_dropped > 0) {
+    std::cerr << "warning: " << path << ": dropped " << report.duplicate_triangles_dropped
+              << " triangle(s) with the same three corners as another (a double-sided or "
+                 "repeated surface)\n";
+  }
+  orient_surfaces(mesh, report);
   if (report.triangles_turned_to_match > 0) {
     std::cerr << "warning: " << path << ": " << report.triangles_turned_to_match
-              << " triangle(s) faced against their neighbours (corners in the other order); "
-                 "turned them to match\n";
+              << " triangle(s) faced against the rest of their surface (corners in the other "
+                 "order); turned them to match\n";
   }
-  report.inside_out_parts_turned = orient_closed_parts_outward(mesh);
   if (report.inside_out_parts_turned > 0) {
     std::cerr << "warning: " << path << ": " << report.inside_out_parts_turned
               << " closed part(s) had every triangle facing inward (clockwise seen from "

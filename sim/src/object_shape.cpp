@@ -3,13 +3,13 @@
 #include <algorithm>
 #include <cstdint>
 #include <limits>
-#include <map>
-#include <vector>
 #include <mutex>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "pg/core/error.h"
+#include "mesh_topology.h"
 #include "rasterize.h"
 #include "raycast.h"
 
@@ -32,45 +32,13 @@ std::shared_ptr<RTCDeviceTy> shared_device() {
   return device;
 }
 
-int find_part(std::vector<int>& parent, int v) {
-  while (parent[v] != v) v = parent[v] = parent[parent[v]];
-  return v;
-}
-
-// Per triangle: whether its part (triangles joined by shared vertices) is closed, every edge of
-// it used by exactly two triangles. One stray open triangle does not open the other parts.
-std::vector<std::uint8_t> closed_parts(const TriangleMesh& mesh) {
-  std::vector<int> parent(mesh.vertices.size());
-  for (std::size_t v = 0; v < parent.size(); ++v) parent[v] = int(v);
-  for (const auto& t : mesh.triangles) {
-    parent[find_part(parent, t[1])] = find_part(parent, t[0]);
-    parent[find_part(parent, t[2])] = find_part(parent, t[0]);
-  }
-  std::map<std::pair<int, int>, int> edge_count;
-  for (const auto& t : mesh.triangles) {
-    for (int k = 0; k < 3; ++k) {
-      const int a = t[k], b = t[(k + 1) % 3];
-      ++edge_count[{std::min(a, b), std::max(a, b)}];
-    }
-  }
-  std::vector<std::uint8_t> open_part(mesh.vertices.size(), 0);  // by part root
-  for (const auto& [edge, count] : edge_count) {
-    if (count != 2) open_part[find_part(parent, edge.first)] = 1;
-  }
-  std::vector<std::uint8_t> closed(mesh.triangles.size());
-  for (std::size_t t = 0; t < closed.size(); ++t) {
-    closed[t] = !open_part[find_part(parent, mesh.triangles[t][0])];
-  }
-  return closed;
-}
-
 }  // namespace
 
 struct ObjectShape::Impl {
   std::shared_ptr<RTCDeviceTy> device;
   RTCScene scene = nullptr;
   std::vector<Eigen::Vector3f> face_normals;  // (v1 - v0) x (v2 - v0): outward for CCW
-  std::vector<std::uint8_t> closed_part;      // per triangle: its part is closed
+  std::vector<std::uint8_t> closed_part;      // per triangle: its surface is closed
   TriangleClusters clusters;                  // for rasterizing the triangles near the gel
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -83,7 +51,11 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
     throw InputError("ObjectShape: empty mesh");
   }
   bounds_ = mesh_bounds(mesh_);
-  impl_->closed_part = closed_parts(mesh_);
+  const Surfaces surfaces = find_surfaces(mesh_.triangles);
+  impl_->closed_part.resize(mesh_.triangles.size());
+  for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
+    impl_->closed_part[t] = surfaces.closed[surfaces.of_triangle[t]];
+  }
   closed_ = std::all_of(impl_->closed_part.begin(), impl_->closed_part.end(),
                         [](std::uint8_t c) { return c != 0; });
   any_closed_ = std::any_of(impl_->closed_part.begin(), impl_->closed_part.end(),

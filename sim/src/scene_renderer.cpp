@@ -9,7 +9,9 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <optional>
 
 #include "pg/core/error.h"
@@ -322,14 +324,19 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   });
   for (auto& w : writers) w->finish();
   if (renderer.sensor_count() > 1) {
-    try {
-      for (const std::string& earlier : sensor_dataset_dirs(out_dir)) {
-        const bool kept = std::any_of(dirs.begin(), dirs.end(), [&](const std::string& d) {
-          return fs::equivalent(d, earlier, ec);
-        });
-        if (!kept && fs::exists(earlier, ec)) summary.earlier_sensor_dirs.push_back(earlier);
+    // The earlier render's list, read leniently: it is replaced below, whatever it holds.
+    std::ifstream earlier_index(fs::path(out_dir) / kSensorIndexFile);
+    const auto earlier = nlohmann::json::parse(earlier_index, nullptr, false);
+    if (earlier.is_object() && earlier.contains("sensors") && earlier["sensors"].is_array()) {
+      for (const auto& name : earlier["sensors"]) {
+        if (!name.is_string()) continue;
+        const auto known = std::find_if(scene.sensors.begin(), scene.sensors.end(),
+                                        [&](const auto& s) { return s.name == name; });
+        const fs::path folder = fs::path(out_dir) / name.get<std::string>();
+        if (known == scene.sensors.end() && fs::is_directory(folder, ec)) {
+          summary.earlier_sensor_dirs.push_back(folder.string());
+        }
       }
-    } catch (const InputError&) {  // a malformed earlier list: replaced below
     }
     std::vector<std::string> names;
     for (const auto& sensor : scene.sensors) names.push_back(sensor.name);

@@ -606,8 +606,8 @@ TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
   EXPECT_EQ(report.triangles_turned_to_match, 2);
   EXPECT_EQ(report.inside_out_parts_turned, 0);
   EXPECT_EQ(err, "warning: " + path +
-                     ": 2 triangle(s) faced against their neighbours (corners in the other "
-                     "order); turned them to match\n");
+                     ": 2 triangle(s) faced against the rest of their surface (corners in the "
+                     "other order); turned them to match\n");
   EXPECT_EQ(unpaired_edges(mesh), 0);
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     const Eigen::Vector3i& a = mesh.triangles[t];
@@ -616,7 +616,8 @@ TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
                 a == Eigen::Vector3i(b[2], b[0], b[1]))
         << "triangle " << t << ": " << a.transpose() << " against " << b.transpose();
   }
-  // Most triangles flipped: the few right ones are turned, then the closed part outward.
+  // Most triangles flipped: a closed surface faces outward, so the many wrong ones are turned
+  // (counted against the file), not the few right ones.
   std::string mostly = kCubeVertices;
   for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
     const auto& f = kCubeFaces[i];
@@ -625,8 +626,8 @@ TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
   ::testing::internal::CaptureStderr();
   const TriangleMesh turned = load_mesh(write("mostly.obj", mostly), 1.0, &report);
   ::testing::internal::GetCapturedStderr();
-  EXPECT_EQ(report.triangles_turned_to_match, 3);
-  EXPECT_EQ(report.inside_out_parts_turned, 1);
+  EXPECT_EQ(report.triangles_turned_to_match, 9);
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
   EXPECT_NEAR(signed_volume(turned), 1.0, 1e-9);
   // A Moebius strip of four quads has no consistent orientation: left as it was.
   std::string strip;  // rung i: its two ends, the rung turned by half of i's angle
@@ -652,6 +653,30 @@ TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
   EXPECT_EQ(moebius.triangles[0], Eigen::Vector3i(0, 1, 3));
 }
 
+// A double-sided export (every face again, reversed) or a body listed twice loads as one closed
+// surface: the repeated triangles are dropped with a warning (welded, every edge had four
+// triangles: no closed surface, so a deep press rendered a hole).
+TEST_F(MeshIoTest, RepeatedTrianglesAreDroppedSoTheSurfaceStaysClosed) {
+  std::string twice = kCubeVertices, doubled = kCubeVertices;
+  for (const auto& f : kCubeFaces) twice += obj_face(f[0], f[1], f[2]);
+  for (const auto& f : kCubeFaces) twice += obj_face(f[1], f[2], f[0]);  // the same, rotated
+  for (const auto& f : kCubeFaces) doubled += obj_face(f[0], f[2], f[1]) + obj_face(f[0], f[1], f[2]);
+  for (const auto& [name, text] : {std::pair<std::string, std::string>{"twice.obj", twice},
+                                   {"doubled.obj", doubled}}) {
+    MeshLoadReport report;
+    const std::string path = write(name, text);
+    ::testing::internal::CaptureStderr();
+    const TriangleMesh mesh = load_mesh(path, 1.0, &report);
+    const std::string err = ::testing::internal::GetCapturedStderr();
+    EXPECT_EQ(report.duplicate_triangles_dropped, 12) << name;
+    EXPECT_TRUE(Contains(err, path + ": dropped 12 triangle(s) with the same three corners as "
+                                      "another")) << err;
+    EXPECT_EQ(mesh.triangles.size(), 12u) << name;
+    EXPECT_EQ(unpaired_edges(mesh), 0) << name;
+    EXPECT_NEAR(signed_volume(mesh), 1.0, 1e-9) << name;  // the doubled file's inward copy first
+  }
+}
+
 // A zero-area sliver that closes a T-junction (a CAD export's way of splitting an edge) is
 // dropped, and the triangle across its long edge is split at its middle corner, so that the
 // surface stays closed (dropping it alone had opened the mesh).
@@ -671,6 +696,20 @@ TEST_F(MeshIoTest, ASliversNeighbourIsSplitSoTheSurfaceStaysClosed) {
   EXPECT_EQ(mesh.triangles.size(), 14u);  // 15 - the sliver + one more half
   EXPECT_EQ(unpaired_edges(mesh), 0);
   EXPECT_NEAR(signed_volume(mesh), 1.0, 1e-9);
+  // Two corners on the diagonal (p at a quarter, m at half), two chained slivers, the shorter
+  // listed first: (3 m p) closes m-3 against p, (3 p 1) closes 1-3 against the second triangle.
+  std::string chained = std::string(kCubeVertices) + "v 0.5 0.5 0\nv 0.75 0.75 0\n";  // m, p
+  chained += obj_face(1, 9, 2) + obj_face(9, 10, 2) + obj_face(10, 3, 2) + obj_face(3, 10, 9) +
+             obj_face(3, 9, 1);
+  for (std::size_t i = 1; i < kCubeFaces.size(); ++i) {
+    chained += obj_face(kCubeFaces[i][0], kCubeFaces[i][1], kCubeFaces[i][2]);
+  }
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh two = load_mesh(write("chained.obj", chained), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.degenerate_triangles_dropped, 2);
+  EXPECT_EQ(unpaired_edges(two), 0);
+  EXPECT_NEAR(signed_volume(two), 1.0, 1e-9);
 }
 
 TEST_F(MeshIoTest, AFileThatIsNotARegularFileIsRefused) {

@@ -451,15 +451,20 @@ TEST(RenderBadInput, PenetrationBeyondTheGelIsClampedAndCounted) {
   for (const auto& p : points) ASSERT_NEAR(p.norm(), kRadius, 2e-6);
 }
 
-// Closedness is a part's own: a stray open triangle elsewhere in the file (a label, a leftover
-// of the export) leaves the sphere's deep press as the sphere alone renders it, clamped at the
-// gel's limit (the whole mesh had counted as open: a ring around a hole, no clamping).
+// Closedness is a surface's own (triangles joined by edges): stray open triangles elsewhere in the
+// file (a label, a leftover of the export), even one touching the sphere at a corner, leave the
+// sphere's deep press as the sphere alone renders it, clamped at the gel's limit (the whole mesh
+// had counted as open: a ring around a hole, no clamping).
 TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
   TriangleMesh mesh = make_uv_sphere(float(kRadius), 90, 180);
   const int n = int(mesh.vertices.size());
+  // One stray triangle apart, one hanging from the sphere's top pole (a corner shared).
   mesh.vertices.insert(mesh.vertices.end(),
-                       {{0.0f, 0.0f, 0.02f}, {0.001f, 0.0f, 0.02f}, {0.0f, 0.001f, 0.02f}});
+                       {{0.0f, 0.0f, 0.02f}, {0.001f, 0.0f, 0.02f}, {0.0f, 0.001f, 0.02f},
+                        {0.001f, 0.0f, 0.01f}, {0.0f, 0.001f, 0.01f}});
   mesh.triangles.emplace_back(n, n + 1, n + 2);
+  ASSERT_NEAR(mesh.vertices[0].z(), float(kRadius), 1e-7f);
+  mesh.triangles.emplace_back(0, n + 3, n + 4);
   const auto stray = std::make_shared<ObjectShape>(mesh);
   EXPECT_FALSE(stray->closed());
   EXPECT_TRUE(stray->any_part_closed());

@@ -296,11 +296,18 @@ int run_model_info(const ModelInfoArgs& a) {
   // A fine-tuned model's starting points, back to the one trained from random weights.
   auto base = nlohmann::json::parse(i.fine_tuned_from_json.empty() ? "null" : i.fine_tuned_from_json,
                                     nullptr, false);
-  for (; base.is_object(); base = base.value("fine_tuned_from", nlohmann::json())) {
-    const auto data = base.value("training_data", std::vector<std::string>());
-    std::printf("from      %s, %d epoch(s) on %zu dataset(s):\n",
-                base.value("model", std::string("?")).c_str(), base.value("epochs", 0), data.size());
-    for (const std::string& dir : data) std::printf("            %s\n", dir.c_str());
+  for (; base.is_object(); base = base.contains("fine_tuned_from") ? base["fine_tuned_from"]
+                                                                    : nlohmann::json()) {
+    const auto field = [&](const char* key) { return base.contains(key) ? base[key] : nlohmann::json(); };
+    const nlohmann::json model_file = field("model"), epochs = field("epochs"),
+                         data = field("training_data");
+    std::printf("from      %s, %s epoch(s) on %s dataset(s):\n",
+                model_file.is_string() ? model_file.get<std::string>().c_str() : "?",
+                epochs.is_number_integer() ? std::to_string(epochs.get<int>()).c_str() : "?",
+                data.is_array() ? std::to_string(data.size()).c_str() : "?");
+    for (const auto& dir : data.is_array() ? data : nlohmann::json::array()) {
+      if (dir.is_string()) std::printf("            %s\n", dir.get<std::string>().c_str());
+    }
   }
   const auto history = nlohmann::json::parse(i.history_json, nullptr, false);
   if (history.is_array() && !history.empty()) {

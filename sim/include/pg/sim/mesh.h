@@ -13,18 +13,22 @@ struct TriangleMesh {
 };
 
 struct MeshLoadReport {
+  int vertices_welded = 0;               // at the position of an earlier vertex (not warned)
   int degenerate_triangles_dropped = 0;  // zero-area or repeated-index triangles
-  int triangles_turned_to_match = 0;     // faced against their neighbours on one surface
-  int inside_out_parts_turned = 0;       // closed parts whose triangles all faced inward
+  int duplicate_triangles_dropped = 0;   // the same three corners as an earlier triangle
+  int triangles_turned_to_match = 0;     // faced against the rest of their surface
+  int inside_out_parts_turned = 0;       // closed surfaces whose triangles all faced inward
 };
 
 // Loads a mesh and multiplies its vertices by `scale`. Throws pg::InputError naming the file for:
 // a missing/unreadable file, an unknown extension, an empty mesh, NaN/inf vertices, out-of-range
-// indices, a path that is not a regular file. Vertices at identical positions become one (split
-// vertices of flat-shaded exports); degenerate triangles are dropped (a sliver's neighbour split
-// so that a closed surface stays closed); triangles that face against the rest of their surface
-// are turned to match it; a closed part whose triangles all face inward is turned outward. Each
-// repair is counted in `report`, and a warning is printed to stderr when it changed anything.
+// indices, a path that is not a regular file. Vertices at identical positions become one (the
+// split vertices of flat-shaded exports; counted, not warned); degenerate triangles are dropped (a
+// sliver's neighbour split at its middle corner, so that a closed surface stays closed), and so
+// are triangles repeating an earlier one's corners; each surface (triangles joined by edges) is
+// oriented: triangles facing against the rest of it are turned to match, and a closed surface
+// facing inward is turned outward. Each of these is counted in `report`, and a warning is printed
+// to stderr when it changed anything.
 TriangleMesh load_mesh(const std::string& path, double scale = 1.0,
                        MeshLoadReport* report = nullptr);
 

@@ -23,9 +23,9 @@ class ObjectShape {
 
   const TriangleMesh& mesh() const { return mesh_; }
   const Bounds3& bounds() const { return bounds_; }
-  // Every part (triangles joined by shared vertices) closed: each edge shared by exactly two
-  // triangles. A ray that starts inside a closed part is recognised (its first hit faces away)
-  // and counts as full penetration; an open part counts only where its surface is.
+  // Every surface (triangles joined by shared edges) closed: each edge shared by exactly two
+  // triangles. A ray that starts inside a closed surface is recognised (its first hit faces
+  // away) and counts as full penetration; an open one counts only where it is.
   bool closed() const { return closed_; }
   bool any_part_closed() const { return any_closed_; }
 
