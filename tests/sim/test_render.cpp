@@ -512,6 +512,41 @@ TEST(RenderBadInput, ABackgroundOfAnotherShapeIsRefused) {
   std::filesystem::remove(path);
 }
 
+// A real background takes the imprint through a Gaussian of background_blur_m: 0 is no blur,
+// and a larger sigma spreads the imprint wider and flatter (a sigma of 0 had still blurred, as a
+// box of radius 1: at 120x160 the same images as the 0.2 mm default).
+TEST(RenderColor, TheRealBackgroundsBlurIsTheSigmaGiven) {
+  const std::string path = (std::filesystem::temp_directory_path() /
+                            ("pg_test_grey_bg_" + std::to_string(::getpid()) + ".png"))
+                               .string();
+  write_image(path, ImageU8(120, 160, 3, 128));
+  RenderSettings s = quiet_settings();
+  s.background = path;
+  const auto imprint = [&](double blur_m) {
+    SensorModel sensor = flat_digit("digit");
+    sensor.shading.background_blur_m = blur_m;
+    const RenderedFrame f =
+        SensorRenderer(sensor, {sphere_shape()}, s).render({pressed_sphere()}, 0);
+    double energy = 0.0;
+    int changed = 0;
+    for (std::uint8_t v : f.images.color.data) {
+      energy += (v - 128.0) * (v - 128.0);
+      changed += v != 128;
+    }
+    return std::make_pair(energy, changed);
+  };
+  const auto [sharp, sharp_pixels] = imprint(0.0);
+  const auto [soft, soft_pixels] = imprint(0.0002);
+  const auto [softer, softer_pixels] = imprint(0.0005);
+  std::filesystem::remove(path);
+  std::printf("imprint energy / changed channel values: blur 0 %.4g / %d, 0.2 mm %.4g / %d, "
+              "0.5 mm %.4g / %d\n", sharp, sharp_pixels, soft, soft_pixels, softer, softer_pixels);
+  EXPECT_GT(sharp, soft);
+  EXPECT_GT(soft, softer);
+  EXPECT_LT(sharp_pixels, soft_pixels);
+  EXPECT_LT(soft_pixels, softer_pixels);
+}
+
 TEST(RenderOutputs, UnrequestedOutputsAreEmptyAndContactPointsLieOnTheObject) {
   RenderSettings s = quiet_settings();
   s.color = false;
