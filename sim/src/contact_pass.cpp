@@ -114,9 +114,8 @@ long SensorRenderer::State::near_gel_pixels(const SlabClusters& slab, const Pixe
 }
 
 // Fine pass: keeps the deepest penetration over objects at pixel i, from a first hit at camera
-// depth t (`inside`: the hit faces away on a closed part, so the ray started inside).
-void SensorRenderer::State::record_hit(Workspace& ws, int i, int obj, float t,
-                                       bool inside) const {
+// depth t (`inside`: the hit faces away on a closed surface, so the ray started inside).
+void SensorRenderer::State::record_hit(Workspace& ws, int i, int obj, float t, bool inside) const {
   const float pen = inside ? std::numeric_limits<float>::infinity() : gel.t_gel[i] - t;
   if (pen <= 0.0f || pen <= ws.rigid[i]) return;
   ws.rigid[i] = pen;
@@ -150,9 +149,9 @@ void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vect
     for (int obj : objs) {
       const ObjectShape& shape = *objects[obj];
       for (int k = 0; k < rays.count; ++k) {
-        // A closed part needs its first surface beyond the gel too, to tell inside from outside.
+        // A closed surface needs its first hit beyond the gel too, to tell inside from outside.
         rays.tfar[k] = shape.any_part_closed() ? std::numeric_limits<float>::infinity()
-                                      : gel.t_gel[pixels[start + k]] + extra;
+                                               : gel.t_gel[pixels[start + k]] + extra;
       }
       intersect(shape, poses[obj], rays, hits);
       stats.rays_cast += rays.count;

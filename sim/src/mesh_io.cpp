@@ -157,10 +157,9 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
         .cast<double>()
         .squaredNorm();
   };
-  std::stable_sort(slivers.begin(), slivers.end(), [&](const Eigen::Vector3i& a,
-                                                      const Eigen::Vector3i& b) {
-    return length(a) > length(b);
-  });
+  std::stable_sort(
+      slivers.begin(), slivers.end(),
+      [&](const Eigen::Vector3i& a, const Eigen::Vector3i& b) { return length(a) > length(b); });
   if (!slivers.empty()) {
     EdgeTriangles by_edge = triangles_by_edge(kept);
     const auto edges_of = [&](int t, bool add) {
@@ -181,7 +180,8 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
       int k = 0;
       while (undirected_edge(t[k], t[(k + 1) % 3]) != undirected_edge(sliver[0], sliver[2])) ++k;
       const int b = sliver[1];
-      const Eigen::Vector3i first(t[k], b, t[(k + 2) % 3]), second(b, t[(k + 1) % 3], t[(k + 2) % 3]);
+      const Eigen::Vector3i first(t[k], b, t[(k + 2) % 3]),
+          second(b, t[(k + 1) % 3], t[(k + 2) % 3]);
       if (is_degenerate(mesh, first) || is_degenerate(mesh, second)) continue;
       edges_of(u, false);
       kept[u] = first;

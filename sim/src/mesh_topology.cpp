@@ -34,7 +34,8 @@ Surfaces find_surfaces(const std::vector<Eigen::Vector3i>& triangles) {
   std::vector<int> parent(triangles.size());
   std::iota(parent.begin(), parent.end(), 0);
   for (const auto& [edge, on] : by_edge) {
-    for (std::size_t k = 1; k < on.size(); ++k) parent[find_root(parent, on[k])] = find_root(parent, on[0]);
+    for (std::size_t k = 1; k < on.size(); ++k)
+      parent[find_root(parent, on[k])] = find_root(parent, on[0]);
   }
   Surfaces s;
   s.of_triangle.assign(triangles.size(), -1);

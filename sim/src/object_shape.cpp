@@ -8,8 +8,8 @@
 #include <utility>
 #include <vector>
 
-#include "pg/core/error.h"
 #include "mesh_topology.h"
+#include "pg/core/error.h"
 #include "rasterize.h"
 #include "raycast.h"
 

@@ -21,7 +21,7 @@ struct RayPacket {
 
 struct PacketHits {
   float t[kPacket];           // +inf where no hit
-  // The hit is a face of a closed part turned away from the ray: the ray started inside it.
+  // The hit is a face of a closed surface turned away from the ray: the ray started inside it.
   bool inside[kPacket];
 };
 

@@ -208,8 +208,8 @@ TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
   EXPECT_EQ(from.at("training_data"), std::vector<std::string>{train_});
   EXPECT_FALSE(from.contains("fine_tuned_from"));
   one_epoch(tmp_->str("tuned.pt"), "twice.pt");
-  const auto twice =
-      nlohmann::json::parse(NormalEstimator::load(tmp_->str("twice.pt")).info().fine_tuned_from_json);
+  const auto twice = nlohmann::json::parse(
+      NormalEstimator::load(tmp_->str("twice.pt")).info().fine_tuned_from_json);
   EXPECT_EQ(twice.at("model"), fs::canonical(tmp_->str("tuned.pt")).string());
   EXPECT_EQ(twice.at("epochs"), 1);
   EXPECT_EQ(twice.at("fine_tuned_from"), from);
@@ -218,9 +218,9 @@ TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
   ASSERT_EQ(info.code, 0) << info.out;
   EXPECT_NE(info.out.find("trained   1 epoch(s) on 1 dataset(s):\n            " + train_ +
                           "\nfrom      " + fs::canonical(tmp_->str("tuned.pt")).string() +
-                          ", 1 epoch(s) on 1 dataset(s):\n            " + train_ +
-                          "\nfrom      " + fs::canonical(base).string() + ", " +
-                          std::to_string(trained.size()) + " epoch(s) on 1 dataset(s):\n"),
+                          ", 1 epoch(s) on 1 dataset(s):\n            " + train_ + "\nfrom      " +
+                          fs::canonical(base).string() + ", " + std::to_string(trained.size()) +
+                          " epoch(s) on 1 dataset(s):\n"),
             std::string::npos)
       << info.out;
 

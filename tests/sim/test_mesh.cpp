@@ -134,8 +134,8 @@ TEST_F(MeshIoTest, AsciiStlWeldsSharedCorners) {
   expect_vertex(mesh, 3, {0, 1.5f, 0});
   // Keywords in capitals, as some exporters write them (read as no vertices before).
   std::string upper = read_bytes(path);
-  for (const char* word : {"solid", "facet", "normal", "outer", "loop", "vertex", "endloop",
-                           "endfacet", "endsolid"}) {
+  for (const char* word :
+       {"solid", "facet", "normal", "outer", "loop", "vertex", "endloop", "endfacet", "endsolid"}) {
     const std::string w = word;
     std::string W = w;
     for (char& c : W) c = char(std::toupper(static_cast<unsigned char>(c)));
@@ -660,9 +660,10 @@ TEST_F(MeshIoTest, RepeatedTrianglesAreDroppedSoTheSurfaceStaysClosed) {
   std::string twice = kCubeVertices, doubled = kCubeVertices;
   for (const auto& f : kCubeFaces) twice += obj_face(f[0], f[1], f[2]);
   for (const auto& f : kCubeFaces) twice += obj_face(f[1], f[2], f[0]);  // the same, rotated
-  for (const auto& f : kCubeFaces) doubled += obj_face(f[0], f[2], f[1]) + obj_face(f[0], f[1], f[2]);
-  for (const auto& [name, text] : {std::pair<std::string, std::string>{"twice.obj", twice},
-                                   {"doubled.obj", doubled}}) {
+  for (const auto& f : kCubeFaces)
+    doubled += obj_face(f[0], f[2], f[1]) + obj_face(f[0], f[1], f[2]);
+  for (const auto& [name, text] :
+       {std::pair<std::string, std::string>{"twice.obj", twice}, {"doubled.obj", doubled}}) {
     MeshLoadReport report;
     const std::string path = write(name, text);
     ::testing::internal::CaptureStderr();
@@ -670,7 +671,8 @@ TEST_F(MeshIoTest, RepeatedTrianglesAreDroppedSoTheSurfaceStaysClosed) {
     const std::string err = ::testing::internal::GetCapturedStderr();
     EXPECT_EQ(report.duplicate_triangles_dropped, 12) << name;
     EXPECT_TRUE(Contains(err, path + ": dropped 12 triangle(s) with the same three corners as "
-                                      "another")) << err;
+                                     "another"))
+        << err;
     EXPECT_EQ(mesh.triangles.size(), 12u) << name;
     EXPECT_EQ(unpaired_edges(mesh), 0) << name;
     EXPECT_NEAR(signed_volume(mesh), 1.0, 1e-9) << name;  // the doubled file's inward copy first

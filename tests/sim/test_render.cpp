@@ -459,9 +459,11 @@ TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
   TriangleMesh mesh = make_uv_sphere(float(kRadius), 90, 180);
   const int n = int(mesh.vertices.size());
   // One stray triangle apart, one hanging from the sphere's top pole (a corner shared).
-  mesh.vertices.insert(mesh.vertices.end(),
-                       {{0.0f, 0.0f, 0.02f}, {0.001f, 0.0f, 0.02f}, {0.0f, 0.001f, 0.02f},
-                        {0.001f, 0.0f, 0.01f}, {0.0f, 0.001f, 0.01f}});
+  mesh.vertices.insert(mesh.vertices.end(), {{0.0f, 0.0f, 0.02f},
+                                             {0.001f, 0.0f, 0.02f},
+                                             {0.0f, 0.001f, 0.02f},
+                                             {0.001f, 0.0f, 0.01f},
+                                             {0.0f, 0.001f, 0.01f}});
   mesh.triangles.emplace_back(n, n + 1, n + 2);
   ASSERT_NEAR(mesh.vertices[0].z(), float(kRadius), 1e-7f);
   mesh.triangles.emplace_back(0, n + 3, n + 4);
@@ -539,8 +541,10 @@ TEST(RenderColor, TheRealBackgroundsBlurIsTheSigmaGiven) {
   const auto [soft, soft_pixels] = imprint(0.0002);
   const auto [softer, softer_pixels] = imprint(0.0005);
   std::filesystem::remove(path);
-  std::printf("imprint energy / changed channel values: blur 0 %.4g / %d, 0.2 mm %.4g / %d, "
-              "0.5 mm %.4g / %d\n", sharp, sharp_pixels, soft, soft_pixels, softer, softer_pixels);
+  std::printf(
+      "imprint energy / changed channel values: blur 0 %.4g / %d, 0.2 mm %.4g / %d, "
+      "0.5 mm %.4g / %d\n",
+      sharp, sharp_pixels, soft, soft_pixels, softer, softer_pixels);
   EXPECT_GT(sharp, soft);
   EXPECT_GT(soft, softer);
   EXPECT_LT(sharp_pixels, soft_pixels);

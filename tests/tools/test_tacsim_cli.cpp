@@ -318,9 +318,9 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   const CliRun again =
       tacsim("render " + tmp.str("renamed.json") + " -q --outputs mask --out " + tmp.str("d"));
   ASSERT_EQ(again.code, 0) << again.out;
-  EXPECT_EQ(sensor_dataset_dirs(tmp.str("d")),
-            (std::vector<std::string>{tmp.str("d") + "/digit_bottom",
-                                      tmp.str("d") + "/digit_upper"}));
+  EXPECT_EQ(
+      sensor_dataset_dirs(tmp.str("d")),
+      (std::vector<std::string>{tmp.str("d") + "/digit_bottom", tmp.str("d") + "/digit_upper"}));
   EXPECT_NE(again.out.find("note: " + tmp.str("d") + "/digit_top, from an earlier render into " +
                            tmp.str("d") + ", is not a sensor of this scene: left as it was"),
             std::string::npos)
@@ -626,8 +626,9 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   // The command it suggests runs as printed, whatever the scene's name.
   r = tacsim(args + " --out \"" + tmp.str("it's mine.json") + "\"");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("render it: tacsim render '" + tmp.str("it'\\''s mine.json") + "' --out DIR"),
-            std::string::npos)
+  EXPECT_NE(
+      r.out.find("render it: tacsim render '" + tmp.str("it'\\''s mine.json") + "' --out DIR"),
+      std::string::npos)
       << r.out;
 
   // Bad option values are usage errors (exit 2), a file that cannot be read an input error (1).

@@ -294,11 +294,13 @@ int run_model_info(const ModelInfoArgs& a) {
   std::printf("trained   %d epoch(s) on %zu dataset(s):\n", i.epochs, i.training_data.size());
   for (const std::string& dir : i.training_data) std::printf("            %s\n", dir.c_str());
   // A fine-tuned model's starting points, back to the one trained from random weights.
-  auto base = nlohmann::json::parse(i.fine_tuned_from_json.empty() ? "null" : i.fine_tuned_from_json,
-                                    nullptr, false);
-  for (; base.is_object(); base = base.contains("fine_tuned_from") ? base["fine_tuned_from"]
-                                                                    : nlohmann::json()) {
-    const auto field = [&](const char* key) { return base.contains(key) ? base[key] : nlohmann::json(); };
+  auto base = nlohmann::json::parse(
+      i.fine_tuned_from_json.empty() ? "null" : i.fine_tuned_from_json, nullptr, false);
+  for (; base.is_object();
+       base = base.contains("fine_tuned_from") ? base["fine_tuned_from"] : nlohmann::json()) {
+    const auto field = [&](const char* key) {
+      return base.contains(key) ? base[key] : nlohmann::json();
+    };
     const nlohmann::json model_file = field("model"), epochs = field("epochs"),
                          data = field("training_data");
     std::printf("from      %s, %s epoch(s) on %s dataset(s):\n",

@@ -55,8 +55,7 @@ int run_render(const RenderArgs& a) {
   if (a.out.empty()) throw InputError("--out: empty; give the dataset's folder");
   RenderOverrides overrides;
   overrides.outputs = split_list(a.outputs);
-  if (a.outputs_given)
-    as_usage_error([&] { check_output_names(overrides.outputs, "--outputs"); });
+  if (a.outputs_given) as_usage_error([&] { check_output_names(overrides.outputs, "--outputs"); });
   overrides.width = a.width;
   overrides.height = a.height;
   overrides.background = a.background;
@@ -116,9 +115,10 @@ int run_render(const RenderArgs& a) {
       s.frames / std::max(s.seconds, 1e-9), a.out.c_str(), bytes / 1e6);
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
   for (const std::string& earlier : s.earlier_sensor_dirs) {
-    std::printf("note: %s, from an earlier render into %s, is not a sensor of this scene: left as "
-                "it was, no longer in %s/sensors.json\n",
-                earlier.c_str(), a.out.c_str(), a.out.c_str());
+    std::printf(
+        "note: %s, from an earlier render into %s, is not a sensor of this scene: left as "
+        "it was, no longer in %s/sensors.json\n",
+        earlier.c_str(), a.out.c_str(), a.out.c_str());
   }
   std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
   if (s.contact_frames == 0) {

@@ -91,7 +91,8 @@ int run_presses(const PressesArgs& a) {
   };
   if (extent.minCoeff() <= max_depth) {
     throw scale_slip(1e-3, "mm",
-                     "no thicker than the deepest press (" + format_number(1e3 * max_depth, "%.3g") +
+                     "no thicker than the deepest press (" +
+                         format_number(1e3 * max_depth, "%.3g") +
                          " mm): it would sink into the gel whole");
   }
   if (extent.maxCoeff() > 1.0) {
