@@ -198,22 +198,26 @@ void train_normals(const TrainOptions& options,
     }
     o.spec = init.spec;
   }
-  // Settings of the other networks given to the MLP (or its to them) would be silently ignored.
-  // (Compared with the defaults, as the arch of an --init model is known only here; a GAN weight
-  // of 0 is what the MLP trains with anyway.)
+  // Settings of the other networks given to the MLP (or its to them) would be silently ignored:
+  // refused when given or not at their defaults (checked here, as the arch of an --init model is
+  // known only here; a GAN weight of 0 is what the MLP trains with anyway).
   const TrainOptions defaults;
+  const auto set = [&](const char* option, bool differs) {
+    return differs || std::find(o.given.begin(), o.given.end(), option) != o.given.end();
+  };
   const bool mlp = o.spec.arch == "mlp";
-  if (mlp && (o.l1_weight != defaults.l1_weight ||
-              (o.gan_weight != defaults.gan_weight && o.gan_weight != 0))) {
+  if (mlp && (set("--l1-weight", o.l1_weight != defaults.l1_weight) ||
+              (o.gan_weight != 0 && set("--gan-weight", o.gan_weight != defaults.gan_weight)))) {
     throw InputError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
                      ": the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
                      "--gan-weight do not apply to it");
   }
   if (o.init_model.empty() && mlp &&
-      (o.spec.depth != defaults.spec.depth || o.spec.base_width != defaults.spec.base_width)) {
+      (set("--depth", o.spec.depth != defaults.spec.depth) ||
+       set("--width", o.spec.base_width != defaults.spec.base_width))) {
     throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
   }
-  if (o.init_model.empty() && !mlp && o.spec.mlp_hidden != defaults.spec.mlp_hidden) {
+  if (o.init_model.empty() && !mlp && set("--hidden", o.spec.mlp_hidden != defaults.spec.mlp_hidden)) {
     throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
   }
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");

@@ -388,6 +388,18 @@ TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
   unet.spec.mlp_hidden = 8;
   EXPECT_NE(input_error_message([&] { train_normals(unet); }).find("--hidden applies to the MLP"),
             std::string::npos);
+  // Given explicitly, at its default value: refused as well (it had passed without a word).
+  mlp.l1_weight = TrainOptions().l1_weight;
+  mlp.given = {"--gan-weight"};
+  EXPECT_NE(input_error_message([&] { train_normals(mlp); }).find("--gan-weight do not apply"),
+            std::string::npos);
+  mlp.gan_weight = 0;  // what the MLP trains with: allowed, given or not
+  mlp.epochs = 1;
+  EXPECT_EQ(input_error_message([&] { train_normals(mlp); }), "");
+  unet.spec.mlp_hidden = NetworkSpec().mlp_hidden;
+  unet.given = {"--hidden"};
+  EXPECT_NE(input_error_message([&] { train_normals(unet); }).find("--hidden applies to the MLP"),
+            std::string::npos);
 }
 
 // Gel-relative labels: the network learns normals in each pixel's undeformed-gel frame and the

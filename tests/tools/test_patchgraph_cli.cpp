@@ -131,6 +131,12 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
           "/proc/m.json: cannot write (No such file or directory)\n");
   refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
           "given twice");
+  // An option the chosen network ignores is refused even at its default value.
+  refused("train-normals --data " + data() + " --arch mlp --gan-weight 1 --out " + out("m.pt"), 1,
+          "--arch mlp: the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
+          "--gan-weight do not apply to it");
+  refused("train-normals --data " + data() + " --hidden 32 --out " + out("m.pt"), 1,
+          "--arch unet: --hidden applies to the MLP only");
   // Fine-tuning takes the starting model's network, and does not write over it.
   refused("train-normals --data " + data() + " --init " + model + " --width 8 --out " + out("m.pt"),
           2, "--width excludes --init");

@@ -309,7 +309,12 @@ int main(int argc, char** argv) {
   CLI::App* cmd_label_ball = add_label_ball_command(app, label_ball_args);
 
   return run_cli(app, argc, argv, [&]() -> int {
-    if (cmd_train_normals->parsed()) return run_train_normals(train_normals_args);
+    if (cmd_train_normals->parsed()) {
+      for (const char* option : {"--l1-weight", "--gan-weight", "--depth", "--width", "--hidden"}) {
+        if (cmd_train_normals->count(option) > 0) train_normals_args.options.given.push_back(option);
+      }
+      return run_train_normals(train_normals_args);
+    }
     if (cmd_eval_normals->parsed()) return run_eval_normals(eval_normals_args);
     if (cmd_model_info->parsed()) return run_model_info(model_info_args);
     if (cmd_recording->parsed()) return run_recording(recording_args);

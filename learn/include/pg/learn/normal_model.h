@@ -153,6 +153,9 @@ struct TrainOptions {
   // (`spec` is then taken from it; the training images must be of its size and its label frame,
   // `gel_relative`). The discriminator starts afresh. "" = from random weights.
   std::string init_model;
+  // The network options given explicitly ("--l1-weight", "--gan-weight", "--depth", "--width",
+  // "--hidden"), so that one the chosen network ignores is refused even at its default value.
+  std::vector<std::string> given;
 };
 
 struct EpochReport {
