@@ -217,7 +217,8 @@ void train_normals(const TrainOptions& options,
        set("--width", o.spec.base_width != defaults.spec.base_width))) {
     throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
   }
-  if (o.init_model.empty() && !mlp && set("--hidden", o.spec.mlp_hidden != defaults.spec.mlp_hidden)) {
+  if (o.init_model.empty() && !mlp &&
+      set("--hidden", o.spec.mlp_hidden != defaults.spec.mlp_hidden)) {
     throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
   }
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");

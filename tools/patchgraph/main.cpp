@@ -311,7 +311,8 @@ int main(int argc, char** argv) {
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_train_normals->parsed()) {
       for (const char* option : {"--l1-weight", "--gan-weight", "--depth", "--width", "--hidden"}) {
-        if (cmd_train_normals->count(option) > 0) train_normals_args.options.given.push_back(option);
+        if (cmd_train_normals->count(option) > 0)
+          train_normals_args.options.given.push_back(option);
       }
       return run_train_normals(train_normals_args);
     }
