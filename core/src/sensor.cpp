@@ -228,8 +228,47 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
     n.finish();
   }
   f.finish();
-  if (s.gel.sag_m >= s.camera.distance_m - s.camera.near_m) {
-    throw InputError(where + ": gel.sag_m puts the gel behind the camera's near plane");
+  // The geometry the renderer needs: the gel, pressed in as far as it goes, in front of the
+  // camera's near plane, and the lights between the camera and the gel.
+  const auto mm = [](double m) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.4g mm", 1e3 * m);
+    return std::string(text);
+  };
+  const CameraModel& c = s.camera;
+  if (c.near_m >= c.distance_m) {
+    throw InputError(where + ": camera.near_m (" + mm(c.near_m) +
+                     ") must be less than camera.distance_m (" + mm(c.distance_m) + ")");
+  }
+  const double room = c.distance_m - c.near_m;
+  if (s.gel.sag_m >= room) {
+    throw InputError(where + ": gel.sag_m (" + mm(s.gel.sag_m) +
+                     ") puts the gel's corners in front of the camera's near plane "
+                     "(camera.distance_m - camera.near_m = " +
+                     mm(room) + ")");
+  }
+  if (s.gel.max_indentation_m >= room - s.gel.sag_m) {
+    throw InputError(where + ": gel.max_indentation_m (" + mm(s.gel.max_indentation_m) +
+                     "): a press that deep would reach the camera's near plane "
+                     "(camera.distance_m - camera.near_m - gel.sag_m = " +
+                     mm(room - s.gel.sag_m) + ")");
+  }
+  for (std::size_t i = 0; i < s.lights.size(); ++i) {
+    const Eigen::Vector3d& p = s.lights[i].position_m;
+    const std::string field = where + ": lights[" + std::to_string(i) + "].position_m" +
+                              (f.has("lights") ? "" : " (the preset's)");
+    if (!(p.z() > -c.distance_m)) {
+      throw InputError(field + ": z = " + mm(p.z()) +
+                       " is at or behind the camera (z = " + mm(-c.distance_m) +
+                       "); lights sit between the camera and the gel (shadows are traced for "
+                       "those)");
+    }
+    const double surface = s.gel.surface_z(p.x(), p.y());
+    if (!(p.z() < surface)) {
+      throw InputError(field + ": z = " + mm(p.z()) +
+                       " is on or beyond the gel's surface, at z = " + mm(surface) +
+                       " there; lights sit between the camera and the gel");
+    }
   }
   return s;
 }

@@ -153,6 +153,49 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   expect_input_error(parse(R"([1, 2])"), {"cfg.json", "an object"});
   expect_input_error(parse(R"({"lights": [{"position_m": [0, 1e300, 0]}]})"),
                      {"lights[0].position_m", "out of range", "1000 m"});
+  // The geometry the renderer needs, named by the field that breaks it: the near plane before
+  // the camera's distance (the error had blamed a sag of 0), the deepest press in front of it
+  // (one deeper had rendered as no contact, or the gel behind the camera), the lights between
+  // the camera and the curved gel (one behind the camera got shadows of a coarse march; one in
+  // front of the gel's curved surface rendered without a word).
+  expect_input_error(parse(R"({"camera": {"distance_m": 0.0005}, "gel": {"sag_m": 0}})"),
+                     {"camera.near_m (1 mm) must be less than camera.distance_m (0.5 mm)"});
+  expect_input_error(parse(R"({"camera": {"distance_m": 0.005}, "gel": {"sag_m": 0,
+      "max_indentation_m": 0.01}, "lights": [{"position_m": [0, 0, -0.003]}]})"),
+                     {"gel.max_indentation_m (10 mm): a press that deep would reach the camera's "
+                      "near plane (camera.distance_m - camera.near_m - gel.sag_m = 4 mm)"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0.022, 0, -0.023]}]})"),
+                     {"lights[0].position_m: z = -23 mm is at or behind the camera (z = -22 mm)"});
+  expect_input_error(parse(R"({"lights": [{"position_m": [0, 0.0129, -0.001]}]})"),
+                     {"lights[0].position_m: z = -1 mm is on or beyond the gel's surface"});
+  expect_input_error(
+      parse(R"({"camera": {"distance_m": 0.01}})"),
+      {"lights[0].position_m (the preset's): z = -17 mm is at or behind the camera"});
+}
+
+// A strongly curved gel seen at a grazing angle: every pixel's undeformed gel point lies on the
+// gel's surface, the first along its ray (the fixed-point iteration had swung there and left
+// normals up to 79 deg off at the image's corners).
+TEST(SensorConfig, AStronglyCurvedGelIsFoundAlongEveryRay) {
+  const SensorModel s = sensor_from_json(
+      nlohmann::json::parse(R"({"gel": {"sag_m": 0.02, "max_indentation_m": 0.0005},
+          "lights": [{"position_m": [0.005, 0, -0.01]}]})"),
+      "cfg");
+  double worst = 0.0;
+  for (int y = 0; y < s.camera.height; ++y) {
+    for (int x = 0; x < s.camera.width; ++x) {
+      const Eigen::Vector3d p = undeformed_gel_point(s.camera, s.gel, x, y);
+      worst = std::max(worst, std::abs(p.z() - s.gel.surface_z(p.x(), p.y())));
+      // The ray is in front of the surface (on the camera's side, z below it) until then.
+      const Eigen::Vector3d d = s.camera.ray(x, y);
+      const double t_hit = p.z() + s.camera.distance_m;
+      for (double t = s.camera.near_m; t < t_hit - 1e-6; t += 1e-4) {
+        ASSERT_LT(t - s.camera.distance_m, s.gel.surface_z(d.x() * t, d.y() * t) + 1e-12)
+            << "pixel " << x << ", " << y << " at depth " << t;
+      }
+    }
+  }
+  EXPECT_LT(worst, 1e-9);
 }
 
 TEST(SensorConfig, WrongTypedPresetNamesTheFieldOnce) {
