@@ -77,7 +77,7 @@ void BM_RayCastPackets(benchmark::State& state) {
       const int i = c.gel.index(x, y);
       p.dir_sensor[p.count] = c.gel.dir_sensor[i];
       p.tnear[p.count] = c.gel.t_gel[i] - slab;
-      p.tfar[p.count] = c.gel.t_gel[i];
+      p.tfar[p.count] = p.tfar_open[p.count] = c.gel.t_gel[i];
       if (++p.count == kPacket) {
         packets.push_back(p);
         p.count = 0;

@@ -150,8 +150,9 @@ void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vect
       const ObjectShape& shape = *objects[obj];
       for (int k = 0; k < rays.count; ++k) {
         // A closed surface needs its first hit beyond the gel too, to tell inside from outside.
-        rays.tfar[k] = shape.any_part_closed() ? std::numeric_limits<float>::infinity()
-                                               : gel.t_gel[pixels[start + k]] + extra;
+        rays.tfar_open[k] = gel.t_gel[pixels[start + k]] + extra;
+        rays.tfar[k] =
+            shape.any_part_closed() ? std::numeric_limits<float>::infinity() : rays.tfar_open[k];
       }
       intersect(shape, poses[obj], rays, hits);
       stats.rays_cast += rays.count;

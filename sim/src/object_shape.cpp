@@ -36,14 +36,48 @@ std::shared_ptr<RTCDeviceTy> shared_device() {
 
 struct ObjectShape::Impl {
   std::shared_ptr<RTCDeviceTy> device;
-  RTCScene scene = nullptr;
+  // One BVH of every triangle; for a mesh of closed and open surfaces, `scene` holds the closed
+  // surfaces' and `open_scene` the open ones' (a ray needs the closed surfaces to any depth, to
+  // tell whether it starts inside, and the open ones only to the gel).
+  RTCScene scene = nullptr, open_scene = nullptr;
+  std::vector<unsigned> scene_triangles, open_triangles;  // BVH primitive -> mesh triangle
   std::vector<Eigen::Vector3f> face_normals;  // (v1 - v0) x (v2 - v0): outward for CCW
   std::vector<std::uint8_t> closed_part;      // per triangle: its surface is closed
   TriangleClusters clusters;                  // for rasterizing the triangles near the gel
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
+    if (open_scene) rtcReleaseScene(open_scene);
   }
 };
+
+namespace {
+
+// A BVH of the mesh's triangles `triangles`.
+RTCScene make_scene(RTCDevice device, const TriangleMesh& mesh,
+                    const std::vector<unsigned>& triangles) {
+  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+      geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertices.size()));
+  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+      geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), triangles.size()));
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    for (int k = 0; k < 3; ++k) vb[3 * i + k] = mesh.vertices[i][k];
+  }
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) ib[3 * i + k] = unsigned(mesh.triangles[triangles[i]][k]);
+  }
+  rtcCommitGeometry(geom);
+  RTCScene scene = rtcNewScene(device);
+  rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+  // Watertight: a ray through a vertex or an edge shared by many triangles never slips through.
+  rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+  rtcAttachGeometry(scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(scene);
+  return scene;
+}
+
+}  // namespace
 
 ObjectShape::ObjectShape(TriangleMesh mesh)
     : mesh_(std::move(mesh)), impl_(std::make_unique<Impl>()) {
@@ -60,34 +94,19 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
                         [](std::uint8_t c) { return c != 0; });
   any_closed_ = std::any_of(impl_->closed_part.begin(), impl_->closed_part.end(),
                             [](std::uint8_t c) { return c != 0; });
-  impl_->device = shared_device();
-  RTCDevice device = impl_->device.get();
-  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                         RTC_FORMAT_FLOAT3, 3 * sizeof(float),
-                                                         mesh_.vertices.size()));
-  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0,
-                                                            RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
-                                                            mesh_.triangles.size()));
-  for (std::size_t i = 0; i < mesh_.vertices.size(); ++i) {
-    for (int k = 0; k < 3; ++k) vb[3 * i + k] = mesh_.vertices[i][k];
-  }
   impl_->face_normals.reserve(mesh_.triangles.size());
-  for (std::size_t i = 0; i < mesh_.triangles.size(); ++i) {
-    const auto& t = mesh_.triangles[i];
-    for (int k = 0; k < 3; ++k) ib[3 * i + k] = unsigned(t[k]);
+  for (const auto& t : mesh_.triangles) {
     const auto& v0 = mesh_.vertices[t[0]];
     impl_->face_normals.push_back((mesh_.vertices[t[1]] - v0).cross(mesh_.vertices[t[2]] - v0));
   }
   impl_->clusters = make_clusters(mesh_);
-  rtcCommitGeometry(geom);
-  impl_->scene = rtcNewScene(device);
-  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
-  // Watertight: a ray through a vertex or an edge shared by many triangles never slips through.
-  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-  rtcAttachGeometry(impl_->scene, geom);
-  rtcReleaseGeometry(geom);
-  rtcCommitScene(impl_->scene);
+  impl_->device = shared_device();
+  const bool mixed = any_closed_ && !closed_;
+  for (unsigned t = 0; t < unsigned(mesh_.triangles.size()); ++t) {
+    (mixed && !impl_->closed_part[t] ? impl_->open_triangles : impl_->scene_triangles).push_back(t);
+  }
+  impl_->scene = make_scene(impl_->device.get(), mesh_, impl_->scene_triangles);
+  if (mixed) impl_->open_scene = make_scene(impl_->device.get(), mesh_, impl_->open_triangles);
 }
 
 ObjectShape::~ObjectShape() = default;
@@ -129,9 +148,10 @@ void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPa
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  rtcIntersect16(valid, shape.impl().scene, &context, &rh);
-  const auto& normals = shape.impl().face_normals;
-  const auto& closed = shape.impl().closed_part;
+  const ObjectShape::Impl& impl = shape.impl();
+  rtcIntersect16(valid, impl.scene, &context, &rh);
+  const auto& normals = impl.face_normals;
+  const auto& closed = impl.closed_part;
   for (int i = 0; i < rays.count; ++i) {
     if (rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) {
       hits.t[i] = std::numeric_limits<float>::infinity();
@@ -140,8 +160,25 @@ void intersect(const ObjectShape& shape, const SE3& T_sensor_object, const RayPa
     }
     hits.t[i] = rh.ray.tfar[i];
     const Eigen::Vector3f d(rh.ray.dir_x[i], rh.ray.dir_y[i], rh.ray.dir_z[i]);
-    const unsigned triangle = rh.hit.primID[i];
+    const unsigned triangle = impl.scene_triangles[rh.hit.primID[i]];
     hits.inside[i] = closed[triangle] && normals[triangle].dot(d) > 0.0f;
+  }
+  if (!impl.open_scene) return;
+  // The open surfaces, to the gel and not past a closed surface's hit; a ray that starts inside
+  // a closed surface stays inside whatever open one it crosses on the way out.
+  for (int i = 0; i < kPacket; ++i) {
+    valid[i] = i < rays.count && !hits.inside[i] ? -1 : 0;
+    rh.ray.tfar[i] = i < rays.count ? std::min(rays.tfar_open[i], hits.t[i]) : 0.0f;
+    rh.ray.mask[i] = 0xFFFFFFFFu;
+    rh.ray.flags[i] = 0;
+    rh.hit.geomID[i] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][i] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(valid, impl.open_scene, &context, &rh);
+  for (int i = 0; i < rays.count; ++i) {
+    if (valid[i] == 0 || rh.hit.geomID[i] == RTC_INVALID_GEOMETRY_ID) continue;
+    hits.t[i] = rh.ray.tfar[i];
+    hits.inside[i] = false;
   }
 }
 

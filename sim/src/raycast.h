@@ -16,7 +16,8 @@ struct RayPacket {
   Eigen::Vector3f origin_sensor;
   Eigen::Vector3f dir_sensor[kPacket];  // not normalised: t is the camera depth
   float tnear[kPacket];
-  float tfar[kPacket];
+  float tfar[kPacket];       // for a shape's closed surfaces (those alone, in a shape of both)
+  float tfar_open[kPacket];  // for the open surfaces of a shape of both closed and open ones
 };
 
 struct PacketHits {

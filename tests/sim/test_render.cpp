@@ -452,9 +452,9 @@ TEST(RenderBadInput, PenetrationBeyondTheGelIsClampedAndCounted) {
 }
 
 // Closedness is a surface's own (triangles joined by edges): stray open triangles elsewhere in the
-// file (a label, a leftover of the export), even one touching the sphere at a corner, leave the
-// sphere's deep press as the sphere alone renders it, clamped at the gel's limit (the whole mesh
-// had counted as open: a ring around a hole, no clamping).
+// file (a label, a leftover of the export), even one touching the sphere at a corner, and an open
+// sheet inside it, leave the sphere's deep press as the sphere alone renders it, clamped at the
+// gel's limit (the whole mesh had counted as open: a ring around a hole, no clamping).
 TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
   TriangleMesh mesh = make_uv_sphere(float(kRadius), 90, 180);
   const int n = int(mesh.vertices.size());
@@ -467,6 +467,15 @@ TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
   mesh.triangles.emplace_back(n, n + 1, n + 2);
   ASSERT_NEAR(mesh.vertices[0].z(), float(kRadius), 1e-7f);
   mesh.triangles.emplace_back(0, n + 3, n + 4);
+  // And an open sheet inside the sphere, 1 mm above the gel: a ray that starts inside the
+  // sphere meets it before the sphere's far side (it had hidden that the ray started inside).
+  const int m = int(mesh.vertices.size());
+  mesh.vertices.insert(mesh.vertices.end(), {{-0.004f, -0.004f, 0.001f},
+                                             {0.004f, -0.004f, 0.001f},
+                                             {0.004f, 0.004f, 0.001f},
+                                             {-0.004f, 0.004f, 0.001f}});
+  mesh.triangles.emplace_back(m, m + 1, m + 2);
+  mesh.triangles.emplace_back(m, m + 2, m + 3);
   const auto stray = std::make_shared<ObjectShape>(mesh);
   EXPECT_FALSE(stray->closed());
   EXPECT_TRUE(stray->any_part_closed());
