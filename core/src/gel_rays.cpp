@@ -11,35 +11,36 @@ namespace {
 // (d.x t, d.y t, t - distance) in S, on the gel when z = surface_z(x, y); iterates
 // z <- surface_z(d (z + distance)).
 double gel_depth(const Eigen::Vector3d& d, const CameraModel& camera, const GelModel& gel) {
-  // The fixed point z = surface_z(ray at depth z): converges where the gel's slope along the
-  // ray is below 1, as on every preset.
+  // The surface's z where the ray is at z (camera depth z + distance).
+  const auto surface_at = [&](double z) {
+    const double t = z + camera.distance_m;
+    return gel.surface_z(d.x() * t, d.y() * t);
+  };
+  // The fixed point z = surface_at(z): converges where the gel's slope along the ray is below 1,
+  // as on every preset.
   double z = 0.0;
   for (int it = 0; it < 50; ++it) {
-    const double t = z + camera.distance_m;
-    const double z_next = gel.surface_z(d.x() * t, d.y() * t);
+    const double z_next = surface_at(z);
     const bool done = std::abs(z_next - z) < 1e-13;
     z = z_next;
     if (done) return z + camera.distance_m;
   }
   // A strongly curved gel seen at a grazing angle, where the iteration swings: the ray's first
   // crossing of the surface from the near plane on, bracketed on a grid and bisected. In front
-  // of the surface surface_z - z > 0; the surface is never nearer than the near plane.
-  const auto ahead = [&](double zz) {
-    const double t = zz + camera.distance_m;
-    return gel.surface_z(d.x() * t, d.y() * t) - zz;
-  };
+  // of the surface surface_at(z) > z; the surface is never nearer than the near plane.
+  const auto ahead = [&](double zz) { return surface_at(zz) > zz; };
   constexpr int kSteps = 1024;
   const double z_near = camera.near_m - camera.distance_m;
   double a = z_near;
   for (int k = 1; k <= kSteps; ++k) {
     double b = z_near * (1.0 - double(k) / kSteps);
-    if (ahead(b) > 0.0) {
+    if (ahead(b)) {
       a = b;
       continue;
     }
     for (int it = 0; it < 80; ++it) {
       const double m = 0.5 * (a + b);
-      (ahead(m) > 0.0 ? a : b) = m;
+      (ahead(m) ? a : b) = m;
     }
     return 0.5 * (a + b) + camera.distance_m;
   }

@@ -225,14 +225,14 @@ void SensorRenderer::State::write_color(std::uint64_t seed, FrameRegions& frame,
     out.stats.shaded_pixels += shade_cast_shadows(frame, ws);
     shaded_runs = &ws.color_runs;
     frame.color = frame.shaded;
-    if (background_blend) frame.color = frame.shaded.dilated(blend_blur.radius()).clipped(w, h);
+    if (background_blend()) frame.color = frame.shaded.dilated(blend_blur.radius()).clipped(w, h);
   }
   // Where `rgb` holds this frame's colour: the runs, or with a real background (blended with a
   // blur) all of frame.color. Everywhere else the frame shows the background.
   const RowRuns* runs = shaded_runs;
   PixelRect runs_rect = frame.shaded;
   thread_local RowRuns full_rows;
-  if (background_blend && !frame.shaded.empty()) {
+  if (background_blend() && !frame.shaded.empty()) {
     // TACTO's blend: real background + blur(sim - sim_bg) * gain, channel by channel.
     const PixelRect& cr = frame.color;
     const float gain = float(sensor.shading.background_gain);

@@ -27,9 +27,9 @@ struct RawMesh {
   int index_base = 0;               // how the file counts vertices (1 for OBJ), for messages
 };
 
-// Identical points, bitwise (-0 folded into +0): find_or_add(p, next) returns the index first
-// given with a point equal to p, or records `next` for p and returns it. Welds STL's corners and
-// every format's split vertices.
+// Identical points (or index triples), bitwise (-0 folded into +0): find_or_add(p, next) returns
+// the index first given with a point equal to p, or records `next` for p and returns it. Welds
+// STL's corners and every format's split vertices, and finds repeated triangles.
 template <typename Scalar>
 class PointIndex {
  public:
@@ -41,7 +41,7 @@ class PointIndex {
   }
 
  private:
-  using Key = std::array<std::uint64_t, 3>;  // three doubles, or three floats and zeros
+  using Key = std::array<std::uint64_t, 3>;  // three doubles, or three floats or ints and zeros
   struct KeyHash {
     size_t operator()(const Key& k) const {
       return std::hash<std::uint64_t>()(k[0] ^ (k[1] * 0x9e3779b97f4a7c15ULL) ^

@@ -132,6 +132,11 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
   std::vector<Eigen::Vector3i> kept;
   kept.reserve(mesh.triangles.size());
   std::vector<Eigen::Vector3i> slivers;  // (a, b, c): b the middle corner
+  const auto squared_length = [&](int a, int b) {
+    return (mesh.vertices[static_cast<size_t>(a)] - mesh.vertices[static_cast<size_t>(b)])
+        .cast<double>()
+        .squaredNorm();
+  };
   for (const Eigen::Vector3i& t : mesh.triangles) {
     if (!is_degenerate(mesh, t)) {
       kept.push_back(t);
@@ -141,10 +146,7 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
     int middle = 0;  // the corner opposite the longest edge
     double longest = -1.0;
     for (int k = 0; k < 3; ++k) {
-      const double l = (mesh.vertices[static_cast<size_t>(t[(k + 1) % 3])] -
-                        mesh.vertices[static_cast<size_t>(t[(k + 2) % 3])])
-                           .cast<double>()
-                           .squaredNorm();
+      const double l = squared_length(t[(k + 1) % 3], t[(k + 2) % 3]);
       if (l > longest) longest = l, middle = k;
     }
     slivers.emplace_back(t[(middle + 2) % 3], t[middle], t[(middle + 1) % 3]);
@@ -152,14 +154,10 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
   const int dropped = static_cast<int>(mesh.triangles.size() - kept.size());
   // The longest first: a sliver whose long edge is part of a longer one's (several corners on
   // one line) finds its neighbour split by the longer one's repair.
-  const auto length = [&](const Eigen::Vector3i& t) {
-    return (mesh.vertices[static_cast<size_t>(t[0])] - mesh.vertices[static_cast<size_t>(t[2])])
-        .cast<double>()
-        .squaredNorm();
-  };
-  std::stable_sort(
-      slivers.begin(), slivers.end(),
-      [&](const Eigen::Vector3i& a, const Eigen::Vector3i& b) { return length(a) > length(b); });
+  std::stable_sort(slivers.begin(), slivers.end(),
+                   [&](const Eigen::Vector3i& a, const Eigen::Vector3i& b) {
+                     return squared_length(a[0], a[2]) > squared_length(b[0], b[2]);
+                   });
   if (!slivers.empty()) {
     EdgeTriangles by_edge = triangles_by_edge(kept);
     const auto edges_of = [&](int t, bool add) {
@@ -198,24 +196,14 @@ int drop_degenerate_triangles(TriangleMesh& mesh) {
 // export, or a body listed twice, whose shared edges (four triangles each once welded) would make
 // it no closed surface. Returns how many.
 int drop_duplicate_triangles(TriangleMesh& mesh) {
-  std::unordered_map<std::uint64_t, std::vector<int>> seen;  // hash of the sorted corners
+  mesh_formats::PointIndex<int> corners;  // the kept triangles' corners, sorted
   std::vector<Eigen::Vector3i> kept;
   kept.reserve(mesh.triangles.size());
   for (const Eigen::Vector3i& t : mesh.triangles) {
     Eigen::Vector3i sorted = t;
     std::sort(sorted.data(), sorted.data() + 3);
-    const std::uint64_t key = (std::uint64_t(std::uint32_t(sorted[0])) * 0x9e3779b97f4a7c15ULL) ^
-                              (std::uint64_t(std::uint32_t(sorted[1])) << 21) ^
-                              std::uint64_t(std::uint32_t(sorted[2]));
-    std::vector<int>& same_key = seen[key];
-    const bool repeated = std::any_of(same_key.begin(), same_key.end(), [&](int k) {
-      Eigen::Vector3i other = kept[static_cast<size_t>(k)];
-      std::sort(other.data(), other.data() + 3);
-      return other == sorted;
-    });
-    if (repeated) continue;
-    same_key.push_back(static_cast<int>(kept.size()));
-    kept.push_back(t);
+    const auto next = static_cast<std::int64_t>(kept.size());
+    if (corners.find_or_add(sorted, next) == next) kept.push_back(t);
   }
   const int dropped = static_cast<int>(mesh.triangles.size() - kept.size());
   mesh.triangles = std::move(kept);
@@ -234,7 +222,7 @@ int drop_duplicate_triangles(TriangleMesh& mesh) {
 void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   const int n = static_cast<int>(mesh.triangles.size());
   const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
-  const Surfaces surfaces = find_surfaces(mesh.triangles);
+  const Surfaces surfaces = find_surfaces(mesh.triangles, by_edge);
   std::vector<std::int8_t> flip(static_cast<size_t>(n), -1);  // -1: not reached yet
   std::vector<int> part, queue;
   for (int seed = 0; seed < n; ++seed) {
@@ -269,7 +257,8 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
     for (int t : part) flipped += flip[t] == 1;
     bool invert = 2 * flipped > part.size();  // the majority's direction
     // A closed surface (part is all of it when every edge has two triangles) faces outward.
-    if (orientable && surfaces.closed[surfaces.of_triangle[part[0]]]) {
+    const bool closed = surfaces.closed[surfaces.of_triangle[part[0]]];
+    if (orientable && closed) {
       double volume = 0.0;
       for (int t : part) {
         const Eigen::Vector3i& tri = mesh.triangles[t];
@@ -286,7 +275,7 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
       flip[t] = std::int8_t(turn);
       turned += turn;
     }
-    if (turned == static_cast<int>(part.size()) && surfaces.closed[surfaces.of_triangle[part[0]]]) {
+    if (turned == static_cast<int>(part.size()) && closed) {
       ++report.inside_out_parts_turned;
     } else {
       report.triangles_turned_to_match += turned;

@@ -29,8 +29,8 @@ int find_root(std::vector<int>& parent, int i) {
 
 }  // namespace
 
-Surfaces find_surfaces(const std::vector<Eigen::Vector3i>& triangles) {
-  const EdgeTriangles by_edge = triangles_by_edge(triangles);
+Surfaces find_surfaces(const std::vector<Eigen::Vector3i>& triangles,
+                       const EdgeTriangles& by_edge) {
   std::vector<int> parent(triangles.size());
   std::iota(parent.begin(), parent.end(), 0);
   for (const auto& [edge, on] : by_edge) {

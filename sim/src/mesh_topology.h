@@ -21,6 +21,7 @@ struct Surfaces {
                                      // triangles (a stray triangle touching it at a corner
                                      // is a surface of its own and leaves it closed)
 };
-Surfaces find_surfaces(const std::vector<Eigen::Vector3i>& triangles);
+// `by_edge`: triangles_by_edge(triangles).
+Surfaces find_surfaces(const std::vector<Eigen::Vector3i>& triangles, const EdgeTriangles& by_edge);
 
 }  // namespace pg

@@ -85,7 +85,7 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
     throw InputError("ObjectShape: empty mesh");
   }
   bounds_ = mesh_bounds(mesh_);
-  const Surfaces surfaces = find_surfaces(mesh_.triangles);
+  const Surfaces surfaces = find_surfaces(mesh_.triangles, triangles_by_edge(mesh_.triangles));
   impl_->closed_part.resize(mesh_.triangles.size());
   for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
     impl_->closed_part[t] = surfaces.closed[surfaces.of_triangle[t]];

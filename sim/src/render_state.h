@@ -61,8 +61,9 @@ struct SensorRenderer::State {
   std::optional<NoiseTable> noise;  // when noise is on
   int tile = 4;                     // coarse-pass tile size [px], a multiple of the 4x4 ray packets
   float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
-  bool background_blend = false;  // a real background: the shading is blended into it
-  GaussianKernel blend_blur;      // the blend's blur (no weights: none)
+  GaussianKernel blend_blur;  // the real background blend's blur (no weights: none)
+  // A real background: the shading is blended into it.
+  bool background_blend() const { return !settings.background.empty(); }
   ImageF normals0;       // undeformed gel normals
   ImageF sim0;           // shading of the undeformed gel, linear [0, 1]
   ImageF background;     // what a no-contact frame shows: sim0, or the real background

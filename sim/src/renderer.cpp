@@ -97,7 +97,7 @@ void SensorRenderer::State::deform(Workspace& ws, RenderStats& stats, FrameRegio
   }
   frame.shaded = frame.region;
   frame.color = frame.region;
-  if (s.background_blend && !frame.region.empty()) {
+  if (s.background_blend() && !frame.region.empty()) {
     frame.color = frame.region.dilated(s.blend_blur.radius()).clipped(w, h);
   }
   for (const auto& r : ws.runs) stats.shaded_pixels += std::max(0, r.second - r.first);
@@ -167,7 +167,6 @@ void SensorRenderer::State::prepare() {
       for (int x = 0; x < real.width; ++x)
         for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
     background = resample_bilinear(rgb, w, h);
-    background_blend = true;
     blend_blur = gaussian_kernel(sensor.shading.background_blur_m * gel.px_per_m);
   }
   background_u8 = ImageU8(w, h, 3);

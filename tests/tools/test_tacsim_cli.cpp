@@ -307,8 +307,7 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
       << info.out;
   // Rendered again with a sensor of another name: the new one's folder is listed, the earlier
   // one's is left as it was and said so (it had stayed without a word).
-  std::ifstream in(kScenes + "examples/two_digits_pinch.json");
-  std::string scene(std::istreambuf_iterator<char>(in), {});
+  std::string scene = testing_support::file_text(kScenes + "examples/two_digits_pinch.json");
   for (std::size_t at; (at = scene.find("\"digit_top\"")) != std::string::npos;)
     scene.replace(at, 11, "\"digit_upper\"");
   std::string meshes = kScenes + "../meshes/";

@@ -51,13 +51,11 @@ int run_presses(const PressesArgs& a) {
   if (!a.sensor_file.empty()) {
     sensor = load_sensor_file(a.sensor_file);
   } else {
-    as_usage_error([&] {
-      try {
-        sensor = sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
-      } catch (const InputError& e) {
-        throw InputError(std::string("--sensor: ") + e.what());
-      }
-    });
+    try {
+      sensor = sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
+    } catch (const InputError& e) {
+      throw UsageError(std::string("--sensor: ") + e.what());
+    }
   }
   // The defaults follow the sensor (0.3-1.5 mm on the presets' 2 mm gels), so that only what
   // was given is blamed.
