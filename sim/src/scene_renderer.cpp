@@ -70,16 +70,23 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
       throw InputError(scene_.path + ": objects[" + std::to_string(i) + "].mesh: " + e.what());
     }
   }
-  if (!scene_.render.background.empty() && !fs::exists(scene_.render.background)) {
-    const std::string where = overrides.background.empty()
-                                  ? scene_.path + ": render.background"
-                                  : std::string("background given for the scene");
-    throw InputError(where + ": " + scene_.render.background +
+  const std::string& background = scene_.render.background;
+  const std::string background_where = overrides.background.empty()
+                                           ? scene_.path + ": render.background"
+                                           : std::string("background given for the scene");
+  if (!background.empty() && !fs::exists(background)) {
+    throw InputError(background_where + ": " + background +
                      ": no such image file (give an image, or synthetic or none)");
   }
   const RenderSettings settings = settings_for(scene_.render, scene_.render.outputs);
   for (const auto& sensor : scene_.sensors) {
-    sensors_.push_back(std::make_unique<SensorRenderer>(sensor.model, shapes_, settings));
+    try {
+      sensors_.push_back(std::make_unique<SensorRenderer>(sensor.model, shapes_, settings));
+    } catch (const InputError& e) {  // the background image's own error, and where it was given
+      const std::string what = e.what();
+      if (background.empty() || what.rfind(background, 0) != 0) throw;
+      throw InputError(background_where + ": " + what);
+    }
   }
 }
 

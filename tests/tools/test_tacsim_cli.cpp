@@ -493,6 +493,18 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
                        ": no such image file (give an image, or synthetic or none)"),
             std::string::npos)
       << r.out;
+  // An image the renderer cannot use is named where the scene gives it, as a missing one is.
+  write_image(tmp.str("grey.png"), ImageU8(160, 120, 1));
+  std::ofstream(tmp.str("scene.json"))
+      << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
+      << R"(/meshes/cube.glb"}], "render": {"background": "grey.png"}})";
+  r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(tmp.str("scene.json") + ": render.background: " + tmp.str("grey.png") +
+                       ": background image must be RGB"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("d")));
 }
 
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
