@@ -190,6 +190,45 @@ TEST(Tracking, ResumesAfterANoContactGap) {
   EXPECT_LT(run.summary.final_rotation_error_rad, 0.05);
 }
 
+// A slow approach whose first contact is smaller than a registration needs (4 points here: the
+// mask's minimum area off, as a user may set it): the patch of that first key frame could not be
+// registered against, and since a failed patch registration takes no key frame, it never grew:
+// no image-to-patch factor and tracking lost for the whole episode. Now the small patch is not
+// tried, and each frame adds a key frame until it is large enough.
+TEST(Tracking, ASlowApproachsSmallFirstContactGrowsThePatch) {
+  TempDir tmp;
+  nlohmann::json scene = {
+      {"frames", 60},
+      {"sensors",
+       {{{"name", "digit"},
+         {"sensor", {{"preset", "digit"}, {"gel", {{"elastic", {{"enabled", false}}}}}}}}}},
+      {"objects",
+       {{{"name", "sphere"},
+         {"mesh", "../meshes/sphere_r6mm.glb"},
+         {"trajectory",
+          {{"waypoints",
+            {{{"frame", 0}, {"position", {0.0, 0.0, 0.00592}}, {"rpy", {0.0, 0.0, 0.0}}},
+             {{"frame", 30}, {"position", {0.0, 0.0, 0.00540}}, {"rpy", {0.0, 0.0, 0.0}}},
+             {{"frame", 60},
+              {"position", {0.0005, 0.0003, 0.00540}},
+              {"rpy", {0.0, 0.0, 0.1}}}}}}}}}},
+      {"render", {{"shadows", false}}}};
+  const Dataset d = render(scene, tmp.path / "slow");
+  TrackOptions o;
+  o.front_end.mask.min_area_m2 = 0;
+  const TrackRun run = track_dataset(d, o);
+  ASSERT_EQ(run.summary.episodes, 1);
+  const auto first = std::find_if(run.frames.begin(), run.frames.end(),
+                                  [](const FrameResult& f) { return f.contact; });
+  ASSERT_NE(first, run.frames.end());
+  ASSERT_LT(first->contact_points, o.graph.icp.min_points) << "the first contact should be tiny";
+  int with_patch = 0;
+  for (const FrameResult& f : run.frames) with_patch += f.image_to_patch;
+  EXPECT_GT(with_patch, 40);
+  EXPECT_EQ(run.summary.lost_frames, 0);
+  EXPECT_LT(run.summary.final_translation_error_m, 1e-3);
+}
+
 // A recording with the object's pose only at frame 0: the second episode starts without a vision
 // prior, from the motion priors' prediction across the gap, with a fresh patch. The object moved
 // while lifted (4.7 mm / 0.28 rad off at the episode's start); that offset stays, as nothing

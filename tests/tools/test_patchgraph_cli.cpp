@@ -121,7 +121,7 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   // A dataset given twice would count twice; a JSON file that cannot be written fails before
   // the evaluation, not after it.
   const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
-  refused("eval-normals --model " + model + " --data " + data() + " " + data() + "/.", 1,
+  refused("eval-normals --model " + model + " --data " + data() + " " + data() + "/.", 2,
           data() + "/.: given twice (also as " + data() + ")");
   refused("eval-normals --model " + model + " --data " + data() + " --json " +
               out("no_such_folder/m.json"),
@@ -129,8 +129,10 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   // Also in a folder where nothing can be written (and /proc, of no capacity, is no full disk).
   refused("eval-normals --model " + model + " --data " + data() + " --json /proc/m.json", 1,
           "/proc/m.json: cannot write (No such file or directory)\n");
-  refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 1,
+  refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 2,
           "given twice");
+  // bench runs at least one frame a scene (0 had run every frame of every scene).
+  refused("bench --frames 0 --out " + out("x"), 2, "--frames");
   // An option the chosen network ignores is refused even at its default value.
   refused("train-normals --data " + data() + " --arch mlp --gan-weight 1 --out " + out("m.pt"), 1,
           "--arch mlp: the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
@@ -218,11 +220,14 @@ TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
   }
   for (const std::string& command :
        {"track " + copy, "eval --methods constvel --no-plots --datasets " + copy}) {
-    fs::remove_all(out("late_error_run"));
-    const CliRun r = patchgraph(command + " -q --out " + out("late_error_run"));
-    EXPECT_EQ(r.code, 1) << command;
-    EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
-    EXPECT_FALSE(fs::exists(out("late_error_run"))) << command;
+    for (const std::string& folder : {out("late_error_run"), out("late_error_run") + "/a/b/"}) {
+      fs::remove_all(out("late_error_run"));
+      const CliRun r = patchgraph(command + " -q --out " + folder);
+      EXPECT_EQ(r.code, 1) << command;
+      EXPECT_NE(r.out.find("normal/000050.exr: is a png file"), std::string::npos) << r.out;
+      // The parents it made too (it had left late_error_run/a).
+      EXPECT_FALSE(fs::exists(out("late_error_run"))) << command << " --out " << folder;
+    }
   }
   // An eval that fails on a later dataset keeps the runs finished before it, in results.csv.
   fs::remove_all(out("late_error_eval"));
@@ -276,14 +281,24 @@ TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {
   EXPECT_NE(header.find(",run"), std::string::npos) << header;
   ASSERT_TRUE(std::getline(results, row));
   EXPECT_NE(row.find("runs/p1_a_constvel"), std::string::npos) << row;
+  // A dataset's noise seed is its folder name's, whatever else the eval runs (the renamed run
+  // had drawn other noise than the same dataset evaluated alone).
+  const CliRun alone = patchgraph("eval --datasets " + out("names/p1/a") +
+                                  " --methods constvel -q --no-plots --out " + out("names_alone"));
+  ASSERT_EQ(alone.code, 0) << alone.out;
+  const auto seed_of = [](const std::string& run) {
+    return parse_json_file(run + "/summary.json")["seed"].get<std::uint64_t>();
+  };
+  EXPECT_EQ(seed_of(out("names_eval") + "/runs/p1_a_constvel"),
+            seed_of(out("names_alone") + "/runs/a_constvel"));
 
   CliRun twice = patchgraph("eval --datasets " + data() + " " + data() +
                             " --methods constvel -q --no-plots --out " + out("twice"));
-  EXPECT_EQ(twice.code, 1);
+  EXPECT_EQ(twice.code, 2);  // a usage error, as any bad option value
   EXPECT_NE(twice.out.find("given twice"), std::string::npos) << twice.out;
   twice = patchgraph("eval --datasets " + data() +
                      " --methods constvel constvel -q --no-plots --out " + out("twice"));
-  EXPECT_EQ(twice.code, 1);
+  EXPECT_EQ(twice.code, 2);
   EXPECT_NE(twice.out.find("--methods: constvel given twice"), std::string::npos) << twice.out;
 }
 
@@ -724,7 +739,7 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
   EXPECT_FALSE(fs::exists(render + "/poses.csv"));
   // One sensor given twice (also through the render's folder) would count double.
   const CliRun twice = patchgraph("track " + render + " " + side + " -q --out " + out("twice"));
-  EXPECT_EQ(twice.code, 1) << twice.out;
+  EXPECT_EQ(twice.code, 2) << twice.out;
   EXPECT_NE(twice.out.find(side + ": given twice (also through " + render + ")"), std::string::npos)
       << twice.out;
   EXPECT_FALSE(fs::exists(out("twice")));
@@ -823,7 +838,7 @@ TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {
            {kDefaultModel + ",", "an empty model name in the list"},
            {"gt," + side_model, "gt is for every sensor or none"}}) {
     r = patchgraph("track " + render + " -q --normals " + normals + " --out " + out("mixed_bad"));
-    EXPECT_EQ(r.code, 1) << normals << ": " << r.out;
+    EXPECT_EQ(r.code, 2) << normals << ": " << r.out;
     EXPECT_NE(r.out.find(message), std::string::npos) << normals << ": " << r.out;
     EXPECT_FALSE(fs::exists(out("mixed_bad")));
   }
@@ -1059,6 +1074,23 @@ TEST_F(PatchgraphCli, AccuracyGateFailsARunWithExitCode3) {
   const CliRun bad =
       patchgraph("track " + data() + " -q --max-rotation -1 --out " + out("gate_bad"));
   EXPECT_EQ(bad.code, 2) << bad.out;
+  // A bound a hair below the error: the message shows the digits that tell them apart (it had
+  // read "0.169383 mm > 0.169383 mm").
+  const double error =
+      parse_json_file(out("gate_pass") + "/summary.json")["final_translation_error_m"];
+  char bound[40];
+  std::snprintf(bound, sizeof bound, "%.17g", std::nextafter(error, 0.0));
+  const CliRun hair = patchgraph("track " + data() + " -q --max-translation " + bound + " --out " +
+                                 out("gate_hair"));
+  EXPECT_EQ(hair.code, 3) << hair.out;
+  const std::string line = "final translation error ";
+  const auto at = hair.out.find(line);
+  ASSERT_NE(at, std::string::npos) << hair.out;
+  const std::string numbers =
+      hair.out.substr(at + line.size(), hair.out.find('\n', at) - at - line.size());
+  const auto gt = numbers.find(" mm > ");
+  ASSERT_NE(gt, std::string::npos) << numbers;
+  EXPECT_NE(numbers.substr(0, gt), numbers.substr(gt + 6, numbers.size() - gt - 9)) << numbers;
 }
 
 // A real sensor's frames, as a user has them: a folder of images under their own names, the

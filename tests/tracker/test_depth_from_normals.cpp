@@ -3,6 +3,7 @@
 // against full-image integration, and bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -141,6 +142,28 @@ TEST(DepthFromNormals, GelModelReferenceMatchesANoContactFrameReference) {
   EXPECT_LT(max_diff, 10e-6) << "[m]";
 }
 
+// A reference a little off unit length (a network's output, say) is the same reference: the
+// disturbance test compares angles. Before, one of length 0.99 flagged every pixel as disturbed
+// and one of 1.01 widened the threshold to about 8 deg.
+TEST(DepthFromNormals, AReferenceOffUnitLengthGivesTheSameDepth) {
+  const SensorModel sensor = sensor_preset("digit");
+  const auto frame = analytic_sphere_frame(sensor, {0.002, -0.001, 0.006 - 0.0008}, 0.006);
+  DepthResult unit, scaled;
+  DepthFromNormals(sensor, DepthOptions(), frame.reference).compute(frame.normal, unit);
+  ASSERT_GT(unit.disturbed_pixels, 100);
+  for (const float length : {0.99f, 1.01f}) {
+    ImageF reference = frame.reference;
+    for (float& v : reference.data) v *= length;
+    DepthFromNormals(sensor, DepthOptions(), reference).compute(frame.normal, scaled);
+    EXPECT_EQ(scaled.disturbed_pixels, unit.disturbed_pixels) << length;
+    double max_diff = 0;
+    for (std::size_t i = 0; i < unit.depth.data.size(); ++i) {
+      max_diff = std::max(max_diff, double(std::abs(unit.depth.data[i] - scaled.depth.data[i])));
+    }
+    EXPECT_LT(max_diff, 1e-7) << length << " [m]";
+  }
+}
+
 TEST(DepthFromNormals, ReusedResultIsClearedBetweenFrames) {
   const SensorModel sensor = sensor_preset("digit");
   const auto pressed = analytic_sphere_frame(sensor, {0.003, 0.004, 0.006 - 0.001}, 0.006);
@@ -227,6 +250,33 @@ TEST(DepthBadInput, BadNormalsThatCouldHideAContactMakeTheFrameUnreadable) {
         << bad << " bad pixels, " << smallest << " make the smallest contact";
     EXPECT_TRUE(f.cloud_sensor.empty());
   }
+}
+
+// A contact whose deep part has only bad normals: the row's valid neighbours (the shallow rim)
+// fill its depth in (row by row, from the rim's slopes), so the mask finds a contact there, but
+// no pixel of it can be back-projected. That frame is unreadable, not the end of the contact
+// (kNoContact ends the episode).
+TEST(DepthBadInput, AContactOfOnlyBadNormalsIsUnreadable) {
+  const SensorModel sensor = sensor_preset("digit");
+  auto frame = analytic_sphere_frame(sensor, {0, 0, 0.006 - 0.001}, 0.006);
+  ContactCloudBuilder builder(sensor, ContactCloudOptions(), frame.reference);
+  ASSERT_EQ(builder.build(frame.normal).status, ContactStatus::kContact);
+  // Every pixel indented by more than 0.3 of the mask's depth threshold: the valid rim is too
+  // shallow for the mask (at 0.5, 4 of its pixels reached the mask).
+  const double shallow = 0.3 * MaskOptions().min_depth_m;
+  int bad = 0;
+  for (int y = 0; y < frame.depth.height; ++y) {
+    for (int x = 0; x < frame.depth.width; ++x) {
+      if (frame.depth.at(x, y) < shallow) continue;
+      frame.normal.at(x, y, 0) = NAN;
+      ++bad;
+    }
+  }
+  const ContactFrame f = builder.build(frame.normal);
+  EXPECT_EQ(f.rejected_normals, bad);
+  ASSERT_TRUE(f.mask.contact) << "the filled-in depth should still show the contact";
+  EXPECT_TRUE(f.cloud_sensor.empty());
+  EXPECT_EQ(f.status, ContactStatus::kUnreadable);
 }
 
 TEST(DepthBadInput, WrongImageSizeIsAnInputError) {

@@ -190,6 +190,15 @@ class OutputFolder {
       : dir_(std::move(dir)) {
     check_output_is_no_dataset(dir_);
     std::error_code ec;
+    // The outermost folder of the path that does not exist yet: what this run creates.
+    std::filesystem::path folder = std::filesystem::absolute(dir_, ec).lexically_normal();
+    if (folder.filename().empty()) folder = folder.parent_path();  // "out/"
+    outermost_created_ = folder;
+    while (folder.has_parent_path() && folder.parent_path() != folder &&
+           !std::filesystem::exists(folder.parent_path(), ec)) {
+      folder = folder.parent_path();
+      outermost_created_ = folder;
+    }
     created_ = std::filesystem::create_directories(dir_, ec);
     if (ec || !std::filesystem::is_directory(dir_)) {
       throw InputError(dir_ + ": cannot create the output folder" +
@@ -218,9 +227,16 @@ class OutputFolder {
       }
     }
   }
+  // A run that wrote nothing removes the folders it made, its parents' too ("out/a/b").
   ~OutputFolder() {
+    if (!created_) return;
     std::error_code ec;
-    if (created_ && std::filesystem::is_empty(dir_, ec)) std::filesystem::remove(dir_, ec);
+    std::filesystem::path folder = std::filesystem::absolute(dir_, ec).lexically_normal();
+    if (folder.filename().empty()) folder = folder.parent_path();
+    while (std::filesystem::is_empty(folder, ec) && !ec && std::filesystem::remove(folder, ec)) {
+      if (folder == outermost_created_ || !folder.has_parent_path()) break;
+      folder = folder.parent_path();
+    }
   }
   OutputFolder(const OutputFolder&) = delete;
   OutputFolder& operator=(const OutputFolder&) = delete;
@@ -228,6 +244,7 @@ class OutputFolder {
  private:
   std::string dir_;
   bool created_ = false;
+  std::filesystem::path outermost_created_;
 };
 
 // What a dataset write stopped half-way leaves in `out`: it does not open (its poses.csv is

@@ -182,8 +182,12 @@ int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
   for (const std::string& m : methods) method_from_string(m);  // fail before any work
-  check_names_given_once(methods, "--methods");
-  const std::vector<std::string> names = run_names(datasets);
+  std::vector<std::string> names;
+  as_usage_error([&] {
+    check_names_given_once(methods, "--methods");
+    names = run_names(datasets);
+  });
+  const bool gtpatch = std::find(methods.begin(), methods.end(), "gtpatch") != methods.end();
   // The models, loaded once for every run; each sequence's datasets (one per sensor) checked
   // against them before any work.
   const NormalsModels models = load_normals_models(args.track);
@@ -193,6 +197,7 @@ int run_eval(const EvalArgs& args) {
     opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
     check_normals_models(models, sensors);
+    if (gtpatch) load_object_mesh(*sensors[0]);  // its mesh found before any run, not after
     note_missing_frames(sensors);
     const std::vector<FramePose> truth = sequence_poses(sensors);
     if (!truth.empty() && !truth.back().object_known) {
@@ -222,8 +227,10 @@ int run_eval(const EvalArgs& args) {
       const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
       const Dataset& dataset = *sensors[0];
       const std::string& dir = datasets[k];
-      // The run's name: the dataset's folder name unless two datasets share it.
-      const std::uint64_t seed = sequence_seed(args.track.seed, names[k]);
+      // The seed: the dataset's folder name, whatever other datasets run with it (the run's
+      // name adds the parent folder's where two datasets share a name).
+      const std::uint64_t seed =
+          sequence_seed(args.track.seed, fs::weakly_canonical(dir).filename().string());
       for (const auto& m : methods) {
         TrackArgs a = args.track;
         a.method = m;

@@ -65,7 +65,7 @@ int run_track(const TrackArgs& a) {
       const auto [it, fresh] =
           seen.emplace(std::filesystem::weakly_canonical(d.dir()).string(), given);
       if (!fresh) {
-        throw InputError(d.dir() + ": given twice (" +
+        throw UsageError(d.dir() + ": given twice (" +
                          (it->second == d.dir() ? "also as " : "also through ") + it->second +
                          (given == d.dir() ? ")" : "; this time through " + given + ")"));
       }
@@ -79,10 +79,10 @@ int run_track(const TrackArgs& a) {
   const int unpaired_frames = note_missing_frames(sensors);
   const TrackOptions options = make_track_options(a, dataset, models);
   if (dataset.info().scene.empty() && (a.end_effector_noise < 0 || a.vision_noise < 0)) {
-    std::printf(
-        "note: %s has no scene (a recording): its poses are taken as measured, without "
-        "simulated noise (--ee-noise, --vision-noise add it)\n",
-        dataset.dir().c_str());
+    std::fprintf(stderr,
+                 "note: %s has no scene (a recording): its poses are taken as measured, without "
+                 "simulated noise (--ee-noise, --vision-noise add it)\n",
+                 dataset.dir().c_str());
   }
   for (const Dataset& d : datasets) {
     if (a.normals == "gt") continue;
@@ -98,13 +98,15 @@ int run_track(const TrackArgs& a) {
     // would skew every estimate, so the choice is shown.
     const std::vector<int> frames = d.reference_frames();
     if (frames.size() == 1) {
-      std::printf(
+      std::fprintf(
+          stderr,
           "note: %s has no background.png: frame %d, the one frame that poses.csv marks as "
           "without contact, is the no-contact reference image (with several, their median "
           "would hold less camera noise)\n",
           d.dir().c_str(), frames[0]);
     } else if (frames.size() > 1) {
-      std::printf(
+      std::fprintf(
+          stderr,
           "note: %s has no background.png: the median of %zu frames that poses.csv marks as "
           "without contact (%d to %d) is the no-contact reference image\n",
           d.dir().c_str(), frames.size(), frames.front(), frames.back());
@@ -199,14 +201,15 @@ int run_track(const TrackArgs& a) {
                  unpaired_frames > 0 ? ", or a sensor without a frame at that time (above)" : "");
   }
   if (s.degenerate_frames > 0) {
-    std::printf(
-        "note: in %d of %d contact frames the contact did not constrain every direction "
-        "of the pose (a flat, cylindrical or spherical patch); the estimate follows the "
-        "motion prior along those (errors.csv: unconstrained_directions)\n",
-        s.degenerate_frames, s.contact_frames);
+    std::fprintf(stderr,
+                 "note: in %d of %d contact frames the contact did not constrain every direction "
+                 "of the pose (a flat, cylindrical or spherical patch); the estimate follows the "
+                 "motion prior along those (errors.csv: unconstrained_directions)\n",
+                 s.degenerate_frames, s.contact_frames);
   }
   if (s.object_frame != "dataset") {
-    std::printf(
+    std::fprintf(
+        stderr,
         "note: the dataset has no object poses; poses.csv gives the object's motion with its "
         "frame placed at the sensor's frame at frame 0, and there are no errors to report\n");
   }
@@ -290,7 +293,7 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--cache", bench.cache, "Rendered datasets, reused (default: OUT/cache)");
   cmd_bench->add_option("--normals", bench.normals, "Normals sources, one row each (default: gt)");
   cmd_bench->add_option("--frames", bench.frames, "Frames per scene (default: all)")
-      ->check(kNonNegative);
+      ->check(kPositive);
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
       ->check(kThreads);
   cmd_bench->add_flag("--quick", bench.quick, "2 scenes x 60 frames, 6 settings (smoke test)");

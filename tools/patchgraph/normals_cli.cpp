@@ -117,8 +117,10 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
 
 int run_train_normals(const TrainNormalsArgs& a) {
   TrainOptions o = a.options;
-  check_given_once(o.train_data);
-  check_given_once(o.val_data);
+  as_usage_error([&] {
+    check_given_once(o.train_data);
+    check_given_once(o.val_data);
+  });
   for (const auto* datasets : {&o.train_data, &o.val_data}) {
     for (const std::string& dir : *datasets) {
       check_output_is_not_input(o.out, dir, "the dataset");
@@ -328,7 +330,7 @@ int run_model_info(const ModelInfoArgs& a) {
 }
 
 int run_eval_normals(const EvalNormalsArgs& a) {
-  check_given_once(a.data);
+  as_usage_error([&] { check_given_once(a.data); });
   if (!a.json.empty()) {  // checked before the evaluation, written after it
     const std::filesystem::path folder = std::filesystem::path(a.json).parent_path();
     if (!folder.empty() && !std::filesystem::is_directory(folder)) {

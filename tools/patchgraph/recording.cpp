@@ -243,14 +243,14 @@ int run_recording(const RecordingArgs& a) {
     throw InputError(a.images + ": every image in it is a --background image; no frame is left");
   }
   if (skipped.size() == 1) {
-    std::printf("note: %s is a --background image: not taken as a frame\n",
-                skipped[0].string().c_str());
+    std::fprintf(stderr, "note: %s is a --background image: not taken as a frame\n",
+                 skipped[0].string().c_str());
   } else if (!skipped.empty()) {
-    std::printf(
-        "note: %zu images of %s are --background images (the first %s, the last %s): not "
-        "taken as frames\n",
-        skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
-        skipped.back().filename().string().c_str());
+    std::fprintf(stderr,
+                 "note: %zu images of %s are --background images (the first %s, the last %s): not "
+                 "taken as frames\n",
+                 skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
+                 skipped.back().filename().string().c_str());
   }
   // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
   // output folders (DatasetWriter::finish): --images must be none of them.

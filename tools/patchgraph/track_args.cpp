@@ -108,6 +108,23 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(kPositive);
 }
 
+namespace {
+
+// "x > bound" with six significant digits, or as many more as it takes to tell them apart (an
+// error just above its bound printed as "0.169383 mm > 0.169383 mm").
+std::string above(double x, double bound, const char* unit) {
+  const auto text = [](double v, int digits) {
+    char buffer[40];
+    std::snprintf(buffer, sizeof buffer, "%.*g", digits, v);
+    return std::string(buffer);
+  };
+  int digits = 6;
+  while (digits < 17 && text(x, digits) == text(bound, digits)) ++digits;
+  return text(x, digits) + " " + unit + " > " + text(bound, digits) + " " + unit;
+}
+
+}  // namespace
+
 bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double translation_m,
                           double rotation_rad) {
   if ((a.max_translation_m >= 0 || a.max_rotation_rad >= 0) &&
@@ -120,14 +137,13 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   }
   bool ok = true;
   if (a.max_translation_m >= 0 && !(translation_m <= a.max_translation_m)) {
-    // %.6g: a bound missed by a little does not print as "0.0004 > 0.0004".
-    std::fprintf(stderr, "accuracy gate missed: %s final translation error %.6g mm > %.6g mm\n",
-                 what.c_str(), translation_m * 1e3, a.max_translation_m * 1e3);
+    std::fprintf(stderr, "accuracy gate missed: %s final translation error %s\n", what.c_str(),
+                 above(translation_m * 1e3, a.max_translation_m * 1e3, "mm").c_str());
     ok = false;
   }
   if (a.max_rotation_rad >= 0 && !(rotation_rad <= a.max_rotation_rad)) {
-    std::fprintf(stderr, "accuracy gate missed: %s final rotation error %.6g rad > %.6g rad\n",
-                 what.c_str(), rotation_rad, a.max_rotation_rad);
+    std::fprintf(stderr, "accuracy gate missed: %s final rotation error %s\n", what.c_str(),
+                 above(rotation_rad, a.max_rotation_rad, "rad").c_str());
     ok = false;
   }
   return ok;
@@ -144,7 +160,7 @@ NormalsModels load_normals_models(const TrackArgs& a) {
   NormalsModels models;
   for (const std::string& path : paths) {
     if (path.empty() || path == "gt") {
-      throw InputError(
+      throw UsageError(
           "--normals " + a.normals + ": " +
           (path.empty() ? "an empty model name in the list" : "gt is for every sensor or none") +
           "; give gt, one model file for every sensor, or one per sensor in the "
@@ -189,7 +205,7 @@ void check_normals_models(const NormalsModels& models,
   if (models.size() > 1 && models.size() != datasets.size()) {
     std::string names;
     for (const Dataset* d : datasets) names += (names.empty() ? "" : ", ") + d->dir();
-    throw InputError("--normals: " + std::to_string(models.size()) + " models for " +
+    throw UsageError("--normals: " + std::to_string(models.size()) + " models for " +
                      std::to_string(datasets.size()) + " sensor(s) (" + names +
                      "); give one model for every sensor, or one per sensor in that order");
   }
@@ -234,7 +250,8 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets) {
     if (missing == 0) continue;
     total += missing;
     const int first = int(std::find(frames[k].begin(), frames[k].end(), -1) - frames[k].begin());
-    std::printf(
+    std::fprintf(
+        stderr,
         "note: %s has no frame within half a frame of %d of the %d frames of %s (the first: its "
         "frame %d); it adds nothing to those (errors.csv: invalid_input)\n",
         datasets[k]->dir().c_str(), missing, datasets[0]->frames(), datasets[0]->dir().c_str(),
@@ -308,25 +325,26 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
   o.seed = a.seed;
   o.compare_batch = a.compare_batch;
   if (o.graph.method == Method::kGroundTruthPatch) {
-    const auto& info = dataset.info();
-    if (info.object_mesh.empty()) {
-      throw InputError(dataset.dir() +
-                       "/dataset.json: object.mesh is empty; gtpatch needs the mesh");
-    }
-    // A relative path is the dataset folder's (as a scene's paths are its file's).
-    const std::filesystem::path mesh =
-        std::filesystem::path(dataset.dir()) / std::filesystem::path(info.object_mesh);
-    TriangleMesh model;
-    try {
-      model = load_mesh(mesh.lexically_normal().string(), info.object_scale);
-    } catch (const InputError& e) {
-      throw InputError(dataset.dir() + "/dataset.json: object.mesh: " + e.what());
-    }
-    const SurfaceSamples s = sample_surface(model, 1e-4);
+    const SurfaceSamples s = sample_surface(load_object_mesh(dataset), 1e-4);
     o.model_object.points = s.points;
     o.model_object.normals = s.normals;
   }
   return o;
+}
+
+TriangleMesh load_object_mesh(const Dataset& dataset) {
+  const auto& info = dataset.info();
+  if (info.object_mesh.empty()) {
+    throw InputError(dataset.dir() + "/dataset.json: object.mesh is empty; gtpatch needs the mesh");
+  }
+  // A relative path is the dataset folder's (as a scene's paths are its file's).
+  const std::filesystem::path mesh =
+      std::filesystem::path(dataset.dir()) / std::filesystem::path(info.object_mesh);
+  try {
+    return load_mesh(mesh.lexically_normal().string(), info.object_scale);
+  } catch (const InputError& e) {
+    throw InputError(dataset.dir() + "/dataset.json: object.mesh: " + e.what());
+  }
 }
 
 std::uint64_t sequence_seed(std::uint64_t base, const std::string& name) {

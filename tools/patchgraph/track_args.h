@@ -9,6 +9,7 @@
 
 #include "pg/graph/track_dataset.h"
 #include "pg/learn/normal_model.h"
+#include "pg/sim/mesh.h"
 
 namespace pg {
 
@@ -73,6 +74,9 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets);
 // --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
                                 const NormalsModels& models);
+// The dataset's object mesh (dataset.json's object.mesh, relative to its folder), as gtpatch
+// registers against it; InputError naming dataset.json's field when it is missing or bad.
+TriangleMesh load_object_mesh(const Dataset& dataset);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line
 // to stderr naming `what` and the bound for each bound it misses. True when within the gate.
@@ -80,10 +84,9 @@ bool within_accuracy_gate(const TrackArgs& args, const std::string& what, double
                           double rotation_rad);
 
 // The noise seed of one sequence of a batch (`eval`, `bench`): the base seed mixed with the
-// sequence's name (its dataset folder, with its parent's where two share a name, or its scene
-// file's stem), so each sequence draws its own sensor-pose and vision-prior noise, whatever else
-// runs with it, and one run is reproduced alone by `patchgraph track DIR --seed S` with S from
-// results.csv or summary.json.
+// sequence's name (its dataset folder's name, or its scene file's stem), so each sequence draws
+// its own sensor-pose and vision-prior noise, whatever else runs with it, and one run is reproduced
+// alone by `patchgraph track DIR --seed S` with S from results.csv or summary.json.
 std::uint64_t sequence_seed(std::uint64_t base, const std::string& name);
 
 }  // namespace pg

@@ -115,10 +115,10 @@ int run_render(const RenderArgs& a) {
       s.frames / std::max(s.seconds, 1e-9), a.out.c_str(), bytes / 1e6);
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
   for (const std::string& earlier : s.earlier_sensor_dirs) {
-    std::printf(
-        "note: %s, from an earlier render into %s, is not a sensor of this scene: left as "
-        "it was, no longer in %s/sensors.json\n",
-        earlier.c_str(), a.out.c_str(), a.out.c_str());
+    std::fprintf(stderr,
+                 "note: %s, from an earlier render into %s, is not a sensor of this scene: left as "
+                 "it was, no longer in %s/sensors.json\n",
+                 earlier.c_str(), a.out.c_str(), a.out.c_str());
   }
   std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
   if (s.contact_frames == 0) {

@@ -62,7 +62,9 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   back_project_contact(rays(), frame.depth.depth, frame.mask.mask, frame.mask.box, normals,
                        frame.cloud_sensor);
   keep_core_if_as_constrained(normals, frame);
-  if (!frame.cloud_sensor.empty()) frame.status = ContactStatus::kContact;
+  // A contact whose every pixel has an unusable normal (its depth filled in from the row's
+  // neighbours) cannot be read; it is no sign that the object let go.
+  frame.status = frame.cloud_sensor.empty() ? ContactStatus::kUnreadable : ContactStatus::kContact;
 }
 
 void ContactCloudBuilder::set_without_normals(ContactFrame& frame, ContactStatus status,

@@ -135,10 +135,13 @@ DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vecto
   report.rotation_scale_m = rotation_scale_m;
   symmetric_eigen(H_scaled, report.eigenvalues, report.eigenvectors);
   const double largest = report.eigenvalues[5];
-  report.min_eigenvalue_ratio = min_eigenvalue_ratio;
+  // Never below the eigen-solver's rounding: a ratio of 0 took a flat patch's rounding-level
+  // eigenvalues (1e-18 of the largest) for constrained directions and stepped by their inverse.
+  constexpr double kRoundingRatio = 1e-12;
+  report.min_eigenvalue_ratio = std::max(min_eigenvalue_ratio, kRoundingRatio);
   report.unconstrained = 0;
   for (int i = 0; i < 6; ++i) {
-    if (largest <= 0.0 || report.eigenvalues[i] <= min_eigenvalue_ratio * largest) {
+    if (largest <= 0.0 || report.eigenvalues[i] <= report.min_eigenvalue_ratio * largest) {
       report.unconstrained = i + 1;
     }
   }

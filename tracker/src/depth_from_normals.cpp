@@ -114,11 +114,16 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
   const std::size_t n = std::size_t(rays_.width) * rays_.height;
   reference_gradient_.resize(2 * n);
   for (std::size_t i = 0; i < n; ++i) {
-    const float* nr = &reference_normals_.data[3 * i];
+    float* nr = &reference_normals_.data[3 * i];
     if (!valid_normal(nr)) {
       throw InputError("reference normals: pixel (" + std::to_string(i % rays_.width) + ", " +
                        std::to_string(i / rays_.width) + ") is not a finite unit normal");
     }
+    // Made unit: the disturbance test compares angles as n.r against |n| (a reference of length
+    // 0.99, as a network gives, had flagged every pixel; one of 1.01 widened the threshold to 8
+    // deg).
+    const float length = std::sqrt(nr[0] * nr[0] + nr[1] * nr[1] + nr[2] * nr[2]);
+    for (int c = 0; c < 3; ++c) nr[c] /= length;
     log_depth_gradient(nr, rays_.dir_sensor[i], float(rays_.fx), float(rays_.fy),
                        float(options_.min_normal_dot_ray), reference_gradient_[2 * i],
                        reference_gradient_[2 * i + 1]);
@@ -210,10 +215,10 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   // 5. u = t_gel (1 - exp(w)) on the grid's pixels inside the image.
   const PixelRect inside = win.clipped(W, H);
   for (int y = inside.y0; y < inside.y1; ++y) {
-    const float* wr = w + std::size_t(y - win.y0) * nx - win.x0;
+    const float* wr = w + std::size_t(y - win.y0) * nx;  // the grid's row, from win.x0
     float* ur = &out.depth.at(0, y);
     const float* tg = &rays_.t_gel[std::size_t(y) * W];
-    for (int x = inside.x0; x < inside.x1; ++x) ur[x] = tg[x] * -std::expm1(wr[x]);
+    for (int x = inside.x0; x < inside.x1; ++x) ur[x] = tg[x] * -std::expm1(wr[x - win.x0]);
   }
 }
 

@@ -19,9 +19,11 @@ const SE3Manifold& se3_manifold() {
   return manifold;
 }
 
-// Copies the points whose position and normal are finite; returns how many were left out.
+// Copies the points whose position and normal are finite; returns how many were left out (all
+// of them when the normals do not match the points one to one).
 int copy_finite_points(const PointCloud& in, PointCloud& out) {
   out.clear();
+  if (in.normals.size() != in.points.size()) return int(in.points.size());
   out.reserve(in.size());
   for (std::size_t i = 0; i < in.size(); ++i) {
     if (in.points[i].allFinite() && in.normals[i].allFinite()) {
@@ -181,6 +183,8 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(int k, Tracke
   const int t = int(frames_.size()) - 1;
   const SensorTrack& s = sensors_[std::size_t(k)];
   if (!s.previous_tree || t < 1 || !frames_[t - 1].sensors[k].contact) return Outcome::kNotTried;
+  // A previous contact too small to register against is no failure of this frame's.
+  if (int(s.previous_tree->size()) < icp_.options().min_points) return Outcome::kNotTried;
   const Frame& p = frames_[t - 1];
   const Frame& f = frames_[t];
   // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
@@ -195,11 +199,14 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(int k, Tracke
 PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(
     int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists) {
   const SensorTrack& s = sensors_[std::size_t(k)];
-  if (s.patch.empty()) return Outcome::kNotTried;
+  PointToPlaneIcp& icp = options_.method == Method::kGroundTruthPatch ? model_icp_ : icp_;
+  // A patch still smaller than a registration needs (the first touch of a slow approach) is
+  // not tried; it grows by a key frame each frame until it is large enough (add).
+  if (s.patch.empty() || int(s.patch.tree().size()) < icp.options().min_points)
+    return Outcome::kNotTried;
   const int t = int(frames_.size()) - 1;
   const Frame& f = frames_[t];
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.sensors[k].e);
-  PointToPlaneIcp& icp = options_.method == Method::kGroundTruthPatch ? model_icp_ : icp_;
   const IcpResult r = icp.align(s.cloud, s.patch.tree(), guess);
   // What the contact let the registration see, whether or not its answer is used (a failed
   // one, with too few points or matches, never analysed its Hessian).
@@ -392,11 +399,12 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     anchors[k] = m == Method::kImageToImage ? to_previous : to_patch;
     // When both registrations were accepted (a factor each from first_of_sensor on), the gate
     // may leave the image-to-image one out.
-    if (gate_image_to_image(first_of_sensor)) {
-      est.image_to_image = false;
-      est.image_to_image_dropped = true;
-    }
+    if (gate_image_to_image(first_of_sensor)) est.image_to_image_dropped = true;
   }
+  // Another sensor's image-to-image factor may hold where one sensor's was left out.
+  est.image_to_image =
+      std::any_of(factors_.begin() + std::ptrdiff_t(first_registration), factors_.end(),
+                  [](const Factor& f) { return f.kind == FactorKind::kImageToImage; });
   if (free_twists.size() > 1)
     est.unconstrained_directions = common_unconstrained_directions(free_twists);
 
@@ -442,8 +450,11 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     // registration failed: after a jump, say, the cloud would be fused at a wrong pose, and
     // every later registration would agree with the polluted patch instead of reporting the
     // loss. The next frame whose registration holds takes its place.
+    const bool patch_too_small =
+        track.patch.empty() || int(track.patch.tree().size()) < icp_.options().min_points;
     if (options_.method == Method::kPatchGraph && contact && anchors[k] != Outcome::kFailed &&
-        (track.last_keyframe < 0 || t - track.last_keyframe >= options_.patch.keyframe_interval)) {
+        (track.last_keyframe < 0 || patch_too_small ||
+         t - track.last_keyframe >= options_.patch.keyframe_interval)) {
       track.patch.add_keyframe(
           track.cloud, pose_from_block(solved.o).inverse() * pose_from_block(solved.sensors[k].e));
       track.last_keyframe = t;
@@ -542,9 +553,11 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
   }
   ceres::Solver::Options solver_options;
   solver_options.max_num_iterations = iterations;
-  solver_options.linear_solver_type = options_.window > 0 && options_.window <= 40
-                                          ? ceres::DENSE_NORMAL_CHOLESKY
-                                          : ceres::SPARSE_NORMAL_CHOLESKY;
+  // Dense for a fixed-lag window's few frames, sparse for many (a batch solve of a whole
+  // sequence, --compare-batch: dense, its normal matrix grew with the square of the frames).
+  const int solved_frames = int(frames_.size()) - first_frame;
+  solver_options.linear_solver_type =
+      solved_frames <= 40 ? ceres::DENSE_NORMAL_CHOLESKY : ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.num_threads = 1;
   solver_options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
