@@ -30,7 +30,11 @@ PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3
   for (int k = 0; k < 8; ++k) {
     const Eigen::Vector3d p((k & 1) ? hi.x() : lo.x(), (k & 2) ? hi.y() : lo.y(),
                             (k & 4) ? hi.z() : lo.z());
-    const Eigen::Vector2d px = cam.project(p + Eigen::Vector3d(0, 0, cam.distance_m));
+    // Clamped near the image before the conversion to int: a corner of a huge object projects
+    // beyond int's range (its footprint came out empty and the object was culled).
+    const Eigen::Vector2d px = cam.project(p + Eigen::Vector3d(0, 0, cam.distance_m))
+                                   .cwiseMax(Eigen::Vector2d(-4.0, -4.0))
+                                   .cwiseMin(Eigen::Vector2d(width + 4.0, height + 4.0));
     r.x0 = std::min(r.x0, int(std::floor(px.x())));
     r.y0 = std::min(r.y0, int(std::floor(px.y())));
     r.x1 = std::max(r.x1, int(std::ceil(px.x())) + 1);
@@ -107,9 +111,10 @@ PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object,
 // their clusters, within the footprint.
 long SensorRenderer::State::near_gel_pixels(const SlabClusters& slab, const PixelRect& fp) const {
   if (slab.clusters.empty()) return 0;
-  const PixelRect r = project_box(sensor.camera, slab.lo.cast<double>(), slab.hi.cast<double>(),
-                                  -std::numeric_limits<double>::infinity(),
-                                  std::numeric_limits<double>::infinity(), width(), height());
+  const CameraModel& c = sensor.camera;  // cut to what lies in front of the camera
+  const PixelRect r =
+      project_box(c, slab.lo.cast<double>(), slab.hi.cast<double>(), c.near_m - c.distance_m,
+                  std::numeric_limits<double>::infinity(), width(), height());
   return r.intersected(fp).area();
 }
 
@@ -223,6 +228,17 @@ void SensorRenderer::State::rasterize_object(int obj, const SE3& T_sensor_object
   touched = touched.united(r);
 }
 
+bool SensorRenderer::State::in_front_of_camera(const SlabClusters& slab) const {
+  // A table-sized object pressed at a tilt: its clusters near the gel reach behind the camera
+  // (their contact had vanished from every output); rays see it. So do clusters wider than a
+  // metre, whose corners project beyond what the rasterizer's float edge functions resolve.
+  const CameraModel& c = sensor.camera;
+  constexpr float kWidest = 1.0f;  // [m]
+  return slab.triangles == 0 ||
+         (double(slab.lo.z()) > c.near_m - c.distance_m &&
+          slab.lo.head<2>().minCoeff() > -kWidest && slab.hi.head<2>().maxCoeff() < kWidest);
+}
+
 void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspace& ws,
                                          RenderStats& stats, FrameRegions& frame) const {
   const RenderSettings& opt = settings;
@@ -244,7 +260,8 @@ void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspac
       const bool shallow = slab.lowest_z > -slab_m();
       const long corners = long(fp.width() / tile + 2) * (fp.height() / tile + 2);
       const long rays = corners + near_gel_pixels(slab, fp);
-      if (shallow && double(slab.triangles) <= kTrianglesPerRay * double(rays)) {
+      if (shallow && in_front_of_camera(slab) &&
+          double(slab.triangles) <= kTrianglesPerRay * double(rays)) {
         rasterize_object(i, poses[i], fp, ws, stats, frame.touched);
         continue;
       }
@@ -273,6 +290,7 @@ void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspac
     ws.ray_objects.clear();
     for (int obj : ws.coarse_objects) {
       if (opt.rasterize && opt.footprint && !deep && !ws.pixels.empty() &&
+          in_front_of_camera(ws.slab[obj]) &&
           double(ws.slab[obj].triangles) <= kTrianglesPerRay * double(ws.pixels.size())) {
         rasterize_object(obj, poses[obj], coarse_rect, ws, stats, frame.touched);
       } else {

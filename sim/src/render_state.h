@@ -104,6 +104,9 @@ struct SensorRenderer::State {
   void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect, Workspace& ws,
                         RenderStats& stats, PixelRect& touched) const;
   long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;
+  // Whether the rasterizer can draw these clusters: all of their boxes in front of the camera's
+  // near plane (it projects every corner; one behind the camera would project mirrored).
+  bool in_front_of_camera(const SlabClusters& slab) const;
   void record_hit(Workspace& ws, int i, int obj, float t, bool inside) const;
   void write_color(std::uint64_t seed, FrameRegions& frame, bool reuse, Workspace& ws,
                    RenderedFrame& out) const;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <random>
+#include <utility>
 
 #include "pg/core/error.h"
 #include "pg/core/gel_rays.h"
@@ -488,6 +489,33 @@ TEST(RenderBadInput, AStrayOpenTriangleLeavesTheClosedPartsInside) {
   EXPECT_EQ(b.stats.clamped_pixels, a.stats.clamped_pixels);
   EXPECT_EQ(b.stats.contact_pixels, a.stats.contact_pixels);
   EXPECT_EQ(b.images.depth.data, a.images.depth.data);
+}
+
+// A table-sized box pressed 0.5 mm at a 5 deg tilt: its face near the gel reaches 44 mm below
+// it, behind the camera, where the rasterizer would project it mirrored (its contact had vanished
+// from every output), and a plane of 2000 km, whose corners project beyond what float edge
+// functions resolve (no contact either). Both render as the same face of a 10 cm box does.
+TEST(RenderBadInput, ObjectsReachingBehindTheCameraRenderTheirContact) {
+  const SensorModel sensor = flat_digit("digit");
+  const auto render_box = [&](float half_m, double tilt) {
+    TriangleMesh box = make_box({half_m, half_m, 0.01f});
+    for (auto& v : box.vertices) v.z() += 0.01f;  // its bottom face at z = 0
+    const SE3 pose(quaternion_from_rpy({0, tilt, 0}), Eigen::Vector3d(0, 0, -0.0005));
+    return SensorRenderer(sensor, {std::make_shared<ObjectShape>(box)}, quiet_settings())
+        .render({pose}, 0);
+  };
+  for (const auto& [half, tilt] : {std::pair{0.5f, 0.0873}, std::pair{1e6f, 0.0}}) {
+    const RenderedFrame small = render_box(0.05f, tilt);
+    const RenderedFrame large = render_box(half, tilt);
+    ASSERT_GT(small.stats.contact_pixels, 1000);
+    EXPECT_EQ(large.stats.contact_pixels, small.stats.contact_pixels) << half << " m";
+    EXPECT_EQ(large.images.mask.data, small.images.mask.data) << half << " m";
+    double most = 0;
+    for (std::size_t i = 0; i < small.images.depth.data.size(); ++i)
+      most =
+          std::max(most, double(std::abs(large.images.depth.data[i] - small.images.depth.data[i])));
+    EXPECT_LT(most, 1e-7) << half << " m [m]";
+  }
 }
 
 TEST(RenderBadInput, MissingBackgroundImageNamesThePath) {
