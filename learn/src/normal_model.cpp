@@ -197,6 +197,33 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
   }
 }
 
+namespace {
+
+// The description's numbers within what train-normals makes (a depth of 0 had crashed the
+// U-Net's first pass; an input_std of 0 made every pixel a fallback normal).
+void check_description(const NormalModelInfo& info, const std::string& path) {
+  const auto refuse = [&](const std::string& what) {
+    throw InputError(path + ": malformed model description: " + what);
+  };
+  const NetworkSpec& n = info.spec;
+  if (n.depth < 1 || n.depth > 8) refuse("depth " + std::to_string(n.depth) + " not in 1-8");
+  if (n.base_width < 1 || n.base_width > 256)
+    refuse("base_width " + std::to_string(n.base_width) + " not in 1-256");
+  if (n.mlp_hidden < 1 || n.mlp_hidden > 1024)
+    refuse("mlp_hidden " + std::to_string(n.mlp_hidden) + " not in 1-1024");
+  for (int c = 0; c < 3; ++c) {
+    if (!std::isfinite(info.input_mean[c])) refuse("input_mean is not finite");
+    if (!(info.input_std[c] > 0.0f) || !std::isfinite(info.input_std[c]))
+      refuse("input_std is not a positive number");
+  }
+  if (info.width < 8 || info.width > 8192 || info.height < 8 || info.height > 8192) {
+    refuse("image size " + std::to_string(info.width) + "x" + std::to_string(info.height) +
+           " not in 8-8192");
+  }
+}
+
+}  // namespace
+
 Generator load_model(const std::string& path, NormalModelInfo& info) {
   if (!fs::exists(path)) throw InputError(path + ": model file not found");
   if (!fs::is_regular_file(path)) {
@@ -228,6 +255,7 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path + ": malformed model description: " + e.what());
   }
+  check_description(info, path);
   Generator generator(nullptr);
   try {
     generator = Generator(info.spec);
@@ -241,6 +269,21 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
   } catch (const std::exception&) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
+  }
+  // Torch's load takes each stored tensor as it is, whatever its shape: weights of another
+  // width under a description that says this one ran as that network, described wrongly.
+  const Generator described(info.spec);
+  for (const bool buffers : {false, true}) {
+    const auto want = buffers ? described->named_buffers() : described->named_parameters();
+    const auto got = buffers ? generator->named_buffers() : generator->named_parameters();
+    for (const auto& item : want) {
+      const torch::Tensor* t = got.find(item.key());
+      if (t && t->sizes() == item.value().sizes()) continue;
+      throw InputError(path + ": the weights do not match the network it describes (" +
+                       info.spec.arch + ", depth " + std::to_string(info.spec.depth) + ", width " +
+                       std::to_string(info.spec.base_width) + "): " + item.key() +
+                       " has another shape");
+    }
   }
   // Checked again after the checksums: weights that are not finite (a file written so by a
   // diverged run of some other tool) would turn every prediction into noise.

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -554,6 +555,65 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
     std::ofstream(damaged, std::ios::binary) << bytes;
     msg = input_error_message([&] { NormalEstimator::load(damaged); });
     EXPECT_NE(msg.find("damaged.pt: corrupt model file"), std::string::npos) << msg;
+  }
+
+  // A description that disagrees with its weights, its checksum made to match (any zip tool
+  // rewrites them): a depth of 0 (it had crashed the first pass), another width (it had run the
+  // stored weights as that network, described wrongly), an input_std of 0 (every pixel a
+  // fallback normal). Same-length edits of the description in data.pkl.
+  {
+    std::ifstream in(o.out, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto u16 = [](const std::string& b, std::size_t at) {
+      return std::size_t(std::uint8_t(b[at])) | std::size_t(std::uint8_t(b[at + 1])) << 8;
+    };
+    const auto u32 = [&](const std::string& b, std::size_t at) {
+      return u16(b, at) | u16(b, at + 2) << 16;
+    };
+    const auto crc32 = [](const char* p, std::size_t n) {
+      std::uint32_t c = 0xFFFFFFFFu;
+      for (std::size_t i = 0; i < n; ++i) {
+        c ^= std::uint8_t(p[i]);
+        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+      }
+      return ~c;
+    };
+    const auto edited = [&](const std::string& from, const std::string& to) {
+      std::string copy = bytes;
+      const std::size_t at = copy.find(from);
+      EXPECT_NE(at, std::string::npos) << from;
+      EXPECT_EQ(from.size(), to.size());
+      if (at == std::string::npos) return copy;
+      copy.replace(at, from.size(), to);
+      // The central directory's entry whose (stored) data holds the edit gets its new CRC.
+      for (std::size_t cd = copy.find("PK\x01\x02");
+           cd != std::string::npos && cd + 46 < copy.size();
+           cd = copy.find("PK\x01\x02", cd + 46)) {
+        const std::size_t size = u32(copy, cd + 20), local = u32(copy, cd + 42);
+        const std::size_t data = local + 30 + u16(copy, local + 26) + u16(copy, local + 28);
+        if (at < data || at >= data + size) continue;
+        const std::uint32_t crc = crc32(copy.data() + data, size);
+        for (int k = 0; k < 4; ++k) copy[cd + 16 + k] = char((crc >> (8 * k)) & 0xFF);
+      }
+      return copy;
+    };
+    // The first input_std, written as zeros of its length.
+    const std::string std_key = "\"input_std\":[";
+    const std::size_t first = bytes.find(std_key) + std_key.size();
+    const std::string std_value = bytes.substr(first, bytes.find(',', first) - first);
+    ASSERT_GT(std_value.size(), 2u) << std_value;
+    const std::string zero = "0." + std::string(std_value.size() - 2, '0');
+    const std::string described = tmp_->str("described.pt");
+    for (const auto& [from, to, says] : std::vector<std::array<std::string, 3>>{
+             {"\"depth\":3", "\"depth\":0", "malformed model description: depth 0 not in 1-8"},
+             {"\"base_width\":8", "\"base_width\":9",
+              "the weights do not match the network it describes (unet, depth 3, width 9)"},
+             {std_key + std_value, std_key + zero,
+              "malformed model description: input_std is not a positive number"}}) {
+      std::ofstream(described, std::ios::binary | std::ios::trunc) << edited(from, to);
+      msg = input_error_message([&] { NormalEstimator::load(described); });
+      EXPECT_NE(msg.find("described.pt: " + says), std::string::npos) << from << ": " << msg;
+    }
   }
 
   // Training data without the ground truth it needs.
