@@ -263,11 +263,16 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
                        "); lights sit between the camera and the gel (shadows are traced for "
                        "those)");
     }
+    // The surface as the deepest press moves it: a light within that reach would be passed by
+    // a press and light the coating from its far side (at coincidence, a division by zero).
     const double surface = s.gel.surface_z(p.x(), p.y());
-    if (!(p.z() < surface)) {
+    const double pressed = surface - s.gel.max_indentation_m;
+    if (!(p.z() < pressed)) {
       throw InputError(field + ": z = " + mm(p.z()) +
-                       " is on or beyond the gel's surface, at z = " + mm(surface) +
-                       " there; lights sit between the camera and the gel");
+                       " is on or beyond the gel's surface pressed to gel.max_indentation_m, at z "
+                       "= " +
+                       mm(pressed) + " there (the surface at " + mm(surface) +
+                       "); lights sit between the camera and the gel");
     }
   }
   return s;

@@ -168,6 +168,10 @@ TEST(SensorConfig, ErrorsNameTheKey) {
                      {"lights[0].position_m: z = -23 mm is at or behind the camera (z = -22 mm)"});
   expect_input_error(parse(R"({"lights": [{"position_m": [0, 0.0129, -0.001]}]})"),
                      {"lights[0].position_m: z = -1 mm is on or beyond the gel's surface"});
+  // Behind the undeformed surface but within the reach of a press (2 mm), which would pass it.
+  expect_input_error(parse(R"({"lights": [{"position_m": [0, 0, -0.0015]}]})"),
+                     {"lights[0].position_m: z = -1.5 mm is on or beyond the gel's surface "
+                      "pressed to gel.max_indentation_m, at z = -2 mm there"});
   expect_input_error(
       parse(R"({"camera": {"distance_m": 0.01}})"),
       {"lights[0].position_m (the preset's): z = -17 mm is at or behind the camera"});
