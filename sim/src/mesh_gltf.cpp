@@ -130,13 +130,21 @@ Eigen::Matrix4d local_transform(const tinygltf::Node& node, int index) {
 
 class GltfFlattener {
  public:
-  explicit GltfFlattener(const tinygltf::Model& model) : model_(model) {}
+  explicit GltfFlattener(const tinygltf::Model& model)
+      : model_(model), visited_(model.nodes.size(), false) {}
 
   void add_node(int index, const Eigen::Matrix4d& T_parent, size_t depth, RawMesh& out) {
     if (index < 0 || static_cast<size_t>(index) >= model_.nodes.size()) {
       throw FormatError("node " + std::to_string(index) + " does not exist");
     }
     if (depth > model_.nodes.size()) throw FormatError("the node hierarchy has a cycle");
+    // glTF's nodes form trees: a node reached twice (two parents, or a root that is also a
+    // child) would be drawn twice, and a chain of such nodes 2^n times (no end in sight).
+    if (visited_[static_cast<size_t>(index)]) {
+      throw FormatError("node " + std::to_string(index) +
+                        " is reached twice (glTF nodes form trees: one parent each)");
+    }
+    visited_[static_cast<size_t>(index)] = true;
     const tinygltf::Node& node = model_.nodes[static_cast<size_t>(index)];
     const Eigen::Matrix4d T = T_parent * local_transform(node, index);
     if (node.mesh >= 0) {
@@ -220,6 +228,7 @@ class GltfFlattener {
   }
 
   const tinygltf::Model& model_;
+  std::vector<bool> visited_;  // nodes reached so far
   int skipped_primitives_ = 0;
 };
 

@@ -344,6 +344,20 @@ TEST_F(MeshIoTest, GltfNodeRotationOfAnyScaleIsNormalised) {
   EXPECT_TRUE(Contains(message, "node 0: rotation must be a finite, non-zero quaternion"));
 }
 
+// glTF nodes form trees. A chain of nodes each listing the next child twice had been walked 2^n
+// times (here 2^40: no end in sight), copying the leaf's mesh each time; a node with two parents
+// is refused, naming it.
+TEST_F(MeshIoTest, GltfNodesReachedTwiceAreRefused) {
+  std::string nodes = "[";
+  for (int n = 0; n < 40; ++n) {
+    nodes += "{\"children\": [" + std::to_string(n + 1) + ", " + std::to_string(n + 1) + "]}, ";
+  }
+  nodes += "{\"mesh\": 0}]";
+  const std::string message =
+      load_error(write("dag.gltf", gltf_json(0, 1, 2, nodes, R"("scenes": [{"nodes": [0]}])")));
+  EXPECT_TRUE(Contains(message, "node 40 is reached twice (glTF nodes form trees")) << message;
+}
+
 TEST_F(MeshIoTest, GltfMirroringTransformKeepsTrianglesCounterClockwise) {
   const std::string path = write("mirror.gltf", gltf_json(0, 1, 2, R"([{"scale": [-1, 1, 1],
     "mesh": 0}])",
