@@ -376,6 +376,12 @@ void NormalEstimator::set_phases(int phases) {
   if (phases != 1 && phases != 2 && phases != 4) {
     throw InputError("normals phases must be 1, 2 or 4, not " + std::to_string(phases));
   }
+  // A per-pixel network has no stride to average over; a shifted frame would read each pixel's
+  // colour at its neighbour's place.
+  if (phases != 1 && impl_->info.spec.arch == "mlp") {
+    throw InputError(impl_->path + ": a per-pixel MLP has no phases to average (1 only, not " +
+                     std::to_string(phases) + ")");
+  }
   impl_->phases = phases;
 }
 

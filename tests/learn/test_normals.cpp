@@ -373,6 +373,14 @@ TEST_F(NormalsTraining, EveryArchitectureTrainsOnOddImageSizes) {
     EXPECT_EQ(model.info().spec.arch, arch);
     const Dataset d = Dataset::open(val_);
     EXPECT_TRUE(model.predict(d.color(0), d.background()).same_shape(40, 30, 3)) << arch;
+    // A per-pixel network reads each pixel's place: no frames shifted by a pixel to average.
+    NormalEstimator averaged = NormalEstimator::load(o.out);
+    if (arch == "mlp") {
+      EXPECT_NE(input_error_message([&] { averaged.set_phases(2); }).find("no phases to average"),
+                std::string::npos);
+    } else {
+      EXPECT_NO_THROW(averaged.set_phases(2));
+    }
   }
   // Settings of the other architecture are refused rather than silently ignored.
   TrainOptions mlp = tiny_options(train_, val_, tmp_->str("mlp_wide.pt"));
