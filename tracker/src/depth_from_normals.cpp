@@ -122,8 +122,10 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
     // Made unit: the disturbance test compares angles as n.r against |n| (a reference of length
     // 0.99, as a network gives, had flagged every pixel; one of 1.01 widened the threshold to 8
     // deg).
+    // (One unit to float precision is left as it is: the gel model's own, to the last bit.)
     const float length = std::sqrt(nr[0] * nr[0] + nr[1] * nr[1] + nr[2] * nr[2]);
-    for (int c = 0; c < 3; ++c) nr[c] /= length;
+    if (std::abs(length - 1.0f) > 1e-6f)
+      for (int c = 0; c < 3; ++c) nr[c] /= length;
     log_depth_gradient(nr, rays_.dir_sensor[i], float(rays_.fx), float(rays_.fy),
                        float(options_.min_normal_dot_ray), reference_gradient_[2 * i],
                        reference_gradient_[2 * i + 1]);
