@@ -132,6 +132,8 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
                       {"gel_relative", o.gel_relative},
                       {"epochs", o.epochs},
                       {"run", run_settings(o)},
+                      {"input_mean", s.input_mean},
+                      {"input_std", s.input_std},
                       {"history", s.history}};
   a.write("info", c10::IValue(j.dump()));
   a.write("epoch", c10::IValue(int64_t(epochs_done)));
@@ -185,6 +187,20 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
       throw InputError(checkpoint + ": holds epoch " + std::to_string(c.epoch) +
                        ", past --epochs " + std::to_string(o.epochs) + "; give --epochs " +
                        std::to_string(c.epoch) + " to write its model, or more to train on");
+    }
+    // The same folders may hold other frames now (re-rendered), or --init another model: the
+    // weights would go on under another input normalisation (a checkpoint written before it
+    // was recorded is not checked).
+    if (j.contains("input_mean") &&
+        (j.at("input_mean").get<std::array<float, 3>>() != s.input_mean ||
+         j.at("input_std").get<std::array<float, 3>>() != s.input_std)) {
+      throw InputError(checkpoint +
+                       ": was trained under another input normalisation than this run's data "
+                       "gives (" +
+                       (o.init_model.empty() ? std::string("--data's frames")
+                                             : "the --init model " + o.init_model) +
+                       " changed since); resume with the data it was trained on, or remove it "
+                       "(or train into another --out) to start a new run");
     }
     s.history = j.at("history");
     torch::serialize::InputArchive sub;

@@ -4,6 +4,7 @@
 // continues.
 #include <torch/torch.h>
 
+#include <array>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -20,6 +21,10 @@ struct TrainingState {
   PatchDiscriminator* discriminator;
   torch::optim::Adam* discriminator_optimizer;
   nlohmann::json& history;  // one epoch_json per epoch done
+  // The input normalisation the weights train under (from the training data, or the --init
+  // model's): a resumed run must find the same.
+  const std::array<float, 3>& input_mean;
+  const std::array<float, 3>& input_std;
 };
 
 // A path as one file is always named (symbolic links and ".." resolved), or as given.
@@ -35,7 +40,8 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
 
 // Restores `state` from OUT.ckpt and returns the epochs it holds. Throws InputError naming the
 // checkpoint when it is missing or damaged, another network's, or of another run's settings
-// (run_settings), or past o.epochs.
+// (run_settings), or past o.epochs, or when the input normalisation differs from the one it was
+// trained under (the data folders' frames, or the --init model file, changed in between).
 int load_checkpoint(const TrainOptions& o, TrainingState& state);
 
 }  // namespace pg::learn

@@ -315,7 +315,8 @@ void train_normals(const TrainOptions& options,
 
   const std::string checkpoint = o.out + ".ckpt";
   nlohmann::json history = nlohmann::json::array();
-  learn::TrainingState state{g, opt_g, gan ? &d : nullptr, opt_d.get(), history};
+  learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
+                             history, info.input_mean, info.input_std};
   const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =

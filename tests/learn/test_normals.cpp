@@ -326,6 +326,30 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
   EXPECT_LT(net_error.size(), 400u) << net_error;
   EXPECT_EQ(fs::file_size(part.out + ".ckpt"), checkpoint_bytes);
   ASSERT_FALSE(fs::exists(part.out));
+  // The same folder holding other frames since (re-rendered): the weights would go on under
+  // another input normalisation; refused (the folder's path alone had passed).
+  {
+    const std::string copy = tmp_->str("train_copy");
+    fs::remove_all(copy);
+    fs::copy(train_, copy, fs::copy_options::recursive);
+    TrainOptions first = whole;
+    first.train_data = {copy};
+    first.out = tmp_->str("copy.pt");
+    first.epochs = 1;
+    first.decay_epochs = 0;
+    train_normals(first);
+    fs::copy_file(copy + "/color/000001.png", copy + "/color/000000.png",
+                  fs::copy_options::overwrite_existing);
+    TrainOptions again = first;
+    again.resume = true;
+    again.epochs = 2;
+    again.decay_epochs = 0;
+    const std::string changed = input_error_message([&] { train_normals(again); });
+    EXPECT_NE(changed.find("copy.pt.ckpt: was trained under another input normalisation than "
+                           "this run's data gives (--data's frames changed since)"),
+              std::string::npos)
+        << changed;
+  }
   std::vector<int> resumed;
   train_normals(part, [&](const EpochReport& r) { resumed.push_back(r.epoch); });
   EXPECT_EQ(resumed, (std::vector<int>{3, 4}));
