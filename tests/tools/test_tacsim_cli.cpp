@@ -10,6 +10,7 @@
 #include <iterator>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "../common/test_support.h"
@@ -484,27 +485,25 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
                        ": file not found"),
             std::string::npos)
       << r.out;
-  std::ofstream(tmp.str("scene.json"))
-      << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
-      << R"(/meshes/cube.glb"}], "render": {"background": "Synthetic"}})";
-  r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find(tmp.str("scene.json") + ": render.background: " + tmp.str("Synthetic") +
-                       ": no such image file (give an image, or synthetic or none)"),
-            std::string::npos)
-      << r.out;
-  // An image the renderer cannot use is named where the scene gives it, as a missing one is.
+  // A background missing, or one the renderer cannot use (grey), is named where the scene gives
+  // it: render.background.
   write_image(tmp.str("grey.png"), ImageU8(160, 120, 1));
-  std::ofstream(tmp.str("scene.json"))
-      << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
-      << R"(/meshes/cube.glb"}], "render": {"background": "grey.png"}})";
-  r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.out.find(tmp.str("scene.json") + ": render.background: " + tmp.str("grey.png") +
-                       ": background image must be RGB"),
-            std::string::npos)
-      << r.out;
-  EXPECT_FALSE(fs::exists(tmp.str("d")));
+  for (const auto& [background, complaint] :
+       {std::pair<std::string, std::string>{"Synthetic",
+                                            ": no such image file (give an image, or synthetic "
+                                            "or none)"},
+        {"grey.png", ": background image must be RGB"}}) {
+    std::ofstream(tmp.str("scene.json"))
+        << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
+        << R"(/meshes/cube.glb"}], "render": {"background": ")" << background << R"("}})";
+    r = tacsim("render " + tmp.str("scene.json") + " --out " + tmp.str("d"));
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.out.find(tmp.str("scene.json") + ": render.background: " + tmp.str(background) +
+                         complaint),
+              std::string::npos)
+        << r.out;
+    EXPECT_FALSE(fs::exists(tmp.str("d")));
+  }
 }
 
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
