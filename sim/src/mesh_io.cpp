@@ -210,31 +210,65 @@ int drop_duplicate_triangles(TriangleMesh& mesh) {
   return dropped;
 }
 
+// Whether the ray from `origin` along a fixed, oblique direction crosses the triangles `part` of
+// `mesh` an odd number of times: `origin` lies inside that closed surface.
+bool inside_closed_part(const TriangleMesh& mesh, const std::vector<int>& part,
+                        const Eigen::Vector3d& origin) {
+  const Eigen::Vector3d d = Eigen::Vector3d(0.5773502, 0.5773507, 0.5773497).normalized();
+  bool inside = false;
+  for (int t : part) {
+    const Eigen::Vector3i& tri = mesh.triangles[static_cast<size_t>(t)];
+    const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(tri[0])].cast<double>();
+    const Eigen::Vector3d e1 = mesh.vertices[static_cast<size_t>(tri[1])].cast<double>() - a;
+    const Eigen::Vector3d e2 = mesh.vertices[static_cast<size_t>(tri[2])].cast<double>() - a;
+    const Eigen::Vector3d p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (det == 0.0) continue;
+    const Eigen::Vector3d s = origin - a;
+    const double u = s.dot(p) / det;
+    if (u < 0.0 || u > 1.0) continue;
+    const Eigen::Vector3d q = s.cross(e1);
+    const double v = d.dot(q) / det;
+    if (v < 0.0 || u + v > 1.0) continue;
+    if (e2.dot(q) / det > 0.0) inside = !inside;
+  }
+  return inside;
+}
+
 // Orients each surface (triangles joined by shared edges; find_surfaces) as its triangles say:
 // the triangles that face against most of their neighbours (neighbours on a consistently
 // oriented surface run through their shared edge in opposite directions; edges of more than two
 // triangles are not followed) are turned to match, and then a closed surface that faces inward
 // (a negative signed volume: clockwise seen from outside, as a CAD export with flipped normals
 // has it) is turned outward, since the renderer tells a closed surface's inside from the way its
-// faces point. A surface that cannot be oriented (a Moebius strip) stays as it is. Counts, against
-// the file: the closed surfaces whose every triangle was turned, and the triangles turned on
-// the others.
+// faces point; one wholly inside another closed surface (a hollow body's cavity, or a nested
+// solid) keeps the direction the file gives it. A surface that cannot be oriented (a Moebius
+// strip) stays as it is. Counts,
+// against the file: the closed surfaces whose every triangle was turned, and the triangles
+// turned on the others.
 void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   const int n = static_cast<int>(mesh.triangles.size());
   const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
   const Surfaces surfaces = find_surfaces(mesh.triangles, by_edge);
   std::vector<std::int8_t> flip(static_cast<size_t>(n), -1);  // -1: not reached yet
-  std::vector<int> part, queue;
+  // 1. Each surface's triangles, turned consistently (flip 1: against the seed's direction).
+  struct Part {
+    std::vector<int> triangles;
+    bool orientable = true, closed = false;
+    double volume = 0.0;  // signed, with the flips
+    Eigen::AlignedBox3d box;
+  };
+  std::vector<Part> parts;
+  std::vector<int> queue;
   for (int seed = 0; seed < n; ++seed) {
     if (flip[seed] >= 0) continue;
-    part.clear();
+    Part part;
     queue.assign(1, seed);
     flip[seed] = 0;
-    bool orientable = true;
     while (!queue.empty()) {
       const int t = queue.back();
       queue.pop_back();
-      part.push_back(t);
+      part.triangles.push_back(t);
       const Eigen::Vector3i& tri = mesh.triangles[t];
       for (int k = 0; k < 3; ++k) {
         const int a = tri[k], b = tri[(k + 1) % 3];
@@ -249,33 +283,57 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
           flip[u] = want;
           queue.push_back(u);
         } else if (flip[u] != want) {
-          orientable = false;
+          part.orientable = false;
         }
       }
     }
-    std::size_t flipped = 0;
-    for (int t : part) flipped += flip[t] == 1;
-    bool invert = 2 * flipped > part.size();  // the majority's direction
-    // A closed surface (part is all of it when every edge has two triangles) faces outward.
-    const bool closed = surfaces.closed[surfaces.of_triangle[part[0]]];
-    if (orientable && closed) {
-      double volume = 0.0;
-      for (int t : part) {
-        const Eigen::Vector3i& tri = mesh.triangles[t];
-        const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(tri[0])].cast<double>();
-        const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(tri[1])].cast<double>();
-        const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(tri[2])].cast<double>();
-        volume += flip[t] == 1 ? -a.dot(b.cross(c)) : a.dot(b.cross(c));
-      }
-      invert = volume < 0.0;
+    // A closed surface (part is all of it when every edge has two triangles).
+    part.closed = surfaces.closed[surfaces.of_triangle[part.triangles[0]]];
+    for (int t : part.triangles) {
+      const Eigen::Vector3i& tri = mesh.triangles[t];
+      const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(tri[0])].cast<double>();
+      const Eigen::Vector3d b = mesh.vertices[static_cast<size_t>(tri[1])].cast<double>();
+      const Eigen::Vector3d c = mesh.vertices[static_cast<size_t>(tri[2])].cast<double>();
+      part.volume += flip[t] == 1 ? -a.dot(b.cross(c)) : a.dot(b.cross(c));
+      part.box.extend(a).extend(b).extend(c);
     }
+    parts.push_back(std::move(part));
+  }
+  // 2. Which way each faces: the majority's direction; a closed surface outward, unless it lies
+  // wholly inside another closed surface (a hollow body's cavity, facing into it, or a solid
+  // nested in another): the file's direction then says which, and is kept. (Parts that merely
+  // overlap, a toy brick's studs sunk into its body, face outward.)
+  const auto nested = [&](std::size_t i) {
+    const Part& part = parts[i];
+    for (std::size_t j = 0; j < parts.size(); ++j) {
+      const Part& other = parts[j];
+      if (j == i || !other.closed || !other.box.contains(part.box)) continue;
+      bool all_inside = true;  // every corner of the part's triangles inside `other`
+      for (int t : part.triangles) {
+        for (int k = 0; k < 3 && all_inside; ++k) {
+          const Eigen::Vector3d v =
+              mesh.vertices[static_cast<size_t>(mesh.triangles[t][k])].cast<double>();
+          all_inside = inside_closed_part(mesh, other.triangles, v);
+        }
+        if (!all_inside) break;
+      }
+      if (all_inside) return true;
+    }
+    return false;
+  };
+  for (std::size_t i = 0; i < parts.size(); ++i) {
+    const Part& part = parts[i];
+    std::size_t flipped = 0;
+    for (int t : part.triangles) flipped += flip[t] == 1;
+    bool invert = 2 * flipped > part.triangles.size();
+    if (part.orientable && part.closed && !nested(i)) invert = part.volume < 0.0;
     int turned = 0;
-    for (int t : part) {
-      const bool turn = orientable && ((flip[t] == 1) != invert);
+    for (int t : part.triangles) {
+      const bool turn = part.orientable && ((flip[t] == 1) != invert);
       flip[t] = std::int8_t(turn);
       turned += turn;
     }
-    if (turned == static_cast<int>(part.size()) && closed) {
+    if (turned == static_cast<int>(part.triangles.size()) && part.closed) {
       ++report.inside_out_parts_turned;
     } else {
       report.triangles_turned_to_match += turned;

@@ -19,8 +19,11 @@ SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::u
     if (!(area > 0.0)) continue;
     const Eigen::Vector3f n = cross.normalized();
     carry += area * density;
+    // Every triangle gets a sample; one smaller than its share is not charged to the next ones
+    // (a run of small triangles had left the large ones after it with one sample each until
+    // the debt was paid: 1.9 % of the toy brick's area at under half the density).
     const int count = std::max(1, int(carry));
-    carry -= count;
+    carry -= int(carry);
     for (int k = 0; k < count; ++k) {
       // Uniform in the triangle: reflect the unit square's upper half.
       float u = uniform(), v = uniform();

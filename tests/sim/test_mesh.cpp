@@ -21,6 +21,7 @@
 #include "pg/core/error.h"
 #include "pg/core/numbers.h"
 #include "pg/sim/mesh.h"
+#include "pg/sim/mesh_sampling.h"
 
 namespace pg {
 namespace {
@@ -604,6 +605,53 @@ TEST_F(MeshIoTest, SplitVerticesAreWeldedSoAClosedSurfaceLoadsClosed) {
 // A closed mesh with some triangles listed clockwise (the cube's bottom face here) is turned to
 // match the rest of its surface, with a warning: the renderer had skipped those faces as turned
 // away and found no contact at all. A surface that cannot be oriented stays as it is.
+// A hollow body: a 1 m cube with a 0.5 m cavity, the cavity's faces turned into it, as a modeller
+// writes it. Each closed surface had been turned to a positive volume on its own, the cavity
+// too, and the renderer then took a ray starting in the wall for one outside. Now a surface
+// wholly inside another keeps the file's direction: the cavity stays a cavity, and a nested
+// solid (the inner cube facing outward) stays a solid; an inside-out outer surface is still
+// turned.
+TEST_F(MeshIoTest, AHollowBodysCavityFacesIntoIt) {
+  const auto body = [](bool cavity_inward) {
+    std::string obj = kCubeVertices;
+    for (const char* v :
+         {"v 0.25 0.25 0.25\n", "v 0.75 0.25 0.25\n", "v 0.75 0.75 0.25\n", "v 0.25 0.75 0.25\n",
+          "v 0.25 0.25 0.75\n", "v 0.75 0.25 0.75\n", "v 0.75 0.75 0.75\n", "v 0.25 0.75 0.75\n"})
+      obj += v;
+    for (const auto& f : kCubeFaces) obj += obj_face(f[0], f[1], f[2]);
+    for (const auto& f : kCubeFaces) {
+      obj += cavity_inward ? obj_face(f[0] + 8, f[2] + 8, f[1] + 8)
+                           : obj_face(f[0] + 8, f[1] + 8, f[2] + 8);
+    }
+    return obj;
+  };
+  MeshLoadReport report;
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh hollow = load_mesh(write("hollow.obj", body(true)), 1.0, &report);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
+  EXPECT_NEAR(signed_volume(hollow), 1.0 - 0.125, 1e-9);  // the wall's volume
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh solid = load_mesh(write("nested.obj", body(false)), 1.0, &report);
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+  EXPECT_EQ(report.inside_out_parts_turned, 0);
+  EXPECT_NEAR(signed_volume(solid), 1.0 + 0.125, 1e-9);
+  // The outer surface inside out, the cavity as the modeller wrote it: only the outer is turned.
+  std::string inside_out = body(true);
+  for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
+    const auto& f = kCubeFaces[i];
+    const std::string face = obj_face(f[0], f[1], f[2]);
+    inside_out.replace(inside_out.find(face), face.size(), obj_face(f[0], f[2], f[1]));
+  }
+  const std::string path = write("inside_out.obj", inside_out);
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh turned = load_mesh(path, 1.0, &report);
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.inside_out_parts_turned, 1);
+  EXPECT_NEAR(signed_volume(turned), 1.0 - 0.125, 1e-9);
+  EXPECT_TRUE(Contains(err, path + ": 1 closed part(s)")) << err;
+}
+
 TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
   std::string good = kCubeVertices, flipped = kCubeVertices;
   for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
@@ -830,6 +878,29 @@ INSTANTIATE_TEST_SUITE_P(
       std::string name = info.param.file;
       return name.substr(0, name.find('.'));
     });
+
+// A run of triangles smaller than a sample's share (each still gets one) before a large square:
+// the square gets its density's worth. The samples the small ones took had been charged to the
+// triangles after them: the square had come out with a sample per triangle.
+TEST(SurfaceSampling, SmallTrianglesDoNotStarveTheLargeOnesAfterThem) {
+  TriangleMesh mesh;
+  for (int k = 0; k < 2000; ++k) {  // 2000 triangles of 0.5e-10 m^2, far apart from the square
+    const float x = 0.1f + 1e-4f * float(k);
+    const int i = int(mesh.vertices.size());
+    mesh.vertices.insert(mesh.vertices.end(), {{x, 0, 0}, {x + 1e-5f, 0, 0}, {x, 1e-5f, 0}});
+    mesh.triangles.emplace_back(i, i + 1, i + 2);
+  }
+  const int i = int(mesh.vertices.size());  // a 1 cm square
+  mesh.vertices.insert(mesh.vertices.end(),
+                       {{0, 0, 0}, {0.01f, 0, 0}, {0.01f, 0.01f, 0}, {0, 0.01f, 0}});
+  mesh.triangles.emplace_back(i, i + 1, i + 2);
+  mesh.triangles.emplace_back(i, i + 2, i + 3);
+  const SurfaceSamples s = sample_surface(mesh, 1e-4);  // 10 000 a square centimetre
+  const long on_square = std::count_if(s.points.begin(), s.points.end(),
+                                       [](const Eigen::Vector3f& p) { return p.x() <= 0.01f; });
+  EXPECT_NEAR(double(on_square), 10000.0, 2.0);
+  EXPECT_EQ(long(s.points.size()) - on_square, 2000);
+}
 
 }  // namespace
 }  // namespace pg
