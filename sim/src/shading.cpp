@@ -226,14 +226,17 @@ void add_noise(const std::int16_t* __restrict in, const std::int8_t* __restrict 
 void NoiseTable::apply(const std::int16_t* values, std::uint8_t* out, std::size_t n,
                        std::uint64_t seed, std::size_t position) const {
   // Sequential reads from a seeded offset: frames see shifted copies of one long stream, so a
-  // pixel's noise is independent from frame to frame, and the reads stay cache-friendly.
+  // pixel's noise is independent from frame to frame, and the reads stay cache-friendly. A frame
+  // of more values than the table (above 349 525 RGB pixels) reads each further table's length
+  // from another seeded offset: wrapping around had repeated the noise within the frame.
   const std::size_t size = samples_.size();
-  std::size_t offset = (std::size_t(splitmix64(seed)) + position) & (size - 1);
   for (std::size_t i = 0; i < n;) {
-    const std::size_t run = std::min(n - i, size - offset);
+    const std::size_t at = position + i, lap = at / size;
+    const std::uint64_t start = lap == 0 ? splitmix64(seed) : splitmix64(splitmix64(seed) + lap);
+    const std::size_t offset = (std::size_t(start) + at) & (size - 1);
+    const std::size_t run = std::min({n - i, size - offset, (lap + 1) * size - at});
     add_noise(values + i, samples_.data() + offset, out + i, run, step_, bits_);
     i += run;
-    offset = 0;
   }
 }
 

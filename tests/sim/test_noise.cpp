@@ -70,6 +70,25 @@ TEST(Noise, ApplyIsTheRoundedClampedSumInAnyPieces) {
   }
 }
 
+// A frame of more values than the table (1024x1024 RGB: 3 Mi values, the table 1 Mi) reads each
+// further table's length from another offset: wrapped around, channel c of pixel p had carried
+// exactly the noise of channel c + 1 of pixel p + 349 525. Pieces still add up to the whole.
+TEST(Noise, ALargeFrameDoesNotRepeatItsNoise) {
+  const NoiseTable table(7.0f);
+  const std::size_t size = table.samples().size();
+  std::vector<std::int16_t> values(2 * size + 5000, table.to_fixed(128.0f));
+  std::vector<std::uint8_t> whole(values.size()), pieces(values.size());
+  table.apply(values.data(), whole.data(), values.size(), 42);
+  for (std::size_t i = 0, len = 777; i < values.size(); i += len, len = len * 3 + 1) {
+    len = std::min(len, values.size() - i);
+    table.apply(values.data() + i, pieces.data() + i, len, 42, i);
+  }
+  EXPECT_EQ(whole, pieces);
+  int repeated = 0;
+  for (std::size_t i = 0; i < 5000; ++i) repeated += whole[i] == whole[i + size];
+  EXPECT_LT(repeated, 500) << "of 5000 values, one table's length apart";  // ~4 % by chance
+}
+
 // A frame's noise: mean 0 and sigma (plus the rounding's 1/12) for small and large sigma, the same
 // for the same seed, and uncorrelated with the next frame's.
 TEST(Noise, FrameNoiseHasTheConfiguredSigmaAndIsFreshEachFrame) {
