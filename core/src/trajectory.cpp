@@ -12,6 +12,23 @@ Trajectory Trajectory::constant(const SE3& pose) {
   return t;
 }
 
+namespace {
+
+// Each pose's quaternion on the same side as the one before (q and -q are one rotation): the
+// poses written frame by frame then run on without a sign jump where a waypoint's rpy gives the
+// other sign (yaw 3.1 then -3.1: the slerp between took the short way, the waypoint itself had
+// come out negated).
+void align_signs(std::vector<SE3>& poses) {
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    if (poses[i].rotation().dot(poses[i - 1].rotation()) >= 0.0) continue;
+    Eigen::Quaterniond q = poses[i].rotation();
+    q.coeffs() = -q.coeffs();
+    poses[i] = SE3(q, poses[i].translation());
+  }
+}
+
+}  // namespace
+
 Trajectory Trajectory::from_waypoints(const std::vector<Waypoint>& waypoints) {
   assert(!waypoints.empty());
   Trajectory t;
@@ -20,6 +37,7 @@ Trajectory Trajectory::from_waypoints(const std::vector<Waypoint>& waypoints) {
     t.frames_.push_back(w.frame);
     t.poses_.push_back(pose_from_position_rpy(w.position_m, w.rpy_rad));
   }
+  align_signs(t.poses_);
   return t;
 }
 
@@ -27,6 +45,7 @@ Trajectory Trajectory::from_poses(const std::vector<SE3>& poses) {
   assert(!poses.empty());
   Trajectory t;
   t.poses_ = poses;
+  align_signs(t.poses_);
   t.per_frame_ = true;
   return t;
 }

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "pg/core/numbers.h"
 #include "pg/core/trajectory.h"
 
 namespace pg {
@@ -32,6 +33,28 @@ TEST(Trajectory, WaypointsFarApartInterpolateWithoutOverflow) {
   const Trajectory u = Trajectory::from_waypoints(
       {{-1500000000, {0, 0, 0.005}, {0, 0, 0}}, {1500000000, {0, 0, 0.006}, {0, 0, 0}}});
   EXPECT_NEAR(u.at(0).translation().z(), 0.0055, 1e-12);
+}
+
+// A yaw from 3.1 to -3.1 rad turns the short way through pi, and the quaternions frame by frame
+// stay on one side (q and -q are one rotation): the waypoint at the end had come out negated, a
+// jump of 2 in poses.csv for anyone filtering or differencing quaternions. The same for per-frame
+// poses.
+TEST(Trajectory, QuaternionsRunOnWithoutASignJump) {
+  const Trajectory t = Trajectory::from_waypoints({{0, {0, 0, 0.005}, {0, 0, 3.1}},
+                                                   {10, {0, 0, 0.005}, {0, 0, -3.1}},
+                                                   {20, {0, 0, 0}, {3.1, 0, 0}}});
+  std::vector<SE3> poses;
+  for (int f = 0; f <= 20; ++f)
+    poses.push_back(pose_from_position_rpy({0, 0, 0}, {0, 0, 3.0 + 0.02 * f}));
+  const Trajectory p = Trajectory::from_poses(poses);
+  for (const Trajectory* tr : {&t, &p}) {
+    for (int f = 1; f <= 20; ++f) {
+      EXPECT_GT(tr->at(f).rotation().dot(tr->at(f - 1).rotation()), 0.9) << "frame " << f;
+    }
+  }
+  EXPECT_NEAR(rotation_distance(t.at(10), pose_from_position_rpy({0, 0, 0.005}, {0, 0, -3.1})), 0,
+              1e-12);
+  EXPECT_NEAR(rotation_distance(t.at(5), pose_from_position_rpy({0, 0, 0}, {0, 0, kPi})), 0, 1e-9);
 }
 
 TEST(Trajectory, PerFramePosesHoldTheLast) {
