@@ -50,7 +50,12 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
   }
   if (overrides.frames > 0) scene_.frames = overrides.frames;
   if (!overrides.outputs.empty()) scene_.render.outputs = overrides.outputs;
-  if (!overrides.background.empty()) scene_.render.background = overrides.background;
+  // The words a scene's render.background takes mean the same given on the command line.
+  if (overrides.background == "synthetic" || overrides.background == "none") {
+    scene_.render.background.clear();
+  } else if (!overrides.background.empty()) {
+    scene_.render.background = overrides.background;
+  }
   if (overrides.shadows) scene_.render.shadows = *overrides.shadows;
   if (overrides.elastic) {
     for (auto& sensor : scene_.sensors) sensor.model.gel.elastic.enabled = *overrides.elastic;

@@ -260,6 +260,18 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
                                info.background + " background"),
             std::string::npos)
       << described.out;
+  // The words a scene's render.background takes work on the command line too: a scene with a
+  // real background rendered with the synthetic one (they had been taken for file names).
+  const std::string real_scene = tmp.str("real_bg.json");
+  std::ofstream(real_scene) << R"({"frames": 1, "sensors": [{}], "objects": [{"mesh": ")"
+                            << PG_SOURCE_DIR << R"(/meshes/cube.glb"}], "render": {"background": ")"
+                            << background << R"("}})";
+  for (const char* word : {"synthetic", "none"}) {
+    const CliRun synthetic = tacsim("render " + real_scene + " -q --outputs color --background " +
+                                    word + " --out " + tmp.str(std::string("bg_") + word));
+    ASSERT_EQ(synthetic.code, 0) << synthetic.out;
+    EXPECT_EQ(Dataset::open(tmp.str(std::string("bg_") + word)).info().background, "") << word;
+  }
   // A render's dataset.json from before these were recorded: not taken for "off".
   const std::string json_path = tmp.str("d") + "/dataset.json";
   std::ifstream json_in(json_path);

@@ -270,7 +270,8 @@ int main(int argc, char** argv) {
       ->check(kThreads);
   add_image_size_options(*cmd_render, render.width, render.height, "the sensors' image");
   cmd_render->add_option("--background", render.background,
-                         "Real background image for every sensor (TACTO-style blend)");
+                         "Real background image for every sensor (TACTO-style blend), or "
+                         "synthetic (none): the renderer's own, whatever the scene says");
   cmd_render->add_option("--shadows", render.shadows, "Override the scene: on or off")
       ->check(CLI::IsMember({"on", "off"}));
   cmd_render->add_option("--elastic", render.elastic, "Override the gel's elastic model: on or off")
@@ -310,7 +311,8 @@ int main(int argc, char** argv) {
   cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
   cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(kNonNegative);
   add_image_size_options(*cmd_sheet, sheet.width, sheet.height, "the image");
-  cmd_sheet->add_option("--background", sheet.background, "Real background image for every scene");
+  cmd_sheet->add_option("--background", sheet.background,
+                        "Real background image for every scene, or synthetic (none)");
 
   PressesArgs presses;
   CLI::App* cmd_presses = app.add_subcommand(

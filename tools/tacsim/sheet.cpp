@@ -38,8 +38,8 @@ int run_sheet(const SheetArgs& args) {
   std::vector<std::vector<ImageU8>> columns;
   for (const auto& path : args.scenes) {
     Scene scene = load_scene(path);
-    if (!args.background.empty()) scene.render.background = args.background;
     RenderOverrides overrides;
+    overrides.background = args.background;  // synthetic and none as in the scene
     overrides.outputs = {"color", "normal", "depth"};
     overrides.width = args.width;
     overrides.height = args.height;
