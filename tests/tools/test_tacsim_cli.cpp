@@ -220,6 +220,25 @@ TEST(TacsimCli, InfoCheckReadsEveryFrame) {
   const CliRun damaged = tacsim("info --check " + tmp.str("d"));
   EXPECT_EQ(damaged.code, 1) << damaged.out;
   EXPECT_NE(damaged.out.find("normal/000004.exr"), std::string::npos) << damaged.out;
+  // A mask that decodes but disagrees with poses.csv's contact (an empty one where the frame is
+  // marked in contact: a mask copied from another frame, or an edited poses.csv).
+  ASSERT_EQ(tacsim("render " + kScenes + "examples/sphere_press.json -q --out " + tmp.str("m") +
+                   " --width 60 --height 80 --outputs mask")
+                .code,
+            0);
+  ASSERT_EQ(tacsim("info --check " + tmp.str("m")).code, 0);
+  const Dataset masked = Dataset::open(tmp.str("m"));
+  int touched = 0;
+  while (touched < masked.frames() && !masked.poses()[std::size_t(touched)].contact) ++touched;
+  ASSERT_LT(touched, masked.frames());
+  write_image(dataset_frame_path(tmp.str("m"), "mask", touched), ImageU8(60, 80, 1));
+  const CliRun emptied = tacsim("info --check " + tmp.str("m"));
+  EXPECT_EQ(emptied.code, 1) << emptied.out;
+  EXPECT_NE(emptied.out.find(dataset_frame_path(tmp.str("m"), "mask", touched) +
+                             ": shows no contact, but poses.csv marks frame " +
+                             std::to_string(touched) + " as in contact"),
+            std::string::npos)
+      << emptied.out;
 }
 
 // dataset.json describes the frames: the sensor's noise sigma is 0 when the scene renders

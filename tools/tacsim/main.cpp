@@ -176,7 +176,20 @@ long decode_every_frame(const Dataset& d) {
       if (output == "normal") d.normal(i);
       if (output == "normal_png") d.normal_png(i);
       if (output == "depth") d.depth(i);
-      if (output == "mask") d.mask(i);
+      if (output == "mask") {
+        // poses.csv's contact is the mask's: a pixel of it, or none (an edited file, or a mask
+        // copied from another frame, decodes as well as the right one).
+        const ImageU8 mask = d.mask(i);
+        const FramePose& pose = d.poses()[std::size_t(i)];
+        const bool touched =
+            std::any_of(mask.data.begin(), mask.data.end(), [](std::uint8_t m) { return m > 0; });
+        if (pose.contact_known && pose.contact != touched) {
+          throw InputError(dataset_frame_path(d.dir(), "mask", i) + ": " +
+                           (touched ? "shows contact" : "shows no contact") + ", but poses.csv " +
+                           (pose.contact ? "marks" : "does not mark") + " frame " +
+                           std::to_string(i) + " as in contact");
+        }
+      }
       if (output == "points") d.contact_points(i);
       ++files;
     }
