@@ -154,10 +154,36 @@ double JsonFields::convert<double>(const nlohmann::json& v, const std::string& k
   return d;
 }
 
+namespace {
+
+// A whole number written with a fraction (4.0, as a generator that carries numbers as floats
+// writes it) is that integer; up to 2^53, where doubles hold every integer.
+bool whole_number(const nlohmann::json& v, long long& out) {
+  if (v.is_number_integer()) {
+    out = v.get<long long>();
+    return true;
+  }
+  if (!v.is_number_float()) return false;
+  const double d = v.get<double>();
+  if (!(std::abs(d) <= 9007199254740992.0) || d != std::floor(d)) return false;
+  out = static_cast<long long>(d);
+  return true;
+}
+
+}  // namespace
+
+void JsonFields::integer_error(const std::string& key, const char* expected,
+                               const nlohmann::json& v) const {
+  if (v.is_number_float()) {
+    throw InputError(field(key) + ": expected " + expected + ", got " + v.dump());
+  }
+  type_error(key, expected, v);
+}
+
 template <>
 int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) const {
-  if (!v.is_number_integer()) type_error(key, "an integer", v);
-  const auto i = v.get<long long>();
+  long long i = 0;
+  if (!whole_number(v, i)) integer_error(key, "an integer", v);
   if (i < -2147483647LL || i > 2147483647LL) {
     throw InputError(field(key) + ": integer out of range");
   }
@@ -167,8 +193,10 @@ int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) co
 template <>
 std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
                                                  const std::string& key) const {
-  if (!v.is_number_unsigned()) type_error(key, "a non-negative integer", v);
-  return v.get<std::uint64_t>();
+  if (v.is_number_unsigned()) return v.get<std::uint64_t>();
+  long long i = 0;
+  if (!whole_number(v, i) || i < 0) integer_error(key, "a non-negative integer", v);
+  return static_cast<std::uint64_t>(i);
 }
 
 template <>

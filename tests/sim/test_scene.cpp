@@ -237,6 +237,12 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
       {"frames of the wrong type",
        [](json& j) { j["frames"] = "ten"; },
        {": frames", "expected an integer, got a string"}},
+      {"frames not whole",
+       [](json& j) { j["frames"] = 2.5; },
+       {": frames", "expected an integer, got 2.5"}},
+      {"a seed below zero",
+       [](json& j) { j["render"]["seed"] = -3; },
+       {": render.seed", "expected a non-negative integer"}},
       {"unknown top-level key", [](json& j) { j["colour"] = "red"; }, {": colour: unknown key"}},
       {"unknown nested key",
        [](json& j) { j["objects"][0]["colour"] = "red"; },
@@ -418,6 +424,22 @@ TEST_F(SceneFileTest, WaypointsInterpolateLinearlyAndBySlerp) {
   expect_near(t.at(2), {0.002, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 10}), 1e-12);
   expect_near(t.at(-3), {0, 0, 0.01}, Eigen::Quaterniond::Identity());  // holds the first
   expect_near(t.at(20), {0.01, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 2}));  // and the last
+}
+
+// Whole numbers written with a fraction (a generator that carries frame numbers as floats, numpy
+// values) are those integers; they had been refused as "expected an integer, got a number".
+TEST_F(SceneFileTest, WholeNumbersWrittenAsFloatsAreIntegers) {
+  json j = minimal_scene();
+  j["frames"] = 12.0;
+  j["render"]["seed"] = 5.0;
+  j["objects"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0.01}, {0, 0, 0}),
+                                                waypoint(10, {0.01, 0, 0.01}, {0, 0, 0})};
+  j["objects"][0]["trajectory"]["waypoints"][1]["frame"] = 10.0;
+  const Scene scene = load_scene(write("scene.json", j));
+  EXPECT_EQ(scene.frames, 12);
+  EXPECT_EQ(scene.render.seed, 5u);
+  expect_near(scene.objects[0].T_world_object.at(5), {0.005, 0, 0.01},
+              Eigen::Quaterniond::Identity(), 1e-12);
 }
 
 // An object "held_by" a sensor has its pose in that sensor's frame and moves with it; a name

@@ -85,6 +85,9 @@ class JsonFields {
   T convert(const nlohmann::json& v, const std::string& key) const;
   [[noreturn]] void type_error(const std::string& key, const char* expected,
                                const nlohmann::json& v) const;
+  // type_error, with a number that is not whole given as it is ("got 2.5").
+  [[noreturn]] void integer_error(const std::string& key, const char* expected,
+                                  const nlohmann::json& v) const;
   // The numbers of `v`, an array of `n` numbers; else throws, saying what is wrong.
   Eigen::VectorXd number_array(const std::string& key, const char* expected,
                                const nlohmann::json& v, std::size_t n) const;
