@@ -33,25 +33,47 @@ void line_and_column(const std::string& text, std::size_t byte, int& line, int& 
 
 nlohmann::json parse_json_text(const std::string& text, const std::string& name) {
   // A key given twice in one object: nlohmann keeps the last without a word, so a scene's second
-  // "frames" would silently win over its first.
-  std::vector<std::set<std::string>> keys;  // of the objects being parsed, innermost last
-  std::string duplicate;
+  // "frames" would silently win over its first. Named by its path (objects[1].trajectory...),
+  // as the fields' own errors are.
+  struct Level {
+    bool array = false;
+    std::string key;  // an object's key being read
+    int index = 0;    // an array's element being read
+    std::set<std::string> keys;
+  };
+  std::vector<Level> levels;  // the objects and arrays being parsed, innermost last
+  std::string duplicate;      // its path
+  const auto path_to = [&](const std::string& key) {
+    std::string p;
+    for (std::size_t i = 0; i + 1 < levels.size(); ++i) {
+      p += levels[i].array ? "[" + std::to_string(levels[i].index) + "]"
+                           : (p.empty() ? "" : ".") + levels[i].key;
+    }
+    return p + (p.empty() ? "" : ".") + key;
+  };
   const nlohmann::json::parser_callback_t check_keys = [&](int, nlohmann::json::parse_event_t event,
                                                            nlohmann::json& parsed) {
     using Event = nlohmann::json::parse_event_t;
-    if (event == Event::object_start) keys.emplace_back();
-    if (event == Event::object_end && !keys.empty()) keys.pop_back();
-    if (event == Event::key && !keys.empty() && duplicate.empty() &&
-        !keys.back().insert(parsed.get<std::string>()).second) {
-      duplicate = parsed.get<std::string>();
+    if (event == Event::object_start || event == Event::array_start) {
+      levels.emplace_back();
+      levels.back().array = event == Event::array_start;
+    } else if (event == Event::object_end || event == Event::array_end) {
+      if (!levels.empty()) levels.pop_back();
+      if (!levels.empty() && levels.back().array) ++levels.back().index;
+    } else if (event == Event::value) {
+      if (!levels.empty() && levels.back().array) ++levels.back().index;
+    } else if (event == Event::key && !levels.empty()) {
+      const std::string key = parsed.get<std::string>();
+      levels.back().key = key;
+      if (!levels.back().keys.insert(key).second && duplicate.empty()) duplicate = path_to(key);
     }
     return true;
   };
   try {
     nlohmann::json j = nlohmann::json::parse(text, check_keys);
     if (!duplicate.empty()) {
-      throw InputError(name + ": key \"" + duplicate +
-                       "\" is given twice in one object (only one value can hold)");
+      throw InputError(name + ": " + duplicate +
+                       ": given twice in one object (only one value can hold)");
     }
     return j;
   } catch (const nlohmann::json::parse_error& e) {

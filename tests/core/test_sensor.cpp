@@ -231,13 +231,23 @@ TEST(JsonFile, NumberOverflowAndDirectoriesNameTheFile) {
   expect_input_error([] { parse_json_file("/dev/zero"); }, {"/dev/zero: is not a regular file"});
 }
 
-// nlohmann keeps a repeated key's last value without a word: a scene's second "frames" won.
+// nlohmann keeps a repeated key's last value without a word: a scene's second "frames" won. The
+// error names the key by its path, as the fields' own errors do (it had named the key alone).
 TEST(JsonFile, AKeyGivenTwiceInOneObjectIsRefused) {
   expect_input_error([] { parse_json_text(R"({"frames": 3, "fps": 30, "frames": 2})", "s.json"); },
-                     {"s.json: key \"frames\" is given twice in one object"});
+                     {"s.json: frames: given twice in one object"});
   expect_input_error(
       [] { parse_json_text(R"({"a": {"x": 1}, "b": [{"y": 1, "y": 2}]})", "s.json"); },
-      {"key \"y\" is given twice"});
+      {"s.json: b[0].y: given twice"});
+  expect_input_error(
+      [] {
+        parse_json_text(R"({"objects": [{"name": "a"}, {"trajectory": {"waypoints": [
+                          {"frame": 0, "rpy": [0, 0, 0]},
+                          {"frame": 9, "rpy": [0, 0, 0], "position": [0, 0, 0], "rpy": [1, 0, 0]}
+                        ]}}]})",
+                        "s.json");
+      },
+      {"s.json: objects[1].trajectory.waypoints[1].rpy: given twice"});
   // The same key in different objects is fine.
   const nlohmann::json j =
       parse_json_text(R"({"a": {"x": 1}, "b": {"x": 2}, "x": [{"x": 3}]})", "s.json");
