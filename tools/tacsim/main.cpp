@@ -322,7 +322,10 @@ int main(int argc, char** argv) {
       app.add_subcommand("sheet", "Render one frame of each scene into a contact sheet PNG");
   cmd_sheet->add_option("scenes", sheet.scenes, "Scene files")->required();
   cmd_sheet->add_option("--out,-o", sheet.out, "Output PNG")->required();
-  cmd_sheet->add_option("--frame", sheet.frame, "Frame of each scene")->check(kNonNegative);
+  cmd_sheet
+      ->add_option("--frame", sheet.frame,
+                   "Frame of each scene (default 0; a shorter scene's last), its first sensor")
+      ->check(kNonNegative);
   add_image_size_options(*cmd_sheet, sheet.width, sheet.height, "the image");
   cmd_sheet->add_option("--background", sheet.background,
                         "Real background image for every scene, or synthetic (none)");
