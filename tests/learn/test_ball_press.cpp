@@ -123,12 +123,12 @@ SuiteDir* BallPressLabels::dir_ = nullptr;
 // images alone, the labels modelling the gel as the renderer had it. Measured (median / largest):
 // ball centre 0.015 / 0.035 mm on the rigid gel, 0.019 / 0.031 mm on the elastic gel, 0.029 /
 // 0.045 mm with the real DIGIT background's blend; contact angle of the labels against the
-// rendered normals 0.24 / 0.52, 0.32 / 0.47 and 0.58 / 0.77 deg (2026-11-27). Placed through the circle alone
-// (without the shading) the ball sat 0.05 / 0.08, 0.21 / 0.31 and 0.15 / 0.27 mm off (0.66 /
-// 0.81, 2.0 / 2.3, 2.0 / 2.2 deg with rigid labels): the visible change reaches past the contact,
-// by the noise threshold and on the elastic gel by the sink-in. The labels of the true centre
-// are within 0.13 deg of the rendered normals on either gel (rigid labels on the elastic gel:
-// 1.2-1.4 deg).
+// rendered normals 0.24 / 0.52, 0.32 / 0.47 and 0.58 / 0.77 deg (2026-11-27). Placed through the
+// circle alone (without the shading) the ball sat 0.05 / 0.08, 0.21 / 0.31 and 0.15 / 0.27 mm off
+// (0.66 / 0.81, 2.0 / 2.3, 2.0 / 2.2 deg with rigid labels): the visible change reaches past the
+// contact, by the noise threshold and on the elastic gel by the sink-in. The labels of the true
+// centre are within 0.13 deg of the rendered normals on either gel (rigid labels on the elastic
+// gel: 1.2-1.4 deg).
 TEST_F(BallPressLabels, FindTheRenderedBall) {
   struct Bound {
     const char* variant;
