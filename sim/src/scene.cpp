@@ -223,6 +223,7 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
     render.shadows = r.optional<bool>("shadows", render.shadows);
     const std::string bg = r.optional<std::string>("background", "synthetic");
     render.background = (bg == "synthetic" || bg == "none") ? "" : resolve(base_dir, bg);
+    render.seed_given = r.has("seed");
     render.seed = r.optional<std::uint64_t>("seed", render.seed);
     r.finish();
   }

@@ -290,7 +290,14 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
                                     word + " --out " + tmp.str(std::string("bg_") + word));
     ASSERT_EQ(synthetic.code, 0) << synthetic.out;
     EXPECT_EQ(Dataset::open(tmp.str(std::string("bg_") + word)).info().background, "") << word;
+    // A scene without render.seed draws seed 0's noise, as every such scene: said.
+    EXPECT_NE(synthetic.out.find("note: " + real_scene + " has no render.seed"), std::string::npos)
+        << synthetic.out;
   }
+  const CliRun seeded = tacsim("render " + kScenes + "examples/sphere_press.json -q --frames 1 " +
+                               "--outputs color --out " + tmp.str("seeded"));
+  ASSERT_EQ(seeded.code, 0) << seeded.out;
+  EXPECT_EQ(seeded.out.find("has no render.seed"), std::string::npos) << seeded.out;
   // A render's dataset.json from before these were recorded: not taken for "off".
   const std::string json_path = tmp.str("d") + "/dataset.json";
   std::ifstream json_in(json_path);

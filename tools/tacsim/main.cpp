@@ -121,6 +121,16 @@ int run_render(const RenderArgs& a) {
                  earlier.c_str(), a.out.c_str(), a.out.c_str());
   }
   std::fflush(stdout);  // the warnings below (stderr) follow these lines in a shared log too
+  const SceneRender& render_settings = renderer.scene().render;
+  const bool colour = std::find(render_settings.outputs.begin(), render_settings.outputs.end(),
+                                "color") != render_settings.outputs.end();
+  if (colour && render_settings.noise && !render_settings.seed_given) {
+    std::fprintf(stderr,
+                 "note: %s has no render.seed: its camera noise is seed 0's, frame by frame the "
+                 "same as every other scene's without one (give each scene of a dataset its own "
+                 "seed)\n",
+                 a.scene.c_str());
+  }
   if (s.contact_frames == 0) {
     std::fprintf(stderr,
                  "warning: %s: no object touches the gel in any frame; every frame shows the "

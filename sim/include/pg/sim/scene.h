@@ -28,6 +28,7 @@ struct SceneRender {
   bool shadows = false;
   std::string background;  // "" = synthetic (the sensor's own shading of the undeformed gel)
   std::uint64_t seed = 0;
+  bool seed_given = false;  // render.seed in the file (0 otherwise, as every such scene's)
 };
 
 struct Scene {
