@@ -176,8 +176,10 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
   if (f.has("width") || f.has("height")) {
     const int w = f.has("width") ? f.required<int>("width") : s.camera.width;
     const int h = f.has("height") ? f.required<int>("height") : s.camera.height;
-    if (w < 8 || w > 8192) throw InputError(f.field("width") + ": must be in [8, 8192] px");
-    if (h < 8 || h > 8192) throw InputError(f.field("height") + ": must be in [8, 8192] px");
+    const std::string range = ": must be in [" + std::to_string(kMinImageSide) + ", " +
+                              std::to_string(kMaxImageSide) + "] px";
+    if (w < kMinImageSide || w > kMaxImageSide) throw InputError(f.field("width") + range);
+    if (h < kMinImageSide || h > kMaxImageSide) throw InputError(f.field("height") + range);
     s.camera = s.camera.resized(w, h);
   }
   const bool own_intrinsics =

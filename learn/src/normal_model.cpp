@@ -206,19 +206,24 @@ void check_description(const NormalModelInfo& info, const std::string& path) {
     throw InputError(path + ": malformed model description: " + what);
   };
   const NetworkSpec& n = info.spec;
-  if (n.depth < 1 || n.depth > 8) refuse("depth " + std::to_string(n.depth) + " not in 1-8");
-  if (n.base_width < 1 || n.base_width > 256)
-    refuse("base_width " + std::to_string(n.base_width) + " not in 1-256");
-  if (n.mlp_hidden < 1 || n.mlp_hidden > 1024)
-    refuse("mlp_hidden " + std::to_string(n.mlp_hidden) + " not in 1-1024");
+  const auto within = [&](const char* name, int value, int largest) {
+    if (value < 1 || value > largest) {
+      refuse(std::string(name) + " " + std::to_string(value) + " not in 1-" +
+             std::to_string(largest));
+    }
+  };
+  within("depth", n.depth, kMaxNetworkDepth);
+  within("base_width", n.base_width, kMaxBaseWidth);
+  within("mlp_hidden", n.mlp_hidden, kMaxMlpHidden);
   for (int c = 0; c < 3; ++c) {
     if (!std::isfinite(info.input_mean[c])) refuse("input_mean is not finite");
     if (!(info.input_std[c] > 0.0f) || !std::isfinite(info.input_std[c]))
       refuse("input_std is not a positive number");
   }
-  if (info.width < 8 || info.width > 8192 || info.height < 8 || info.height > 8192) {
+  if (std::min(info.width, info.height) < kMinImageSide ||
+      std::max(info.width, info.height) > kMaxImageSide) {
     refuse("image size " + std::to_string(info.width) + "x" + std::to_string(info.height) +
-           " not in 8-8192");
+           " not in " + std::to_string(kMinImageSide) + "-" + std::to_string(kMaxImageSide));
   }
 }
 

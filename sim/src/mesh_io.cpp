@@ -243,9 +243,8 @@ bool inside_closed_part(const TriangleMesh& mesh, const std::vector<int>& part,
 // has it) is turned outward, since the renderer tells a closed surface's inside from the way its
 // faces point; one wholly inside another closed surface (a hollow body's cavity, or a nested
 // solid) keeps the direction the file gives it. A surface that cannot be oriented (a Moebius
-// strip) stays as it is. Counts,
-// against the file: the closed surfaces whose every triangle was turned, and the triangles
-// turned on the others.
+// strip) stays as it is. Counts, against the file: the closed surfaces whose every triangle was
+// turned, and the triangles turned on the others.
 void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   const int n = static_cast<int>(mesh.triangles.size());
   const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
@@ -303,21 +302,25 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   // wholly inside another closed surface (a hollow body's cavity, facing into it, or a solid
   // nested in another): the file's direction then says which, and is kept. (Parts that merely
   // overlap, a toy brick's studs sunk into its body, face outward.)
+  std::vector<int> corners;  // of the part being tested, each vertex once
   const auto nested = [&](std::size_t i) {
     const Part& part = parts[i];
+    corners.clear();
+    for (int t : part.triangles) {
+      for (int k = 0; k < 3; ++k) corners.push_back(mesh.triangles[t][k]);
+    }
+    std::sort(corners.begin(), corners.end());
+    corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
     for (std::size_t j = 0; j < parts.size(); ++j) {
       const Part& other = parts[j];
       if (j == i || !other.closed || !other.box.contains(part.box)) continue;
-      bool all_inside = true;  // every corner of the part's triangles inside `other`
-      for (int t : part.triangles) {
-        for (int k = 0; k < 3 && all_inside; ++k) {
-          const Eigen::Vector3d v =
-              mesh.vertices[static_cast<size_t>(mesh.triangles[t][k])].cast<double>();
-          all_inside = inside_closed_part(mesh, other.triangles, v);
-        }
-        if (!all_inside) break;
+      // Every corner of the part inside `other`.
+      if (std::all_of(corners.begin(), corners.end(), [&](int v) {
+            return inside_closed_part(mesh, other.triangles,
+                                      mesh.vertices[static_cast<size_t>(v)].cast<double>());
+          })) {
+        return true;
       }
-      if (all_inside) return true;
     }
     return false;
   };

@@ -222,7 +222,7 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
     render.noise = r.optional<bool>("noise", render.noise);
     render.shadows = r.optional<bool>("shadows", render.shadows);
     const std::string bg = r.optional<std::string>("background", "synthetic");
-    render.background = (bg == "synthetic" || bg == "none") ? "" : resolve(base_dir, bg);
+    render.background = names_synthetic_background(bg) ? "" : resolve(base_dir, bg);
     render.seed_given = r.has("seed");
     render.seed = r.optional<std::uint64_t>("seed", render.seed);
     r.finish();

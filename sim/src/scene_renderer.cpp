@@ -51,7 +51,7 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
   if (overrides.frames > 0) scene_.frames = overrides.frames;
   if (!overrides.outputs.empty()) scene_.render.outputs = overrides.outputs;
   // The words a scene's render.background takes mean the same given on the command line.
-  if (overrides.background == "synthetic" || overrides.background == "none") {
+  if (names_synthetic_background(overrides.background)) {
     scene_.render.background.clear();
   } else if (!overrides.background.empty()) {
     scene_.render.background = overrides.background;

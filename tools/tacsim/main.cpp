@@ -266,9 +266,9 @@ int run_info(const std::string& dir, bool check) {
 // would stretch the pixels.
 void add_image_size_options(CLI::App& cmd, int& width, int& height, const std::string& what) {
   CLI::Option* w = cmd.add_option("--width", width, "Override " + what + " width [px]")
-                       ->check(CLI::Range(8, 8192));
+                       ->check(CLI::Range(kMinImageSide, kMaxImageSide));
   CLI::Option* h = cmd.add_option("--height", height, "Override " + what + " height [px]")
-                       ->check(CLI::Range(8, 8192));
+                       ->check(CLI::Range(kMinImageSide, kMaxImageSide));
   w->needs(h);
   h->needs(w);
 }

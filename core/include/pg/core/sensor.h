@@ -10,6 +10,9 @@
 
 namespace pg {
 
+// The image sizes a sensor may have, each side [px]: a sensor file's, a CLI override's, a model's.
+constexpr int kMinImageSide = 8, kMaxImageSide = 8192;
+
 // Pinhole camera; pixel (i, j) has its centre at u = i, v = j (OpenCV convention).
 struct CameraModel {
   int width = 120;   // [px]

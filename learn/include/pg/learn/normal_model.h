@@ -27,6 +27,9 @@ struct NetworkSpec {
   int base_width = 16;        // channels of the first layer (pix2pix: 64)
   int mlp_hidden = 32;        // mlp: width of its two hidden layers (5-32-32-3 in the paper)
 };
+// The sizes train-normals makes (its options' ranges), which a model file's description is held
+// to: depth 1-kMaxNetworkDepth, base_width 1-kMaxBaseWidth, mlp_hidden 1-kMaxMlpHidden.
+constexpr int kMaxNetworkDepth = 8, kMaxBaseWidth = 256, kMaxMlpHidden = 1024;
 // "unet (depth 5, width 16)", "mlp (hidden 32)": the network in a message.
 std::string describe(const NetworkSpec& spec);
 

@@ -22,6 +22,12 @@ struct SceneObject {
   Trajectory T_world_object;
 };
 
+// The words that name the renderer's own (synthetic) background where an image path could go:
+// a scene's render.background and the tools' --background.
+inline bool names_synthetic_background(const std::string& background) {
+  return background == "synthetic" || background == "none";
+}
+
 struct SceneRender {
   std::vector<std::string> outputs = {"color", "normal", "depth", "mask"};
   bool noise = true;
