@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "gel_frame.h"
 #include "pg/core/dataset.h"
 #include "pg/core/image.h"
 #include "pg/learn/normal_model.h"
@@ -46,13 +47,6 @@ TORCH_MODULE(PatchDiscriminator);
 // The input encoding (see normal_model.h): the raw difference (color - background) / 255,
 // 3 x H x W, before normalisation by the stored mean and std.
 torch::Tensor difference_tensor(const ImageU8& color, const ImageU8& background);
-// The undeformed gel's normals of a sensor (W x H x 3), and the rotation of one normal n between
-// S and the gel frame at a pixel whose gel normal is g (the minimal rotation from +z to g):
-// to_gel maps S -> gel frame, else gel frame -> S. In place.
-ImageF gel_normals(const SensorModel& sensor);
-void rotate_gel_frame(const float* g, float* n, bool to_gel);
-// Whether two gel_normals images are the same gel (to 1e-6 per component).
-bool same_gel(const ImageF& a, const ImageF& b);
 // Image (H x W x C, float) <-> tensor (C x H x W).
 torch::Tensor image_to_tensor(const ImageF& image);
 ImageF tensor_to_image(const torch::Tensor& chw);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -14,6 +15,7 @@
 #include <stdexcept>
 
 #include "../common/test_support.h"
+#include "gel_frame.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/learn/normal_model.h"
@@ -76,6 +78,40 @@ std::string input_error_message(F&& f) {
     return e.what();
   }
   return "";
+}
+
+// The gel frame's rotation itself (gel-relative labels): at each pixel it takes the undeformed
+// gel's normal g to +z and back, keeps any normal's length, and the two directions undo each
+// other. (The trained round trip below cannot tell a rotation that is wrong the same way in
+// training and inference.)
+TEST(GelFrame, TakesEachPixelsGelNormalToZAndBack) {
+  for (const char* preset : {"digit", "gelsight_mini"}) {
+    const ImageF g = learn::gel_normals(sensor_preset(preset));
+    double tilt = 0;  // the largest gel normal's angle from +z: the check must meet tilted ones
+    double worst_z = 0, worst_back = 0, worst_g = 0;
+    const Eigen::Vector3f probe = Eigen::Vector3f(0.3f, -0.5f, 0.81f).normalized();
+    for (int y = 0; y < g.height; ++y) {
+      for (int x = 0; x < g.width; ++x) {
+        const float* gp = &g.at(x, y, 0);
+        const Eigen::Vector3f gv(gp[0], gp[1], gp[2]);
+        tilt = std::max(tilt, std::acos(std::min(1.0, double(gv.z()))));
+        Eigen::Vector3f n = gv;
+        learn::rotate_gel_frame(gp, n.data(), true);
+        worst_z = std::max(worst_z, double((n - Eigen::Vector3f::UnitZ()).norm()));
+        Eigen::Vector3f z = Eigen::Vector3f::UnitZ();
+        learn::rotate_gel_frame(gp, z.data(), false);
+        worst_g = std::max(worst_g, double((z - gv).norm()));
+        Eigen::Vector3f m = probe;
+        learn::rotate_gel_frame(gp, m.data(), true);
+        learn::rotate_gel_frame(gp, m.data(), false);
+        worst_back = std::max(worst_back, double((m - probe).norm()));
+      }
+    }
+    EXPECT_GT(tilt, 0.03) << preset;
+    EXPECT_LT(worst_z, 1e-5) << preset << ": g to the gel frame";
+    EXPECT_LT(worst_g, 1e-5) << preset << ": +z back to S";
+    EXPECT_LT(worst_back, 1e-5) << preset << ": there and back";
+  }
 }
 
 class NormalsTraining : public ::testing::Test {
@@ -673,7 +709,9 @@ TEST_F(NormalsTraining, WithoutValidationDataFramesAreHeldOut) {
   std::vector<EpochReport> epochs;
   train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
   ASSERT_EQ(epochs.size(), 1u);
-  EXPECT_EQ(epochs[0].val.frames, Dataset::open(train_).frames() / 10);
+  const int frames = Dataset::open(train_).frames();
+  EXPECT_EQ(epochs[0].val.frames, frames / 10);
+  EXPECT_EQ(epochs[0].train_frames, frames - frames / 10) << "held-out frames left in training";
   EXPECT_TRUE(std::isfinite(epochs[0].val.angle_contact_deg));
   EXPECT_GT(epochs[0].val.angle_contact_deg, 0.0);
   // With none held out there are no validation metrics: the model's history says null, not 0.
@@ -683,6 +721,7 @@ TEST_F(NormalsTraining, WithoutValidationDataFramesAreHeldOut) {
   train_normals(o, [&](const EpochReport& r) { epochs.push_back(r); });
   ASSERT_EQ(epochs.size(), 1u);
   EXPECT_EQ(epochs[0].val.frames, 0);
+  EXPECT_EQ(epochs[0].train_frames, frames);
   const auto history = nlohmann::json::parse(NormalEstimator::load(o.out).info().history_json);
   ASSERT_EQ(history.size(), 1u);
   EXPECT_TRUE(history[0]["val_mse_contact"].is_null()) << history.dump();

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "pg/sim/primitives.h"
 #include "stress_support.h"
@@ -31,15 +33,16 @@ int max_unconstrained(const StressRun& run) {
   return worst;
 }
 
-// A 20 mm cube face down, pressed 0.5 mm, slid 2 mm along x and spun 0.2 rad about z over 60
-// frames: slide and spin are invisible to a flat patch.
+// A 20 mm cube face down, pressed from 0.5 to 0.8 mm while slid 2 mm along x and spun 0.2 rad
+// about z over 60 frames: slide and spin are invisible to a flat patch, the deepening is not (an
+// estimate that stayed put would end 0.3 mm off in z).
 TEST(StressGeometry, FlatFaceSlidAndSpun) {
   const ClosedLoop& loop = cube_loop();
   std::vector<SE3> poses;
   for (int f = 0; f < 60; ++f) {
     const double s = f / 59.0;
     poses.push_back(SE3(Eigen::Quaterniond(Eigen::AngleAxisd(0.2 * s, Eigen::Vector3d::UnitZ())),
-                        Eigen::Vector3d(0.002 * s, 0, 0.010 - 0.0005)));
+                        Eigen::Vector3d(0.002 * s, 0, 0.010 - 0.0005 - 0.0003 * s)));
   }
   const StressRun run = loop.track(poses);
   run.print("FlatFaceSlidAndSpun");
@@ -54,13 +57,13 @@ TEST(StressGeometry, FlatFaceSlidAndSpun) {
   }
 }
 
-// A long thin plate (30 x 0.6 x 10 mm) pressed 0.4 mm on its long edge, slid 1.5 mm along the
-// edge: a strip of contact with near-vertical sides, whose ends lie outside the image. Along the
-// pixel rows (0 rad) or diagonally (0.785 rad) the slide is reported unconstrained. At 0.3 rad
-// the sides cross a pixel row every 3.2 pixels, and that staircase, fixed to the image and not to
-// the plate, holds a pure slide at 4 % of the largest eigenvalue: the registrations report it
-// constrained and read no slide, which is what the free direction's prior does too. Either way
-// the estimate stays where it was and nothing runs away.
+// A long thin plate (30 x 0.6 x 10 mm) pressed on its long edge from 0.4 to 0.65 mm (the press
+// is observable: 0.25 mm in z), slid 1.5 mm along the edge: a strip of contact with near-vertical
+// sides, whose ends lie outside the image. Along the pixel rows (0 rad) or diagonally (0.785 rad)
+// the slide is reported unconstrained. At 0.3 rad the sides cross a pixel row every 3.2 pixels, and
+// that staircase, fixed to the image and not to the plate, holds a pure slide at 4 % of the largest
+// eigenvalue: the registrations report it constrained and read no slide, which is what the free
+// direction's prior does too. Either way the estimate stays where it was and nothing runs away.
 TEST(StressGeometry, LongThinEdgeSlidAlongItself) {
   const ClosedLoop loop(shape(make_box({0.015f, 0.0003f, 0.005f})));
   struct Case {
@@ -73,7 +76,8 @@ TEST(StressGeometry, LongThinEdgeSlidAlongItself) {
     std::vector<SE3> poses;
     for (int f = 0; f < 60; ++f) {
       const double s = 0.0015 * f / 59.0;
-      poses.push_back(SE3(q, q * Eigen::Vector3d(s, 0, 0) + Eigen::Vector3d(0, 0, 0.005 - 0.0004)));
+      const double press = 0.0004 + 0.00025 * f / 59.0;
+      poses.push_back(SE3(q, q * Eigen::Vector3d(s, 0, 0) + Eigen::Vector3d(0, 0, 0.005 - press)));
     }
     const StressRun run = loop.track(poses);
     run.print("LongThinEdgeSlidAlongItself at " + std::to_string(angle) + " rad");
@@ -120,22 +124,37 @@ TEST(StressGeometry, SphereRolledAndSpun) {
   EXPECT_GT(run.last().rotation_error_rad, 0.5);
 }
 
-// A featureless patch: a 50 mm sphere (radius 25 mm) pressed 0.2 mm, the contact nearly flat,
-// moved 1 mm sideways.
+// A featureless patch: a 50 mm sphere (radius 25 mm), the contact nearly flat, moved 1.1 mm
+// sideways. Pressed 0.2 mm throughout, the cap's slide (a roll about its far centre) sits under
+// the degeneracy threshold (icp.min_eigenvalue_ratio): it is reported free and follows the
+// motion prior, so the estimate lags the slide (0.93 mm behind at the end; exact registrations
+// would follow it, but the same threshold is what keeps noise out of a flat face's slide,
+// docs/tracker.md). Pressed from 0.2 to 0.4 mm, the wider cap holds the slide and the press is
+// seen: both are tracked (0.055 mm at most), which an estimate that stayed put would fail.
 TEST(StressGeometry, FeaturelessPatch) {
   const ClosedLoop loop(shape(make_uv_sphere(0.025f, 128, 256)));
-  std::vector<SE3> poses;
-  for (int f = 0; f < 40; ++f) {
-    poses.push_back(SE3::Translation({0.001 * f / 39.0, 0.0005 * f / 39.0, 0.025 - 0.0002}));
-  }
-  const StressRun run = loop.track(poses);
-  run.print("FeaturelessPatch");
-  ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
-  EXPECT_EQ(run.contact_frames, 40);
-  EXPECT_GE(max_unconstrained(run), 3);
-  for (const auto& f : run.frames) {
-    EXPECT_LT(z_error_m(f), 1e-4);
-    EXPECT_LT(f.translation_error_m, 1.5e-3);
+  for (const double deepening : {0.0, 0.0002}) {
+    SCOPED_TRACE("pressed 0.2 mm + " + std::to_string(deepening * 1e3) + " mm");
+    std::vector<SE3> poses;
+    for (int f = 0; f < 40; ++f) {
+      const double s = f / 39.0;
+      poses.push_back(SE3::Translation({0.001 * s, 0.0005 * s, 0.025 - 0.0002 - deepening * s}));
+    }
+    const StressRun run = loop.track(poses);
+    run.print(deepening > 0 ? "FeaturelessPatch deepening" : "FeaturelessPatch");
+    ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
+    EXPECT_EQ(run.contact_frames, 40);
+    EXPECT_GE(max_unconstrained(run), 3);
+    const double slide = std::hypot(0.001, 0.0005);
+    for (std::size_t k = 0; k < run.frames.size(); ++k) {
+      const StressFrame& f = run.frames[k];
+      EXPECT_LT(z_error_m(f), 1e-4) << "frame " << k;
+      // Free directions may lag the slide, never outrun it.
+      EXPECT_LT(f.translation_error_m, slide + 0.1e-3) << "frame " << k;
+      if (deepening > 0) {
+        EXPECT_LT(f.translation_error_m, 0.2e-3) << "frame " << k;
+      }
+    }
   }
 }
 
@@ -162,8 +181,13 @@ TEST(StressScale, ObjectsFrom1To50Millimetres) {
       EXPECT_EQ(run.contact_frames, 30);
       EXPECT_LT(run.max_translation_error_m(), 5e-4);
     } else {
-      // Untracked frames are reported: no contact, or registrations that did not converge.
+      // Untracked frames are reported: no contact, or registrations that did not converge
+      // (an estimate that lost the 1 mm slide silently would be more than 0.5 mm off).
       EXPECT_LT(run.max_translation_error_m(), 1.5e-3);
+      if (run.max_translation_error_m() > 5e-4) {
+        EXPECT_GT(30 - run.contact_frames + run.lost_frames + run.unconverged_registrations, 0)
+            << "a 1 mm sphere lost without a report";
+      }
     }
   }
 }

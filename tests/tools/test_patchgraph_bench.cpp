@@ -63,6 +63,11 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     ASSERT_TRUE(column.count(c)) << c;
   }
   std::vector<std::string> settings;
+  struct Point {
+    double ms, t, r;
+    bool front_t, front_r;
+  };
+  std::vector<Point> points;
   int on_front = 0;
   while (std::getline(csv, line)) {
     const std::vector<std::string> cells = split_csv_line(line);
@@ -79,6 +84,26 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     }
     EXPECT_GT(std::stod(cells[column["median_frame_ms"]]), 0.0) << line;
     on_front += cells[column["pareto_translation"]] == "1";
+    points.push_back({std::stod(cells[column["median_frame_ms"]]),
+                      std::stod(cells[column["median_final_translation_m"]]),
+                      std::stod(cells[column["median_final_rotation_rad"]]),
+                      cells[column["pareto_translation"]] == "1",
+                      cells[column["pareto_rotation"]] == "1"});
+  }
+  // The fronts, from the table's own figures: a row is on one when no other is at least as fast
+  // and as accurate and better in one of the two.
+  const auto dominated = [&](const Point& a, double Point::*error) {
+    for (const Point& b : points) {
+      if (&a != &b && b.ms <= a.ms && b.*error <= a.*error &&
+          (b.ms < a.ms || b.*error < a.*error)) {
+        return true;
+      }
+    }
+    return false;
+  };
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(points[i].front_t, !dominated(points[i], &Point::t)) << settings[i];
+    EXPECT_EQ(points[i].front_r, !dominated(points[i], &Point::r)) << settings[i];
   }
   const std::vector<std::string> expected = {
       "default",  "resolution 240x320",           "voxel 0.2 mm",

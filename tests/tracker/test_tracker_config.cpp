@@ -51,6 +51,18 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
   EXPECT_FALSE(c.icp.symmetric);
   const TrackerConfig back = tracker_config_from_json(tracker_config_to_json(c), "round trip");
   EXPECT_EQ(tracker_config_to_json(back), tracker_config_to_json(c));
+  // Through the writer, not only compared with a second writing (which a field the writer
+  // leaves out would pass): each overridden value comes back.
+  EXPECT_FALSE(back.depth.crop);
+  EXPECT_EQ(back.depth.crop_margin_px, 6);
+  EXPECT_EQ(back.depth.integration, DepthIntegration::kAveraged);
+  EXPECT_DOUBLE_EQ(back.mask.min_depth_m, 5e-5);
+  EXPECT_EQ(back.icp.kernel, RobustKernel::kTukey);
+  EXPECT_DOUBLE_EQ(back.icp.kernel_scale_m, 2e-4);
+  EXPECT_DOUBLE_EQ(back.icp.voxel_size_m, 1e-4);
+  EXPECT_EQ(back.icp.coarse_points, 0);
+  EXPECT_DOUBLE_EQ(back.icp.coarse_step_m, 2e-5);
+  EXPECT_FALSE(back.icp.symmetric);
 }
 
 TEST(TrackerConfig, ErrorsNameTheFileAndField) {
