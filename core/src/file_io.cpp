@@ -89,6 +89,8 @@ std::string replaceable_file(const std::string& path) {
                      "file name");
   }
   std::error_code ec;
+  // A folder cannot be replaced by the file (the rename fails only after the work is done).
+  if (fs::is_directory(path, ec)) throw InputError(path + ": is a folder; give a file name");
   if (!fs::is_symlink(path, ec)) return path;
   const fs::path target = fs::weakly_canonical(path, ec);
   return ec ? path : target.string();

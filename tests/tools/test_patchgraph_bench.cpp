@@ -1,12 +1,15 @@
 // `patchgraph bench --quick`: the run-time-vs-error sweep's smoke test (docs/benchmarks.md).
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <string>
 #include <tuple>
+#include <vector>
 
 #include "../common/test_support.h"
 
@@ -149,6 +152,112 @@ TEST(PatchgraphBench, ASceneOrNormalsSourceGivenTwiceIsRefused) {
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("--normals: gt given twice"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("b")));
+  // One model file written two ways.
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
+  r = testing_support::run_command(PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals " +
+                                                        model + " " + std::string(PG_SOURCE_DIR) +
+                                                        "/models/../models/normals_unet.pt --out " +
+                                                        tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("given twice (also as " + model + ")"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+}
+
+// Every scene is read, and every model loaded, before anything renders: a missing second scene
+// failed after the whole sweep on the first.
+TEST(PatchgraphBench, ABadSceneOrModelFailsBeforeAnyRender) {
+  TempDir tmp;
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/benchmark/cube_00.json";
+  auto r = testing_support::run_command(PATCHGRAPH_PATH,
+                                        "bench -q --no-plot --frames 10 --scenes " + scene + " " +
+                                            tmp.str("no_such.json") + " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("no_such.json"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b"))) << "rendered before the check";
+  std::ofstream(tmp.str("lost_mesh.json"))
+      << R"({"frames": 4, "sensors": [{}], "objects": [{"name": "o", "mesh": "gone.glb"}]})";
+  r = testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --frames 10 --scenes " +
+                                                        scene + " " + tmp.str("lost_mesh.json") +
+                                                        " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("lost_mesh.json: objects: o: mesh " + tmp.str("gone.glb") + " not found"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+  r = testing_support::run_command(PATCHGRAPH_PATH,
+                                   "bench -q --no-plot --frames 10 --scenes " + scene +
+                                       " --normals gt no_such_model.pt --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+}
+
+// A learned-normals row records the settings `track` gives a model (no image-to-image gate, the
+// target's normals in the ICP, the averaged integration), not the ground-truth rows' ones.
+TEST(PatchgraphBench, ALearnedRowRecordsItsOwnSettings) {
+  TempDir tmp;
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/benchmark/cube_00.json";
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
+  const auto r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench --quick -q --no-plot --frames 10 --scenes " + scene +
+                           " --normals gt " + model + " --out " + tmp.str("b"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  std::ifstream csv(tmp.str("b/bench.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const std::vector<std::string> header = split_csv_line(line);
+  std::map<std::string, std::size_t> column;
+  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  int learned = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> cells = split_csv_line(line);
+    const bool model_row = cells[column["normals"]] == model;
+    learned += model_row;
+    EXPECT_EQ(cells[column["image_to_image_gate"]], model_row ? "0" : "1") << line;
+    EXPECT_EQ(cells[column["icp_symmetric"]], model_row ? "0" : "1") << line;
+    EXPECT_EQ(cells[column["depth_integration"]], model_row ? "averaged" : "parity") << line;
+  }
+  EXPECT_EQ(learned, 1);
+}
+
+// The cache knows a render by the files its scene names too: a mesh replaced under the same
+// name renders anew; a cache entry that no longer reads is named, with what to do.
+TEST(PatchgraphBench, TheCacheSeesAReplacedMeshAndNamesADamagedRender) {
+  TempDir tmp;
+  const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
+  fs::copy_file(meshes + "cube.glb", tmp.path / "obj.glb");
+  std::ofstream(tmp.str("s.json"))
+      << R"({"frames": 12, "sensors": [{}], "objects": [{"name": "o", "mesh": "obj.glb",
+            "pose": {"position": [0, 0, 0.0095]}}]})";
+  const std::string bench = "bench --quick -q --no-plot --frames 10 --scenes " + tmp.str("s.json") +
+                            " --cache " + tmp.str("cache") + " --out " + tmp.str("b");
+  ASSERT_EQ(testing_support::run_command(PATCHGRAPH_PATH, bench).code, 0);
+  const auto entries = [&] {
+    int n = 0;
+    for (const auto& e : fs::directory_iterator(tmp.path / "cache")) n += e.is_directory();
+    return n;
+  };
+  const int first = entries();
+  ASSERT_GT(first, 0);
+  fs::copy_file(meshes + "sphere_r6mm.glb", tmp.path / "obj.glb",
+                fs::copy_options::overwrite_existing);
+  fs::last_write_time(tmp.path / "obj.glb",
+                      fs::last_write_time(tmp.path / "obj.glb") + std::chrono::seconds(2));
+  ASSERT_EQ(testing_support::run_command(PATCHGRAPH_PATH, bench).code, 0);
+  EXPECT_EQ(entries(), 2 * first) << "the replaced mesh's scene was not rendered anew";
+  // Cut a frame of the newest renders short.
+  fs::path newest;
+  for (const auto& e : fs::directory_iterator(tmp.path / "cache")) {
+    if (newest.empty() || fs::last_write_time(e.path()) > fs::last_write_time(newest)) {
+      newest = e.path();
+    }
+  }
+  const fs::path frame = newest / "normal" / "000005.exr";
+  ASSERT_TRUE(fs::exists(frame)) << frame;
+  fs::resize_file(frame, fs::file_size(frame) / 3);
+  const auto r = testing_support::run_command(PATCHGRAPH_PATH, bench);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("a render in the bench's cache: remove "), std::string::npos) << r.out;
 }
 
 }  // namespace

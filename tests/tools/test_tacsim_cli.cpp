@@ -76,12 +76,20 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("nothing"), std::string::npos) << r.out;
   // Before the benchmark runs (the ablation's table was silently lost).
-  for (const char* mode : {"", " --ablation"}) {
-    r = tacsim(std::string("bench --quick --frames 2 --repeats 1") + mode +
-               " --markdown /proc/no/such.md");
+  for (const char* mode : {" --frames 2", " --ablation"}) {
+    r = tacsim(std::string("bench --quick --repeats 1") + mode + " --markdown /proc/no/such.md");
     EXPECT_EQ(r.code, 1) << mode;
     EXPECT_EQ(r.out.rfind("error: /proc/no/such.md: cannot write", 0), 0u) << r.out;
+    // A folder, which the report could not replace (found only after the whole run before).
+    r = tacsim(std::string("bench --quick --repeats 1") + mode + " --markdown " +
+               tmp.path.string());
+    EXPECT_EQ(r.code, 1) << mode;
+    EXPECT_NE(r.out.find("is a folder; give a file name"), std::string::npos) << r.out;
   }
+  // --frames does not apply to the ablation, whose runs are timed by length.
+  r = tacsim("bench --quick --ablation --frames 5");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--frames"), std::string::npos) << r.out;
 }
 
 TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {

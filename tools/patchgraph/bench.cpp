@@ -10,6 +10,7 @@
 #include <iterator>
 #include <map>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "../common/cli_main.h"
@@ -47,7 +48,9 @@ struct Setting {
   // 0 / 1: the averaged / parity integration of the normals; -1: as `track` sets it for the
   // normals source (resolved before the sweep runs, as icp_symmetric).
   int parity_integration = -1;
-  bool image_to_image_gate = true;  // false: GraphOptions::image_to_image_gate_rad 0
+  // false: GraphOptions::image_to_image_gate_rad 0 (resolved, as icp_symmetric, to what `track`
+  // sets for the normals source: off for a model)
+  bool image_to_image_gate = true;
 
   std::string name() const { return knob == "default" ? "default" : knob + " " + value; }
 };
@@ -114,22 +117,60 @@ std::vector<std::string> default_scenes(bool quick) {
   return out;
 }
 
-// The scene rendered at the resolution into the cache (reused when it is there already). The
-// cache entry's name carries a hash of the scene file's path and contents: two scenes of one
-// name, or a scene edited since, render anew instead of reusing another render.
-std::string cached_dataset(const std::string& scene_path, int width, int height, int frames,
-                           const std::vector<std::string>& outputs, const std::string& cache) {
+// A file a scene names, as far as a cache key needs it: its path, size and modification time
+// (a mesh replaced under the same name changes them).
+std::string file_stamp(const std::string& path) {
+  std::error_code ec;
+  const auto size = fs::file_size(path, ec);
+  const auto time = fs::last_write_time(path, ec).time_since_epoch().count();
+  return path + " " + std::to_string(size) + " " + std::to_string(time) + "\n";
+}
+
+// A bench scene, read and checked before anything is rendered or tracked: one sensor, its meshes
+// (and background image) there. Returns the hash its cache entries are named by: the scene
+// file's path and text, each sensor's model and each file it names, so that two scenes of one
+// name, a scene edited since, or a mesh replaced render anew instead of reusing another render.
+// (A renderer changed since is not seen: docs/benchmarks.md says to clear the cache then.)
+std::string checked_scene_key(const std::string& scene_path) {
+  const Scene scene = load_scene(scene_path);
+  if (scene.sensors.size() > 1) {
+    throw InputError(scene_path + ": sensors: " + std::to_string(scene.sensors.size()) +
+                     " sensors; bench times one sensor's tracking (render the scene with tacsim "
+                     "and run patchgraph track or eval on it for the sensors together)");
+  }
   std::ifstream in(scene_path, std::ios::binary);
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string key =
+      fs::weakly_canonical(scene_path).string() + "\n" +
+      std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const SceneSensor& sensor : scene.sensors) key += sensor_to_json(sensor.model).dump() + "\n";
+  for (const SceneObject& object : scene.objects) {
+    if (!fs::is_regular_file(object.mesh_path)) {
+      throw InputError(scene_path + ": objects: " + object.name + ": mesh " + object.mesh_path +
+                       " not found");
+    }
+    key += file_stamp(object.mesh_path);
+  }
+  if (!scene.render.background.empty() && !names_synthetic_background(scene.render.background)) {
+    key += file_stamp(scene.render.background);
+  }
   char hash[20];
-  std::snprintf(hash, sizeof hash, "%08llx",
-                (unsigned long long)(sequence_seed(0, fs::weakly_canonical(scene_path).string() +
-                                                          "\n" + text) >>
-                                     32));
-  const std::string name = fs::path(scene_path).stem().string() + "_" + hash + "_" +
-                           std::to_string(width) + "x" + std::to_string(height) + "_" +
-                           (frames > 0 ? std::to_string(frames) : std::string("all"));
-  const std::string dir = (fs::path(cache) / name).string();
+  std::snprintf(hash, sizeof hash, "%08llx", (unsigned long long)(sequence_seed(0, key) >> 32));
+  return hash;
+}
+
+// A cache entry's name: the scene's stem, its checked_scene_key, the resolution and frames.
+std::string cache_entry_name(const std::string& scene_path, const std::string& key, int width,
+                             int height, int frames) {
+  return fs::path(scene_path).stem().string() + "_" + key + "_" + std::to_string(width) + "x" +
+         std::to_string(height) + "_" + (frames > 0 ? std::to_string(frames) : std::string("all"));
+}
+
+// The scene rendered at the resolution into the cache (reused when it is there already).
+std::string cached_dataset(const std::string& scene_path, const std::string& key, int width,
+                           int height, int frames, const std::vector<std::string>& outputs,
+                           const std::string& cache) {
+  const std::string dir =
+      (fs::path(cache) / cache_entry_name(scene_path, key, width, height, frames)).string();
   if (fs::is_regular_file(fs::path(dir) / "poses.csv")) {
     try {
       const Dataset d = Dataset::open(dir);
@@ -141,11 +182,6 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
     }
   }
   Scene scene = load_scene(scene_path);
-  if (scene.sensors.size() > 1) {
-    throw InputError(scene_path + ": sensors: " + std::to_string(scene.sensors.size()) +
-                     " sensors; bench times one sensor's tracking (render the scene with tacsim "
-                     "and run patchgraph track or eval on it for the sensors together)");
-  }
   if (frames > 0) scene.frames = std::min(scene.frames, frames);
   RenderOverrides overrides;
   overrides.outputs = outputs;
@@ -153,8 +189,13 @@ std::string cached_dataset(const std::string& scene_path, int width, int height,
   overrides.height = height;
   // Rendered again into the folder of an unfinished or incomplete render; a folder of anything
   // else is refused (DatasetWriter::check_folder), not deleted.
-  render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir,
-                          [](int, int) { stop_if_asked(); });
+  try {
+    render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir,
+                            [](int, int) { stop_if_asked(); });
+  } catch (const Stopped& e) {
+    throw e.with_note("the cache entry " + dir +
+                      " is unfinished (the next bench renders it again)");
+  }
   return dir;
 }
 
@@ -321,7 +362,14 @@ int run_track_bench(const TrackBenchArgs& in) {
   if (!own_scenes) args.scenes = default_scenes(args.quick);
   // Given twice, a scene or normals source would count twice in every median.
   check_given_once(args.scenes);
-  check_names_given_once(args.normals, "--normals");
+  {
+    // "gt", or a model file however its path is written.
+    std::map<std::string, std::string> seen;
+    for (const std::string& n : args.normals) {
+      const auto [it, fresh] = seen.emplace(n == "gt" ? n : fs::weakly_canonical(n).string(), n);
+      if (!fresh) throw InputError("--normals: " + n + " given twice (also as " + it->second + ")");
+    }
+  }
   if (args.quick && args.frames == 0) args.frames = 60;
   if (args.cache.empty()) args.cache = (fs::path(args.out) / "cache").string();
   std::unique_ptr<tbb::global_control> limit;
@@ -341,39 +389,73 @@ int run_track_bench(const TrackBenchArgs& in) {
                            " scenes x " + std::to_string(settings.size()) +
                            " settings; per setting the median over the scenes of: each run's "
                            "median per-frame update time, its final errors and its RMSE.\n\n";
-  // Every setting's options once, on the first scene, before any tracking: a bad normals source
-  // (or any other option) fails now rather than after the sweep's first scene.
+  // Every scene read and every model loaded before anything is rendered, then every setting's
+  // options once on the first scene before any tracking: a bad scene, normals source (or any
+  // other option) fails now rather than after the sweep's first scene.
+  const StopOnSignals stop;
+  std::map<std::string, std::string> keys;
+  for (const auto& scene : args.scenes) keys[scene] = checked_scene_key(scene);
   Models models;
+  for (const auto& s : settings) {
+    if (!models.count(s.normals)) models[s.normals] = load_normals_models(args_for(s, 0));
+  }
+  // A cache entry that does not read (a file cut short, another program's folder) is named as
+  // the cache's, with what to do; other errors (a mesh that does not load) pass as they are.
+  const auto in_cache = [](const InputError& e, const std::string& entry) {
+    const std::string what = e.what();
+    if (what.find(entry) == std::string::npos) return e;
+    return InputError(what + " (a render in the bench's cache: remove " + entry +
+                      " to render it again)");
+  };
+  const auto entry_for = [&](const std::string& scene, const Setting& s) {
+    return (fs::path(args.cache) /
+            cache_entry_name(scene, keys.at(scene), s.width, s.height, args.frames))
+        .string();
+  };
+  const auto dataset_for = [&](const std::string& scene, const Setting& s) {
+    try {
+      return Dataset::open(cached_dataset(scene, keys.at(scene), s.width, s.height, args.frames,
+                                          outputs, args.cache));
+    } catch (const InputError& e) {
+      throw in_cache(e, entry_for(scene, s));
+    }
+  };
   {
-    const Dataset first = Dataset::open(cached_dataset(
-        args.scenes.front(), Setting().width, Setting().height, args.frames, outputs, args.cache));
+    const Dataset first = dataset_for(args.scenes.front(), Setting());
+    for (const auto& [source, loaded] : models) check_normals_models(loaded, {&first});
     for (auto& s : settings) {
-      if (!models.count(s.normals)) {
-        models[s.normals] = load_normals_models(args_for(s, 0));
-        check_normals_models(models[s.normals], {&first});
-      }
+      // What `track` sets for the normals source, recorded as run.
       const TrackOptions o = options_for(s, first, 0, models);
       s.icp_symmetric = o.front_end.icp.symmetric;
       s.parity_integration = o.front_end.depth.integration == DepthIntegration::kParity;
+      s.image_to_image_gate = o.graph.image_to_image_gate_rad > 0;
     }
+  }
+  // One untimed run first: the process's first tracking pays for allocations and FFT plans,
+  // which would otherwise count against whichever setting comes first.
+  try {
+    const Dataset first = dataset_for(args.scenes.front(), settings.front());
+    track_dataset(first, options_for(settings.front(), first, 0, models),
+                  [](int, int) { stop_if_asked(); });
+  } catch (const Stopped& e) {
+    throw e.with_note("nothing written to " + args.out);
   }
   std::vector<Row> rows(settings.size());
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
   const int total = int(args.scenes.size() * settings.size());
   int done = 0;
-  const StopOnSignals stop;
   for (const auto& scene : args.scenes) {
     const std::string scene_name = fs::path(scene).stem().string();
     for (Row& row : rows) {
       const Setting& s = row.setting;
-      const std::string dir =
-          cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache);
-      const Dataset dataset = Dataset::open(dir);
+      const Dataset dataset = dataset_for(scene, s);
       const TrackRun run = [&] {
         try {
           return track_dataset(dataset,
                                options_for(s, dataset, sequence_seed(0, scene_name), models),
                                [](int, int) { stop_if_asked(); });
+        } catch (const InputError& e) {
+          throw in_cache(e, dataset.dir());
         } catch (const Stopped& e) {
           throw e.with_note("nothing written to " + args.out + " (after " + std::to_string(done) +
                             " of " + std::to_string(total) + " runs)");
@@ -387,6 +469,15 @@ int run_track_bench(const TrackBenchArgs& in) {
                      run.summary.final_translation_error_m * 1e3,
                      run.summary.final_rotation_error_rad, run.summary.median_frame_ms);
       }
+    }
+  }
+  // A scene without contact times prediction alone, the same for every setting.
+  for (std::size_t k = 0; k < args.scenes.size(); ++k) {
+    if (rows.front().runs[k].summary.contact_frames == 0) {
+      std::fprintf(stderr,
+                   "warning: %s: no contact in any frame: its runs time the motion prior alone, "
+                   "the same for every setting\n",
+                   args.scenes[k].c_str());
     }
   }
   for (Row& row : rows) summarise(row);

@@ -151,11 +151,11 @@ double time_frames(const SensorRenderer& renderer, const std::vector<SE3>& poses
 
 // Each skip switched off in turn: the cost of a frame (one thread) relative to the renderer with
 // every skip on. The runs of one case are interleaved, as in the speed table.
-int run_ablation(const std::vector<Case>& cases, const BenchArgs& args, const BenchArgs& in) {
+int run_ablation(const std::vector<Case>& cases, const BenchArgs& args) {
   const double budget_s = args.quick ? 0.02 : 0.15;
   std::string report;  // the whole markdown file
   std::ostringstream out;
-  out << "Command: `" << command(in) << "`  \n"
+  out << "Command: `" << command(args) << "`  \n"
       << machine_line() << "  \n"
       << "Date: " << utc_now() << "  \n"
       << "One thread, noise on, rendering into a reused frame; ms per frame (median of "
@@ -229,7 +229,7 @@ int run_bench(const BenchArgs& in) {
   // A path that cannot be written fails now, not after the whole benchmark.
   if (!args.markdown.empty()) check_can_write(args.markdown);
   const std::vector<Case> cases = bench_cases();
-  if (args.ablation) return run_ablation(cases, args, in);
+  if (args.ablation) return run_ablation(cases, args);
   std::ostringstream head, table;
   head << "Command: `" << command(args) << "`  \n"
        << machine_line() << "  \n"

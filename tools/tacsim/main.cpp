@@ -315,7 +315,11 @@ int main(int argc, char** argv) {
 
   BenchArgs bench;
   CLI::App* cmd_bench = app.add_subcommand("bench", "Benchmark the renderer (frames/s per case)");
-  cmd_bench->add_option("--frames", bench.frames, "Frames per timed run")->check(kPositive);
+  CLI::Option* bench_frames = cmd_bench
+                                  ->add_option("--frames", bench.frames,
+                                               "Frames per timed run (not with --ablation, "
+                                               "whose runs are timed by length)")
+                                  ->check(kPositive);
   cmd_bench->add_option("--repeats", bench.repeats, "Timed runs per case (median reported)")
       ->check(kPositive);
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
@@ -324,8 +328,10 @@ int main(int argc, char** argv) {
   cmd_bench->add_flag("--quick", bench.quick,
                       "A smoke test: at most 200 frames and 3 repeats whatever --frames and "
                       "--repeats say");
-  cmd_bench->add_flag("--ablation", bench.ablation,
-                      "Switch each of the renderer's skips off in turn and report its cost ratio");
+  cmd_bench
+      ->add_flag("--ablation", bench.ablation,
+                 "Switch each of the renderer's skips off in turn and report its cost ratio")
+      ->excludes(bench_frames);
 
   SheetArgs sheet;
   CLI::App* cmd_sheet =
