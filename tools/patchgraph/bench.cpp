@@ -433,12 +433,16 @@ int run_track_bench(const TrackBenchArgs& in) {
   }
   // One untimed run first: the process's first tracking pays for allocations and FFT plans,
   // which would otherwise count against whichever setting comes first.
-  try {
+  {
     const Dataset first = dataset_for(args.scenes.front(), settings.front());
-    track_dataset(first, options_for(settings.front(), first, 0, models),
-                  [](int, int) { stop_if_asked(); });
-  } catch (const Stopped& e) {
-    throw e.with_note("nothing written to " + args.out);
+    try {
+      track_dataset(first, options_for(settings.front(), first, 0, models),
+                    [](int, int) { stop_if_asked(); });
+    } catch (const InputError& e) {
+      throw in_cache(e, first.dir());
+    } catch (const Stopped& e) {
+      throw e.with_note("nothing written to " + args.out);
+    }
   }
   std::vector<Row> rows(settings.size());
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
