@@ -99,7 +99,8 @@ std::string noisy_reference_warning(const ImageU8& reference, const std::string&
   std::snprintf(levels, sizeof levels, "%.1f", noise);
   return what + " holds camera noise of about " + levels +
          " levels (sigma, 0-255): every frame's difference to it carries that noise as well, "
-         "which the no-contact test and the normals network read as contact. The per-pixel "
+         "which the normals network reads as dents in every contact (frames without contact "
+         "are still told apart: noise changes no region as large as a press's). The per-pixel "
          "median of several frames without contact is quieter (about 1.25 x noise / sqrt(n): a "
          "dozen or more at sigma 7): patchgraph recording --background A.png B.png ... (or a "
          "folder of them)";
