@@ -21,6 +21,28 @@ using testing_support::TempDir;
 
 using testing_support::split_csv_line;
 
+// bench.csv: its columns by name and its rows, each checked to have one cell per column.
+struct BenchCsv {
+  std::map<std::string, std::size_t> column;
+  std::vector<std::vector<std::string>> rows;
+  const std::string& cell(std::size_t row, const std::string& name) const {
+    return rows.at(row).at(column.at(name));
+  }
+};
+BenchCsv read_bench_csv(const std::string& path) {
+  BenchCsv csv;
+  std::ifstream in(path);
+  std::string line;
+  if (!std::getline(in, line)) return csv;
+  const std::vector<std::string> header = split_csv_line(line);
+  for (std::size_t i = 0; i < header.size(); ++i) csv.column[header[i]] = i;
+  while (std::getline(in, line)) {
+    csv.rows.push_back(split_csv_line(line));
+    EXPECT_EQ(csv.rows.back().size(), header.size()) << line;
+  }
+  return csv;
+}
+
 // The cache knew a render by its scene file's name only: a second scene of that name (or the
 // scene edited) was benchmarked on the first one's render.
 TEST(PatchgraphBench, TwoScenesOfOneNameGetTheirOwnRenders) {
@@ -54,16 +76,11 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("| setting | median update [ms]"), std::string::npos) << r.out;
 
-  std::ifstream csv(tmp.str("b/bench.csv"));
-  std::string line;
-  ASSERT_TRUE(std::getline(csv, line));
-  const std::vector<std::string> header = split_csv_line(line);
-  std::map<std::string, std::size_t> column;
-  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  const BenchCsv csv = read_bench_csv(tmp.str("b/bench.csv"));
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
                         "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
                         "icp_symmetric", "depth_integration", "image_to_image_gate"}) {
-    ASSERT_TRUE(column.count(c)) << c;
+    ASSERT_TRUE(csv.column.count(c)) << c;
   }
   std::vector<std::string> settings;
   struct Point {
@@ -72,26 +89,25 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   };
   std::vector<Point> points;
   int on_front = 0;
-  while (std::getline(csv, line)) {
-    const std::vector<std::string> cells = split_csv_line(line);
-    ASSERT_EQ(cells.size(), header.size()) << line;
-    settings.push_back(cells[column["setting"]]);
-    EXPECT_EQ(cells[column["runs"]], "2") << line;
-    EXPECT_EQ(cells[column["icp_symmetric"]], "1") << line;  // ground-truth normals throughout
-    EXPECT_EQ(cells[column["depth_integration"]], "parity") << line;  // the quick sweep: default
-    EXPECT_EQ(cells[column["image_to_image_gate"]], "1") << line;
+  for (std::size_t i = 0; i < csv.rows.size(); ++i) {
+    const auto cell = [&](const char* name) { return csv.cell(i, name); };
+    settings.push_back(cell("setting"));
+    SCOPED_TRACE(settings.back());
+    EXPECT_EQ(cell("runs"), "2");
+    EXPECT_EQ(cell("icp_symmetric"), "1");           // ground-truth normals throughout
+    EXPECT_EQ(cell("depth_integration"), "parity");  // the quick sweep: default
+    EXPECT_EQ(cell("image_to_image_gate"), "1");
     for (const char* c :
          {"median_frame_ms", "median_final_translation_m", "median_final_rotation_rad"}) {
-      const double v = std::stod(cells[column[c]]);
-      EXPECT_TRUE(std::isfinite(v) && v >= 0) << c << " in " << line;
+      const double v = std::stod(cell(c));
+      EXPECT_TRUE(std::isfinite(v) && v >= 0) << c;
     }
-    EXPECT_GT(std::stod(cells[column["median_frame_ms"]]), 0.0) << line;
-    on_front += cells[column["pareto_translation"]] == "1";
-    points.push_back({std::stod(cells[column["median_frame_ms"]]),
-                      std::stod(cells[column["median_final_translation_m"]]),
-                      std::stod(cells[column["median_final_rotation_rad"]]),
-                      cells[column["pareto_translation"]] == "1",
-                      cells[column["pareto_rotation"]] == "1"});
+    EXPECT_GT(std::stod(cell("median_frame_ms")), 0.0);
+    on_front += cell("pareto_translation") == "1";
+    points.push_back({std::stod(cell("median_frame_ms")),
+                      std::stod(cell("median_final_translation_m")),
+                      std::stod(cell("median_final_rotation_rad")),
+                      cell("pareto_translation") == "1", cell("pareto_rotation") == "1"});
   }
   // The fronts, from the table's own figures: a row is on one when no other is at least as fast
   // and as accurate and better in one of the two.
@@ -202,20 +218,15 @@ TEST(PatchgraphBench, ALearnedRowRecordsItsOwnSettings) {
       PATCHGRAPH_PATH, "bench --quick -q --no-plot --frames 10 --scenes " + scene +
                            " --normals gt " + model + " --out " + tmp.str("b"));
   ASSERT_EQ(r.code, 0) << r.out;
-  std::ifstream csv(tmp.str("b/bench.csv"));
-  std::string line;
-  ASSERT_TRUE(std::getline(csv, line));
-  const std::vector<std::string> header = split_csv_line(line);
-  std::map<std::string, std::size_t> column;
-  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = i;
+  const BenchCsv csv = read_bench_csv(tmp.str("b/bench.csv"));
   int learned = 0;
-  while (std::getline(csv, line)) {
-    const std::vector<std::string> cells = split_csv_line(line);
-    const bool model_row = cells[column["normals"]] == model;
+  for (std::size_t i = 0; i < csv.rows.size(); ++i) {
+    SCOPED_TRACE(csv.cell(i, "setting"));
+    const bool model_row = csv.cell(i, "normals") == model;
     learned += model_row;
-    EXPECT_EQ(cells[column["image_to_image_gate"]], model_row ? "0" : "1") << line;
-    EXPECT_EQ(cells[column["icp_symmetric"]], model_row ? "0" : "1") << line;
-    EXPECT_EQ(cells[column["depth_integration"]], model_row ? "averaged" : "parity") << line;
+    EXPECT_EQ(csv.cell(i, "image_to_image_gate"), model_row ? "0" : "1");
+    EXPECT_EQ(csv.cell(i, "icp_symmetric"), model_row ? "0" : "1");
+    EXPECT_EQ(csv.cell(i, "depth_integration"), model_row ? "averaged" : "parity");
   }
   EXPECT_EQ(learned, 1);
 }

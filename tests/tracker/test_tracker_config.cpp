@@ -37,32 +37,27 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
                                   "symmetric": false}})",
                                                "cfg.json"),
                                "cfg.json");
-  EXPECT_FALSE(c.depth.crop);
-  EXPECT_EQ(c.depth.crop_margin_px, 6);
+  // The overrides, read from the file and again through the writer (a field the writer left out
+  // would pass a comparison of two writings, not this).
+  const auto expect_overrides = [](const TrackerConfig& t, const char* which) {
+    SCOPED_TRACE(which);
+    EXPECT_FALSE(t.depth.crop);
+    EXPECT_EQ(t.depth.crop_margin_px, 6);
+    EXPECT_EQ(t.depth.integration, DepthIntegration::kAveraged);
+    EXPECT_DOUBLE_EQ(t.mask.min_depth_m, 5e-5);
+    EXPECT_EQ(t.icp.kernel, RobustKernel::kTukey);
+    EXPECT_DOUBLE_EQ(t.icp.kernel_scale_m, 2e-4);
+    EXPECT_DOUBLE_EQ(t.icp.voxel_size_m, 1e-4);
+    EXPECT_EQ(t.icp.coarse_points, 0);
+    EXPECT_DOUBLE_EQ(t.icp.coarse_step_m, 2e-5);
+    EXPECT_FALSE(t.icp.symmetric);
+  };
   EXPECT_EQ(DepthOptions().integration, DepthIntegration::kParity);
-  EXPECT_EQ(c.depth.integration, DepthIntegration::kAveraged);
-  EXPECT_DOUBLE_EQ(c.mask.min_depth_m, 5e-5);
-  EXPECT_EQ(c.icp.kernel, RobustKernel::kTukey);
-  EXPECT_DOUBLE_EQ(c.icp.kernel_scale_m, 2e-4);
-  EXPECT_DOUBLE_EQ(c.icp.voxel_size_m, 1e-4);
-  EXPECT_EQ(c.icp.coarse_points, 0);
-  EXPECT_DOUBLE_EQ(c.icp.coarse_step_m, 2e-5);
   EXPECT_TRUE(IcpOptions().symmetric);
-  EXPECT_FALSE(c.icp.symmetric);
+  expect_overrides(c, "parsed");
   const TrackerConfig back = tracker_config_from_json(tracker_config_to_json(c), "round trip");
   EXPECT_EQ(tracker_config_to_json(back), tracker_config_to_json(c));
-  // Through the writer, not only compared with a second writing (which a field the writer
-  // leaves out would pass): each overridden value comes back.
-  EXPECT_FALSE(back.depth.crop);
-  EXPECT_EQ(back.depth.crop_margin_px, 6);
-  EXPECT_EQ(back.depth.integration, DepthIntegration::kAveraged);
-  EXPECT_DOUBLE_EQ(back.mask.min_depth_m, 5e-5);
-  EXPECT_EQ(back.icp.kernel, RobustKernel::kTukey);
-  EXPECT_DOUBLE_EQ(back.icp.kernel_scale_m, 2e-4);
-  EXPECT_DOUBLE_EQ(back.icp.voxel_size_m, 1e-4);
-  EXPECT_EQ(back.icp.coarse_points, 0);
-  EXPECT_DOUBLE_EQ(back.icp.coarse_step_m, 2e-5);
-  EXPECT_FALSE(back.icp.symmetric);
+  expect_overrides(back, "written and read back");
 }
 
 TEST(TrackerConfig, ErrorsNameTheFileAndField) {
