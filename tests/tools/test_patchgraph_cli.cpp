@@ -446,6 +446,16 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
   for (const char* error : {"final_translation_error_m", "final_rotation_error_rad"}) {
     EXPECT_EQ(rerun[error].get<double>(), summary[error].get<double>()) << error;
   }
+  // A file naming one other key sets that key on top of the learned normals' settings (it had
+  // replaced them all with the built-in defaults).
+  const std::string one_key = out("track_unet_one_key.json");
+  std::ofstream(one_key) << R"({"icp": {"max_iterations": 25}})";
+  const CliRun partial = patchgraph("track " + data() + " -q --normals " + kDefaultModel +
+                                    " --config " + one_key + " --out " + out("track_unet_one_key"));
+  ASSERT_EQ(partial.code, 0) << partial.out;
+  nlohmann::json expected = config;
+  expected["icp"]["max_iterations"] = 25;
+  EXPECT_EQ(parse_json_file(out("track_unet_one_key") + "/summary.json")["config"], expected);
 }
 
 // A sensor pose that jumps 1 m for one frame (a glitch in poses.csv) is warned about, naming the

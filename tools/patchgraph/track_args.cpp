@@ -35,9 +35,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "4 passes per frame, less error for more time")
       ->check(CLI::IsMember({1, 2, 4}));
   app.add_option("--config", a.config,
-                 "Tracker config JSON (depth, mask, icp options; default: the built-in options, "
-                 "with mask.relative_depth 0.2, icp.symmetric false and depth.integration "
-                 "averaged for --normals MODEL)");
+                 "Tracker config JSON (depth, mask, icp options): each key given replaces the "
+                 "default, the built-in options (for --normals MODEL with mask.relative_depth "
+                 "0.2, icp.symmetric false and depth.integration averaged)");
   app.add_option("--window", a.window, "Frames in the fixed-lag window; 0 = batch (default 5)")
       ->check(kNonNegative);
   app.add_option("--keyframe-interval", a.keyframe_interval,
@@ -290,9 +290,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
     // better (docs/learned_normals.md); off unless asked for.
     o.graph.image_to_image_gate_rad = 0;
   }
-  if (!a.config.empty()) {
-    o.front_end = load_tracker_config(a.config);
-  } else if (o.normals) {
+  if (o.normals) {
     // Learned normals are off by a degree or so everywhere; integrated over the gel that is a
     // shallow false indentation around the contact. Keeping only pixels deeper than a fifth of
     // the frame's deepest drops it (docs/learned_normals.md): the contact points then lie within
@@ -309,6 +307,9 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
     // the toy brick a little better and the toy human worse (docs/learned_normals.md).
     o.front_end.depth.integration = DepthIntegration::kAveraged;
   }
+  // A config file sets the keys it names on top of these (a file naming another key keeps the
+  // learned normals' settings).
+  if (!a.config.empty()) o.front_end = load_tracker_config(a.config, o.front_end);
   // The noise simulates what a robot's measurements would add to a render's exact poses; a
   // recording's are measured (and its first pose is the sensor's frame, no vision system's).
   const bool recording = dataset.info().scene.empty();

@@ -102,9 +102,10 @@ const char* to_string(RobustKernel kernel) {
   return "?";
 }
 
-TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where) {
+TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where,
+                                       const TrackerConfig& base) {
   JsonFields f(j, where);
-  TrackerConfig c;
+  TrackerConfig c = base;
   if (f.has("depth")) read_depth(f.at("depth"), f.field("depth"), c.depth);
   if (f.has("mask")) read_mask(f.at("mask"), f.field("mask"), c.mask);
   if (f.has("icp")) read_icp(f.at("icp"), f.field("icp"), c.icp);
@@ -112,8 +113,8 @@ TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::strin
   return c;
 }
 
-TrackerConfig load_tracker_config(const std::string& path) {
-  return tracker_config_from_json(parse_json_file(path), path);
+TrackerConfig load_tracker_config(const std::string& path, const TrackerConfig& base) {
+  return tracker_config_from_json(parse_json_file(path), path, base);
 }
 
 nlohmann::json tracker_config_to_json(const TrackerConfig& c) {

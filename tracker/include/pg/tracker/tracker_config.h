@@ -28,10 +28,13 @@ struct TrackerConfig {
   ContactCloudOptions contact_cloud() const { return {depth, mask, icp.min_eigenvalue_ratio}; }
 };
 
-// `where` names the file in messages. Throws InputError naming the field for unknown keys, wrong
-// types and out-of-range values.
-TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where);
-TrackerConfig load_tracker_config(const std::string& path);
+// The keys of `j` set on top of `base` (the built-in defaults unless given): a key left out keeps
+// base's value. `where` names the file in messages. Throws InputError naming the field for
+// unknown keys, wrong types and out-of-range values.
+TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where,
+                                       const TrackerConfig& base = TrackerConfig());
+TrackerConfig load_tracker_config(const std::string& path,
+                                  const TrackerConfig& base = TrackerConfig());
 nlohmann::json tracker_config_to_json(const TrackerConfig& config);
 
 const char* to_string(RobustKernel kernel);
