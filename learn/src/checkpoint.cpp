@@ -95,7 +95,7 @@ void check_checkpoint_place(const TrainOptions& o) {
   std::error_code ec;
   if (fs::exists(checkpoint, ec) && !fs::is_regular_file(checkpoint, ec)) {
     throw InputError(checkpoint +
-                     ": is not a file (a folder?), where the run keeps its "
+                     ": is not a file (a folder, device or pipe?), where the run keeps its "
                      "checkpoint; remove it or train into another --out");
   }
   if (o.resume || !fs::is_regular_file(checkpoint, ec)) return;

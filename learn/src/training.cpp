@@ -237,10 +237,11 @@ void train_normals(const TrainOptions& options,
       throw InputError(o.out + ": cannot create the folder " + folder.string() + ": " +
                        ec.message());
     }
+    // A checkpoint place that is not a file is named by its own check, then the model's.
+    learn::check_checkpoint_place(o);
     replaceable_file(o.out + ".ckpt");  // a device or pipe would be replaced by the checkpoint
     check_can_write(replaceable_file(o.out));  // ... or by the model
   }
-  learn::check_checkpoint_place(o);
   const int threads =
       o.threads > 0 ? o.threads : int(std::max(1u, std::thread::hardware_concurrency()));
   torch::set_num_threads(threads);

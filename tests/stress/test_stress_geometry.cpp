@@ -181,12 +181,16 @@ TEST(StressScale, ObjectsFrom1To50Millimetres) {
       EXPECT_EQ(run.contact_frames, 30);
       EXPECT_LT(run.max_translation_error_m(), 5e-4);
     } else {
-      // Untracked frames are reported: no contact, or registrations that did not converge
-      // (an estimate that lost the 1 mm slide silently would be more than 0.5 mm off).
+      // Untracked frames are reported: each frame more than 0.5 mm off (the slide lost) says
+      // so itself, as no contact, tracking lost or a registration that did not converge.
       EXPECT_LT(run.max_translation_error_m(), 1.5e-3);
-      if (run.max_translation_error_m() > 5e-4) {
-        EXPECT_GT(30 - run.contact_frames + run.lost_frames + run.unconverged_registrations, 0)
-            << "a 1 mm sphere lost without a report";
+      for (std::size_t k = 0; k < run.frames.size(); ++k) {
+        const TrackerEstimate& e = run.frames[k].estimate;
+        if (run.frames[k].translation_error_m <= 5e-4) continue;
+        EXPECT_TRUE(!e.contact || e.tracking_lost || e.unconverged_registrations > 0 ||
+                    e.rejected_registrations > 0)
+            << "frame " << k << ": " << run.frames[k].translation_error_m * 1e3
+            << " mm off without a report";
       }
     }
   }

@@ -1,11 +1,11 @@
 // `patchgraph bench --quick`: the run-time-vs-error sweep's smoke test (docs/benchmarks.md).
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -161,11 +161,11 @@ TEST(PatchgraphBench, ASceneOrNormalsSourceGivenTwiceIsRefused) {
   auto r =
       testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --scenes " + scene + " " +
                                                         scene + " --out " + tmp.str("b"));
-  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.code, 2) << r.out;  // a usage error, as in track and eval
   EXPECT_NE(r.out.find("given twice"), std::string::npos) << r.out;
   r = testing_support::run_command(
       PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals gt gt --out " + tmp.str("b"));
-  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("--normals: gt given twice"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("b")));
   // One model file written two ways.
@@ -174,7 +174,7 @@ TEST(PatchgraphBench, ASceneOrNormalsSourceGivenTwiceIsRefused) {
                                                         model + " " + std::string(PG_SOURCE_DIR) +
                                                         "/models/../models/normals_unet.pt --out " +
                                                         tmp.str("b"));
-  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_EQ(r.code, 2) << r.out;
   EXPECT_NE(r.out.find("given twice (also as " + model + ")"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("b")));
 }
@@ -196,10 +196,26 @@ TEST(PatchgraphBench, ABadSceneOrModelFailsBeforeAnyRender) {
                                                         scene + " " + tmp.str("lost_mesh.json") +
                                                         " --out " + tmp.str("b"));
   EXPECT_EQ(r.code, 1) << r.out;
-  EXPECT_NE(r.out.find("lost_mesh.json: objects: o: mesh " + tmp.str("gone.glb") + " not found"),
+  EXPECT_NE(r.out.find("lost_mesh.json: objects[0].mesh: " + tmp.str("gone.glb")),
             std::string::npos)
       << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("b")));
+  // A mesh that does not load, a background image that is not there: what a render refuses.
+  std::ofstream(tmp.str("bad.glb")) << "not a glTF file";
+  std::ofstream(tmp.str("bad_mesh.json"))
+      << R"({"frames": 4, "sensors": [{}], "objects": [{"name": "o", "mesh": "bad.glb"}]})";
+  std::ofstream(tmp.str("lost_background.json"))
+      << R"({"frames": 4, "sensors": [{}], "objects": [{"name": "o", "mesh": ")"
+      << std::string(PG_SOURCE_DIR)
+      << R"(/meshes/cube.glb"}], "render": {"background": "gone.png"}})";
+  for (const char* bad : {"bad_mesh.json", "lost_background.json"}) {
+    r = testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --frames 10 --scenes " +
+                                                          scene + " " + tmp.str(bad) + " --out " +
+                                                          tmp.str("b"));
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(tmp.str(bad) + ": "), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(tmp.str("b"))) << bad << ": rendered before the check";
+  }
   r = testing_support::run_command(PATCHGRAPH_PATH,
                                    "bench -q --no-plot --frames 10 --scenes " + scene +
                                        " --normals gt no_such_model.pt --out " + tmp.str("b"));
@@ -231,8 +247,9 @@ TEST(PatchgraphBench, ALearnedRowRecordsItsOwnSettings) {
   EXPECT_EQ(learned, 1);
 }
 
-// The cache knows a render by the files its scene names too: a mesh replaced under the same
-// name renders anew; a cache entry that no longer reads is named, with what to do.
+// The cache knows a render by the contents of the files its scene names: the same scene however
+// its path is written hits, a mesh replaced under the same name renders anew; a cache entry that
+// no longer reads is named, with what to do.
 TEST(PatchgraphBench, TheCacheSeesAReplacedMeshAndNamesADamagedRender) {
   TempDir tmp;
   const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
@@ -248,22 +265,36 @@ TEST(PatchgraphBench, TheCacheSeesAReplacedMeshAndNamesADamagedRender) {
     for (const auto& e : fs::directory_iterator(tmp.path / "cache")) n += e.is_directory();
     return n;
   };
+  const auto entry_names = [&] {
+    std::set<std::string> names;
+    for (const auto& e : fs::directory_iterator(tmp.path / "cache")) {
+      if (e.is_directory()) names.insert(e.path().filename().string());
+    }
+    return names;
+  };
   const int first = entries();
   ASSERT_GT(first, 0);
+  // The same scene written another way (the key is the files' contents, not their paths).
+  fs::create_directories(tmp.path / "sub");
+  ASSERT_EQ(testing_support::run_command(
+                PATCHGRAPH_PATH, "bench --quick -q --no-plot --frames 10 --scenes " +
+                                     tmp.str("sub/../s.json") + " --cache " + tmp.str("cache") +
+                                     " --out " + tmp.str("b"))
+                .code,
+            0);
+  EXPECT_EQ(entries(), first) << "the same scene rendered again";
+  const std::set<std::string> before = entry_names();
   fs::copy_file(meshes + "sphere_r6mm.glb", tmp.path / "obj.glb",
                 fs::copy_options::overwrite_existing);
-  fs::last_write_time(tmp.path / "obj.glb",
-                      fs::last_write_time(tmp.path / "obj.glb") + std::chrono::seconds(2));
   ASSERT_EQ(testing_support::run_command(PATCHGRAPH_PATH, bench).code, 0);
   EXPECT_EQ(entries(), 2 * first) << "the replaced mesh's scene was not rendered anew";
-  // Cut a frame of the newest renders short.
-  fs::path newest;
-  for (const auto& e : fs::directory_iterator(tmp.path / "cache")) {
-    if (newest.empty() || fs::last_write_time(e.path()) > fs::last_write_time(newest)) {
-      newest = e.path();
-    }
+  // Cut short a frame of a render the replaced mesh made.
+  fs::path fresh;
+  for (const std::string& name : entry_names()) {
+    if (!before.count(name)) fresh = tmp.path / "cache" / name;
   }
-  const fs::path frame = newest / "normal" / "000005.exr";
+  ASSERT_FALSE(fresh.empty());
+  const fs::path frame = fresh / "normal" / "000005.exr";
   ASSERT_TRUE(fs::exists(frame)) << frame;
   fs::resize_file(frame, fs::file_size(frame) / 3);
   const auto r = testing_support::run_command(PATCHGRAPH_PATH, bench);

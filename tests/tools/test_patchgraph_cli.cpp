@@ -131,8 +131,10 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
           "/proc/m.json: cannot write (No such file or directory)\n");
   refused("train-normals --data " + data() + " " + data() + "/ --out " + out("m.pt"), 2,
           "given twice");
-  // bench runs at least one frame a scene (0 had run every frame of every scene).
+  // bench runs at least 10 frames a scene (0 had run every frame of every scene; fewer time the
+  // first updates alone and end every setting at the first pose's prior).
   refused("bench --frames 0 --out " + out("x"), 2, "--frames");
+  refused("bench --frames 9 --out " + out("x"), 2, "--frames: must be at least 10, got 9");
   // An option the chosen network ignores is refused even at its default value.
   refused("train-normals --data " + data() + " --arch mlp --gan-weight 1 --out " + out("m.pt"), 1,
           "--arch mlp: the per-pixel MLP trains on an L2 loss alone; --l1-weight and "

@@ -59,6 +59,18 @@ inline CLI::Validator range_check(double low, double high, bool allow_zero = fal
       range);
 }
 
+// A whole number of at least `low`: "--frames: must be at least 10, got 5".
+inline CLI::Validator at_least(int low) {
+  return CLI::Validator(
+      [=](std::string& text) -> std::string {
+        double value = 0;
+        if (!CLI::detail::lexical_cast(text, value)) return "not a number: " + text;
+        if (value >= low) return {};
+        return "must be at least " + std::to_string(low) + ", got " + text;
+      },
+      "at least " + std::to_string(low));
+}
+
 // Worker threads: 0 for all cores, else at most this many (tens of thousands of threads on a
 // 2-core machine are a hang, not a setting).
 constexpr int kMaxThreads = 256;

@@ -7,19 +7,17 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <map>
 #include <memory>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "../common/cli_main.h"
 #include "../common/machine_info.h"
 #include "../common/plot_script.h"
+#include "bench_cache.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/graph/track_dataset.h"
-#include "pg/sim/scene_renderer.h"
 #include "track_args.h"
 
 namespace pg {
@@ -115,88 +113,6 @@ std::vector<std::string> default_scenes(bool quick) {
     for (const char* seq : {"00", "01", "02"}) out.push_back(dir + object + "_" + seq + ".json");
   }
   return out;
-}
-
-// A file a scene names, as far as a cache key needs it: its path, size and modification time
-// (a mesh replaced under the same name changes them).
-std::string file_stamp(const std::string& path) {
-  std::error_code ec;
-  const auto size = fs::file_size(path, ec);
-  const auto time = fs::last_write_time(path, ec).time_since_epoch().count();
-  return path + " " + std::to_string(size) + " " + std::to_string(time) + "\n";
-}
-
-// A bench scene, read and checked before anything is rendered or tracked: one sensor, its meshes
-// (and background image) there. Returns the hash its cache entries are named by: the scene
-// file's path and text, each sensor's model and each file it names, so that two scenes of one
-// name, a scene edited since, or a mesh replaced render anew instead of reusing another render.
-// (A renderer changed since is not seen: docs/benchmarks.md says to clear the cache then.)
-std::string checked_scene_key(const std::string& scene_path) {
-  const Scene scene = load_scene(scene_path);
-  if (scene.sensors.size() > 1) {
-    throw InputError(scene_path + ": sensors: " + std::to_string(scene.sensors.size()) +
-                     " sensors; bench times one sensor's tracking (render the scene with tacsim "
-                     "and run patchgraph track or eval on it for the sensors together)");
-  }
-  std::ifstream in(scene_path, std::ios::binary);
-  std::string key =
-      fs::weakly_canonical(scene_path).string() + "\n" +
-      std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  for (const SceneSensor& sensor : scene.sensors) key += sensor_to_json(sensor.model).dump() + "\n";
-  for (const SceneObject& object : scene.objects) {
-    if (!fs::is_regular_file(object.mesh_path)) {
-      throw InputError(scene_path + ": objects: " + object.name + ": mesh " + object.mesh_path +
-                       " not found");
-    }
-    key += file_stamp(object.mesh_path);
-  }
-  if (!scene.render.background.empty() && !names_synthetic_background(scene.render.background)) {
-    key += file_stamp(scene.render.background);
-  }
-  char hash[20];
-  std::snprintf(hash, sizeof hash, "%08llx", (unsigned long long)(sequence_seed(0, key) >> 32));
-  return hash;
-}
-
-// A cache entry's name: the scene's stem, its checked_scene_key, the resolution and frames.
-std::string cache_entry_name(const std::string& scene_path, const std::string& key, int width,
-                             int height, int frames) {
-  return fs::path(scene_path).stem().string() + "_" + key + "_" + std::to_string(width) + "x" +
-         std::to_string(height) + "_" + (frames > 0 ? std::to_string(frames) : std::string("all"));
-}
-
-// The scene rendered at the resolution into the cache (reused when it is there already).
-std::string cached_dataset(const std::string& scene_path, const std::string& key, int width,
-                           int height, int frames, const std::vector<std::string>& outputs,
-                           const std::string& cache) {
-  const std::string dir =
-      (fs::path(cache) / cache_entry_name(scene_path, key, width, height, frames)).string();
-  if (fs::is_regular_file(fs::path(dir) / "poses.csv")) {
-    try {
-      const Dataset d = Dataset::open(dir);
-      bool complete = true;
-      for (const auto& o : outputs) complete = complete && d.info().has_output(o);
-      if (complete) return dir;
-    } catch (const InputError&) {
-      // Incomplete or stale: render again.
-    }
-  }
-  Scene scene = load_scene(scene_path);
-  if (frames > 0) scene.frames = std::min(scene.frames, frames);
-  RenderOverrides overrides;
-  overrides.outputs = outputs;
-  overrides.width = width;
-  overrides.height = height;
-  // Rendered again into the folder of an unfinished or incomplete render; a folder of anything
-  // else is refused (DatasetWriter::check_folder), not deleted.
-  try {
-    render_scene_to_dataset(SceneRenderer(std::move(scene), overrides), dir,
-                            [](int, int) { stop_if_asked(); });
-  } catch (const Stopped& e) {
-    throw e.with_note("the cache entry " + dir +
-                      " is unfinished (the next bench renders it again)");
-  }
-  return dir;
 }
 
 struct RunResult {
@@ -360,16 +276,17 @@ int run_track_bench(const TrackBenchArgs& in) {
   TrackBenchArgs args = in;
   const bool own_scenes = !args.scenes.empty();
   if (!own_scenes) args.scenes = default_scenes(args.quick);
-  // Given twice, a scene or normals source would count twice in every median.
-  check_given_once(args.scenes);
-  {
+  // Given twice, a scene or normals source would count twice in every median (a usage error, as
+  // in track and eval).
+  as_usage_error([&] {
+    check_given_once(args.scenes);
     // "gt", or a model file however its path is written.
     std::map<std::string, std::string> seen;
     for (const std::string& n : args.normals) {
       const auto [it, fresh] = seen.emplace(n == "gt" ? n : fs::weakly_canonical(n).string(), n);
       if (!fresh) throw InputError("--normals: " + n + " given twice (also as " + it->second + ")");
     }
-  }
+  });
   if (args.quick && args.frames == 0) args.frames = 60;
   if (args.cache.empty()) args.cache = (fs::path(args.out) / "cache").string();
   std::unique_ptr<tbb::global_control> limit;
@@ -393,35 +310,30 @@ int run_track_bench(const TrackBenchArgs& in) {
   // options once on the first scene before any tracking: a bad scene, normals source (or any
   // other option) fails now rather than after the sweep's first scene.
   const StopOnSignals stop;
-  std::map<std::string, std::string> keys;
-  for (const auto& scene : args.scenes) keys[scene] = checked_scene_key(scene);
+  std::vector<BenchScene> scenes;
+  for (const auto& path : args.scenes) scenes.push_back(check_bench_scene(path));
   Models models;
   for (const auto& s : settings) {
     if (!models.count(s.normals)) models[s.normals] = load_normals_models(args_for(s, 0));
   }
-  // A cache entry that does not read (a file cut short, another program's folder) is named as
-  // the cache's, with what to do; other errors (a mesh that does not load) pass as they are.
-  const auto in_cache = [](const InputError& e, const std::string& entry) {
-    const std::string what = e.what();
-    if (what.find(entry) == std::string::npos) return e;
-    return InputError(what + " (a render in the bench's cache: remove " + entry +
-                      " to render it again)");
+  stop_if_asked();  // before the first render starts an entry
+  const auto dataset_for = [&](const BenchScene& scene, const Setting& s) {
+    return Dataset::open(
+        cached_dataset(scene, s.width, s.height, args.frames, outputs, args.cache));
   };
-  const auto entry_for = [&](const std::string& scene, const Setting& s) {
-    return (fs::path(args.cache) /
-            cache_entry_name(scene, keys.at(scene), s.width, s.height, args.frames))
-        .string();
-  };
-  const auto dataset_for = [&](const std::string& scene, const Setting& s) {
+  // Tracking a cache entry whose files no longer read (one cut short): named, with what to do.
+  const auto track_cached = [&](const Dataset& dataset, const TrackOptions& options) {
     try {
-      return Dataset::open(cached_dataset(scene, keys.at(scene), s.width, s.height, args.frames,
-                                          outputs, args.cache));
+      return track_dataset(dataset, options, [](int, int) { stop_if_asked(); });
     } catch (const InputError& e) {
-      throw in_cache(e, entry_for(scene, s));
+      const std::string what = e.what();
+      if (what.find(dataset.dir()) == std::string::npos) throw;
+      throw InputError(what + " (a render in the bench's cache: remove " + dataset.dir() +
+                       " to render it again)");
     }
   };
   {
-    const Dataset first = dataset_for(args.scenes.front(), Setting());
+    const Dataset first = dataset_for(scenes.front(), Setting());
     for (const auto& [source, loaded] : models) check_normals_models(loaded, {&first});
     for (auto& s : settings) {
       // What `track` sets for the normals source, recorded as run.
@@ -433,39 +345,32 @@ int run_track_bench(const TrackBenchArgs& in) {
   }
   // One untimed run first: the process's first tracking pays for allocations and FFT plans,
   // which would otherwise count against whichever setting comes first.
-  {
-    const Dataset first = dataset_for(args.scenes.front(), settings.front());
-    try {
-      track_dataset(first, options_for(settings.front(), first, 0, models),
-                    [](int, int) { stop_if_asked(); });
-    } catch (const InputError& e) {
-      throw in_cache(e, first.dir());
-    } catch (const Stopped& e) {
-      throw e.with_note("nothing written to " + args.out);
-    }
+  try {
+    const Dataset first = dataset_for(scenes.front(), settings.front());
+    track_cached(first, options_for(settings.front(), first, 0, models));
+  } catch (const Stopped& e) {
+    throw e.with_note("nothing written to " + args.out);
   }
   std::vector<Row> rows(settings.size());
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
   const int total = int(args.scenes.size() * settings.size());
   int done = 0;
-  for (const auto& scene : args.scenes) {
-    const std::string scene_name = fs::path(scene).stem().string();
+  for (const BenchScene& scene : scenes) {
+    const std::string scene_name = fs::path(scene.path).stem().string();
     for (Row& row : rows) {
       const Setting& s = row.setting;
-      const Dataset dataset = dataset_for(scene, s);
       const TrackRun run = [&] {
         try {
-          return track_dataset(dataset,
-                               options_for(s, dataset, sequence_seed(0, scene_name), models),
-                               [](int, int) { stop_if_asked(); });
-        } catch (const InputError& e) {
-          throw in_cache(e, dataset.dir());
+          const Dataset dataset = dataset_for(scene, s);
+          return track_cached(dataset,
+                              options_for(s, dataset, sequence_seed(0, scene_name), models));
         } catch (const Stopped& e) {
           throw e.with_note("nothing written to " + args.out + " (after " + std::to_string(done) +
                             " of " + std::to_string(total) + " runs)");
         }
       }();
-      row.runs.push_back({scene_name, dataset.info().object_name, run.summary});
+      const SceneObject& object = scene.scene.objects.at(std::size_t(scene.scene.tracked_object));
+      row.runs.push_back({scene_name, object.name, run.summary});
       ++done;
       if (!args.quiet) {
         std::fprintf(stderr, "[%d/%d] %s, %s: final %.3f mm %.4f rad, median %.2f ms\n", done,

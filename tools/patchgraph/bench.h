@@ -10,10 +10,10 @@ struct TrackBenchArgs {
   // Benchmark scenes (default: sequences 00-02 of each object, scenes/benchmark/).
   std::vector<std::string> scenes;
   std::string cache;  // rendered datasets, reused between runs (default: OUT/cache)
-  // Normals sources: each one besides "gt" adds a row at the default settings, tracked through
-  // the same code path as `patchgraph track --normals SOURCE`.
+  // Normals sources: each one besides "gt" adds a row at the settings `patchgraph track --normals
+  // SOURCE` gives it, tracked through the same code path.
   std::vector<std::string> normals = {"gt"};
-  int frames = 0;      // frames per scene (0: the scene's own, 300)
+  int frames = 0;      // frames per scene, at least 10 (0: the scene's own, 300)
   int threads = 0;     // oneTBB threads (0: all cores)
   bool quick = false;  // 2 scenes x 60 frames, 6 settings: a smoke test
   bool no_plot = false;

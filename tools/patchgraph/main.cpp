@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <limits>
 #include <map>
 #include <utility>
 #include <vector>
@@ -297,7 +296,7 @@ int main(int argc, char** argv) {
   cmd_bench
       ->add_option("--frames", bench.frames,
                    "Frames per scene, at least 10 (default: all; --quick: 60)")
-      ->check(CLI::Range(10, std::numeric_limits<int>::max()));
+      ->check(at_least(10));
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
       ->check(kThreads);
   cmd_bench->add_flag("--quick", bench.quick, "2 scenes x 60 frames, 6 settings (smoke test)");

@@ -33,7 +33,8 @@ void write_text_atomically(const std::string& path, std::string_view text);
 // The file that a whole-file replacement (a temporary file renamed over it) of `path` renames
 // onto: `path`, or the file a symbolic link there points to (the link stays a link). Throws
 // InputError naming `path` when it is a device, pipe or socket, which a rename would replace
-// with a plain file (as root, /dev/null itself).
+// with a plain file (as root, /dev/null itself), or a folder (or a link to one), which it cannot
+// replace.
 std::string replaceable_file(const std::string& path);
 // Whether `path` (links followed) is a device, pipe or socket.
 bool is_special_file(const std::string& path);
