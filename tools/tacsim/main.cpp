@@ -358,12 +358,12 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 1000000));
   cmd_presses
       ->add_option("--min-depth", presses.min_depth_m,
-                   "Shallowest press [m] (default a fifth of --max-depth: 0.0003)")
+                   "Shallowest press [m] (default a fifth of --max-depth: 0.0003 on a DIGIT)")
       ->check(kPositive);
   cmd_presses
       ->add_option("--max-depth", presses.max_depth_m,
                    "Deepest press [m] (default 0.75 of the gel's maximum indentation: "
-                   "0.0015)")
+                   "0.0015 on a DIGIT, 0.001125 on a GelSight Mini)")
       ->check(kPositive);
   cmd_presses->add_option("--scale", presses.scale, "Multiplies the mesh (meshes are in metres)")
       ->check(range_check(1e-6, 1e6));
