@@ -428,13 +428,14 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     sensors_[k].last_keyframe = -1;
     anchors[k] = Outcome::kNotTried;
   }
-  // The frame's anchor failed when every sensor's that was tried failed: to match, as a
-  // plausible jump, or against the solution.
-  const bool anchor_failed = std::any_of(anchors.begin(), anchors.end(),
-                                         [](Outcome a) { return a == Outcome::kFailed; }) &&
-                             std::all_of(anchors.begin(), anchors.end(), [](Outcome a) {
-                               return a == Outcome::kFailed || a == Outcome::kNotTried;
-                             });
+  // The frame's anchor failed when no sensor's that was tried was accepted: each failed to
+  // match, as a plausible jump or against the solution, or stopped at the iteration limit (which
+  // adds no factor either: frame after frame of it is a patch that no longer holds the object,
+  // as when it turns faster than the registrations follow).
+  const auto tried = [](Outcome a) { return a != Outcome::kNotTried; };
+  const bool anchor_failed = std::any_of(anchors.begin(), anchors.end(), tried) &&
+                             std::none_of(anchors.begin(), anchors.end(),
+                                          [](Outcome a) { return a == Outcome::kAccepted; });
   // Lost: contact, but for lost_after_frames frames the anchor failed.
   if (cur.contact) {
     unregistered_frames_ = anchor_failed && !est.new_episode ? unregistered_frames_ + 1 : 0;

@@ -218,7 +218,7 @@ class PatchGraphTracker {
   enum class Outcome {
     kNotTried,      // nothing to register against (no previous cloud, empty patch)
     kAccepted,      // a factor was added
-    kNotConverged,  // iteration limit, the clouds still matched: no factor, no alarm
+    kNotConverged,  // iteration limit: no factor; counts toward lost as kFailed does
     kFailed,        // too few points or matches, an implausible jump, or overridden
   };
   void solve(int first_frame, int iterations);
