@@ -287,8 +287,18 @@ TEST(Tracking, ASlowApproachsSmallFirstContactGrowsThePatch) {
                                   [](const FrameResult& f) { return f.contact; });
   ASSERT_NE(first, run.frames.end());
   ASSERT_LT(first->contact_points, o.graph.icp.min_points) << "the first contact should be tiny";
-  int with_patch = 0;
-  for (const FrameResult& f : run.frames) with_patch += f.image_to_patch;
+  int with_patch = 0, growing = 0;
+  for (const FrameResult& f : run.frames) {
+    with_patch += f.image_to_patch;
+    // A sphere leaves its 3 rotations free; the frames whose patch was still too small to
+    // register against constrained nothing, and say so: 6 (they read 0, "fully constrained",
+    // before). No contact frame past the first reads 0.
+    if (f.contact && !f.new_episode) {
+      EXPECT_NE(f.unconstrained_directions, 0) << "frame " << f.frame;
+      growing += f.unconstrained_directions == 6;
+    }
+  }
+  EXPECT_GT(growing, 0);
   EXPECT_GT(with_patch, 40);
   EXPECT_EQ(run.summary.lost_frames, 0);
   EXPECT_LT(run.summary.final_translation_error_m, 1e-3);

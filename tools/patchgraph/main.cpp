@@ -203,7 +203,8 @@ int run_track(const TrackArgs& a) {
   if (s.degenerate_frames > 0) {
     std::fprintf(stderr,
                  "note: in %d of %d contact frames the contact did not constrain every direction "
-                 "of the pose (a flat, cylindrical or spherical patch); the estimate follows the "
+                 "of the pose (a flat, cylindrical or spherical patch, or a contact too small to "
+                 "register: all 6); the estimate follows the "
                  "motion prior along those (errors.csv: unconstrained_directions)\n",
                  s.degenerate_frames, s.contact_frames);
   }

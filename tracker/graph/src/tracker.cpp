@@ -196,8 +196,9 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(int k, Tracke
                           options_.sigma_image_to_image, est);
 }
 
-PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(
-    int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists) {
+PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(int k, TrackerEstimate& est,
+                                                                std::vector<Matrix6Xd>& free_twists,
+                                                                int& analysed) {
   const SensorTrack& s = sensors_[std::size_t(k)];
   PointToPlaneIcp& icp = options_.method == Method::kGroundTruthPatch ? model_icp_ : icp_;
   // A patch still smaller than a registration needs (the first touch of a slow approach) is
@@ -212,6 +213,7 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(
   // one, with too few points or matches, never analysed its Hessian).
   if (r.status == IcpStatus::kConverged || r.status == IcpStatus::kMaxIterations) {
     est.unconstrained_directions = r.degeneracy.unconstrained;
+    ++analysed;
     if (sensors_.size() > 1) free_twists.push_back(r.degeneracy.unconstrained_twists_at_origin());
   }
   return add_registration(FactorKind::kImageToPatch, {t, -1, -1}, k, r, guess,
@@ -385,6 +387,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   // whether tracking holds.
   std::vector<Outcome> anchors(n_sensors, Outcome::kNotTried);
   std::vector<Matrix6Xd> free_twists;  // of each image-to-patch registration that got that far
+  int analysed = 0;                    // image-to-patch registrations that got that far
   for (std::size_t k = 0; k < n_sensors; ++k) {
     if (!cur.sensors[k].contact) continue;
     const std::size_t first_of_sensor = factors_.size();
@@ -394,7 +397,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       to_previous = register_to_previous(int(k), est);
     }
     if (m == Method::kPatchGraph || m == Method::kGroundTruthPatch) {
-      to_patch = register_to_patch(int(k), est, free_twists);
+      to_patch = register_to_patch(int(k), est, free_twists, analysed);
     }
     anchors[k] = m == Method::kImageToImage ? to_previous : to_patch;
     // When both registrations were accepted (a factor each from first_of_sensor on), the gate
@@ -407,6 +410,14 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
                   [](const Factor& f) { return f.kind == FactorKind::kImageToImage; });
   if (free_twists.size() > 1)
     est.unconstrained_directions = common_unconstrained_directions(free_twists);
+  // A contact frame past an episode's first whose image-to-patch registration never got to its
+  // analysis (a patch or cloud smaller than a registration needs, too few matches) constrained
+  // nothing: said so, all 6, not 0.
+  const bool with_patch =
+      options_.method == Method::kPatchGraph || options_.method == Method::kGroundTruthPatch;
+  if (cur.contact && !est.new_episode && with_patch && analysed == 0) {
+    est.unconstrained_directions = 6;
+  }
 
   const int first = options_.window > 0 ? std::max(0, t - options_.window + 1) : 0;
   solve(first, options_.solver_iterations);

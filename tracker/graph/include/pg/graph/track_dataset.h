@@ -105,7 +105,8 @@ struct TrackSummary {
   // touch alone cannot tell the pose (a sphere's rotation, an edge's slide), a tracking warning.
   int degenerate_frames = 0;
   // Contact frames by how many directions their image-to-patch registration left unconstrained
-  // (0 to 6; frames without that registration count as 0): a sphere's three rotations, an edge's
+  // (0 to 6; a frame past an episode's first where it never got that far, too small to register,
+  // counts as 6; ImageToImage's and ConstVel's frames as 0): a sphere's three rotations, an edge's
   // slide (1) or its slide and turn (2, where the estimate follows only the motion priors).
   std::array<int, 7> unconstrained_direction_frames{};
   // Errors against ground truth: RMSE over the frames that have it, final = the last frame's;

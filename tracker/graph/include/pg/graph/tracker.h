@@ -224,7 +224,9 @@ class PatchGraphTracker {
   void solve(int first_frame, int iterations);
   // Sensor k's registrations of this frame's cloud; register_to_patch adds the directions it
   // left free (twists about the object's origin) to `free_twists`.
-  Outcome register_to_patch(int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists);
+  // (and counts in `analysed` a registration that got as far as its degeneracy analysis).
+  Outcome register_to_patch(int k, TrackerEstimate& est, std::vector<Matrix6Xd>& free_twists,
+                            int& analysed);
   Outcome register_to_previous(int k, TrackerEstimate& est);
   Outcome add_registration(FactorKind kind, std::array<int, 3> frames, int sensor,
                            const IcpResult& r, const SE3& guess, double sigma,
