@@ -87,9 +87,10 @@ struct GraphOptions {
   double image_to_image_gate_rad = 2.5e-3;
   // Tracking is reported lost (TrackerEstimate::tracking_lost) once the anchoring registration
   // (image-to-patch; image-to-image for that method) failed in this many consecutive contact
-  // frames: too few points or matches within max_correspondence_m, an implausible jump, or a
-  // solution that overrode it. While it fails no key frame is taken. A new episode or a
-  // registration that holds clears it. constvel never reports it; 0: never.
+  // frames: too few points or matches within max_correspondence_m, an implausible jump, a
+  // solution that overrode it, or the iteration limit (no factor either). While it fails (not at
+  // the iteration limit) no key frame is taken. A new episode or a registration that holds
+  // clears it. constvel never reports it; 0: never.
   int lost_after_frames = 3;
   int window = 5;              // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;  // Levenberg-Marquardt iterations per update
