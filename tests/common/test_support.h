@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <fstream>
 #include <initializer_list>
+#include <map>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -105,6 +106,26 @@ inline std::vector<std::string> split_csv_line(const std::string& line) {
   std::stringstream ss(line);
   for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
   return cells;
+}
+
+// A CSV file with a header row (results.csv, bench.csv): its columns by name and its rows. A
+// column it lacks, or a row short of it, throws std::out_of_range from cell(), failing the test.
+struct CsvTable {
+  std::map<std::string, std::size_t> column;
+  std::vector<std::vector<std::string>> rows;
+  const std::string& cell(std::size_t row, const std::string& name) const {
+    return rows.at(row).at(column.at(name));
+  }
+};
+inline CsvTable read_csv_table(const std::string& path) {
+  CsvTable table;
+  std::ifstream in(path);
+  std::string line;
+  if (!std::getline(in, line)) return table;
+  const std::vector<std::string> header = split_csv_line(line);
+  for (std::size_t i = 0; i < header.size(); ++i) table.column[header[i]] = i;
+  while (std::getline(in, line)) table.rows.push_back(split_csv_line(line));
+  return table;
 }
 
 // Runs f and expects an InputError whose message contains every one of `parts` (a file name, a

@@ -19,29 +19,8 @@ namespace {
 namespace fs = std::filesystem;
 using testing_support::TempDir;
 
+using testing_support::read_csv_table;
 using testing_support::split_csv_line;
-
-// bench.csv: its columns by name and its rows, each checked to have one cell per column.
-struct BenchCsv {
-  std::map<std::string, std::size_t> column;
-  std::vector<std::vector<std::string>> rows;
-  const std::string& cell(std::size_t row, const std::string& name) const {
-    return rows.at(row).at(column.at(name));
-  }
-};
-BenchCsv read_bench_csv(const std::string& path) {
-  BenchCsv csv;
-  std::ifstream in(path);
-  std::string line;
-  if (!std::getline(in, line)) return csv;
-  const std::vector<std::string> header = split_csv_line(line);
-  for (std::size_t i = 0; i < header.size(); ++i) csv.column[header[i]] = i;
-  while (std::getline(in, line)) {
-    csv.rows.push_back(split_csv_line(line));
-    EXPECT_EQ(csv.rows.back().size(), header.size()) << line;
-  }
-  return csv;
-}
 
 // The cache knew a render by its scene file's name only: a second scene of that name (or the
 // scene edited) was benchmarked on the first one's render.
@@ -76,7 +55,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("| setting | median update [ms]"), std::string::npos) << r.out;
 
-  const BenchCsv csv = read_bench_csv(tmp.str("b/bench.csv"));
+  const auto csv = read_csv_table(tmp.str("b/bench.csv"));
   for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
                         "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
                         "icp_symmetric", "depth_integration", "image_to_image_gate"}) {
@@ -90,6 +69,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   std::vector<Point> points;
   int on_front = 0;
   for (std::size_t i = 0; i < csv.rows.size(); ++i) {
+    ASSERT_EQ(csv.rows[i].size(), csv.column.size()) << "row " << i;
     const auto cell = [&](const char* name) { return csv.cell(i, name); };
     settings.push_back(cell("setting"));
     SCOPED_TRACE(settings.back());
@@ -234,7 +214,7 @@ TEST(PatchgraphBench, ALearnedRowRecordsItsOwnSettings) {
       PATCHGRAPH_PATH, "bench --quick -q --no-plot --frames 10 --scenes " + scene +
                            " --normals gt " + model + " --out " + tmp.str("b"));
   ASSERT_EQ(r.code, 0) << r.out;
-  const BenchCsv csv = read_bench_csv(tmp.str("b/bench.csv"));
+  const auto csv = read_csv_table(tmp.str("b/bench.csv"));
   int learned = 0;
   for (std::size_t i = 0; i < csv.rows.size(); ++i) {
     SCOPED_TRACE(csv.cell(i, "setting"));

@@ -25,6 +25,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing_support::CliRun;
+using testing_support::read_csv_table;
 using testing_support::split_csv_line;
 
 CliRun run(const std::string& binary, const std::string& args) {
@@ -345,14 +346,10 @@ std::vector<std::vector<std::string>> errors_rows(const std::string& out_dir) {
 
 // Sums a column of OUT/errors.csv (-1 if it has no such column).
 int errors_column_sum(const std::string& out_dir, const std::string& column) {
-  std::ifstream errors(out_dir + "/errors.csv");
-  std::string line;
-  std::getline(errors, line);
-  const std::vector<std::string> header = split_csv_line(line);
-  const auto at = std::find(header.begin(), header.end(), column);
-  if (at == header.end()) return -1;
+  const auto errors = read_csv_table(out_dir + "/errors.csv");
+  if (!errors.column.count(column)) return -1;
   int sum = 0;
-  while (std::getline(errors, line)) sum += std::stoi(split_csv_line(line).at(at - header.begin()));
+  for (std::size_t i = 0; i < errors.rows.size(); ++i) sum += std::stoi(errors.cell(i, column));
   return sum;
 }
 
@@ -1869,26 +1866,18 @@ TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
                               "--no-plots --out " +
                               out("eval"));
   ASSERT_EQ(r.code, 0) << r.out;
-  std::ifstream results(out("eval") + "/results.csv");
-  std::string line;
-  ASSERT_TRUE(std::getline(results, line));
-  const std::vector<std::string> header = split_csv_line(line);
-  const auto column = [&](const std::string& name) {
-    return std::size_t(std::find(header.begin(), header.end(), name) - header.begin());
-  };
-  std::vector<std::vector<std::string>> rows;
-  while (std::getline(results, line)) rows.push_back(split_csv_line(line));
-  ASSERT_EQ(rows.size(), 2u);
+  const auto results = read_csv_table(out("eval") + "/results.csv");
+  ASSERT_EQ(results.rows.size(), 2u);
   std::ifstream md(out("eval") + "/summary.md");
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   // One run per method: its median and quartiles are that run's final errors.
-  for (const auto& row : rows) {
-    const double t_mm = 1e3 * std::stod(row[column("final_translation_error_m")]);
-    const double r = std::stod(row[column("final_rotation_error_rad")]);
+  for (std::size_t i = 0; i < results.rows.size(); ++i) {
+    const double t_mm = 1e3 * std::stod(results.cell(i, "final_translation_error_m"));
+    const double r = std::stod(results.cell(i, "final_rotation_error_rad"));
     char expected[160];
     std::snprintf(expected, sizeof expected,
                   "| cube | %s | 1 | %.3f (%.3f-%.3f) | %.4f (%.4f-%.4f) |",
-                  row[column("method")].c_str(), t_mm, t_mm, t_mm, r, r, r);
+                  results.cell(i, "method").c_str(), t_mm, t_mm, t_mm, r, r, r);
     EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text;
   }
   EXPECT_TRUE(fs::exists(out("eval") + "/runs"));
@@ -1901,26 +1890,18 @@ TEST_F(PatchgraphCli, EvalSeedsEachSequenceAndTrackReproducesARun) {
   const CliRun r = patchgraph("eval --datasets " + data() + " " + copy +
                               " --methods patchgraph -q --no-plots --out " + out("eval_seed"));
   ASSERT_EQ(r.code, 0) << r.out;
-  std::ifstream results(out("eval_seed") + "/results.csv");
-  std::string line;
-  ASSERT_TRUE(std::getline(results, line));
-  const std::vector<std::string> header = split_csv_line(line);
-  const auto column = [&](const std::string& name) {
-    return std::size_t(std::find(header.begin(), header.end(), name) - header.begin());
-  };
-  ASSERT_LT(column("seed"), header.size());
-  std::vector<std::vector<std::string>> rows;
-  while (std::getline(results, line)) rows.push_back(split_csv_line(line));
-  ASSERT_EQ(rows.size(), 2u);
-  EXPECT_NE(rows[0][column("seed")], rows[1][column("seed")]);
-  const double t0 = std::stod(rows[0][column("final_translation_error_m")]);
-  const double t1 = std::stod(rows[1][column("final_translation_error_m")]);
+  const auto results = read_csv_table(out("eval_seed") + "/results.csv");
+  ASSERT_TRUE(results.column.count("seed"));
+  ASSERT_EQ(results.rows.size(), 2u);
+  EXPECT_NE(results.cell(0, "seed"), results.cell(1, "seed"));
+  const double t0 = std::stod(results.cell(0, "final_translation_error_m"));
+  const double t1 = std::stod(results.cell(1, "final_translation_error_m"));
   EXPECT_GT(std::abs(t0 - t1), 1e-7) << "the same frames with other noise end elsewhere";
-  const CliRun t = patchgraph("track " + rows[0][column("dataset")] + " -q --seed " +
-                              rows[0][column("seed")] + " --out " + out("track_seed"));
+  const CliRun t = patchgraph("track " + results.cell(0, "dataset") + " -q --seed " +
+                              results.cell(0, "seed") + " --out " + out("track_seed"));
   ASSERT_EQ(t.code, 0) << t.out;
   const auto summary = parse_json_file(out("track_seed") + "/summary.json");
-  EXPECT_EQ(std::to_string(summary["seed"].get<std::uint64_t>()), rows[0][column("seed")]);
+  EXPECT_EQ(std::to_string(summary["seed"].get<std::uint64_t>()), results.cell(0, "seed"));
   EXPECT_NEAR(summary["final_translation_error_m"].get<double>(), t0, 1e-7);
 }
 
