@@ -1,10 +1,30 @@
 #include "pg/sim/mesh_sampling.h"
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <random>
 
 namespace pg {
+
+namespace {
+
+double triangle_area(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
+  const Eigen::Vector3f a = mesh.vertices[t[0]];
+  return 0.5 * double((mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm());
+}
+
+}  // namespace
+
+double surface_sample_count(const TriangleMesh& mesh, double spacing_m) {
+  const double density = 1.0 / (spacing_m * spacing_m);
+  double count = 0;
+  for (const auto& t : mesh.triangles) {
+    const double area = triangle_area(mesh, t);
+    if (area > 0.0) count += std::max(1.0, area * density);
+  }
+  return count;
+}
 
 SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed) {
   SurfaceSamples out;

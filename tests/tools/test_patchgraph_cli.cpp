@@ -160,6 +160,29 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_FALSE(fs::exists(out("rec")));
 }
 
+// gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
+// 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
+// (it had sampled gigabytes, and the per-triangle count overflowed further up).
+TEST_F(PatchgraphCli, GtpatchRefusesAnObjectTooLargeToModel) {
+  const std::string copy = data_copy("huge_object");
+  nlohmann::json info = parse_json_file(copy + "/dataset.json");
+  info["object"]["scale"] = 50.0;
+  std::ofstream(copy + "/dataset.json") << info.dump(2);
+  for (const std::string& args :
+       {"track " + copy + " --method gtpatch --out " + out("huge_track"),
+        "eval --datasets " + copy + " --methods patchgraph gtpatch --out " + out("huge_eval")}) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(copy + "/dataset.json: object.mesh: "), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("(scale 50) is too large for gtpatch's object model: its surface at 0.1 mm "
+                         "spacing is 574 M points, at most 10 M"),
+              std::string::npos)
+        << r.out;
+  }
+  EXPECT_FALSE(fs::exists(out("huge_track")));
+  EXPECT_FALSE(fs::exists(out("huge_eval")));
+}
+
 // An output folder that is an input is refused before anything is written: `track DS --out DS`
 // would replace the dataset's ground truth (poses.csv) with the estimate.
 TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {

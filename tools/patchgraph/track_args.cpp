@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iomanip>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -326,7 +327,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
   o.seed = a.seed;
   o.compare_batch = a.compare_batch;
   if (o.graph.method == Method::kGroundTruthPatch) {
-    const SurfaceSamples s = sample_surface(load_object_mesh(dataset), 1e-4);
+    const SurfaceSamples s = sample_surface(load_object_mesh(dataset), kModelSpacingM);
     o.model_object.points = s.points;
     o.model_object.normals = s.normals;
   }
@@ -341,11 +342,25 @@ TriangleMesh load_object_mesh(const Dataset& dataset) {
   // A relative path is the dataset folder's (as a scene's paths are its file's).
   const std::filesystem::path mesh =
       std::filesystem::path(dataset.dir()) / std::filesystem::path(info.object_mesh);
+  TriangleMesh loaded;
   try {
-    return load_mesh(mesh.lexically_normal().string(), info.object_scale);
+    loaded = load_mesh(mesh.lexically_normal().string(), info.object_scale);
   } catch (const InputError& e) {
     throw InputError(dataset.dir() + "/dataset.json: object.mesh: " + e.what());
   }
+  // GroundtruthPatch's model covers the whole surface at the registration's resolution: a
+  // metre-sized object would take gigabytes before its first frame.
+  const double samples = surface_sample_count(loaded, kModelSpacingM);
+  if (samples > kMaxModelPoints) {
+    std::ostringstream what;
+    what << dataset.dir() << "/dataset.json: object.mesh: " << info.object_mesh << " (scale "
+         << info.object_scale << ") is too large for gtpatch's object model: its surface at "
+         << kModelSpacingM * 1e3 << " mm spacing is " << std::setprecision(3) << samples / 1e6
+         << " M points, at most " << kMaxModelPoints / 1e6
+         << " M are kept (about a 0.1 m^2 surface: a 10 cm box); the other methods need no model";
+    throw InputError(what.str());
+  }
+  return loaded;
 }
 
 std::uint64_t sequence_seed(std::uint64_t base, const std::string& name) {

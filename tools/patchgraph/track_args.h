@@ -74,8 +74,13 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets);
 // --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
                                 const NormalsModels& models);
+// GroundtruthPatch's object model: the mesh's surface sampled every kModelSpacingM, at most
+// kMaxModelPoints points (about 0.1 m^2 of surface; points, normals and k-d tree some 350 MB).
+inline constexpr double kModelSpacingM = 1e-4;
+inline constexpr double kMaxModelPoints = 1e7;
 // The dataset's object mesh (dataset.json's object.mesh, relative to its folder), as gtpatch
-// registers against it; InputError naming dataset.json's field when it is missing or bad.
+// registers against it; InputError naming dataset.json's field when it is missing, bad, or too
+// large to sample as the model.
 TriangleMesh load_object_mesh(const Dataset& dataset);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line

@@ -16,4 +16,8 @@ struct SurfaceSamples {
 // stratified scheme: deterministic for a mesh, spacing and seed.
 SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed = 1);
 
+// How many points sample_surface places for `mesh` at `spacing_m` (to within one per triangle),
+// without placing them: a caller checks a model's size before asking for it.
+double surface_sample_count(const TriangleMesh& mesh, double spacing_m);
+
 }  // namespace pg
