@@ -2,7 +2,11 @@
 // rotation slivers an eigen-solver mixes into a cluster of small eigenvalues.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <random>
+#include <string>
 
 #include "pg/tracker/degeneracy.h"
 
@@ -182,6 +186,79 @@ TEST(Degeneracy, CloudDegeneracyCountsWhatEachShapeLeavesFree) {
   turn << -R, 0, 0, 0, 1, 0;  // [-omega x q; omega] with omega = y, q = (0, 0, R)
   EXPECT_LT(off_span(slide, N), 1e-3);
   EXPECT_LT(off_span(turn, N), 1e-3);
+}
+
+// A cloud of a sphere's cap (radius R, centre at +z R, normals exact), 31 x 31 samples 0.4 mm
+// apart (a 12 mm square, the size of a DIGIT contact), or R / 40 apart for a small sphere.
+PointCloud sphere_cap(double R) {
+  PointCloud cap;
+  const double spacing = std::min(4e-4, R / 40);
+  for (int a = -15; a <= 15; ++a) {
+    for (int b = -15; b <= 15; ++b) {
+      const double u = spacing * a, v = spacing * b;
+      const Eigen::Vector3d c_to_p(u, v, -std::sqrt(R * R - u * u - v * v));
+      cap.push_back((c_to_p + Eigen::Vector3d(0, 0, R)).cast<float>(),
+                    c_to_p.normalized().cast<float>());
+    }
+  }
+  return cap;
+}
+
+// The contact's shape operator: I / R for a sphere (about any point, the normals' sign aside),
+// (I - a a^T) / R for a cylinder of axis a, zero for a plane.
+TEST(Degeneracy, ContactShapeIsTheNormalsGradient) {
+  const double R = 0.006;
+  const PointCloud cap = sphere_cap(R);
+  const ContactShape sphere = fit_contact_shape(cap.points, cap.normals);
+  EXPECT_LT((sphere.shape_operator - Eigen::Matrix3d::Identity() / R).norm(), 1e-3 / R)
+      << sphere.shape_operator;
+  EXPECT_LT(sphere.mean_normal.z(), -0.9);  // outward, away from the centre
+  PointCloud cylinder, plane;
+  for (int a = -15; a <= 15; ++a) {
+    for (int b = -15; b <= 15; ++b) {
+      const double u = 2e-4 * a, v = 2e-4 * b;
+      const Eigen::Vector3d c_to_p(u, 0, -std::sqrt(R * R - u * u));  // axis along y
+      cylinder.push_back((c_to_p + Eigen::Vector3d(0, v, R)).cast<float>(),
+                         (-c_to_p.normalized()).cast<float>());  // normals inward: K's sign too
+      plane.push_back({float(u), float(v), 0.0f}, {0, 0, 1});
+    }
+  }
+  Eigen::Matrix3d across = Eigen::Matrix3d::Identity();
+  across(1, 1) = 0;
+  const ContactShape rod = fit_contact_shape(cylinder.points, cylinder.normals);
+  EXPECT_LT((rod.shape_operator + across / R).norm(), 1e-3 / R) << rod.shape_operator;
+  EXPECT_LT(fit_contact_shape(plane.points, plane.normals).shape_operator.norm(), 1e-9);
+  // Rotated with the cloud.
+  const Eigen::Matrix3d Rz = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  EXPECT_LT((rod.rotated(Rz).shape_operator + Rz * across * Rz.transpose() / R).norm(), 1e-3 / R);
+  EXPECT_EQ(fit_contact_shape({}, {}).shape_operator, Eigen::Matrix3d::Zero());
+}
+
+// A large sphere's nearly flat cap: its free directions are its rotations about the far centre,
+// whose rolls carry as little rotation per slide as an edge's sliver (Lambda / R, 0.02 at
+// 0.15 m). They must stay rolls, not become slides: the data see a slide of the centre (the
+// contact's edge moves over the cap), and a factor graph handed the slide as free pins the
+// roll's tilt instead.
+TEST(Degeneracy, AFarCentresRollsStayRollsNotSlides) {
+  for (const double R : {0.006, 0.15, 1.0}) {
+    SCOPED_TRACE("radius " + std::to_string(R) + " m");
+    const DegeneracyReport report = analyse_cloud_degeneracy(sphere_cap(R), kRatio);
+    ASSERT_EQ(report.unconstrained, 3);
+    const Matrix6Xd N = report.unconstrained_twists_at_origin();
+    ASSERT_EQ(N.cols(), 3);
+    for (int axis = 0; axis < 3; ++axis) {
+      // The rotation about the centre q = (0, 0, R): [-omega x q; omega].
+      Vector6d roll = Vector6d::Zero();
+      roll.tail<3>() = Eigen::Vector3d::Unit(axis);
+      roll.head<3>() = -Eigen::Vector3d::Unit(axis).cross(Eigen::Vector3d(0, 0, R));
+      EXPECT_LT(off_span(roll, N), 1e-3) << "axis " << axis << "\n" << N;
+    }
+    for (int axis = 0; axis < 2; ++axis) {
+      Vector6d slide = Vector6d::Zero();
+      slide[axis] = 1;
+      EXPECT_GT(off_span(slide, N), 0.5 / std::sqrt(1 + R * R)) << "axis " << axis << "\n" << N;
+    }
+  }
 }
 
 // Several sensors on one object: what none of their contacts constrains. A face under the object

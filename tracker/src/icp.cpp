@@ -452,6 +452,8 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   cache_->reset(n);
 
   const Centroid cs = centroid_and_radius(source->points);
+  // The contact's curvature, for telling its rolls from slivers (DegeneracyReport::shape).
+  const ContactShape shape_source = fit_contact_shape(source->points, source->normals);
   const double L = std::max(cs.rms_radius, 1e-6), inv_L = 1.0 / L;
   // Searching a little beyond the correspondence distance lets a point without a partner skip
   // later queries until it has moved by the difference.
@@ -497,7 +499,8 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     Matrix6d D = Matrix6d::Identity();
     D.bottomRightCorner<3, 3>() = L * Lambda.inverse();
     const DegeneracyReport degeneracy =
-        analyse_degeneracy(D * H_scaled * D, c, Lambda, o.min_eigenvalue_ratio);
+        analyse_degeneracy(D * H_scaled * D, c, Lambda, o.min_eigenvalue_ratio,
+                           shape_source.rotated(R));
     if (!coarse) {
       result.inliers = eq.inliers;
       result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);

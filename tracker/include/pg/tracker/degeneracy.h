@@ -22,6 +22,23 @@ namespace pg {
 // At most 6 columns, stored inline (no heap allocation).
 using Matrix6Xd = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, 6>;
 
+// A contact's shape about its centroid: the mean of its normals and the shape operator
+// K = dn/dp, the normals fitted as linear in position (exact for a sphere, K = I / R about any
+// point, and for a cylinder, (I - a a^T) / r; zero for a plane). The sign of the normals does
+// not matter where it is used: n x (K rho) is the same for -n and -K.
+struct ContactShape {
+  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();  // not normalised; zero: unknown
+  Eigen::Matrix3d shape_operator = Eigen::Matrix3d::Zero();  // K [1/m]
+  // The same shape in a frame rotated by R (points and normals mapped by R).
+  ContactShape rotated(const Eigen::Matrix3d& R) const {
+    return {R * mean_normal, R * shape_operator * R.transpose()};
+  }
+};
+
+// The least-squares shape of `points` with `normals` (one per point) about their centroid.
+ContactShape fit_contact_shape(const std::vector<Eigen::Vector3f>& points,
+                               const std::vector<Eigen::Vector3f>& normals);
+
 struct DegeneracyReport {
   Eigen::Vector3d centre_target = Eigen::Vector3d::Zero();         // c [m]
   Eigen::Matrix3d rotation_scale_m = Eigen::Matrix3d::Identity();  // Lambda [m]
@@ -30,6 +47,8 @@ struct DegeneracyReport {
   Matrix6d eigenvectors = Matrix6d::Identity();
   int unconstrained = 6;            // how many of the first eigenvalues fall below the ratio
   double min_eigenvalue_ratio = 0;  // the ratio they were compared with [-]
+  // The contact's shape in the target frame (ContactShape), when the analysis was given it.
+  ContactShape shape;
 
   bool degenerate() const { return unconstrained > 0; }
   // The unconstrained directions as twists [rho_c; phi] about c ([m; rad]), one per column: a
@@ -37,7 +56,15 @@ struct DegeneracyReport {
   // constrained rotation the span holds so little of that removing it leaves the direction
   // unconstrained; degeneracy.cpp). Divided by Lambda to become a twist, a sliver grows hundreds of
   // times: an edge's slide would carry 0.3 rad of rotation per metre, which a consumer pinning
-  // every other direction holds fixed, reading the slide from that rotation's noise.
+  // every other direction holds fixed, reading the slide from that rotation's noise. A rotation
+  // the contact's curvature explains is no sliver: a sphere's roll about its far centre carries
+  // as little rotation as an edge's sliver (Lambda / R), but dropping it hands on a slide, which
+  // the data do see, and leaves the roll's tilt to be pinned at the guess, where the registration
+  // left it (a still 30 cm ball then spun away from its prediction, 15 % a frame). So the
+  // rotation a free direction's slide predicts by rolling, kappa n x rho_c (the normal curvature
+  // kappa along the slide, from `shape`), is kept when it explains all but a tenth of the
+  // direction's constrained rotation and the directions then fit the data at least twice as
+  // well; without a shape, every sliver is removed as before.
   Matrix6Xd unconstrained_twists() const;
   // The same directions as twists [rho; phi] about the target frame's origin.
   Matrix6Xd unconstrained_twists_at_origin() const;
@@ -47,7 +74,7 @@ struct DegeneracyReport {
 // min_eigenvalue_ratio times the largest (or not positive) are unconstrained.
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
                                     const Eigen::Matrix3d& rotation_scale_m,
-                                    double min_eigenvalue_ratio);
+                                    double min_eigenvalue_ratio, const ContactShape& shape = {});
 
 // What a registration of `cloud` could constrain at best: the degeneracy of its point-to-plane
 // Hessian at perfect alignment with itself (each point's residual along its own normal), about
