@@ -321,6 +321,16 @@ void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspac
   }
   frame.contact = PixelRect{x0, y0, x1, y1};
   if (frame.contact.empty()) frame.contact = {};
+  if (objects.size() > 1) {
+    stats.object_contact_pixels.assign(objects.size(), 0);
+    const PixelRect& r = frame.contact;
+    for (int y = r.y0; y < r.y1; ++y) {
+      for (int x = r.x0; x < r.x1; ++x) {
+        const int i = gel.index(x, y);
+        if (ws.rigid[i] > 0.0f) ++stats.object_contact_pixels[std::size_t(ws.hit_object[i])];
+      }
+    }
+  }
 }
 
 }  // namespace pg

@@ -315,18 +315,23 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
       writers.back()->write_background(renderer.sensor(i).background_color_u8());
     summary.dataset_dirs.push_back(dir);
   }
-  std::atomic<int> done{0}, contact_frames{0}, clamped_frames{0};
+  std::atomic<int> done{0}, contact_frames{0}, tracked_contact_frames{0}, clamped_frames{0};
   std::mutex progress_mutex;
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(0, scene.frames, [&](int frame) {
     const auto frames = renderer.render_frame(frame);
-    bool contact = false, clamped = false;
+    bool contact = false, tracked = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
+      const RenderStats& stats = frames[i].stats;
       write_rendered_frame(renderer, frame, i, frames[i], *writers[i], frame);
-      contact = contact || frames[i].stats.contact;
-      clamped = clamped || frames[i].stats.clamped_pixels > 0;
+      contact = contact || stats.contact;
+      tracked = tracked || (stats.object_contact_pixels.empty()
+                                ? stats.contact
+                                : stats.object_contact_pixels[scene.tracked_object] > 0);
+      clamped = clamped || stats.clamped_pixels > 0;
     }
     contact_frames += contact;
+    tracked_contact_frames += tracked;
     clamped_frames += clamped;
     const int n = ++done;
     if (progress) {
@@ -356,6 +361,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   }
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.contact_frames = contact_frames;
+  summary.tracked_contact_frames = tracked_contact_frames;
   summary.clamped_frames = clamped_frames;
   return summary;
 }

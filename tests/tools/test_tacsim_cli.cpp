@@ -590,6 +590,37 @@ TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   for (const auto& p : d.poses()) EXPECT_FALSE(p.contact);
 }
 
+// The dataset's poses are the tracked object's: a frame where only another object touches the
+// gel would be tracked as its motion. Said, with the count (a cube hovering 5 mm above the gel
+// while a sphere presses in 4 of 6 frames); not said when the tracked object is the one pressing.
+TEST(TacsimCli, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
+  TempDir tmp;
+  const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
+  const auto scene = [&](const std::string& tracked) {
+    std::ofstream(tmp.str(tracked + ".json"))
+        << R"({"frames": 6, "sensors": [{}], "render": {"outputs": ["normal"]},
+               "objects": [{"name": "cube", "mesh": ")"
+        << meshes << R"(cube.glb", "pose": {"position": [0.0, 0.0, 0.015]}},
+               {"name": "sphere", "mesh": ")"
+        << meshes << R"(sphere_r6mm.glb", "trajectory": {"poses": [
+                 {"position": [0.0, 0.0, 0.007]}, {"position": [0.0, 0.0, 0.007]},
+                 {"position": [0.0, 0.0, 0.005]}, {"position": [0.0, 0.0, 0.005]},
+                 {"position": [0.0, 0.0, 0.005]}, {"position": [0.0, 0.0, 0.005]}]}}],
+               "tracked_object": ")"
+        << tracked << R"("})";
+    return tacsim("render " + tmp.str(tracked + ".json") + " -q --out " + tmp.str(tracked));
+  };
+  const std::string warning = "warning: " + tmp.str("cube.json") +
+                              ": in 4 of the 4 contact frames only objects other than the tracked "
+                              "one ('cube', tracked_object) touch the gel";
+  CliRun r = scene("cube");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(warning), std::string::npos) << r.out;
+  r = scene("sphere");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("only other objects"), std::string::npos) << r.out;
+}
+
 // Scenes whose sensors differ in image size share one sheet: every cell is as large as the
 // largest image (the sheet was sized from the first scene and a larger image overran it).
 TEST(TacsimCli, SheetOfScenesWithDifferentImageSizes) {

@@ -67,6 +67,9 @@ struct RenderStats {
   int contact_pixels = 0;
   int clamped_pixels = 0;  // penetration beyond the gel's max indentation, clamped
   int shaded_pixels = 0;   // pixels whose surface differs from the undeformed gel
+  // Contact pixels per object (the object touching deepest at each), when there are several
+  // objects; empty for one, whose contact_pixels they all are.
+  std::vector<int> object_contact_pixels;
 };
 
 struct RenderedFrame {

@@ -47,6 +47,7 @@ class SceneRenderer {
 struct RenderSummary {
   int frames = 0;
   int contact_frames = 0;  // frames where some sensor saw contact
+  int tracked_contact_frames = 0;  // of those, frames where the tracked object itself touched
   int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
