@@ -144,8 +144,8 @@ int run_render(const RenderArgs& a) {
   }
   if (s.contact_frames == 0) {
     std::fprintf(stderr,
-                 "warning: %s: no object touches the gel in any frame; every frame shows the "
-                 "background only\n",
+                 "warning: %s: no object touches the gel within the camera's view in any frame; "
+                 "every frame shows the background only\n",
                  a.scene.c_str());
   }
   for (int k = 0; k < renderer.sensor_count(); ++k) {
