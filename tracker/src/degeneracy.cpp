@@ -111,6 +111,7 @@ Eigen::Matrix3d non_sliver_rotations(const Eigen::Matrix3Xd& rotations,
 // at cost ratios mostly 0.3-1, and no frame of cube 01, 05, 19 or toy human 03, 15 passes both.
 constexpr double kRollUnexplained = 0.1;
 constexpr double kRollCostGain = 0.5;
+constexpr double kMinMeanNormal = 0.3;
 
 // How far the columns (scaled directions) are from free: their mean Rayleigh quotient.
 double mean_cost(const Matrix6d& H, const Matrix6Xd& X) {
@@ -156,7 +157,10 @@ Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
   Matrix6Xd chosen = free;  // scaled coordinates
   chosen.bottomRows<3>() = non_sliver_rotations(rotations, H_rr, threshold, sliver_cost) * rotations;
   // A roll is no sliver: set aside the rotation rolling predicts, remove slivers from the rest.
-  if (report.shape.mean_normal.norm() > 0 && !report.shape.shape_operator.isZero(0)) {
+  // Only for a contact whose normals face one side (a tactile contact's do; a mean normal
+  // shorter than kMinMeanNormal has no direction to roll about).
+  if (report.shape.mean_normal.norm() >= kMinMeanNormal &&
+      !report.shape.shape_operator.isZero(0)) {
     const Eigen::Matrix3Xd predicted = rolling_rotations(report, free);
     const Eigen::Matrix3Xd residual = rotations - predicted;
     const auto constrained_part = [&](const Eigen::Matrix3Xd& r) {
