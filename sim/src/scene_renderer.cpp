@@ -57,6 +57,7 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
     scene_.render.background = overrides.background;
   }
   if (overrides.shadows) scene_.render.shadows = *overrides.shadows;
+  if (overrides.noise) scene_.render.noise = *overrides.noise;
   if (overrides.elastic) {
     for (auto& sensor : scene_.sensors) sensor.model.gel.elastic.enabled = *overrides.elastic;
   }

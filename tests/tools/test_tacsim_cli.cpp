@@ -313,6 +313,19 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
                                info.background + " background"),
             std::string::npos)
       << described.out;
+  // And of the camera noise, both ways: off for a noisy scene, on for a quiet one.
+  for (const auto& [scene, noise, sigma] :
+       {std::tuple<std::string, std::string, double>{
+            kScenes + "examples/sphere_press.json", "off", 0.0},
+        {tmp.str("quiet.json"), "on", 7.0}}) {
+    const CliRun run = tacsim("render " + scene + " -q --outputs color --frames 2 --noise " +
+                              noise + " --out " + tmp.str("d"));
+    ASSERT_EQ(run.code, 0) << run.out;
+    const Dataset d = Dataset::open(tmp.str("d"));
+    EXPECT_EQ(d.info().sensor.noise.sigma, sigma) << scene;
+    // The press is still: its two frames differ by the camera noise alone.
+    EXPECT_EQ(d.color(0).data == d.color(1).data, noise == "off") << scene;
+  }
   // The words a scene's render.background takes work on the command line too: a scene with a
   // real background rendered with the synthetic one (they had been taken for file names).
   const std::string real_scene = tmp.str("real_bg.json");

@@ -40,7 +40,7 @@ std::vector<std::string> split_list(const std::string& s) {
 }
 
 struct RenderArgs {
-  std::string scene, out, outputs, background, shadows, elastic;
+  std::string scene, out, outputs, background, shadows, elastic, noise;
   int threads = 0, width = 0, height = 0, frames = 0;
   bool quiet = false;
   bool outputs_given = false;  // --outputs was on the command line (perhaps empty)
@@ -62,6 +62,7 @@ int run_render(const RenderArgs& a) {
   overrides.shadows = on_off(a.shadows);
   overrides.frames = a.frames;
   overrides.elastic = on_off(a.elastic);
+  overrides.noise = on_off(a.noise);
   std::unique_ptr<tbb::global_control> threads;
   if (a.threads > 0) {
     threads = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -309,6 +310,11 @@ int main(int argc, char** argv) {
   cmd_render->add_option("--shadows", render.shadows, "Override the scene: on or off")
       ->check(CLI::IsMember({"on", "off"}));
   cmd_render->add_option("--elastic", render.elastic, "Override the gel's elastic model: on or off")
+      ->check(CLI::IsMember({"on", "off"}));
+  cmd_render
+      ->add_option("--noise", render.noise,
+                   "Override the scene's camera noise: on (the sensor's sigma) or off (noise-free "
+                   "frames, e.g. for train-normals --noise-augment)")
       ->check(CLI::IsMember({"on", "off"}));
   cmd_render
       ->add_option("--frames", render.frames,

@@ -18,6 +18,7 @@ struct RenderOverrides {
   int width = 0, height = 0;         // 0: the sensors' own
   std::string background;            // a real background image for every sensor ("": the scene's)
   std::optional<bool> shadows;       // unset: the scene's
+  std::optional<bool> noise;         // the camera noise on/off; unset: the scene's
   std::optional<bool> elastic;       // every sensor's elastic gel model on/off; unset: the scene's
   int frames = 0;                    // the scene's first this many frames; 0: all of them
 };
