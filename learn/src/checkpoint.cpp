@@ -34,6 +34,7 @@ nlohmann::json run_settings(const TrainOptions& o) {
           {"--shift", o.shift_px},
           {"--gain-jitter", o.gain_jitter},
           {"--offset-jitter", o.offset_jitter},
+          {"--noise-augment", o.noise_augment},
           {"--data", data},
           {"--val", val},
           {"--init", o.init_model.empty() ? std::string() : canonical_or_given(o.init_model)}};

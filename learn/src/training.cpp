@@ -23,9 +23,10 @@ namespace F = torch::nn::functional;
 
 namespace {
 
-// Frames as tensors: the raw difference input, the true normals and the contact mask.
+// Frames as tensors: the raw difference input, the true normals and the contact mask; and each
+// frame's no-contact reference (its dataset's, shared), which the noise augmentation needs.
 struct FrameSet {
-  std::vector<torch::Tensor> input, target, mask;
+  std::vector<torch::Tensor> input, target, mask, reference;
   int width = 0, height = 0;
   // gel_relative: targets in each pixel's gel frame, that of the first dataset's sensor (the
   // others must have the same gel).
@@ -36,9 +37,20 @@ struct FrameSet {
   std::size_t size() const { return input.size(); }
 };
 
-void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background, const ImageF& gel,
-               int i) {
+// An 8-bit colour image as a 3 x H x W tensor in [0, 1].
+torch::Tensor colour_tensor(const ImageU8& image) {
+  return torch::from_blob(const_cast<std::uint8_t*>(image.data.data()),
+                          {image.height, image.width, 3}, torch::kUInt8)
+      .permute({2, 0, 1})
+      .to(torch::kFloat32)
+      .div(255.0)
+      .contiguous();
+}
+
+void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background,
+               const torch::Tensor& reference, const ImageF& gel, int i) {
   set.input.push_back(learn::difference_tensor(d.color(i), background));
+  set.reference.push_back(reference);
   ImageF normals = learn::true_normals(d, i);
   if (!gel.empty()) {
     for (std::size_t p = 0; p < gel.data.size(); p += 3) {
@@ -71,6 +83,7 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
                        std::to_string(set.width) + "x" + std::to_string(set.height));
     }
     const ImageU8 background = d.background();
+    const torch::Tensor reference = colour_tensor(background);
     if (!set.sensor_set) {
       set.sensor = d.info().sensor;
       set.sensor_set = true;
@@ -90,29 +103,38 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
     }
     for (int i = 0; i < d.frames(); ++i) {
       const bool hold = held_out && hold_out_every > 0 && i % hold_out_every == hold_out_every - 1;
-      add_frame(hold ? *held_out : set, d, background, gel, i);
+      add_frame(hold ? *held_out : set, d, background, reference, gel, i);
     }
   }
 }
 
 // A batch of frames with the augmentation: the same random shift of input and target (replicated
 // edges), the difference image scaled by a random gain and, with offset_jitter, each colour
-// channel of it shifted by a random offset (a brightness drift since the reference was taken).
-// None changes the lights' geometry.
+// channel of it shifted by a random offset (a brightness drift since the reference was taken);
+// with noise_augment, camera noise of a random sigma (0 to noise_augment levels) added to the
+// frame, which is then rounded and clipped to 8 bits as the camera's is, before the difference
+// with the reference. None changes the lights' geometry.
 struct Batch {
   torch::Tensor input, target, mask;
 };
 
 Batch make_batch(const FrameSet& set, const std::vector<int>& index, int shift, double gain_jitter,
-                 double offset_jitter, std::mt19937_64& rng) {
+                 double offset_jitter, double noise_augment, std::mt19937_64& rng) {
   std::vector<torch::Tensor> in, out, masks;
   std::uniform_int_distribution<int> offset(-shift, shift);
   std::uniform_real_distribution<double> gain(1.0 - gain_jitter, 1.0 + gain_jitter);
   std::uniform_real_distribution<double> level(-offset_jitter, offset_jitter);
+  std::uniform_real_distribution<double> sigma(0.0, noise_augment);
   for (int i : index) {
     torch::Tensor x = set.input[i] * gain(rng), y = set.target[i], m = set.mask[i];
     if (offset_jitter > 0) {  // no draws without it: the same run as before the option
       for (int c = 0; c < 3; ++c) x[c] += level(rng) / 255.0;
+    }
+    if (noise_augment > 0) {  // likewise
+      const torch::Tensor frame = (set.reference[i] + x) * 255.0;
+      const torch::Tensor noisy =
+          (frame + sigma(rng) * torch::randn_like(frame)).round().clamp(0.0, 255.0);
+      x = noisy / 255.0 - set.reference[i];
     }
     if (shift > 0) {
       const int dx = offset(rng), dy = offset(rng);
@@ -352,7 +374,8 @@ void train_normals(const TrainOptions& options,
       const std::vector<int> index(
           order.begin() + b * o.batch,
           order.begin() + std::min<std::size_t>(order.size(), (b + 1) * o.batch));
-      const Batch batch = make_batch(train, index, o.shift_px, o.gain_jitter, o.offset_jitter, rng);
+      const Batch batch = make_batch(train, index, o.shift_px, o.gain_jitter, o.offset_jitter,
+                                     o.noise_augment, rng);
       const torch::Tensor x = (batch.input - mean) / std;
       const torch::Tensor fake = g->forward(x);
       if (gan) {

@@ -86,6 +86,11 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
                   "Augmentation: each colour channel shifted by up to +- this many levels (a "
                   "brightness drift since the reference image; default 0)")
       ->check(range_check(0, 64));
+  cmd->add_option("--noise-augment", o.noise_augment,
+                  "Augmentation: camera noise of a sigma drawn per frame from 0 to this many "
+                  "levels, added before the difference with the reference (for renders without "
+                  "noise: tacsim render --noise off; default 0)")
+      ->check(range_check(0, 64));
   cmd->add_option("--seed", o.seed,
                   "Seed of the initialisation, shuffling and augmentation (default 0)")
       ->check(kSeed);

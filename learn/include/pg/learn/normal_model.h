@@ -148,6 +148,11 @@ struct TrainOptions {
   // Augmentation: each colour channel of the difference image shifted by up to +- this many
   // levels (a brightness drift of the sensor since its reference image); 0 = off.
   double offset_jitter = 0.0;
+  // Augmentation: camera noise of a sigma drawn per frame from 0 to this many levels, added to
+  // the frame (rounded and clipped to 8 bits, as the camera's) before the difference with the
+  // reference: for training renders without noise (tacsim render --noise off), so that the
+  // network meets fresh noise each epoch and cameras quieter than the renders'; 0 = off.
+  double noise_augment = 0.0;
   std::uint64_t seed = 0;
   int threads = 0;            // 0 = all cores
   int checkpoint_every = 1;   // epochs
