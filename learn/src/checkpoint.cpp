@@ -14,6 +14,8 @@ constexpr const char* kCheckpointFormat = "patchgraph-normals-checkpoint-1";
 
 std::string checkpoint_path(const TrainOptions& o) { return o.out + ".ckpt"; }
 
+}  // namespace
+
 // The settings that make a training run what it is, recorded in the checkpoint so that a resumed
 // run can be held to them: resuming with another learning rate, batch, seed, loss weight,
 // augmentation, training or validation data or starting model would silently continue a
@@ -39,6 +41,8 @@ nlohmann::json run_settings(const TrainOptions& o) {
           {"--val", val},
           {"--init", o.init_model.empty() ? std::string() : canonical_or_given(o.init_model)}};
 }
+
+namespace {
 
 // Throws InputError naming the first setting of `o` that differs from the checkpoint's record
 // (a checkpoint written before the record existed is not checked).

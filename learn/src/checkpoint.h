@@ -30,6 +30,11 @@ struct TrainingState {
 // A path as one file is always named (symbolic links and ".." resolved), or as given.
 std::string canonical_or_given(const std::string& path);
 
+// The settings that make a training run what it is (learning rate, batch, seed, loss weights,
+// augmentation, data, validation data, starting model), by their train-normals option names:
+// held in the checkpoint, so that a resumed run keeps them, and (but the data) in the model file.
+nlohmann::json run_settings(const TrainOptions& o);
+
 // Throws InputError before any work when OUT.ckpt cannot be the checkpoint (a folder), or when a
 // new run (no --resume) would replace at its first save a checkpoint of an unfinished run (a
 // forgotten --resume) or of a run of unrecorded length; a finished run's is replaced.

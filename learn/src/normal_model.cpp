@@ -46,6 +46,7 @@ nlohmann::json info_to_json(const NormalModelInfo& info) {
   if (!info.fine_tuned_from_json.empty())
     j["fine_tuned_from"] = nlohmann::json::parse(info.fine_tuned_from_json);
   if (info.sensor_known) j["sensor"] = sensor_to_json(info.sensor);
+  if (!info.settings_json.empty()) j["settings"] = nlohmann::json::parse(info.settings_json);
   j["history"] = info.history_json.empty() ? nlohmann::json::array()
                                            : nlohmann::json::parse(info.history_json);
   return j;
@@ -70,6 +71,13 @@ NormalModelInfo info_from_json(const nlohmann::json& j) {
       throw nlohmann::json::other_error::create(501, "fine_tuned_from is not an object", &j);
     }
     info.fine_tuned_from_json = base.dump();
+  }
+  if (j.contains("settings")) {
+    const nlohmann::json& settings = j.at("settings");
+    if (!settings.is_object()) {
+      throw nlohmann::json::other_error::create(501, "settings is not an object", &j);
+    }
+    info.settings_json = settings.dump();
   }
   const std::string labels = j.value("labels", std::string("sensor"));
   if (labels != "sensor" && labels != "gel") {

@@ -443,6 +443,15 @@ void train_normals(const TrainOptions& options,
   g->eval();
   info.epochs = o.epochs;
   info.history_json = history.dump();
+  nlohmann::json settings = learn::run_settings(o);
+  settings.erase("--data");  // training_data
+  settings.erase("--init");  // fine_tuned_from
+  settings["--decay-epochs"] = o.decay_epochs;
+  if (mlp) {  // trains on its L2 loss alone
+    settings.erase("--l1-weight");
+    settings.erase("--gan-weight");
+  }
+  info.settings_json = settings.dump();
   learn::save_model(o.out, g, info);
 }
 

@@ -649,14 +649,16 @@ TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
 }
 
 // model-info describes a model file from its own record, after the checks every user of the
-// file makes: a damaged copy is an error naming the entry.
+// file makes: a damaged copy is an error naming the entry. The settings line holds the rest of
+// the command that trained it (scripts/train_normals.sh's).
 TEST_F(PatchgraphCli, ModelInfoDescribesTheModel) {
   CliRun r = patchgraph("model-info " + kDefaultModel);
   ASSERT_EQ(r.code, 0) << r.out;
   for (const std::string line :
        {"network   unet (depth 5, width 12), 587931 parameters, normals in the sensor frame",
         "images    120x160 (the only size it takes)", "sensor    digit: 3 lights",
-        "trained   25 epoch(s) on 12 dataset(s)", "last      epoch 25: loss "}) {
+        "trained   25 epoch(s) on 12 dataset(s)", "--noise-augment 10 ", "--seed 1 ",
+        "; validated on 2 dataset(s)\n", "last      epoch 25: loss "}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
   }
   EXPECT_EQ(r.out.find("\nfrom "), std::string::npos) << "trained from random weights\n" << r.out;

@@ -298,6 +298,24 @@ int run_model_info(const ModelInfoArgs& a) {
   } else {
     std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
   }
+  // The rest of the command that trained it, as its options (alphabetical), for reproducing it.
+  const auto settings = nlohmann::json::parse(
+      i.settings_json.empty() ? "null" : i.settings_json, nullptr, false);
+  if (settings.is_object()) {
+    std::string text;
+    for (const auto& [option, value] : settings.items()) {
+      if (option.rfind("--", 0) != 0 || option == "--val") continue;
+      text += (text.empty() ? "" : " ") + option + " " +
+              (value.is_number_float() ? format_number(value.get<double>(), "%g") : value.dump());
+    }
+    const auto val = settings.find("--val");
+    const std::size_t validation = val != settings.end() && val->is_array() ? val->size() : 0;
+    std::printf("settings  %s; validated on %s\n", text.c_str(),
+                validation > 0 ? (std::to_string(validation) + " dataset(s)").c_str()
+                               : "every 10th training frame");
+  } else {
+    std::printf("settings  not recorded (a model file from before 2026-11-29)\n");
+  }
   std::printf("trained   %d epoch(s) on %zu dataset(s):\n", i.epochs, i.training_data.size());
   for (const std::string& dir : i.training_data) std::printf("            %s\n", dir.c_str());
   // A fine-tuned model's starting points, back to the one trained from random weights.

@@ -41,6 +41,10 @@ struct NormalModelInfo {
   int epochs = 0;
   std::vector<std::string> training_data;  // dataset folders
   std::string history_json;                // per-epoch losses and validation metrics (JSON array)
+  // The run's train-normals settings, a JSON object by option name ("--lr", "--batch", "--seed",
+  // the loss weights, the augmentation, "--decay-epochs", "--val"): what else the command that
+  // made it said. Empty for a file from before 2026-11-29, which did not record them.
+  std::string settings_json;
   // A fine-tuned model's starting point (train-normals --init), as a JSON object: "model" (its
   // file), "epochs", "training_data" and, when that model was fine-tuned too, its own
   // "fine_tuned_from". Empty for a model trained from random weights (or a file from before
