@@ -256,6 +256,17 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
   return total;
 }
 
+std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene) {
+  if (summary.tracked_contact_frames >= summary.contact_frames) return "";
+  return "warning: " + scene.path + ": in " +
+         std::to_string(summary.contact_frames - summary.tracked_contact_frames) + " of the " +
+         std::to_string(summary.contact_frames) +
+         " contact frames only objects other than the tracked one ('" +
+         scene.objects[std::size_t(scene.tracked_object)].name +
+         "', tracked_object) touch the gel; a tracker reading the dataset takes their contact for "
+         "the tracked object's";
+}
+
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress) {
   const Scene& scene = renderer.scene();

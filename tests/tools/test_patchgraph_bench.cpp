@@ -48,6 +48,31 @@ TEST(PatchgraphBench, TwoScenesOfOneNameGetTheirOwnRenders) {
   EXPECT_EQ(objects["sphere_r6mm"], objects["cube"]);
 }
 
+// A scene whose tracked object hovers while another presses is said to be so when the bench
+// renders it, as tacsim render says it; a cached render is not rendered again, nor warned again.
+TEST(PatchgraphBench, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
+  TempDir tmp;
+  const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
+  std::ofstream(tmp.str("hover.json"))
+      << R"({"frames": 4, "sensors": [{}],
+             "objects": [{"name": "cube", "mesh": ")"
+      << meshes << R"(cube.glb", "pose": {"position": [0.0, 0.0, 0.015]}},
+             {"name": "sphere", "mesh": ")"
+      << meshes << R"(sphere_r6mm.glb", "pose": {"position": [0.0, 0.0, 0.005]}}],
+             "tracked_object": "cube"})";
+  const std::string command = "bench --quick -q --no-plot --scenes " + tmp.str("hover.json") +
+                              " --cache " + tmp.str("cache") + " --out " + tmp.str("out");
+  const std::string warning = "warning: " + tmp.str("hover.json") +
+                              ": in 4 of the 4 contact frames only objects other than the tracked "
+                              "one ('cube', tracked_object) touch the gel";
+  auto r = testing_support::run_command(PATCHGRAPH_PATH, command);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(warning), std::string::npos) << r.out;
+  r = testing_support::run_command(PATCHGRAPH_PATH, command);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find(warning), std::string::npos) << "the cached render\n" << r.out;
+}
+
 TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   TempDir tmp;
   const auto r =

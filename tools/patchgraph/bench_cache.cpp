@@ -86,8 +86,12 @@ std::string cached_dataset(const BenchScene& scene, int width, int height, int f
   overrides.width = width;
   overrides.height = height;
   try {
-    render_scene_to_dataset(SceneRenderer(std::move(s), overrides), dir,
-                            [](int, int) { stop_if_asked(); });
+    const SceneRenderer renderer(std::move(s), overrides);
+    const RenderSummary summary =
+        render_scene_to_dataset(renderer, dir, [](int, int) { stop_if_asked(); });
+    // As tacsim render says it (once: a cached render is not rendered again).
+    const std::string untracked = untracked_contact_warning(summary, renderer.scene());
+    if (!untracked.empty()) std::fprintf(stderr, "%s\n", untracked.c_str());
   } catch (const Stopped& e) {
     throw e.with_note("the cache entry " + dir +
                       " is unfinished (the next bench renders it again)");

@@ -132,17 +132,8 @@ int run_render(const RenderArgs& a) {
                  "seed)\n",
                  a.scene.c_str());
   }
-  if (s.tracked_contact_frames < s.contact_frames) {
-    // A tracker reading the dataset takes every contact for the tracked object's (its poses are
-    // that object's): another object's touch would be registered as its motion.
-    const std::string& tracked = renderer.scene().objects[renderer.scene().tracked_object].name;
-    std::fprintf(stderr,
-                 "warning: %s: in %d of the %d contact frames only objects other than the tracked "
-                 "one ('%s', tracked_object) touch the gel; a tracker reading the dataset takes "
-                 "their contact for the tracked object's\n",
-                 a.scene.c_str(), s.contact_frames - s.tracked_contact_frames, s.contact_frames,
-                 tracked.c_str());
-  }
+  const std::string untracked = untracked_contact_warning(s, renderer.scene());
+  if (!untracked.empty()) std::fprintf(stderr, "%s\n", untracked.c_str());
   if (s.contact_frames == 0) {
     std::fprintf(stderr,
                  "warning: %s: no object touches the gel within the camera's view in any frame; "

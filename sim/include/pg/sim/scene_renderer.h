@@ -73,4 +73,10 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer);
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress = nullptr);
 
+// "" when the tracked object touched the gel in every contact frame of a render; else the
+// warning, naming the scene: a tracker reading the dataset takes every contact for the tracked
+// object's (its poses are that object's), so another object's touch would be registered as its
+// motion. tacsim render and patchgraph bench print it.
+std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene);
+
 }  // namespace pg
