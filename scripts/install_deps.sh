@@ -2,7 +2,8 @@
 # Installs the build and run-time dependencies from Debian 12's packages.
 # libopenblas0-openmp: LibTorch's transposed convolutions are BLAS matrix products, and a minimal
 # install would otherwise get the unoptimised reference BLAS (ATLAS -> OpenBLAS alone made the
-# default U-Net's inference 1.2x faster here).
+# default U-Net's inference 1.2x faster here). patchgraph links it ahead of the ATLAS that Ceres
+# brings in (tools/CMakeLists.txt), or ATLAS would still answer them.
 set -euo pipefail
 packages=(
   cmake g++ make pkg-config
