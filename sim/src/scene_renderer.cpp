@@ -267,6 +267,44 @@ std::string untracked_contact_warning(const RenderSummary& summary, const Scene&
          "the tracked object's";
 }
 
+namespace {
+
+// A scene of several sensors writes OUT/sensors.json and a dataset folder per sensor: OUT must be
+// new, empty, or an earlier such render (its index listing dataset folders), never a folder of
+// other files, whose own sensors.json or same-named folders the render would replace.
+void check_sensors_folder(const std::string& out_dir, int sensors) {
+  std::error_code ec;
+  const std::string what = "a scene of " + std::to_string(sensors) +
+                           " sensors writes one dataset per sensor into their own folders, "
+                           "next to their index " + kSensorIndexFile + ", under a new or empty "
+                           "folder or an earlier render of several sensors";
+  if (!fs::exists(out_dir, ec)) return;
+  if (!fs::is_directory(out_dir, ec)) {
+    throw InputError(out_dir + ": exists and is not a folder; " + what);
+  }
+  if (fs::is_empty(out_dir, ec)) return;
+  if (fs::exists(fs::path(out_dir) / "dataset.json", ec)) {
+    throw InputError(out_dir + ": holds a dataset; " + what);
+  }
+  bool earlier_render = false;
+  try {
+    const std::vector<std::string> dirs = sensor_dataset_dirs(out_dir);
+    earlier_render = !dirs.empty() && std::all_of(dirs.begin(), dirs.end(), [](const auto& d) {
+      return fs::is_regular_file(fs::path(d) / "dataset.json");
+    });
+  } catch (const InputError&) {
+    // an index of another format, or of folders that are not there: not an earlier render
+  }
+  if (!earlier_render) {
+    throw InputError(out_dir + ": is not empty and holds no earlier render of several sensors (" +
+                     kSensorIndexFile +
+                     " listing their dataset folders), so writing one there could replace your "
+                     "files; " + what);
+  }
+}
+
+}  // namespace
+
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress) {
   const Scene& scene = renderer.scene();
@@ -280,12 +318,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   }
   // Every folder is checked before any is written: a refused second one must not leave the first
   // half replaced.
-  if (renderer.sensor_count() > 1 && fs::exists(fs::path(out_dir) / "dataset.json")) {
-    throw InputError(out_dir + ": holds a dataset; a scene of " +
-                     std::to_string(renderer.sensor_count()) +
-                     " sensors writes one dataset per sensor into their own folders under a new "
-                     "or empty folder");
-  }
+  if (renderer.sensor_count() > 1) check_sensors_folder(out_dir, renderer.sensor_count());
   for (const auto& dir : dirs) DatasetWriter::check_folder(dir);
   // A folder that cannot be made fails here, named as such (rather than as a disk with no free
   // space: /proc/x). Made for the check, it goes again (with the parents made for it) when the

@@ -413,7 +413,8 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   EXPECT_EQ(Dataset::open(tmp.str("d") + "/digit_top").frames(), Dataset::open(dirs[0]).frames());
 }
 
-// --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder, is
+// --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder or one of
+// other files, is
 // refused before anything is written; an earlier dataset is replaced.
 TEST(TacsimCli, RenderReplacesOnlyADataset) {
   TempDir tmp;
@@ -439,6 +440,22 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   r = tacsim("render " + kScenes + "examples/no_contact.json -q --outputs mask --out " + d);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(Dataset::open(d).frames(), 5);
+
+  // A two-sensor scene into a folder of other files, one of them a sensors.json of its own
+  // (the render's index has that name): refused, nothing written (it had been replaced).
+  const std::string project = tmp.str("project");
+  fs::create_directories(project);
+  std::ofstream(project + "/README.txt") << "my notes\n";
+  std::ofstream(project + "/sensors.json") << "{\"sensors\": [\"my own\"]}\n";
+  r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " +
+             project);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(project + ": is not empty and holds no earlier render of several sensors"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(testing_support::file_text(project + "/sensors.json"), "{\"sensors\": [\"my own\"]}\n");
+  EXPECT_FALSE(fs::exists(project + "/digit_bottom"));
+  EXPECT_FALSE(fs::exists(project + "/digit_top"));
 }
 
 // Ctrl-C stops a render at its next frame: exit 130 and a message naming the unfinished dataset,
