@@ -235,6 +235,72 @@ bool inside_closed_part(const TriangleMesh& mesh, const std::vector<int>& part,
   return inside;
 }
 
+// Boxes in a tree (median splits along the widest side), to find those that hold a given box
+// without testing every one: orient_surfaces asks it of every part, and a mesh of many separate
+// solids (a scanned pile of grains) has tens of thousands of parts.
+class BoxTree {
+ public:
+  explicit BoxTree(const std::vector<Eigen::AlignedBox3d>& boxes) : boxes_(boxes) {
+    items_.resize(boxes.size());
+    for (std::size_t k = 0; k < items_.size(); ++k) items_[k] = int(k);
+    if (!items_.empty()) build(0, int(items_.size()));
+  }
+  // The indices of the boxes that hold `box` (in no particular order) into `out`.
+  void holding(const Eigen::AlignedBox3d& box, std::vector<int>& out) const {
+    out.clear();
+    if (nodes_.empty()) return;
+    std::vector<int> stack{0};
+    while (!stack.empty()) {
+      const Node& node = nodes_[std::size_t(stack.back())];
+      stack.pop_back();
+      if (!node.box.contains(box)) continue;  // then none of its boxes holds it either
+      if (node.left < 0) {
+        for (int k = node.begin; k < node.end; ++k) {
+          const int item = items_[std::size_t(k)];
+          if (boxes_[std::size_t(item)].contains(box)) out.push_back(item);
+        }
+      } else {
+        stack.push_back(node.left);
+        stack.push_back(node.right);
+      }
+    }
+  }
+
+ private:
+  struct Node {
+    Eigen::AlignedBox3d box;
+    int begin = 0, end = 0, left = -1, right = -1;
+  };
+  static constexpr int kLeafSize = 8;
+
+  int build(int begin, int end) {
+    Node node;
+    node.begin = begin, node.end = end;
+    for (int k = begin; k < end; ++k) node.box.extend(boxes_[std::size_t(items_[std::size_t(k)])]);
+    const int id = int(nodes_.size());
+    nodes_.push_back(node);
+    if (end - begin > kLeafSize) {
+      int axis = 0;
+      node.box.sizes().maxCoeff(&axis);
+      const int mid = begin + (end - begin) / 2;
+      std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
+                       [&](int a, int b) {
+                         return boxes_[std::size_t(a)].center()[axis] <
+                                boxes_[std::size_t(b)].center()[axis];
+                       });
+      const int left = build(begin, mid);
+      const int right = build(mid, end);
+      nodes_[std::size_t(id)].left = left;
+      nodes_[std::size_t(id)].right = right;
+    }
+    return id;
+  }
+
+  const std::vector<Eigen::AlignedBox3d>& boxes_;
+  std::vector<int> items_;
+  std::vector<Node> nodes_;
+};
+
 // Orients each surface (triangles joined by shared edges; find_surfaces) as its triangles say:
 // the triangles that face against most of their neighbours (neighbours on a consistently
 // oriented surface run through their shared edge in opposite directions; edges of more than two
@@ -302,18 +368,27 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   // wholly inside another closed surface (a hollow body's cavity, facing into it, or a solid
   // nested in another): the file's direction then says which, and is kept. (Parts that merely
   // overlap, a toy brick's studs sunk into its body, face outward.)
-  std::vector<int> corners;  // of the part being tested, each vertex once
+  std::vector<Eigen::AlignedBox3d> closed_boxes;
+  std::vector<int> closed_parts;
+  for (std::size_t j = 0; j < parts.size(); ++j) {
+    if (parts[j].closed) closed_parts.push_back(int(j)), closed_boxes.push_back(parts[j].box);
+  }
+  const BoxTree containers(closed_boxes);
+  std::vector<int> corners, candidates;  // of the part being tested, each vertex once
   const auto nested = [&](std::size_t i) {
     const Part& part = parts[i];
+    containers.holding(part.box, candidates);
+    if (candidates.empty()) return false;
     corners.clear();
     for (int t : part.triangles) {
       for (int k = 0; k < 3; ++k) corners.push_back(mesh.triangles[t][k]);
     }
     std::sort(corners.begin(), corners.end());
     corners.erase(std::unique(corners.begin(), corners.end()), corners.end());
-    for (std::size_t j = 0; j < parts.size(); ++j) {
+    for (const int c : candidates) {
+      const std::size_t j = std::size_t(closed_parts[std::size_t(c)]);
       const Part& other = parts[j];
-      if (j == i || !other.closed || !other.box.contains(part.box)) continue;
+      if (j == i) continue;
       // Every corner of the part inside `other`.
       if (std::all_of(corners.begin(), corners.end(), [&](int v) {
             return inside_closed_part(mesh, other.triangles,

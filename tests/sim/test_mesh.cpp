@@ -652,6 +652,42 @@ TEST_F(MeshIoTest, AHollowBodysCavityFacesIntoIt) {
   EXPECT_TRUE(Contains(err, path + ": 1 closed part(s)")) << err;
 }
 
+// Many bodies, each its own pair of closed surfaces: 100 hollow cubes on a grid, a third of them
+// with their outer surface inside out. The surfaces that may hold each part are looked up in a
+// tree of their boxes (a file of tens of thousands of separate solids had taken minutes to load,
+// every part tested against every other); each cavity is still found inside its own body only.
+TEST_F(MeshIoTest, ManyHollowBodiesEachKeepTheirCavity) {
+  std::string obj;
+  int turned_outer = 0;
+  for (int body = 0; body < 100; ++body) {
+    const double x = 2.0 * (body % 10), y = 2.0 * (body / 10), z = 0.1 * (body % 7);
+    for (const double size : {1.0, 0.5}) {
+      const double o = (1.0 - size) / 2.0;
+      for (const auto& c : {std::array<int, 3>{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
+                            {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}}) {
+        obj += "v " + std::to_string(x + o + size * c[0]) + " " +
+               std::to_string(y + o + size * c[1]) + " " + std::to_string(z + o + size * c[2]) +
+               "\n";
+      }
+    }
+    const int first = 16 * body;
+    const bool inside_out = body % 3 == 0;
+    turned_outer += inside_out;
+    for (const auto& f : kCubeFaces) {
+      obj += inside_out ? obj_face(first + f[0], first + f[2], first + f[1])
+                        : obj_face(first + f[0], first + f[1], first + f[2]);
+    }
+    for (const auto& f : kCubeFaces) obj += obj_face(first + f[0] + 8, first + f[2] + 8, first + f[1] + 8);
+  }
+  MeshLoadReport report;
+  ::testing::internal::CaptureStderr();
+  const TriangleMesh mesh = load_mesh(write("hollow_grid.obj", obj), 1.0, &report);
+  ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(report.inside_out_parts_turned, turned_outer);
+  EXPECT_EQ(unpaired_edges(mesh), 0);
+  EXPECT_NEAR(signed_volume(mesh), 100 * (1.0 - 0.125), 1e-6);  // 112.5 with cavities turned out
+}
+
 TEST_F(MeshIoTest, TrianglesFacingAgainstTheirNeighboursAreTurnedToMatch) {
   std::string good = kCubeVertices, flipped = kCubeVertices;
   for (std::size_t i = 0; i < kCubeFaces.size(); ++i) {
