@@ -93,6 +93,26 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
   EXPECT_NE(r.out.find("--frames"), std::string::npos) << r.out;
 }
 
+// Whole numbers are decimal: CLI11 reads them as C's strtoll does, so --frames 010 had rendered
+// 8 frames, 0x10 threads were 16 and --seed -1 wrapped to 2^64 - 1, each without a word.
+TEST(TacsimCli, WholeNumbersAreDecimal) {
+  TempDir tmp;
+  const std::string scene = kScenes + "examples/sphere_press.json";
+  for (const char* frames : {"010", "0x4", "4.0"}) {
+    const CliRun r = tacsim("render " + scene + " -q --frames " + frames + " --out " + tmp.str("o"));
+    EXPECT_EQ(r.code, 2) << frames;
+    EXPECT_NE(r.out.find("--frames"), std::string::npos) << r.out;
+    EXPECT_FALSE(fs::exists(tmp.str("o"))) << frames;
+  }
+  CliRun r = tacsim("presses " + kScenes + "../meshes/sphere_r6mm.glb --seed -1 --out " +
+                    tmp.str("p.json"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.out.find("--seed: '-1' is negative"), std::string::npos) << r.out;
+  r = tacsim("render " + scene + " -q --frames 4 --out " + tmp.str("o"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(Dataset::open(tmp.str("o")).frames(), 4);
+}
+
 // The frames are split among threads, each frame's noise drawn from its own seed: the files are
 // the same bytes whatever the thread count.
 TEST(TacsimCli, ARenderIsTheSameOnAnyNumberOfThreads) {

@@ -304,16 +304,37 @@ void as_usage_error(F&& check) {
 // matching exit code.
 // Throws CLI::ValidationError for an option or argument given as an empty string (`--out ""`,
 // a shell variable that was never set): no option of these tools means anything by it, and a
-// file named "" fails later with a message that names nothing.
-inline void check_no_empty_values(const CLI::App& app) {
+// file named "" fails later with a message that names nothing. And for a whole number that is
+// not plain decimal: CLI11 reads integers as C's strtoll does, so "010" was 8 (octal), "0x10"
+// 16, and "-1" of an unsigned option (a seed) 18446744073709551615, each without a word.
+inline void check_values(const CLI::App& app) {
   for (const CLI::Option* option : app.get_options()) {
+    const std::string full_type = option->get_type_name();  // "INT:range..." with a check
+    const std::string type = full_type.substr(0, full_type.find(':'));
+    const bool is_unsigned = type == "UINT";
+    const bool is_integer = is_unsigned || type == "INT";
     for (const std::string& value : option->results()) {
       if (value.empty() && option->get_expected_min() > 0) {
         throw CLI::ValidationError(option->get_name(), "an empty value");
       }
+      if (!is_integer || value.empty()) continue;
+      const std::size_t digits = value[0] == '-' || value[0] == '+' ? 1 : 0;
+      const bool decimal =
+          digits < value.size() &&
+          std::all_of(value.begin() + long(digits), value.end(),
+                      [](char c) { return c >= '0' && c <= '9'; }) &&
+          (value[digits] != '0' || value.size() == digits + 1);
+      if (!decimal) {
+        throw CLI::ValidationError(option->get_name(),
+                                   "'" + value + "' is not a whole number in decimal digits "
+                                   "(no leading zeros: 010 would read as octal 8)");
+      }
+      if (is_unsigned && value[0] == '-') {
+        throw CLI::ValidationError(option->get_name(), "'" + value + "' is negative");
+      }
     }
   }
-  for (const CLI::App* sub : app.get_subcommands()) check_no_empty_values(*sub);
+  for (const CLI::App* sub : app.get_subcommands()) check_values(*sub);
 }
 
 inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int()>& body) {
@@ -333,7 +354,7 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
   }
   try {
     app.parse(argc, argv);
-    check_no_empty_values(app);
+    check_values(app);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
