@@ -160,12 +160,23 @@ void SensorRenderer::State::prepare() {
       throw InputError(settings.background + ": background image is " + std::to_string(real.width) +
                        "x" + std::to_string(real.height) + ", not of the sensor's shape (" +
                        std::to_string(w) + "x" + std::to_string(h) +
-                       " or a multiple): it is scaled to fit, not cropped");
+                       " or a multiple; a background is scaled to the sensor's image, never "
+                       "cropped)");
     }
     ImageF rgb(real.width, real.height, 3);
-    for (int y = 0; y < real.height; ++y)
-      for (int x = 0; x < real.width; ++x)
-        for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
+    for (int y = 0; y < real.height; ++y) {
+      for (int x = 0; x < real.width; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          const float v = real.at(x, y, c);
+          if (!std::isfinite(v)) {  // a float image (EXR) can hold them; clamped, they read black
+            throw InputError(settings.background + ": pixel (" + std::to_string(x) + ", " +
+                             std::to_string(y) + ") channel " + std::to_string(c) +
+                             " is not a finite number");
+          }
+          rgb.at(x, y, c) = v;
+        }
+      }
+    }
     background = resample_bilinear(rgb, w, h);
     blend_blur = gaussian_kernel(sensor.shading.background_blur_m * gel.px_per_m);
   }

@@ -97,6 +97,12 @@ void check_folder_name(const std::string& name, const std::string& where) {
                      "' is the render's index of its sensors (written next " +
                      "to their folders); name the sensor otherwise");
   }
+  if (name == "dataset.json") {  // a folder of that name made OUT read as a broken dataset
+    throw InputError(where + ": '" + name +
+                     "' is a dataset's description file; a folder of that name next to the "
+                     "sensors' folders would make them read as one broken dataset; name the "
+                     "sensor otherwise");
+  }
 }
 
 SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
@@ -214,6 +220,24 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
     }
     scene.tracked_object = int(it - scene.objects.begin());
   }
+  // Read above, so of the expected shapes.
+  const auto longest_motion = [&](const char* list, std::size_t count) {
+    for (std::size_t i = 0; i < count; ++i) {
+      const nlohmann::json& item = f.at(list)[i];
+      if (!item.contains("trajectory")) continue;
+      const nlohmann::json& t = item["trajectory"];
+      const bool listed = t.contains("poses");
+      const std::int64_t n = listed ? std::int64_t(t["poses"].size())
+                                    : t["waypoints"].back()["frame"].get<std::int64_t>();
+      if (n > scene.motion_frames) {
+        scene.motion_frames = n;
+        scene.motion_field = f.field(list) + "[" + std::to_string(i) + "].trajectory." +
+                             (listed ? "poses" : "waypoints");
+      }
+    }
+  };
+  longest_motion("sensors", scene.sensors.size());
+  longest_motion("objects", scene.objects.size());
   if (f.has("render")) {
     JsonFields r(f.at("render"), f.field("render"));
     auto& render = scene.render;

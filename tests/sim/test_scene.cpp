@@ -345,6 +345,11 @@ TEST_F(SceneFileTest, SensorNamesArePlainUniqueFolderNames) {
   message = load_error(path);
   EXPECT_EQ(message.rfind(path + ": sensors[1].name: 'sensors.json' is the render's index", 0), 0u)
       << message;
+  j["sensors"] = {{{"name", "left"}}, {{"name", "dataset.json"}}};
+  message = load_error(write("dataset_name.json", j));
+  EXPECT_NE(message.find("sensors[1].name: 'dataset.json' is a dataset's description file"),
+            std::string::npos)
+      << message;
   // A default name ("sensor<i>") clashes like any other.
   j["sensors"] = {json::object(), {{"name", "sensor0"}}};
   message = load_error(write("default_clash.json", j));
@@ -424,6 +429,24 @@ TEST_F(SceneFileTest, WaypointsInterpolateLinearlyAndBySlerp) {
   expect_near(t.at(2), {0.002, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 10}), 1e-12);
   expect_near(t.at(-3), {0, 0, 0.01}, Eigen::Quaterniond::Identity());  // holds the first
   expect_near(t.at(20), {0.01, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 2}));  // and the last
+}
+
+// The longest motion a scene gives, for tacsim's warning when frames cuts it short (a list of
+// 100 poses in a 10-frame scene had been rendered to its tenth without a word): a pose list's
+// length, a waypoint list's last frame (the benchmark's scenes end theirs at `frames`).
+TEST_F(SceneFileTest, TheLongestMotionIsKnown) {
+  json j = minimal_scene();
+  EXPECT_EQ(load_scene(write("still.json", j)).motion_frames, 0);
+  j["objects"][0]["trajectory"]["waypoints"] = {waypoint(0, {0, 0, 0.01}, {0, 0, 0}),
+                                                waypoint(3, {0.01, 0, 0.01}, {0, 0, 0})};
+  Scene scene = load_scene(write("waypoints.json", j));
+  EXPECT_EQ(scene.motion_frames, 3);
+  EXPECT_EQ(scene.motion_field, scene.path + ": objects[0].trajectory.waypoints");
+  j["sensors"][0]["trajectory"]["poses"] = json::array();
+  for (int k = 0; k < 12; ++k) j["sensors"][0]["trajectory"]["poses"].push_back(json::object());
+  scene = load_scene(write("poses.json", j));
+  EXPECT_EQ(scene.motion_frames, 12);
+  EXPECT_EQ(scene.motion_field, scene.path + ": sensors[0].trajectory.poses");
 }
 
 // Whole numbers written with a fraction (a generator that carries frame numbers as floats, numpy

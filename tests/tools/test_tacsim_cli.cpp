@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <string>
 #include <thread>
 #include <tuple>
@@ -113,6 +114,31 @@ TEST(TacsimCli, WholeNumbersAreDecimal) {
   EXPECT_EQ(Dataset::open(tmp.str("o")).frames(), 4);
 }
 
+// A pose list longer than the scene's frames is said to be cut short (a frames not updated after
+// the list grew); --frames, a part of a scene on purpose, is not warned about.
+TEST(TacsimCli, AMotionLongerThanTheSceneIsSaid) {
+  TempDir tmp;
+  std::string poses;
+  for (int k = 0; k < 8; ++k) {
+    poses += std::string(k ? ", " : "") + "{\"position\": [0, 0, " +
+             std::to_string(0.0055 - 0.00002 * k) + "]}";
+  }
+  std::ofstream(tmp.str("scene.json"))
+      << R"({"frames": 3, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
+      << R"(/meshes/sphere_r6mm.glb", "trajectory": {"poses": [)" << poses << "]}}]}";
+  CliRun r = tacsim("render " + tmp.str("scene.json") + " -q --outputs mask --out " + tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: " + tmp.str("scene.json") +
+                       ": objects[0].trajectory.poses gives 8 frames of motion, the scene's "
+                       "frames 3: the render stops at frame 2"),
+            std::string::npos)
+      << r.out;
+  r = tacsim("render " + tmp.str("scene.json") + " -q --frames 2 --outputs mask --out " +
+             tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("frames of motion"), std::string::npos) << r.out;
+}
+
 // The frames are split among threads, each frame's noise drawn from its own seed: the files are
 // the same bytes whatever the thread count.
 TEST(TacsimCli, ARenderIsTheSameOnAnyNumberOfThreads) {
@@ -158,7 +184,7 @@ TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
                              tmp.str("wide") + " --width 80 --height 60");
   ASSERT_EQ(wide.code, 0) << wide.out;
   EXPECT_NE(wide.out.find("warning: --width 80 --height 60: sensor digit is 120x160 px, another "
-                          "shape; its pixels become 0.56 times as wide as tall"),
+                          "shape; its pixels become 0.562 times as wide as tall"),
             std::string::npos)
       << wide.out;
 }
@@ -609,12 +635,18 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
       << r.out;
   // A background missing, or one the renderer cannot use (grey), is named where the scene gives
   // it: render.background.
+  // A float image with a NaN had been clamped to black and rendered as a mostly clipped one.
   write_image(tmp.str("grey.png"), ImageU8(160, 120, 1));
+  ImageF not_finite(120, 160, 3);
+  std::fill(not_finite.data.begin(), not_finite.data.end(), 0.5f);
+  not_finite.at(7, 3, 1) = std::numeric_limits<float>::quiet_NaN();
+  write_image(tmp.str("nan.exr"), not_finite);
   for (const auto& [background, complaint] :
        {std::pair<std::string, std::string>{"Synthetic",
                                             ": no such image file (give an image, or synthetic "
                                             "or none)"},
-        {"grey.png", ": background image must be RGB"}}) {
+        {"grey.png", ": background image must be RGB"},
+        {"nan.exr", ": pixel (7, 3) channel 1 is not a finite number"}}) {
     std::ofstream(tmp.str("scene.json"))
         << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
         << R"(/meshes/cube.glb"}], "render": {"background": ")" << background << R"("}})";

@@ -73,6 +73,13 @@ int run_render(const RenderArgs& a) {
     throw UsageError("--frames " + std::to_string(a.frames) + ": " + a.scene + " has " +
                      std::to_string(scene.frames) + " frames");
   }
+  if (a.frames == 0 && scene.motion_frames > scene.frames) {  // a frames left as it was
+    std::fprintf(stderr,
+                 "warning: %s gives %lld frames of motion, the scene's frames %d: the render "
+                 "stops at frame %d, and the rest is never rendered\n",
+                 scene.motion_field.c_str(), static_cast<long long>(scene.motion_frames),
+                 scene.frames, scene.frames - 1);
+  }
   // --width and --height resize each camera's intrinsics per side: another shape of image
   // than a sensor's stretches its pixels (a sensor file says so as an error; here the scene's
   // sensors may be of several shapes).
@@ -82,7 +89,7 @@ int run_render(const RenderArgs& a) {
     const CameraModel resized = cam.resized(a.width, a.height);
     std::fprintf(stderr,
                  "warning: --width %d --height %d: sensor %s is %dx%d px, another shape; its "
-                 "pixels become %.2f times as wide as tall (a sensor file with the new image's "
+                 "pixels become %.3g times as wide as tall (a sensor file with the new image's "
                  "camera keeps them square)\n",
                  a.width, a.height, sensor.name.c_str(), cam.width, cam.height,
                  (resized.fy / resized.fx) / (cam.fy / cam.fx));

@@ -1,5 +1,6 @@
 #pragma once
 // Scene files: sensors, objects, trajectories and render options (JSON; schema in README.md).
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,11 @@ struct Scene {
   std::vector<SceneObject> objects;
   int tracked_object = 0;  // index into objects: the object whose pose goes into poses.csv
   SceneRender render;
+  // The longest motion the file gives and its field (0 and "" without trajectories): a pose
+  // list's length, or the last waypoint's frame (which the scenes put at `frames`, the motion's
+  // end one past the last frame rendered). Longer than `frames`, the rest is never rendered.
+  std::int64_t motion_frames = 0;
+  std::string motion_field;
 };
 
 // Throws InputError naming the file, line/column (malformed JSON) or field (missing, wrong type,
