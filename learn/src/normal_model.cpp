@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "networks.h"
 #include "pg/core/dataset.h"
@@ -189,13 +190,26 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
 void save_archive(torch::serialize::OutputArchive& archive, const std::string& path,
                   const std::string& what) {
   const std::string target = replaceable_file(path);
+  // Serialised in memory first: Torch's own file writer, on a disk that fills, throws from its
+  // destructor, which ends the program (SIGABRT, its temporary file left behind).
+  std::ostringstream bytes;
+  try {
+    archive.save_to(bytes);
+  } catch (const c10::Error& e) {
+    const std::string why = e.what_without_backtrace();
+    throw InputError(path + ": cannot write the " + what + " (" + why.substr(0, why.find('\n')) +
+                     ")");
+  }
   const std::string tmp = temporary_path_for(target);
   std::error_code ec;
   try {
-    archive.save_to(tmp);
-  } catch (const c10::Error&) {
+    write_text_file(tmp, bytes.str());
+  } catch (const InputError& e) {  // "TMP: cannot write (CAUSE)"
     fs::remove(tmp, ec);
-    throw InputError(path + ": cannot write the " + what + write_failure_cause(path, 0));
+    const std::string message = e.what();
+    const std::size_t cause = message.rfind(": cannot write");
+    throw InputError(path + ": cannot write the " + what +
+                     (cause == std::string::npos ? "" : message.substr(cause + 14)));
   }
   fs::rename(tmp, target, ec);
   if (ec) {
@@ -315,7 +329,10 @@ torch::Tensor as_predicted(const torch::Tensor& raw) {
   const torch::Tensor unit = raw / raw.norm(2, 1, true).clamp_min(1e-6);
   torch::Tensor up = torch::zeros_like(unit);
   up.select(1, 2).fill_(1.0f);
-  return torch::where(unit.narrow(1, 2, 1) > kMinFacingZ, unit, up);
+  // A NaN stays NaN (it had become the flat gel's normal, hiding a broken network).
+  const torch::Tensor keep = (unit.narrow(1, 2, 1) > kMinFacingZ).logical_or(
+      torch::isfinite(unit).all(1, true).logical_not());
+  return torch::where(keep, unit, up);
 }
 
 void MetricSums::add(const torch::Tensor& predicted, const torch::Tensor& truth,
@@ -515,7 +532,12 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
       }
       const float inv = 1.0f / std::max(std::sqrt(nx * nx + ny * ny + nz * nz), 1e-6f);
       float* o = &normals.data[(std::size_t(y) * w + x) * 3];
-      if (nz * inv > learn::kMinFacingZ) {
+      if (!std::isfinite(nx * inv + ny * inv + nz * inv)) {
+        // A broken network's NaN is passed on, for the tracker to count as rejected normals
+        // (it had read as the flat gel's normal).
+        o[0] = o[1] = o[2] = std::numeric_limits<float>::quiet_NaN();
+        continue;
+      } else if (nz * inv > learn::kMinFacingZ) {
         o[0] = nx * inv, o[1] = ny * inv, o[2] = nz * inv;
       } else {
         o[0] = 0.0f, o[1] = 0.0f, o[2] = 1.0f;
@@ -571,6 +593,13 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
       times.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count());
+      const auto not_finite = std::count_if(predicted.data.begin(), predicted.data.end(),
+                                            [](float v) { return !std::isfinite(v); });
+      if (not_finite > 0) {
+        throw InputError(model.path() + ": the network's output is not a finite number at " +
+                         std::to_string(not_finite / 3) + " pixels of " + d.dir() + " frame " +
+                         std::to_string(i) + " (a diverged or damaged model)");
+      }
       sums.add(learn::image_to_tensor(predicted).unsqueeze(0),
                learn::image_to_tensor(learn::true_normals(d, i)).unsqueeze(0),
                learn::mask_tensor(d.mask(i)).unsqueeze(0));

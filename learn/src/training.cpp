@@ -337,6 +337,20 @@ void train_normals(const TrainOptions& options,
   if (gan) opt_d = std::make_unique<torch::optim::Adam>(d->parameters(), adam);
 
   const std::string checkpoint = o.out + ".ckpt";
+  // Diverged (a learning rate too high for the data, or data out of range): stopped before a
+  // NaN network is written as a model.
+  const auto diverged = [&](int epoch, const std::string& what) {
+    throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) + ", " +
+                             what +
+                             (mlp ? " (try a lower --lr or --contact-weight); "
+                                  : " (try a lower --lr or lower loss weights); ") +
+                             o.out + " not written" +
+                             (fs::exists(checkpoint)
+                                  ? "; " + checkpoint +
+                                        " holds the last epoch before it: remove it to start "
+                                        "over with other settings"
+                                  : std::string()));
+  };
   nlohmann::json history = nlohmann::json::array();
   learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
                              history, info.input_mean, info.input_std};
@@ -410,29 +424,32 @@ void train_normals(const TrainOptions& options,
       }
       const double total = loss.item<double>();
       if (!std::isfinite(total)) {
-        // Diverged (a learning rate too high for the data, or data out of range): stop before a
-        // NaN network is written as a model.
         char text[64];
         std::snprintf(text, sizeof text, "%g", total);
-        throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) +
-                                 ", batch " + std::to_string(b + 1) + ": the loss is " + text +
-                                 (mlp ? " (try a lower --lr or --contact-weight); "
-                                      : " (try a lower --lr or lower loss weights); ") +
-                                 o.out + " not written" +
-                                 (fs::exists(checkpoint)
-                                      ? "; " + checkpoint +
-                                            " holds the last epoch before it: remove it to "
-                                            "start over with other settings"
-                                      : std::string()));
+        diverged(epoch, "batch " + std::to_string(b + 1) + ": the loss is " + text);
       }
       loss.backward();
       opt_g.step();
       if (on_step) on_step(r.epoch, b + 1, batches);
     }
+    // The loss can stay finite while weights or BatchNorm's running statistics overflow (--lr
+    // 1e5): such a network reads every pixel as NaN, and the model readers refuse it.
+    for (const auto& list : {g->parameters(), g->buffers()}) {
+      for (const torch::Tensor& t : list) {
+        if (!torch::isfinite(t).all().item<bool>()) {
+          diverged(epoch, "the network's weights or running statistics are not finite numbers");
+        }
+      }
+    }
     r.loss_l1 /= batches;
     r.loss_gan /= batches;
     r.loss_d /= batches;
-    if (val.size() > 0) r.val = validate(g, val, mean, std);
+    if (val.size() > 0) {
+      r.val = validate(g, val, mean, std);
+      if (!std::isfinite(r.val.mse_image)) {
+        diverged(epoch, "the network's output on the validation frames is not a finite number");
+      }
+    }
     r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     history.push_back(epoch_json(r));
     if (on_epoch) on_epoch(r);

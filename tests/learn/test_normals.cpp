@@ -778,6 +778,27 @@ TEST_F(NormalsTraining, DivergenceAndNonFiniteGroundTruthWriteNoModel) {
   EXPECT_NE(msg.find(frame + ": pixel (7, 5) is not finite"), std::string::npos) << msg;
 }
 
+// Weights that overflow while the loss stays finite (BatchNorm's running statistics, at a
+// learning rate of 1e5) stop the training as a NaN loss does: the readers refuse such a file,
+// and it had been written, exit 0.
+TEST_F(NormalsTraining, WeightsThatOverflowWriteNoModel) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("overflow.pt"));
+  o.epochs = 3;
+  o.learning_rate = 1e5;
+  std::string msg;
+  try {
+    train_normals(o);
+  } catch (const std::runtime_error& e) {
+    msg = e.what();
+  }
+  EXPECT_NE(msg.find("training diverged: epoch "), std::string::npos) << msg;
+  EXPECT_NE(msg.find("the network's weights or running statistics are not finite numbers"),
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("overflow.pt not written"), std::string::npos) << msg;
+  EXPECT_FALSE(fs::exists(o.out));
+}
+
 // Bounds for the default model: measured 2.3 deg and 1.8e-4 (docs/learned_normals.md), about
 // the errors on its own validation presses (sphere 2.4 deg, cube 3.5 deg); twice that allows for
 // other CPUs' floating point and for retraining with another seed, and still fails a model that

@@ -227,6 +227,23 @@ TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
   EXPECT_GT(fs::file_size(model), 1000u);
 }
 
+// A disk that fills as train-normals saves (here a file-size limit, which fails the write as a
+// full disk does): Torch's own file writer threw from its destructor, which ended the program
+// (SIGABRT, its temporary file left behind). Now an error naming the file, and no file.
+TEST_F(PatchgraphCli, TrainNormalsOnAFullDiskSaysSo) {
+  const std::string dir = out("full_disk");
+  fs::create_directories(dir);
+  const CliRun r = testing_support::run_command(
+      std::string("trap '' XFSZ; ulimit -f 40; exec ") + PATCHGRAPH_PATH,
+      "train-normals --data " + data() +
+          " --width 4 --depth 2 --epochs 1 --threads 1 -q --out " + dir + "/m.pt");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("error: " + dir + "/m.pt.ckpt: cannot write the checkpoint (File too large"),
+            std::string::npos)
+      << r.out;
+  EXPECT_TRUE(fs::is_empty(dir)) << "a temporary or partial file was left";
+}
+
 // An output folder that cannot be made fails before the run, not after it (the dataset here has
 // a broken frame late on: that error would come first otherwise); a run that fails leaves no
 // empty output folder behind.
