@@ -702,9 +702,19 @@ TEST_F(PatchgraphCli, ATrackWithoutRegistrationsOrContactWarns) {
   r = patchgraph("track " + data() + " -q --config " + out("no_contact.json") + " --out " +
                  out("warn_b"));
   EXPECT_NE(r.out.find("the tracker found contact in 0"), std::string::npos) << r.out;
+  // No registration ever tried (every cloud below icp.min_points): a note among the flat
+  // patches' free directions had been all, lost_frames 0.
+  std::ofstream(out("no_registration.json")) << R"({"icp": {"min_points": 100000000}})";
+  r = patchgraph("track " + data() + " -q --config " + out("no_registration.json") + " --out " +
+                 out("warn_d"));
+  EXPECT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: in 59 of 60 contact frames no registration held the pose"),
+            std::string::npos)
+      << r.out;
   r = patchgraph("track " + data() + " -q --out " + out("warn_c"));
   EXPECT_EQ(r.out.find("did not converge"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("found contact in"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("no registration held"), std::string::npos) << r.out;
 }
 
 TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {

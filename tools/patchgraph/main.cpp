@@ -156,6 +156,19 @@ int run_track(const TrackArgs& a) {
                  "icp.max_iterations and convergence thresholds)\n",
                  s.unconverged_registrations, s.contact_frames);
   }
+  // No registration got as far as its analysis (a contact or patch smaller than icp.min_points,
+  // too few matches): the frame's pose is the motion priors' prediction alone. Counted as lost
+  // only when a registration was tried and failed, so said here (it had been a note among the
+  // flat patches' free directions).
+  const int unregistered = s.unconstrained_direction_frames[6];
+  if (unregistered > s.contact_frames / 2) {
+    std::fprintf(stderr,
+                 "warning: in %d of %d contact frames no registration held the pose (the contact "
+                 "cloud or the patch smaller than --config's icp.min_points, or too few matches "
+                 "within icp.max_correspondence_m): those poses are the motion priors' "
+                 "predictions alone (errors.csv: unconstrained_directions 6)\n",
+                 unregistered, s.contact_frames);
+  }
   int marked_contact = 0;  // frames some dataset marks as in contact
   for (int i = 0; i < dataset.frames(); ++i) {
     marked_contact += std::any_of(datasets.begin(), datasets.end(), [&](const Dataset& d) {
