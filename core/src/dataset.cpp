@@ -264,18 +264,23 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
                        ": the object pose (columns 3-9) must be given in full or left "
                        "empty, not in part");
     }
-    const Eigen::Quaterniond qo =
+    Eigen::Quaterniond qo =
         object_known ? Eigen::Quaterniond(v[8], v[5], v[6], v[7]) : Eigen::Quaterniond::Identity();
-    const Eigen::Quaterniond qs(v[15], v[12], v[13], v[14]);
-    for (const auto* q : {&qo, &qs}) {
+    Eigen::Quaterniond qs(v[15], v[12], v[13], v[14]);
+    for (auto* q : {&qo, &qs}) {
       // stableNorm: the plain norm squares the components and overflows for 1e155 and above.
       const double norm = q->coeffs().stableNorm();
-      if (std::abs(norm - 1.0) > 1e-6) {
+      // Within rounding of unit length (a file written with 4 decimals is off by up to 1e-4; the
+      // tolerance had been 1e-6), normalised; beyond, a quaternion of some other meaning.
+      if (!(std::abs(norm - 1.0) <= kUnitQuaternionTolerance)) {
         std::ostringstream msg;
+        msg.precision(9);
         msg << where << ": " << (q == &qo ? "obj" : "sensor")
-            << " quaternion is not unit length (norm " << norm << ")";
+            << " quaternion is not unit length (norm " << norm << "; within "
+            << kUnitQuaternionTolerance << " of 1 it is normalised)";
         throw InputError(msg.str());
       }
+      q->normalize();
     }
     FramePose p;
     p.object_known = object_known;

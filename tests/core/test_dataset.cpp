@@ -307,9 +307,19 @@ TEST(Dataset, ReaderRejectsHugeQuaternionsAndPositions) {
   // Squared, 1e200 overflows to an infinite norm; the message gives the norm itself.
   with_cells({{5, "1e200"}, {6, "0"}, {7, "0"}, {8, "0"}});
   expect_input_error([&] { Dataset::open(tmp.str("d")); },
-                     "line 3: obj quaternion is not unit length (norm 1e+200)");
+                     "line 3: obj quaternion is not unit length (norm 1e+200;");
   with_cells({{12, "0"}, {13, "1e-200"}, {14, "0"}, {15, "0"}});
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "line 3: sensor quaternion is not unit");
+  // Rounded to four decimals (norm 0.99995 here), as a spreadsheet writes it: read and
+  // normalised (refused before, as "norm 0.99995" and at six digits "norm 1").
+  with_cells({{12, "0.7071"}, {13, "0"}, {14, "0"}, {15, "0.7071"}});
+  const SE3 sensor = Dataset::open(tmp.str("d")).poses()[1].T_world_sensor;
+  EXPECT_NEAR(sensor.rotation().norm(), 1.0, 1e-12);
+  EXPECT_NEAR(Eigen::AngleAxisd(sensor.rotation()).angle(), 1.5707963267948966, 1e-9);
+  with_cells({{12, "0.7"}, {13, "0"}, {14, "0"}, {15, "0.7"}});  // norm 0.98995: some mistake
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "line 3: sensor quaternion is not unit length (norm 0.989949494; within "
+                     "0.001 of 1 it is normalised)");
   // Finite but absurd positions made the tracker's output inf/NaN.
   with_cells({{2, "1e300"}});
   expect_input_error([&] { Dataset::open(tmp.str("d")); },

@@ -21,6 +21,9 @@ namespace pg {
 // any real setup while keeping the arithmetic on positions (differences, squares, interpolation)
 // far from overflow, so a typo like 1e300 is refused up front instead of ending as inf/NaN poses.
 constexpr double kMaxPositionM = 1e3;
+// A quaternion read from a file (poses.csv) within this of unit length is normalised; beyond, it
+// is refused.
+constexpr double kUnitQuaternionTolerance = 1e-3;
 // Bound on every roll, pitch and yaw read from a file [rad]: 159 turns leave room for any
 // multi-turn waypoint; beyond, a typo like 1e300 has no meaningful sine.
 constexpr double kMaxAngleRad = 1e3;
