@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import os
+import re
 import sys
 
 import matplotlib
@@ -87,6 +88,13 @@ def ground_truth_series(run, dataset):
     return None
 
 
+def file_safe(name):
+    """An object's name as part of a file name: a dataset may name it anything ("sub/dir",
+    "../x"), which had made the plot's path leave OUT or fail."""
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)
+    return "_" + safe[1:] if safe.startswith(".") else safe or "_"
+
+
 def trajectories(out, rows):
     plotted = set()
     for r in rows:
@@ -117,7 +125,7 @@ def trajectories(out, rows):
         ax_t.set_xlabel("time [s]")
         ax_t.set_ylabel("[mm]")
         fig.tight_layout()
-        fig.savefig(os.path.join(out, f"trajectories_{r['object']}.png"), dpi=120)
+        fig.savefig(os.path.join(out, f"trajectories_{file_safe(r['object'])}.png"), dpi=120)
         plt.close(fig)
     return sorted(plotted)
 
@@ -132,7 +140,8 @@ def main():
     boxplots(out, rows)
     plotted = trajectories(out, rows)
     if plotted:
-        print(f"wrote {out}/boxplots.png and " + ", ".join(f"trajectories_{o}.png" for o in plotted))
+        print(f"wrote {out}/boxplots.png and " +
+              ", ".join(f"trajectories_{file_safe(o)}.png" for o in plotted))
     else:
         print(f"wrote {out}/boxplots.png (no trajectory plot: no patchgraph run with ground truth)")
 

@@ -227,6 +227,21 @@ TEST_F(PatchgraphCli, AnOutputFolderThatIsAnInputIsRefused) {
   EXPECT_GT(fs::file_size(model), 1000u);
 }
 
+// An object named like a path ("../escape": a dataset may name it anything) has its trajectory
+// plot in OUT under a file name of its own: the plot had been written outside OUT or failed.
+TEST_F(PatchgraphCli, EvalPlotsAnObjectNamedLikeAPathInsideOut) {
+  const std::string copy = data_copy("data_odd_name");
+  nlohmann::json info = parse_json_file(copy + "/dataset.json");
+  info["object"]["name"] = "../escape";
+  std::ofstream(copy + "/dataset.json") << info.dump(2);
+  const std::string dir = out("eval_odd_name");
+  const CliRun r =
+      patchgraph("eval --datasets " + copy + " --methods patchgraph -q --out " + dir);
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("Traceback"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(dir + "/trajectories__._escape.png")) << r.out;
+}
+
 // A disk that fills as train-normals saves (here a file-size limit, which fails the write as a
 // full disk does): Torch's own file writer threw from its destructor, which ended the program
 // (SIGABRT, its temporary file left behind). Now an error naming the file, and no file.
