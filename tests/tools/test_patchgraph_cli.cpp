@@ -1816,6 +1816,21 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     EXPECT_FALSE(fs::exists(out("balls_bad"))) << args;
   };
   refused(out("balls") + " --diameter 12.7", 2, "must be from 0.0001 to 0.2 [m]");
+  {
+    // An --out of the user's files is refused before the search for presses (which read every
+    // frame first: here a broken one, whose error came before the refusal).
+    const std::string broken = out("balls_broken");
+    fs::remove_all(broken);
+    fs::copy(out("balls"), broken, fs::copy_options::recursive);
+    std::ofstream(broken + "/color/000005.png") << "not a png";
+    const std::string mine = out("balls_mine");
+    fs::create_directories(mine);
+    std::ofstream(mine + "/notes.txt") << "mine";
+    const CliRun r =
+        patchgraph("label-ball " + broken + " --diameter 0.0127 -q --out " + mine);
+    EXPECT_EQ(r.code, 1);
+    EXPECT_NE(r.out.find(mine + ": is not empty and holds no dataset"), std::string::npos) << r.out;
+  }
   refused(out("balls") + " --diameter 0.0127 --gel soft", 2, "--gel");
   refused(out("balls") + " --diameter 0.001", 1,
           "no ball press found in any of its 20 frames (frame 0: the contact is wider than a ball "

@@ -230,6 +230,8 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
 
 int run_label_ball(const LabelBallArgs& a) {
   check_output_is_not_input(a.out, a.dataset, "the dataset");
+  // Before the search for presses (minutes on a long recording), not after it.
+  DatasetWriter::check_folder(a.out);
   const Dataset d = Dataset::open(a.dataset);
   if (!d.info().has_output("color")) {
     throw InputError(a.dataset + "/dataset.json: outputs: no colour images to find presses in");
