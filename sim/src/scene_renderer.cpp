@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -68,13 +69,18 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
                                         overrides.height > 0 ? overrides.height : cam.height);
     }
   }
+  // A mesh file at one scale is loaded (and repaired, and warned about) once, however many
+  // objects use it: the shapes are geometry only, shared by the objects' poses.
+  std::map<std::pair<std::string, double>, std::shared_ptr<ObjectShape>> loaded;
   for (std::size_t i = 0; i < scene_.objects.size(); ++i) {
     const SceneObject& object = scene_.objects[i];
+    std::shared_ptr<ObjectShape>& shape = loaded[{object.mesh_path, object.scale}];
     try {
-      shapes_.push_back(std::make_shared<ObjectShape>(load_mesh(object.mesh_path, object.scale)));
+      if (!shape) shape = std::make_shared<ObjectShape>(load_mesh(object.mesh_path, object.scale));
     } catch (const InputError& e) {  // the mesh file's own error, and where the scene names it
       throw InputError(scene_.path + ": objects[" + std::to_string(i) + "].mesh: " + e.what());
     }
+    shapes_.push_back(shape);
   }
   const std::string& background = scene_.render.background;
   const std::string background_where = overrides.background.empty()

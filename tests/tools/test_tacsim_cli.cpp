@@ -94,6 +94,34 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
   EXPECT_NE(r.out.find("--frames"), std::string::npos) << r.out;
 }
 
+// A mesh file used by several objects is loaded, repaired and warned about once per scale (300
+// objects of one mesh had taken 10 s and 1 GB, and repeated its repair warning 300 times).
+TEST(TacsimCli, AMeshOfSeveralObjectsIsLoadedOnce) {
+  TempDir tmp;
+  // A 1 cm cube inside out: every triangle clockwise seen from outside, turned with a warning.
+  std::ofstream(tmp.str("cube.obj"))
+      << "v 0 0 0\nv 0.01 0 0\nv 0.01 0.01 0\nv 0 0.01 0\nv 0 0 0.01\nv 0.01 0 0.01\n"
+         "v 0.01 0.01 0.01\nv 0 0.01 0.01\nf 1 2 3\nf 1 3 4\nf 5 7 6\nf 5 8 7\nf 1 6 2\n"
+         "f 1 5 6\nf 2 7 3\nf 2 6 7\nf 3 8 4\nf 3 7 8\nf 4 5 1\nf 4 8 5\n";
+  std::string objects;
+  for (int k = 0; k < 4; ++k) {
+    objects += std::string(k ? ", " : "") + R"({"name": "c)" + std::to_string(k) +
+               R"(", "mesh": "cube.obj", "scale": )" + (k < 3 ? "1" : "0.5") +
+               R"(, "pose": {"position": [)" + std::to_string(0.02 * k) + ", 0, 0.05]}}";
+  }
+  std::ofstream(tmp.str("scene.json"))
+      << R"({"frames": 1, "sensors": [{}], "render": {"seed": 1}, "objects": [)" << objects
+      << "]}";
+  const CliRun r = tacsim("render " + tmp.str("scene.json") + " -q --outputs mask --out " +
+                          tmp.str("d"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const std::string warning = "closed part(s) had every triangle facing inward";
+  std::size_t count = 0;
+  for (auto at = r.out.find(warning); at != std::string::npos; at = r.out.find(warning, at + 1))
+    ++count;
+  EXPECT_EQ(count, 2u) << r.out;  // scale 1 (three objects) and scale 0.5
+}
+
 // Whole numbers are decimal: CLI11 reads them as C's strtoll does, so --frames 010 had rendered
 // 8 frames, 0x10 threads were 16 and --seed -1 wrapped to 2^64 - 1, each without a word.
 TEST(TacsimCli, WholeNumbersAreDecimal) {
