@@ -88,6 +88,11 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
   refused(track + "--method icpgraph --out " + out("x"), 2, "--method: icpgraph not in");
   refused("trak " + data(), 2, "unknown subcommand 'trak' (known: track, eval, bench,");
+  const CliRun version = patchgraph("--version");  // had been "A subcommand is required"
+  EXPECT_EQ(version.code, 0);
+  EXPECT_EQ(version.out.rfind("patchgraph 0.", 0), 0u) << version.out;
+  // An option's value forgotten: the next option had been taken as it (a folder named --quiet).
+  refused(track + "--out --quiet", 2, "--out: '--quiet' is an option, not a value");
   refused("eval --datasets " + data() + " --methods icpgraph --out " + out("x"), 2,
           "--methods: icpgraph not in");
   refused(track + "--normals unet.pt --out " + out("x"), 1, "unet.pt: model file not found");

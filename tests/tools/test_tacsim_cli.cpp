@@ -44,6 +44,9 @@ TEST(TacsimCli, UsageErrorsExitWithTwo) {
       << unknown.out;
   EXPECT_EQ(tacsim("render").code, 2);  // missing SCENE and --out
   EXPECT_EQ(tacsim("render x.json --out y --width 3").code, 2);
+  const CliRun version = tacsim("--version");
+  EXPECT_EQ(version.code, 0);
+  EXPECT_EQ(version.out.rfind("tacsim 0.", 0), 0u) << version.out;
   // An --out that cannot be a folder is named as such (/proc's "disk" has no free space).
   if (fs::is_directory("/proc/self")) {
     const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json -q --out /proc/x");

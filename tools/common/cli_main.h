@@ -317,6 +317,14 @@ inline void check_values(const CLI::App& app) {
       if (value.empty() && option->get_expected_min() > 0) {
         throw CLI::ValidationError(option->get_name(), "an empty value");
       }
+      // `--out --quiet`: CLI11 takes the next word as the value, whatever it is (a folder named
+      // --quiet was made).
+      if (value.size() > 1 && value[0] == '-' && option->get_expected_min() > 0 &&
+          app.get_option_no_throw(value) != nullptr) {
+        throw CLI::ValidationError(option->get_name(), "'" + value +
+                                                           "' is an option, not a value: give " +
+                                                           option->get_name() + " its value");
+      }
       if (!is_integer || value.empty()) continue;
       const std::size_t digits = value[0] == '-' || value[0] == '+' ? 1 : 0;
       const bool decimal =
@@ -352,9 +360,14 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
                  argv[1], known.c_str());
     return kExitUsage;
   }
+  // --version: the project's version (tools/CMakeLists.txt gives it).
+  app.set_version_flag("--version", std::filesystem::path(argv[0]).filename().string() + " " +
+                                        PG_VERSION);
   try {
     app.parse(argc, argv);
     check_values(app);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
