@@ -325,6 +325,16 @@ TEST(TacsimCli, InfoCheckReadsEveryFrame) {
   EXPECT_LT(worst, 5e-5f);
   EXPECT_GT(tilted, 0.05f);  // the press's slopes (up to 25 deg) are in it
   EXPECT_EQ(read_image_shape(dataset_frame_path(tmp.str("d"), "normal_png", 5)).channels, 3);
+  // A normal that is no number decodes as well as one; --check names it (it had passed).
+  ImageF not_finite = d.normal(7);
+  not_finite.at(9, 2, 1) = std::numeric_limits<float>::quiet_NaN();
+  write_image(dataset_frame_path(tmp.str("d"), "normal", 7), not_finite);
+  const CliRun nan = tacsim("info --check " + tmp.str("d"));
+  EXPECT_EQ(nan.code, 1) << nan.out;
+  EXPECT_NE(nan.out.find(dataset_frame_path(tmp.str("d"), "normal", 7) +
+                         ": pixel (9, 2) is not a finite number"),
+            std::string::npos)
+      << nan.out;
   const std::string victim = dataset_frame_path(tmp.str("d"), "normal", 4);
   fs::resize_file(victim, fs::file_size(victim) / 2);
   EXPECT_EQ(tacsim("info " + tmp.str("d")).code, 0) << "the file exists";

@@ -7,6 +7,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -193,9 +194,21 @@ long decode_every_frame(const Dataset& d) {
   for (const std::string& output : d.info().outputs) {
     for (int i = 0; i < d.frames(); ++i) {
       if (output == "color") d.color(i);
-      if (output == "normal") d.normal(i);
+      // A float frame's numbers finite too: a NaN decodes as well as a number (the tracker
+      // counts such normals as rejected, but a dataset should not hold them).
+      const auto finite = [&](const ImageF& image, const char* name) {
+        const auto bad = std::find_if(image.data.begin(), image.data.end(),
+                                      [](float v) { return !std::isfinite(v); });
+        if (bad == image.data.end()) return;
+        const std::size_t at = std::size_t(bad - image.data.begin()) / std::size_t(image.channels);
+        throw InputError(dataset_frame_path(d.dir(), name, i) + ": pixel (" +
+                         std::to_string(at % std::size_t(image.width)) + ", " +
+                         std::to_string(at / std::size_t(image.width)) +
+                         ") is not a finite number");
+      };
+      if (output == "normal") finite(d.normal(i), "normal");
       if (output == "normal_png") d.normal_png(i);
-      if (output == "depth") d.depth(i);
+      if (output == "depth") finite(d.depth(i), "depth");
       if (output == "mask") {
         // poses.csv's contact is the mask's: a pixel of it, or none (an edited file, or a mask
         // copied from another frame, decodes as well as the right one).
