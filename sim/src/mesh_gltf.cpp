@@ -72,6 +72,11 @@ AccessorData accessor_data(const tinygltf::Model& model, int index, const std::s
   }
   const size_t begin = view.byteOffset + accessor.byteOffset;
   const size_t element_size = static_cast<size_t>(component_size * components);
+  if (static_cast<size_t>(stride) < element_size) {  // elements overlapping: garbage vertices
+    throw FormatError(what + ": accessor " + std::to_string(index) + "'s byteStride " +
+                      std::to_string(stride) + " is smaller than one element (" +
+                      std::to_string(element_size) + " bytes)");
+  }
   const size_t end =
       accessor.count == 0
           ? begin
@@ -166,8 +171,10 @@ class GltfFlattener {
  private:
   void add_primitive(const tinygltf::Primitive& primitive, const Eigen::Matrix4d& T,
                      const std::string& what, RawMesh& out) {
-    if (primitive.mode != TINYGLTF_MODE_TRIANGLES && primitive.mode != -1) {
-      ++skipped_primitives_;  // points, lines, strips, fans
+    const bool strip = primitive.mode == TINYGLTF_MODE_TRIANGLE_STRIP;
+    const bool fan = primitive.mode == TINYGLTF_MODE_TRIANGLE_FAN;
+    if (primitive.mode != TINYGLTF_MODE_TRIANGLES && primitive.mode != -1 && !strip && !fan) {
+      ++skipped_primitives_;  // points, lines
       return;
     }
     const auto position = primitive.attributes.find("POSITION");
@@ -203,16 +210,24 @@ class GltfFlattener {
       }
     }
     const size_t count = primitive.indices >= 0 ? indices.count : positions.count;
-    if (count % 3 != 0) {
+    if (!strip && !fan && count % 3 != 0) {
       throw FormatError(what + ": " + std::to_string(count) +
                         " indices is not a multiple of 3 (TRIANGLES)");
     }
+    // Triangle t's corner c as a place in the primitive's list (glTF spec 3.7.2.1): strips
+    // alternate their winding so that every triangle keeps the first one's, fans share corner 0.
+    const size_t triangles = strip || fan ? (count < 3 ? 0 : count - 2) : count / 3;
+    const auto corner = [&](size_t t, size_t c) -> size_t {
+      if (strip) return t + (c == 0 ? 0 : c == 1 ? 1 + t % 2 : 2 - t % 2);
+      if (fan) return c == 2 ? 0 : t + 1 + c;
+      return 3 * t + c;
+    };
     // A mirroring transform turns counter-clockwise triangles clockwise: undo it (glTF spec 3.7.4).
     const bool mirrored = R.determinant() < 0.0;
-    for (size_t t = 0; t < count / 3; ++t) {
+    for (size_t t = 0; t < triangles; ++t) {
       std::array<std::int64_t, 3> triangle;
       for (size_t c = 0; c < 3; ++c) {
-        const size_t k = 3 * t + c;
+        const size_t k = corner(t, c);
         const std::int64_t index =
             primitive.indices >= 0 ? read_index(indices, k) : static_cast<std::int64_t>(k);
         if (index < 0 || static_cast<size_t>(index) >= positions.count) {
@@ -271,7 +286,7 @@ RawMesh read_gltf(const std::string& path, bool binary) {
   for (int root : roots) flattener.add_node(root, Eigen::Matrix4d::Identity(), 0, mesh);
   if (flattener.skipped_primitives() > 0) {
     std::cerr << "warning: " << path << ": skipped " << flattener.skipped_primitives()
-              << " primitives that are not TRIANGLES\n";
+              << " primitives of points or lines (no surface)\n";
   }
   return mesh;
 }

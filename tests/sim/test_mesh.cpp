@@ -371,6 +371,52 @@ TEST_F(MeshIoTest, GltfMirroringTransformKeepsTrianglesCounterClockwise) {
   EXPECT_GT(normal.z(), 0.0f) << "the mirrored triangle's winding was not flipped back";
 }
 
+// A square of 4 vertices as one glTF primitive of `mode` (non-indexed), its positions read with
+// `stride` bytes between them (0: packed).
+std::string gltf_square(int mode, const std::array<std::array<float, 2>, 4>& corners,
+                        int stride = 0) {
+  std::string buffer;
+  for (const auto& c : corners) {
+    for (float v : {c[0], c[1], 0.f}) put_f32(buffer, v);
+  }
+  return R"({"asset": {"version": "2.0"},
+  "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,)" +
+         base64(buffer) + R"("}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48)" +
+         (stride ? ", \"byteStride\": " + std::to_string(stride) : std::string()) + R"(}],
+  "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [0, 0, 0], "max": [1, 1, 0]}],
+  "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "mode": )" +
+         std::to_string(mode) + R"(}]}],
+  "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}]})";
+}
+
+// Triangle strips and fans (modes 5 and 6) are read as their triangles, each counter-clockwise
+// as the first: they had been skipped, and a mesh of them refused as "empty mesh".
+TEST_F(MeshIoTest, GltfStripsAndFansAreTriangles) {
+  for (const auto& [mode, corners] :
+       {std::pair<int, std::array<std::array<float, 2>, 4>>{5, {{{0, 0}, {1, 0}, {0, 1}, {1, 1}}}},
+        {6, {{{0, 0}, {1, 0}, {1, 1}, {0, 1}}}}}) {
+    SCOPED_TRACE("mode " + std::to_string(mode));
+    ::testing::internal::CaptureStderr();
+    const TriangleMesh mesh = load_mesh(write("square.gltf", gltf_square(mode, corners)));
+    ::testing::internal::GetCapturedStderr();
+    ASSERT_EQ(mesh.triangles.size(), 2u);
+    float area = 0;
+    for (const Eigen::Vector3i& t : mesh.triangles) {
+      const Eigen::Vector3f normal = (mesh.vertices[t[1]] - mesh.vertices[t[0]])
+                                         .cross(mesh.vertices[t[2]] - mesh.vertices[t[0]]);
+      EXPECT_GT(normal.z(), 0.0f);  // counter-clockwise
+      area += 0.5f * normal.norm();
+    }
+    EXPECT_NEAR(area, 1.0f, 1e-6f);  // the square, once
+  }
+  // A byteStride shorter than a position (12 bytes) read overlapping garbage vertices.
+  const std::string path = write("stride.gltf", gltf_square(4, {{{0, 0}, {1, 0}, {0, 1}, {1, 1}}}, 4));
+  const std::string message = load_error(path);
+  EXPECT_TRUE(Contains(message, "byteStride 4 is smaller than one element (12 bytes)")) << message;
+}
+
 TEST_F(MeshIoTest, ScaleIsAppliedAndMustBeFinitePositive) {
   const std::string path = write("tri.obj", "v 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n");
   const TriangleMesh mesh = load_mesh(path, 1e-3);
