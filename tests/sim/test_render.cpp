@@ -542,7 +542,7 @@ TEST(RenderBadInput, ABackgroundOfAnotherShapeIsRefused) {
     ADD_FAILURE() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(path + ": background image is 160x120, not of the "
-                                                "sensor's shape (120x160 or a multiple)"),
+                                                "sensor's shape (120x160 or a multiple;"),
               std::string::npos)
         << e.what();
   }
