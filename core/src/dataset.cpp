@@ -103,8 +103,10 @@ DatasetInfo info_from_json(const nlohmann::json& j, const std::string& path) {
   info.sensor = sensor_from_json(f.at("sensor"), f.field("sensor"));
   const int w = f.required<int>("width"), h = f.required<int>("height");
   if (w != info.width() || h != info.height()) {
-    throw InputError(f.field("width") + ": image size " + std::to_string(w) + "x" +
-                     std::to_string(h) + " disagrees with the sensor's camera");
+    throw InputError(f.field(w != info.width() ? "width" : "height") + ": image size " +
+                     std::to_string(w) + "x" + std::to_string(h) +
+                     " disagrees with the sensor's camera (sensor.camera: " +
+                     std::to_string(info.width()) + "x" + std::to_string(info.height()) + ")");
   }
   info.frames = f.required<int>("frames");
   // A dataset without frames has nothing to track, and the tracker's summary of it would be a
@@ -206,6 +208,11 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   // A file saved on Windows ends its lines with "\r\n"; the rows drop the '\r' below. A
   // spreadsheet's UTF-8 byte-order mark before the header is dropped too.
   clean_csv_line(line, true);
+  if (line.find('\r') != std::string::npos) {  // the header ran into the next rows
+    throw InputError(path +
+                     ": its lines end in a carriage return alone (an old Mac 'CSV (Macintosh)' "
+                     "export?); save it with LF or CRLF line endings");
+  }
   if (!has_line || line != kPosesHeader) {
     // Where the two part, so that a missing, extra or swapped column past the excerpt shows.
     const std::vector<std::string> found = csv_cells(line), expected = csv_cells(kPosesHeader);

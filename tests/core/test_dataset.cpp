@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -140,6 +141,21 @@ TEST(Dataset, ReaderRejectsMissingFiles) {
   expect_input_error([&] { Dataset::open(tmp.str("nothing")); }, "nothing");
   fs::remove(tmp.str("d/poses.csv"));
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "poses.csv");
+}
+
+// An image size that disagrees with the sensor's camera names the field that differs (a height
+// had been reported as width) and the camera's size.
+TEST(Dataset, AnImageSizeOtherThanTheCamerasNamesItsField) {
+  TempDir tmp;
+  write_small(tmp.str("d"), 2);
+  const std::string path = tmp.str("d/dataset.json");
+  nlohmann::json j = parse_json_file(path);
+  const int height = j["height"].get<int>();
+  j["height"] = height + 8;
+  std::ofstream(path) << j.dump(2);
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     path + ": height: image size " + std::to_string(j["width"].get<int>()) + "x" +
+                         std::to_string(height + 8) + " disagrees with the sensor's camera");
 }
 
 // Writing a shorter dataset with fewer outputs into the folder of an earlier one leaves one
@@ -349,6 +365,13 @@ TEST(Dataset, ReaderAcceptsCrlfLineEndsAndNamesADirectory) {
   ASSERT_EQ(d.poses().size(), 3u);
   EXPECT_NEAR(ominus(d.poses()[2].T_world_object, poses[2].T_world_object).norm(), 0, 1e-12);
   EXPECT_EQ(d.poses()[1].contact, poses[1].contact);
+  // A carriage return alone (an old Mac export) made the whole file one line, reported as a
+  // header whose 17th column was 'contact0'.
+  std::vector<std::string> lines = csv_lines(csv);
+  for (std::string& line : lines) line.pop_back();  // the CRLF's '\r'
+  write_lines(csv, lines, "\r");
+  expect_input_error([&] { Dataset::open(tmp.str("d")); },
+                     "poses.csv: its lines end in a carriage return alone");
 
   fs::remove(csv);
   fs::create_directory(csv);
