@@ -1,6 +1,7 @@
 #include "pg/core/json_fields.h"
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -181,6 +182,11 @@ namespace {
 // A whole number written with a fraction (4.0, as a generator that carries numbers as floats
 // writes it) is that integer; up to 2^53, where doubles hold every integer.
 bool whole_number(const nlohmann::json& v, long long& out) {
+  if (v.is_number_unsigned()) {  // beyond a long long it had wrapped: 2^64 - 1 read as -1
+    const std::uint64_t u = v.get<std::uint64_t>();
+    out = u > std::uint64_t(LLONG_MAX) ? LLONG_MAX : static_cast<long long>(u);
+    return true;
+  }
   if (v.is_number_integer()) {
     out = v.get<long long>();
     return true;

@@ -463,6 +463,12 @@ TEST_F(SceneFileTest, WholeNumbersWrittenAsFloatsAreIntegers) {
   EXPECT_EQ(scene.render.seed, 5u);
   expect_near(scene.objects[0].T_world_object.at(5), {0.005, 0, 0.01},
               Eigen::Quaterniond::Identity(), 1e-12);
+  // An unsigned number beyond any int (2^64 - 1) had wrapped to -1 ("frames must increase
+  // strictly (-1 after 0)").
+  j["objects"][0]["trajectory"]["waypoints"][1]["frame"] = 18446744073709551615ull;
+  const std::string message = load_error(write("huge_frame.json", j));
+  EXPECT_NE(message.find("waypoints[1].frame: integer out of range"), std::string::npos)
+      << message;
 }
 
 // An object "held_by" a sensor has its pose in that sensor's frame and moves with it; a name
