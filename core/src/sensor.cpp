@@ -188,14 +188,14 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
   if ((f.has("width") || f.has("height")) && !own_intrinsics &&
       std::abs(s.camera.fx / s.camera.fy - preset_aspect) > 0.01 * preset_aspect) {
     // The intrinsics scale with each side: another shape of image stretches the pixels.
-    char text[320];
-    std::snprintf(text, sizeof text,
-                  "%s, %s: %dx%d px is not the shape of the preset's image, whose camera they "
-                  "resize: its pixels would be %.2f times as wide as tall; give camera.fov_y_rad "
-                  "(square pixels) or fx, fy, cx, cy for the new image",
-                  f.field("width").c_str(), f.field("height").c_str(), s.camera.width,
-                  s.camera.height, s.camera.fy / s.camera.fx);
-    throw InputError(text);
+    char ratio[32];
+    std::snprintf(ratio, sizeof ratio, "%.3g", s.camera.fy / s.camera.fx);
+    throw InputError(f.field("width") + " and height: " + std::to_string(s.camera.width) + "x" +
+                     std::to_string(s.camera.height) +
+                     " px is not the shape of the preset's image, whose camera they resize: its "
+                     "pixels would be " + ratio +
+                     " times as wide as tall; give camera.fov_y_rad (square pixels) or fx, fy, "
+                     "cx, cy for the new image");
   }
   if (f.has("camera")) read_camera(f.at("camera"), f.field("camera"), s.camera);
   if (f.has("gel")) read_gel(f.at("gel"), f.field("gel"), s.gel);

@@ -187,7 +187,8 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   // Another shape of image than the preset's stretches its resized pixels: refused, unless the
   // file gives the new camera; the same shape at another size is fine.
   expect_input_error(parse(R"({"preset": "gelsight_mini", "width": 320, "height": 240})"),
-                     {"width", "height", "0.56 times as wide as tall", "camera.fov_y_rad"});
+                     {"width and height: 320x240 px", "0.563 times as wide as tall",
+                      "camera.fov_y_rad"});
   EXPECT_NO_THROW(parse(R"({"width": 320, "height": 240, "camera": {"fov_y_rad": 0.8}})")());
   EXPECT_NO_THROW(parse(R"({"width": 60, "height": 80})")());
   expect_input_error(parse(R"({"noise": {"sigma": 1000}})"), {"noise.sigma"});
