@@ -125,6 +125,33 @@ TEST(TacsimCli, AMeshOfSeveralObjectsIsLoadedOnce) {
   EXPECT_EQ(count, 2u) << r.out;  // scale 1 (three objects) and scale 0.5
 }
 
+// A mesh at a scale that makes it larger than a metre (millimetres read as metres) or smaller
+// than two pixels is warned about: the render had gone through with a clamping warning or none.
+TEST(TacsimCli, AnObjectOfAnImplausibleSizeIsWarnedAbout) {
+  TempDir tmp;
+  const auto render = [&](const std::string& scale, const std::string& z) {
+    std::ofstream(tmp.str("scene.json"))
+        << R"({"frames": 1, "sensors": [{}], "render": {"seed": 1}, "objects": [{"mesh": ")"
+        << PG_SOURCE_DIR << R"(/meshes/cube.glb", "scale": )" << scale
+        << R"(, "pose": {"position": [0, 0, )" << z << "]}}]}";
+    return tacsim("render " + tmp.str("scene.json") + " -q --outputs mask --out " + tmp.str("d"));
+  };
+  CliRun r = render("1000", "0.011");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("objects[0] ('object0'): " + std::string(PG_SOURCE_DIR) +
+                       "/meshes/cube.glb is 2e+04 x 2e+04 x 2e+04 mm at scale 1000, larger than "
+                       "a metre; is its scale right"),
+            std::string::npos)
+      << r.out;
+  r = render("0.001", "0");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("at scale 0.001, smaller than two of the sensor's pixels"), std::string::npos)
+      << r.out;
+  r = render("1", "0.011");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("scale right"), std::string::npos) << r.out;
+}
+
 // Whole numbers are decimal: CLI11 reads them as C's strtoll does, so --frames 010 had rendered
 // 8 frames, 0x10 threads were 16 and --seed -1 wrapped to 2^64 - 1, each without a word.
 TEST(TacsimCli, WholeNumbersAreDecimal) {

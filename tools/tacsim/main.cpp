@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -50,6 +51,33 @@ struct RenderArgs {
 std::optional<bool> on_off(const std::string& value) {
   if (value.empty()) return std::nullopt;
   return value == "on";
+}
+
+// A mesh of millimetres read as metres (a thousand times too large: the sensor ends up inside
+// it) or the other way round (a speck no pixel shows) renders without an error, so it is said,
+// as `tacsim presses` says it of its mesh.
+void warn_about_object_sizes(const SceneRenderer& renderer) {
+  const Scene& scene = renderer.scene();
+  double pixel = std::numeric_limits<double>::infinity();  // the finest sensor's, on its gel
+  for (const SceneSensor& s : scene.sensors) {
+    pixel = std::min(pixel, s.model.gel.width_m / s.model.camera.width);
+  }
+  for (std::size_t i = 0; i < scene.objects.size(); ++i) {
+    const Bounds3& b = renderer.object_shape(int(i)).bounds();
+    const Eigen::Vector3d extent = (b.max - b.min).cast<double>();
+    const double size = extent.maxCoeff();
+    if (size <= 1.0 && size >= 2 * pixel) continue;
+    const SceneObject& o = scene.objects[i];
+    std::fprintf(stderr,
+                 "warning: %s: objects[%zu] ('%s'): %s is %s x %s x %s mm at scale %s, %s; is "
+                 "its scale right (meshes are in metres: \"scale\": 0.001 for millimetres)?\n",
+                 scene.path.c_str(), i, o.name.c_str(), o.mesh_path.c_str(),
+                 format_number(1e3 * extent.x(), "%.4g").c_str(),
+                 format_number(1e3 * extent.y(), "%.4g").c_str(),
+                 format_number(1e3 * extent.z(), "%.4g").c_str(), format_number(o.scale).c_str(),
+                 size > 1.0 ? "larger than a metre"
+                            : "smaller than two of the sensor's pixels");
+  }
 }
 
 int run_render(const RenderArgs& a) {
@@ -96,6 +124,7 @@ int run_render(const RenderArgs& a) {
                  (resized.fy / resized.fx) / (cam.fy / cam.fx));
   }
   const SceneRenderer renderer(std::move(scene), overrides);
+  warn_about_object_sizes(renderer);
   Progress progress("rendering", renderer.scene().frames, !a.quiet);
   const RenderSummary s = [&] {
     try {

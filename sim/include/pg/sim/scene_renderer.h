@@ -31,6 +31,8 @@ class SceneRenderer {
   const Scene& scene() const { return scene_; }
   const SensorRenderer& sensor(int i) const { return *sensors_[i]; }
   int sensor_count() const { return int(sensors_.size()); }
+  // Object i's shape (its mesh at the scene's scale).
+  const ObjectShape& object_shape(int i) const { return *shapes_[std::size_t(i)]; }
 
   // Object poses in sensor i's frame at `frame`.
   std::vector<SE3> object_poses_in_sensor(int sensor, int frame) const;
