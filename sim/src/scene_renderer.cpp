@@ -338,6 +338,12 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   }
   fs::create_directories(out_dir, ec);
   if (ec || !fs::is_directory(out_dir)) {
+    std::error_code link_ec;
+    if (fs::is_symlink(out_dir, link_ec) && !fs::exists(out_dir, link_ec)) {  // "File exists"
+      throw InputError(out_dir + ": cannot create the output folder: a symbolic link to " +
+                       fs::read_symlink(out_dir, link_ec).string() +
+                       ", which does not exist (make the folder it points to, or remove it)");
+    }
     throw InputError(out_dir + ": cannot create the output folder" +
                      (ec ? ": " + ec.message() : std::string(": not a folder")));
   }

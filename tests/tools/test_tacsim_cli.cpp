@@ -570,6 +570,17 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_EQ(testing_support::file_text(project + "/sensors.json"), "{\"sensors\": [\"my own\"]}\n");
   EXPECT_FALSE(fs::exists(project + "/digit_bottom"));
   EXPECT_FALSE(fs::exists(project + "/digit_top"));
+
+  // A link to a folder that is not there (it had read "cannot create the output folder: File
+  // exists").
+  fs::create_symlink(tmp.str("gone"), tmp.str("link"));
+  r = tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " +
+             tmp.str("link"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(tmp.str("link") + ": cannot create the output folder: a symbolic link to " +
+                       tmp.str("gone") + ", which does not exist"),
+            std::string::npos)
+      << r.out;
 }
 
 // Ctrl-C stops a render at its next frame: exit 130 and a message naming the unfinished dataset,
