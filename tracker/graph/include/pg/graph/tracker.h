@@ -4,6 +4,7 @@
 // image-to-patch (eq. 6), constant-velocity (eq. 7), end-effector (eq. 8) and vision (eq. 9)
 // factors, solved by Ceres over a sliding window.
 #include <array>
+#include <deque>
 #include <memory>
 #include <optional>
 #include <string>
@@ -88,9 +89,11 @@ struct GraphOptions {
   // Tracking is reported lost (TrackerEstimate::tracking_lost) once the anchoring registration
   // (image-to-patch; image-to-image for that method) failed in this many consecutive contact
   // frames: too few points or matches within max_correspondence_m, an implausible jump, a
-  // solution that overrode it, or the iteration limit (no factor either). While it fails (not at
-  // the iteration limit) no key frame is taken. A new episode or a registration that holds
-  // clears it. constvel never reports it; 0: never.
+  // solution that overrode it, or the iteration limit (no factor either); or, failing now, in
+  // this many of the last 2 x this - 1 contact frames (failures alternating with registrations
+  // that hold, each of which had cleared the count while the estimate ran off). While it fails
+  // (not at the iteration limit) no key frame is taken. A new episode or a registration that
+  // holds clears it. constvel never reports it; 0: never.
   int lost_after_frames = 3;
   int window = 5;              // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;  // Levenberg-Marquardt iterations per update
@@ -263,6 +266,9 @@ class PatchGraphTracker {
   std::vector<Factor> factors_;
   bool in_episode_ = false;
   int unregistered_frames_ = 0;  // consecutive contact frames whose anchor failed
+  // The episode's last contact frames, newest last: whether each one's anchor failed
+  // (GraphOptions::lost_after_frames).
+  std::deque<bool> recent_anchor_failures_;
 };
 
 }  // namespace pg
