@@ -263,14 +263,24 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
 }
 
 std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene) {
-  if (summary.tracked_contact_frames >= summary.contact_frames) return "";
-  return "warning: " + scene.path + ": in " +
-         std::to_string(summary.contact_frames - summary.tracked_contact_frames) + " of the " +
-         std::to_string(summary.contact_frames) +
-         " contact frames only objects other than the tracked one ('" +
-         scene.objects[std::size_t(scene.tracked_object)].name +
-         "', tracked_object) touch the gel; a tracker reading the dataset takes their contact for "
-         "the tracked object's";
+  const std::string tracked = scene.objects[std::size_t(scene.tracked_object)].name;
+  std::string text;
+  if (summary.tracked_contact_frames < summary.contact_frames) {
+    text = "warning: " + scene.path + ": in " +
+           std::to_string(summary.contact_frames - summary.tracked_contact_frames) + " of the " +
+           std::to_string(summary.contact_frames) +
+           " contact frames only objects other than the tracked one ('" + tracked +
+           "', tracked_object) touch the gel; a tracker reading the dataset takes their contact "
+           "for the tracked object's";
+  }
+  if (summary.shared_contact_frames > 0) {
+    text += (text.empty() ? "" : "\n") + std::string("warning: ") + scene.path + ": in " +
+            std::to_string(summary.shared_contact_frames) + " of the " +
+            std::to_string(summary.contact_frames) +
+            " contact frames another object touches a gel beside the tracked one ('" + tracked +
+            "'); a tracker reading the dataset takes both contacts for the tracked object's";
+  }
+  return text;
 }
 
 namespace {
@@ -372,23 +382,31 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
       writers.back()->write_background(renderer.sensor(i).background_color_u8());
     summary.dataset_dirs.push_back(dir);
   }
-  std::atomic<int> done{0}, contact_frames{0}, tracked_contact_frames{0}, clamped_frames{0};
+  std::atomic<int> done{0}, contact_frames{0}, tracked_contact_frames{0}, shared_contact_frames{0},
+      clamped_frames{0};
   std::mutex progress_mutex;
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(0, scene.frames, [&](int frame) {
     const auto frames = renderer.render_frame(frame);
-    bool contact = false, tracked = false, clamped = false;
+    bool contact = false, tracked = false, shared = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
       const RenderStats& stats = frames[i].stats;
       write_rendered_frame(renderer, frame, i, frames[i], *writers[i], frame);
       contact = contact || stats.contact;
-      tracked = tracked || (stats.object_contact_pixels.empty()
-                                ? stats.contact
-                                : stats.object_contact_pixels[scene.tracked_object] > 0);
+      const std::vector<int>& pixels = stats.object_contact_pixels;
+      const bool tracked_here =
+          pixels.empty() ? stats.contact : pixels[std::size_t(scene.tracked_object)] > 0;
+      tracked = tracked || tracked_here;
+      // Another object in the same image as the tracked one: its contact joins the tracked
+      // object's cloud.
+      for (std::size_t k = 0; k < pixels.size(); ++k) {
+        shared = shared || (tracked_here && int(k) != scene.tracked_object && pixels[k] > 0);
+      }
       clamped = clamped || stats.clamped_pixels > 0;
     }
     contact_frames += contact;
     tracked_contact_frames += tracked;
+    shared_contact_frames += shared;
     clamped_frames += clamped;
     const int n = ++done;
     if (progress) {
@@ -419,6 +437,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.contact_frames = contact_frames;
   summary.tracked_contact_frames = tracked_contact_frames;
+  summary.shared_contact_frames = shared_contact_frames;
   summary.clamped_frames = clamped_frames;
   return summary;
 }

@@ -754,6 +754,7 @@ TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
 // The dataset's poses are the tracked object's: a frame where only another object touches the
 // gel would be tracked as its motion. Said, with the count (a cube hovering 5 mm above the gel
 // while a sphere presses in 4 of 6 frames); not said when the tracked object is the one pressing.
+// Another object pressing beside the tracked one is said too.
 TEST(TacsimCli, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
   TempDir tmp;
   const std::string meshes = std::string(PG_SOURCE_DIR) + "/meshes/";
@@ -779,7 +780,23 @@ TEST(TacsimCli, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
   EXPECT_NE(r.out.find(warning), std::string::npos) << r.out;
   r = scene("sphere");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_EQ(r.out.find("only other objects"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("only objects other than"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("beside the tracked one"), std::string::npos) << r.out;
+  // Two spheres pressing side by side: the tracker would take both for the tracked one (it had
+  // not been said).
+  std::ofstream(tmp.str("two.json"))
+      << R"({"frames": 3, "sensors": [{}], "render": {"outputs": ["mask"]},
+             "objects": [{"name": "a", "mesh": ")"
+      << meshes << R"(sphere_r4mm.glb", "pose": {"position": [-0.005, 0.0, 0.0035]}},
+             {"name": "b", "mesh": ")"
+      << meshes << R"(sphere_r4mm.glb", "pose": {"position": [0.005, 0.0, 0.0035]}}]})";
+  r = tacsim("render " + tmp.str("two.json") + " -q --out " + tmp.str("two"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: " + tmp.str("two.json") +
+                       ": in 3 of the 3 contact frames another object touches a gel beside the "
+                       "tracked one ('a')"),
+            std::string::npos)
+      << r.out;
 }
 
 // Scenes whose sensors differ in image size share one sheet: every cell is as large as the

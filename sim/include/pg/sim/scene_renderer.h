@@ -51,6 +51,7 @@ struct RenderSummary {
   int frames = 0;
   int contact_frames = 0;  // frames where some sensor saw contact
   int tracked_contact_frames = 0;  // of those, frames where the tracked object itself touched
+  int shared_contact_frames = 0;   // frames where another object touched a gel the tracked did
   int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
@@ -75,10 +76,11 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer);
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress = nullptr);
 
-// "" when the tracked object touched the gel in every contact frame of a render; else the
-// warning, naming the scene: a tracker reading the dataset takes every contact for the tracked
-// object's (its poses are that object's), so another object's touch would be registered as its
-// motion. tacsim render and patchgraph bench print it.
+// "" when the tracked object alone touched the gel in every contact frame of a render; else the
+// warnings (one a line), naming the scene: of the frames where only other objects touch, and of
+// those where another touches a gel beside the tracked one. A tracker reading the dataset takes
+// every contact for the tracked object's (its poses are that object's), so another object's
+// touch would be registered as its motion. tacsim render and patchgraph bench print it.
 std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene);
 
 }  // namespace pg
