@@ -337,7 +337,10 @@ void DatasetWriter::check_folder(const std::string& dir) {
 }
 
 DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info)
-    : dir_(std::move(dir)), info_(std::move(info)), poses_(info_.frames), written_(info_.frames, 0) {
+    : dir_(std::move(dir)),
+      info_(std::move(info)),
+      poses_(info_.frames),
+      written_(info_.frames, 0) {
   check_folder(dir_);
   std::error_code ec;
   const fs::path earlier_poses = fs::path(dir_) / "poses.csv";

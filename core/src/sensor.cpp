@@ -150,7 +150,9 @@ double GelModel::surface_z(double x, double y) const {
   return -sag_m * cap(x * x + y * y) / cap(corner_sq);
 }
 
-std::vector<std::string> sensor_preset_names() { return {"digit", "digit_240x320", "gelsight_mini"}; }
+std::vector<std::string> sensor_preset_names() {
+  return {"digit", "digit_240x320", "gelsight_mini"};
+}
 
 SensorModel sensor_preset(const std::string& name) {
   if (name == "digit") return digit(120, 160);
@@ -193,7 +195,8 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
     throw InputError(f.field("width") + " and height: " + std::to_string(s.camera.width) + "x" +
                      std::to_string(s.camera.height) +
                      " px is not the shape of the preset's image, whose camera they resize: its "
-                     "pixels would be " + ratio +
+                     "pixels would be " +
+                     ratio +
                      " times as wide as tall; give camera.fov_y_rad (square pixels) or fx, fy, "
                      "cx, cy for the new image");
   }
@@ -283,9 +286,9 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
 nlohmann::json sensor_to_json(const SensorModel& s) {
   nlohmann::json lights = nlohmann::json::array();
   for (const auto& l : s.lights) {
-    lights.push_back(
-        {{"position_m", vec_json(l.position_m)}, {"color", vec_json(l.color)},
-         {"intensity", l.intensity}});
+    lights.push_back({{"position_m", vec_json(l.position_m)},
+                      {"color", vec_json(l.color)},
+                      {"intensity", l.intensity}});
   }
   const auto& c = s.camera;
   const auto& g = s.gel;
@@ -294,7 +297,11 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
       {"width", c.width},
       {"height", c.height},
       {"camera",
-       {{"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}, {"near_m", c.near_m},
+       {{"fx", c.fx},
+        {"fy", c.fy},
+        {"cx", c.cx},
+        {"cy", c.cy},
+        {"near_m", c.near_m},
         {"distance_m", c.distance_m}}},
       {"gel",
        {{"width_m", g.width_m},

@@ -330,8 +330,8 @@ torch::Tensor as_predicted(const torch::Tensor& raw) {
   torch::Tensor up = torch::zeros_like(unit);
   up.select(1, 2).fill_(1.0f);
   // A NaN stays NaN (it had become the flat gel's normal, hiding a broken network).
-  const torch::Tensor keep = (unit.narrow(1, 2, 1) > kMinFacingZ).logical_or(
-      torch::isfinite(unit).all(1, true).logical_not());
+  const torch::Tensor keep = (unit.narrow(1, 2, 1) > kMinFacingZ)
+                                 .logical_or(torch::isfinite(unit).all(1, true).logical_not());
   return torch::where(keep, unit, up);
 }
 

@@ -340,8 +340,7 @@ void train_normals(const TrainOptions& options,
   // Diverged (a learning rate too high for the data, or data out of range): stopped before a
   // NaN network is written as a model.
   const auto diverged = [&](int epoch, const std::string& what) {
-    throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) + ", " +
-                             what +
+    throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) + ", " + what +
                              (mlp ? " (try a lower --lr or --contact-weight); "
                                   : " (try a lower --lr or lower loss weights); ") +
                              o.out + " not written" +

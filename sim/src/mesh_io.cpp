@@ -283,11 +283,10 @@ class BoxTree {
       int axis = 0;
       node.box.sizes().maxCoeff(&axis);
       const int mid = begin + (end - begin) / 2;
-      std::nth_element(items_.begin() + begin, items_.begin() + mid, items_.begin() + end,
-                       [&](int a, int b) {
-                         return boxes_[std::size_t(a)].center()[axis] <
-                                boxes_[std::size_t(b)].center()[axis];
-                       });
+      std::nth_element(
+          items_.begin() + begin, items_.begin() + mid, items_.begin() + end, [&](int a, int b) {
+            return boxes_[std::size_t(a)].center()[axis] < boxes_[std::size_t(b)].center()[axis];
+          });
       const int left = build(begin, mid);
       const int right = build(mid, end);
       nodes_[std::size_t(id)].left = left;

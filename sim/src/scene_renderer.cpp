@@ -292,7 +292,9 @@ void check_sensors_folder(const std::string& out_dir, int sensors) {
   std::error_code ec;
   const std::string what = "a scene of " + std::to_string(sensors) +
                            " sensors writes one dataset per sensor into their own folders, "
-                           "next to their index " + kSensorIndexFile + ", under a new or empty "
+                           "next to their index " +
+                           kSensorIndexFile +
+                           ", under a new or empty "
                            "folder or an earlier render of several sensors";
   if (!fs::exists(out_dir, ec)) return;
   if (!fs::is_directory(out_dir, ec)) {
@@ -315,7 +317,8 @@ void check_sensors_folder(const std::string& out_dir, int sensors) {
     throw InputError(out_dir + ": is not empty and holds no earlier render of several sensors (" +
                      kSensorIndexFile +
                      " listing their dataset folders), so writing one there could replace your "
-                     "files; " + what);
+                     "files; " +
+                     what);
   }
 }
 

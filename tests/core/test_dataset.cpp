@@ -25,7 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 using testing_support::TempDir;
 
-
 template <typename F>
 void expect_input_error(F&& f, const std::string& part) {
   try {
@@ -45,7 +44,8 @@ FrameImages make_frame(int w, int h, int k) {
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       for (int c = 0; c < 3; ++c) f.color.at(x, y, c) = std::uint8_t((x * 7 + y * 3 + c + k) % 256);
-      const Eigen::Vector3f n = Eigen::Vector3f(0.01f * x - 0.3f, 0.02f * y - 0.1f, 1.0f).normalized();
+      const Eigen::Vector3f n =
+          Eigen::Vector3f(0.01f * x - 0.3f, 0.02f * y - 0.1f, 1.0f).normalized();
       for (int c = 0; c < 3; ++c) f.normal.at(x, y, c) = n[c];
       f.depth.at(x, y) = 1e-4f * float(x + k) + 1e-7f * y;
       f.mask.at(x, y) = ((x + y + k) % 3 == 0) ? 255 : 0;
@@ -632,7 +632,8 @@ TEST(Image, FormatsRoundTrip) {
   write_image(tmp.str("a.png"), f);  // quantised to 8 bits
   const ImageF p = read_image_float(tmp.str("a.png"));
   ASSERT_TRUE(p.same_shape(5, 4, 3));
-  for (std::size_t i = 0; i < f.data.size(); ++i) EXPECT_NEAR(p.data[i], f.data[i], 0.5 / 255 + 1e-6);
+  for (std::size_t i = 0; i < f.data.size(); ++i)
+    EXPECT_NEAR(p.data[i], f.data[i], 0.5 / 255 + 1e-6);
   ImageU8 u(6, 3, 1);
   for (std::size_t i = 0; i < u.data.size(); ++i) u.data[i] = std::uint8_t(40 * i);
   write_image(tmp.str("g.png"), u);
@@ -665,7 +666,8 @@ TEST(Image, ErrorsNameThePath) {
   expect_input_error([&] { read_image_u8(tmp.str("none.png")); }, "none.png");
   std::ofstream(tmp.str("junk.png")) << "not a png";
   expect_input_error([&] { read_image_u8(tmp.str("junk.png")); }, "junk.png");
-  expect_input_error([&] { write_image(tmp.str("x.unknownext"), ImageU8(2, 2, 1)); }, "x.unknownext");
+  expect_input_error([&] { write_image(tmp.str("x.unknownext"), ImageU8(2, 2, 1)); },
+                     "x.unknownext");
   expect_input_error([&] { read_image_u8(tmp.str()); }, "is a directory, not an image file");
 }
 

@@ -166,8 +166,8 @@ TEST(SensorConfig, OverridesOnAPreset) {
 }
 
 TEST(SensorConfig, ExplicitIntrinsics) {
-  const auto j = nlohmann::json::parse(
-      R"({"camera": {"fx": 100, "fy": 110, "cx": 59.5, "cy": 79.5}})");
+  const auto j =
+      nlohmann::json::parse(R"({"camera": {"fx": 100, "fy": 110, "cx": 59.5, "cy": 79.5}})");
   const SensorModel s = sensor_from_json(j, "cfg.json");
   EXPECT_DOUBLE_EQ(s.camera.fx, 100);
   EXPECT_DOUBLE_EQ(s.camera.fy, 110);
@@ -186,9 +186,9 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   expect_input_error(parse(R"({"width": 2})"), {"width"});
   // Another shape of image than the preset's stretches its resized pixels: refused, unless the
   // file gives the new camera; the same shape at another size is fine.
-  expect_input_error(parse(R"({"preset": "gelsight_mini", "width": 320, "height": 240})"),
-                     {"width and height: 320x240 px", "0.563 times as wide as tall",
-                      "camera.fov_y_rad"});
+  expect_input_error(
+      parse(R"({"preset": "gelsight_mini", "width": 320, "height": 240})"),
+      {"width and height: 320x240 px", "0.563 times as wide as tall", "camera.fov_y_rad"});
   EXPECT_NO_THROW(parse(R"({"width": 320, "height": 240, "camera": {"fov_y_rad": 0.8}})")());
   EXPECT_NO_THROW(parse(R"({"width": 60, "height": 80})")());
   expect_input_error(parse(R"({"noise": {"sigma": 1000}})"), {"noise.sigma"});

@@ -173,14 +173,13 @@ TEST(Tracking, FailuresAlternatingWithRegistrationsThatHoldAreReportedLost) {
                          {"position", {0.002872 + dx, 0.0, 0.0153502}},
                          {"rpy", {0.735554, -0.446296, -0.236469}}});
   }
-  const nlohmann::json scene = {
-      {"frames", 40},
-      {"sensors", {{{"name", "digit"}, {"sensor", "digit"}}}},
-      {"objects",
-       {{{"name", "cube"},
-         {"mesh", "../meshes/cube.glb"},
-         {"trajectory", {{"waypoints", waypoints}}}}}},
-      {"render", {{"seed", 7}}}};
+  const nlohmann::json scene = {{"frames", 40},
+                                {"sensors", {{{"name", "digit"}, {"sensor", "digit"}}}},
+                                {"objects",
+                                 {{{"name", "cube"},
+                                   {"mesh", "../meshes/cube.glb"},
+                                   {"trajectory", {{"waypoints", waypoints}}}}}},
+                                {"render", {{"seed", 7}}}};
   const Dataset d = render(scene, tmp.path / "jitter");
   TrackOptions o;
   o.graph.method = Method::kImageToImage;

@@ -412,7 +412,8 @@ TEST_F(MeshIoTest, GltfStripsAndFansAreTriangles) {
     EXPECT_NEAR(area, 1.0f, 1e-6f);  // the square, once
   }
   // A byteStride shorter than a position (12 bytes) read overlapping garbage vertices.
-  const std::string path = write("stride.gltf", gltf_square(4, {{{0, 0}, {1, 0}, {0, 1}, {1, 1}}}, 4));
+  const std::string path =
+      write("stride.gltf", gltf_square(4, {{{0, 0}, {1, 0}, {0, 1}, {1, 1}}}, 4));
   const std::string message = load_error(path);
   EXPECT_TRUE(Contains(message, "byteStride 4 is smaller than one element (12 bytes)")) << message;
 }
@@ -709,8 +710,14 @@ TEST_F(MeshIoTest, ManyHollowBodiesEachKeepTheirCavity) {
     const double x = 2.0 * (body % 10), y = 2.0 * (body / 10), z = 0.1 * (body % 7);
     for (const double size : {1.0, 0.5}) {
       const double o = (1.0 - size) / 2.0;
-      for (const auto& c : {std::array<int, 3>{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0},
-                            {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}}) {
+      for (const auto& c : {std::array<int, 3>{0, 0, 0},
+                            {1, 0, 0},
+                            {1, 1, 0},
+                            {0, 1, 0},
+                            {0, 0, 1},
+                            {1, 0, 1},
+                            {1, 1, 1},
+                            {0, 1, 1}}) {
         obj += "v " + std::to_string(x + o + size * c[0]) + " " +
                std::to_string(y + o + size * c[1]) + " " + std::to_string(z + o + size * c[2]) +
                "\n";
@@ -723,7 +730,8 @@ TEST_F(MeshIoTest, ManyHollowBodiesEachKeepTheirCavity) {
       obj += inside_out ? obj_face(first + f[0], first + f[2], first + f[1])
                         : obj_face(first + f[0], first + f[1], first + f[2]);
     }
-    for (const auto& f : kCubeFaces) obj += obj_face(first + f[0] + 8, first + f[2] + 8, first + f[1] + 8);
+    for (const auto& f : kCubeFaces)
+      obj += obj_face(first + f[0] + 8, first + f[2] + 8, first + f[1] + 8);
   }
   MeshLoadReport report;
   ::testing::internal::CaptureStderr();

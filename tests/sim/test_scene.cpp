@@ -220,7 +220,8 @@ TEST_F(SceneFileTest, RelativePathsResolveAgainstTheSceneFolder) {
 // --------------------------------------------------------------------------- errors
 
 TEST_F(SceneFileTest, MalformedJsonGivesFileLineAndColumn) {
-  const std::string path = write("broken.json", std::string("{\n  \"frames\": 3,\n  \"sensors\": [,]\n}\n"));
+  const std::string path =
+      write("broken.json", std::string("{\n  \"frames\": 3,\n  \"sensors\": [,]\n}\n"));
   const std::string message = load_error(path);
   EXPECT_EQ(message.rfind(path + ":3:", 0), 0u) << message;
   EXPECT_NE(message.find("malformed JSON"), std::string::npos) << message;
@@ -427,7 +428,7 @@ TEST_F(SceneFileTest, WaypointsInterpolateLinearlyAndBySlerp) {
   const Trajectory& t = scene.objects[0].T_world_object;
   expect_near(t.at(5), {0.005, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 4}), 1e-12);
   expect_near(t.at(2), {0.002, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 10}), 1e-12);
-  expect_near(t.at(-3), {0, 0, 0.01}, Eigen::Quaterniond::Identity());  // holds the first
+  expect_near(t.at(-3), {0, 0, 0.01}, Eigen::Quaterniond::Identity());           // holds the first
   expect_near(t.at(20), {0.01, 0, 0.01}, quaternion_from_rpy({0, 0, kPi / 2}));  // and the last
 }
 
@@ -467,8 +468,7 @@ TEST_F(SceneFileTest, WholeNumbersWrittenAsFloatsAreIntegers) {
   // strictly (-1 after 0)").
   j["objects"][0]["trajectory"]["waypoints"][1]["frame"] = 18446744073709551615ull;
   const std::string message = load_error(write("huge_frame.json", j));
-  EXPECT_NE(message.find("waypoints[1].frame: integer out of range"), std::string::npos)
-      << message;
+  EXPECT_NE(message.find("waypoints[1].frame: integer out of range"), std::string::npos) << message;
 }
 
 // An object "held_by" a sensor has its pose in that sensor's frame and moves with it; a name
@@ -538,7 +538,7 @@ const std::vector<Vector3d>& surface_points(const std::string& mesh_path) {
 
 struct Contact {
   double depth = -std::numeric_limits<double>::infinity();  // max of surface_z - z [m]
-  double max_abs_x = 0.0, max_abs_y = 0.0;  // extent of the penetrating points [m]
+  double max_abs_x = 0.0, max_abs_y = 0.0;                  // extent of the penetrating points [m]
 };
 
 Contact contact_in_sensor(const std::vector<Vector3d>& p_object, const SE3& T_sensor_object,

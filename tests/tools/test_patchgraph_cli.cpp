@@ -179,9 +179,10 @@ TEST_F(PatchgraphCli, GtpatchRefusesAnObjectTooLargeToModel) {
     const CliRun r = patchgraph(args);
     EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
     EXPECT_NE(r.out.find(copy + "/dataset.json: object.mesh: "), std::string::npos) << r.out;
-    EXPECT_NE(r.out.find("(scale 50) is too large for gtpatch's object model: its surface at 0.1 mm "
-                         "spacing is 574 M points, at most 10 M"),
-              std::string::npos)
+    EXPECT_NE(
+        r.out.find("(scale 50) is too large for gtpatch's object model: its surface at 0.1 mm "
+                   "spacing is 574 M points, at most 10 M"),
+        std::string::npos)
         << r.out;
   }
   EXPECT_FALSE(fs::exists(out("huge_track")));
@@ -240,11 +241,30 @@ TEST_F(PatchgraphCli, EvalPlotsAnObjectNamedLikeAPathInsideOut) {
   info["object"]["name"] = "../escape";
   std::ofstream(copy + "/dataset.json") << info.dump(2);
   const std::string dir = out("eval_odd_name");
-  const CliRun r =
-      patchgraph("eval --datasets " + copy + " --methods patchgraph -q --out " + dir);
+  const CliRun r = patchgraph("eval --datasets " + copy + " --methods patchgraph -q --out " + dir);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out.find("Traceback"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::exists(dir + "/trajectories__._escape.png")) << r.out;
+}
+
+// A sensor whose camera sees past its gel (a field of view of 2.5 rad) renders with a warning but
+// cannot be tracked: the error names the dataset's sensor (it had read "reference normals: pixel
+// (50, 18) is not a finite unit normal", naming nothing).
+TEST_F(PatchgraphCli, ASensorSeeingPastItsGelIsNamed) {
+  const std::string dir = out("wide_view");
+  fs::remove_all(dir);
+  std::ofstream(out("wide_view.json"))
+      << R"({"frames": 2, "sensors": [{"sensor": {"camera": {"fov_y_rad": 2.5}}}],
+             "objects": [{"mesh": ")"
+      << PG_SOURCE_DIR << R"(/meshes/sphere_r6mm.glb", "pose": {"position": [0, 0, 0.005]}}],
+             "render": {"seed": 1, "outputs": ["normal", "mask"]}})";
+  ASSERT_EQ(run(TACSIM_PATH, "render " + out("wide_view.json") + " -q --out " + dir).code, 0);
+  const CliRun r = patchgraph("track " + dir + " -q --out " + out("wide_view_track"));
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(dir + "/dataset.json: sensor: the sensor's undeformed gel has no usable "
+                             "normal at pixel ("),
+            std::string::npos)
+      << r.out;
 }
 
 // A disk that fills as train-normals saves (here a file-size limit, which fails the write as a
@@ -255,8 +275,8 @@ TEST_F(PatchgraphCli, TrainNormalsOnAFullDiskSaysSo) {
   fs::create_directories(dir);
   const CliRun r = testing_support::run_command(
       std::string("trap '' XFSZ; ulimit -f 40; exec ") + PATCHGRAPH_PATH,
-      "train-normals --data " + data() +
-          " --width 4 --depth 2 --epochs 1 --threads 1 -q --out " + dir + "/m.pt");
+      "train-normals --data " + data() + " --width 4 --depth 2 --epochs 1 --threads 1 -q --out " +
+          dir + "/m.pt");
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("error: " + dir + "/m.pt.ckpt: cannot write the checkpoint (File too large"),
             std::string::npos)
@@ -639,8 +659,8 @@ TEST_F(PatchgraphCli, AFrameThatShowsNoChangeIsNoContact) {
   for (const std::vector<std::string>& field : errors_rows(out("untouched_track"))) {
     const int frame = std::stoi(field[0]);
     const bool untouched = frame >= 10 && frame < 20;
-    EXPECT_EQ(field[3], untouched ? "0" : "1") << "frame " << frame;          // contact
-    EXPECT_EQ(field[15], "0") << "frame " << frame;                           // not invalid input
+    EXPECT_EQ(field[3], untouched ? "0" : "1") << "frame " << frame;  // contact
+    EXPECT_EQ(field[15], "0") << "frame " << frame;                   // not invalid input
     if (untouched) {
       EXPECT_EQ(std::stod(field[9]), 0.0) << "frame " << frame;  // no inference
     }
@@ -1831,8 +1851,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     const std::string mine = out("balls_mine");
     fs::create_directories(mine);
     std::ofstream(mine + "/notes.txt") << "mine";
-    const CliRun r =
-        patchgraph("label-ball " + broken + " --diameter 0.0127 -q --out " + mine);
+    const CliRun r = patchgraph("label-ball " + broken + " --diameter 0.0127 -q --out " + mine);
     EXPECT_EQ(r.code, 1);
     EXPECT_NE(r.out.find(mine + ": is not empty and holds no dataset"), std::string::npos) << r.out;
   }

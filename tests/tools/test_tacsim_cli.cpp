@@ -24,13 +24,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing_support::CliRun;
-using testing_support::TempDir;
 using testing_support::run_command;
+using testing_support::TempDir;
 
 CliRun tacsim(const std::string& args) { return testing_support::run_command(TACSIM_PATH, args); }
-
-
-
 
 const std::string kScenes = std::string(PG_SOURCE_DIR) + "/scenes/";
 
@@ -113,10 +110,9 @@ TEST(TacsimCli, AMeshOfSeveralObjectsIsLoadedOnce) {
                R"(, "pose": {"position": [)" + std::to_string(0.02 * k) + ", 0, 0.05]}}";
   }
   std::ofstream(tmp.str("scene.json"))
-      << R"({"frames": 1, "sensors": [{}], "render": {"seed": 1}, "objects": [)" << objects
-      << "]}";
-  const CliRun r = tacsim("render " + tmp.str("scene.json") + " -q --outputs mask --out " +
-                          tmp.str("d"));
+      << R"({"frames": 1, "sensors": [{}], "render": {"seed": 1}, "objects": [)" << objects << "]}";
+  const CliRun r =
+      tacsim("render " + tmp.str("scene.json") + " -q --outputs mask --out " + tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;
   const std::string warning = "closed part(s) had every triangle facing inward";
   std::size_t count = 0;
@@ -145,7 +141,8 @@ TEST(TacsimCli, AnObjectOfAnImplausibleSizeIsWarnedAbout) {
       << r.out;
   r = render("0.001", "0");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("at scale 0.001, smaller than two of the sensor's pixels"), std::string::npos)
+  EXPECT_NE(r.out.find("at scale 0.001, smaller than two of the sensor's pixels"),
+            std::string::npos)
       << r.out;
   r = render("1", "0.011");
   ASSERT_EQ(r.code, 0) << r.out;
@@ -158,7 +155,8 @@ TEST(TacsimCli, WholeNumbersAreDecimal) {
   TempDir tmp;
   const std::string scene = kScenes + "examples/sphere_press.json";
   for (const char* frames : {"010", "0x4", "4.0"}) {
-    const CliRun r = tacsim("render " + scene + " -q --frames " + frames + " --out " + tmp.str("o"));
+    const CliRun r =
+        tacsim("render " + scene + " -q --frames " + frames + " --out " + tmp.str("o"));
     EXPECT_EQ(r.code, 2) << frames;
     EXPECT_NE(r.out.find("--frames"), std::string::npos) << r.out;
     EXPECT_FALSE(fs::exists(tmp.str("o"))) << frames;
@@ -214,8 +212,10 @@ TEST(TacsimCli, ARenderIsTheSameOnAnyNumberOfThreads) {
     const fs::path other = tmp.path / "3" / fs::relative(entry.path(), tmp.path / "1");
     std::ifstream a(entry.path(), std::ios::binary), b(other, std::ios::binary);
     ASSERT_TRUE(b.good()) << other;
-    const std::string bytes_a((std::istreambuf_iterator<char>(a)), std::istreambuf_iterator<char>());
-    const std::string bytes_b((std::istreambuf_iterator<char>(b)), std::istreambuf_iterator<char>());
+    const std::string bytes_a((std::istreambuf_iterator<char>(a)),
+                              std::istreambuf_iterator<char>());
+    const std::string bytes_b((std::istreambuf_iterator<char>(b)),
+                              std::istreambuf_iterator<char>());
     EXPECT_EQ(bytes_a, bytes_b) << entry.path();
     ++compared;
   }
@@ -225,7 +225,7 @@ TEST(TacsimCli, ARenderIsTheSameOnAnyNumberOfThreads) {
 TEST(TacsimCli, RenderWritesADatasetThatInfoDescribes) {
   TempDir tmp;
   const CliRun r = tacsim("render " + kScenes + "examples/sphere_press.json --out " + tmp.str("d") +
-                       " --threads 2 --width 60 --height 80");
+                          " --threads 2 --width 60 --height 80");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("frames/s"), std::string::npos);  // progress and summary
   const Dataset d = Dataset::open(tmp.str("d"));
@@ -428,10 +428,9 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
             std::string::npos)
       << described.out;
   // And of the camera noise, both ways: off for a noisy scene, on for a quiet one.
-  for (const auto& [scene, noise, sigma] :
-       {std::tuple<std::string, std::string, double>{
-            kScenes + "examples/sphere_press.json", "off", 0.0},
-        {tmp.str("quiet.json"), "on", 7.0}}) {
+  for (const auto& [scene, noise, sigma] : {std::tuple<std::string, std::string, double>{
+                                                kScenes + "examples/sphere_press.json", "off", 0.0},
+                                            {tmp.str("quiet.json"), "on", 7.0}}) {
     const CliRun run = tacsim("render " + scene + " -q --outputs color --frames 2 --noise " +
                               noise + " --out " + tmp.str("d"));
     ASSERT_EQ(run.code, 0) << run.out;
@@ -475,8 +474,9 @@ TEST(TacsimCli, DatasetJsonSaysWhetherTheFramesAreNoisy) {
 
 TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   TempDir tmp;
-  const CliRun r = tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask,points --out " +
-                          tmp.str("d"));
+  const CliRun r =
+      tacsim("render " + kScenes +
+             "examples/two_digits_pinch.json -q --outputs mask,points --out " + tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;
   // The sensors' folders, listed in the scene's order in sensors.json.
   const std::vector<std::string> dirs = sensor_dataset_dirs(tmp.str("d"));
@@ -527,9 +527,8 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
   EXPECT_EQ(Dataset::open(tmp.str("d") + "/digit_top").frames(), Dataset::open(dirs[0]).frames());
 }
 
-// --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder or one of
-// other files, is
-// refused before anything is written; an earlier dataset is replaced.
+// --out into a folder that is not a dataset, or a two-sensor scene into a dataset's folder or one
+// of other files, is refused before anything is written; an earlier dataset is replaced.
 TEST(TacsimCli, RenderReplacesOnlyADataset) {
   TempDir tmp;
   const std::string mine = tmp.str("mine");
@@ -741,7 +740,8 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
 
 TEST(TacsimCli, NoContactSceneRendersBackgroundAndSaysSoOnce) {
   TempDir tmp;
-  const CliRun r = tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));
+  const CliRun r =
+      tacsim("render " + kScenes + "examples/no_contact.json -q --out " + tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;
   const std::string warning = "no object touches the gel";
   const auto first = r.out.find(warning);

@@ -321,21 +321,21 @@ inline void check_values(const CLI::App& app) {
       // --quiet was made).
       if (value.size() > 1 && value[0] == '-' && option->get_expected_min() > 0 &&
           app.get_option_no_throw(value) != nullptr) {
-        throw CLI::ValidationError(option->get_name(), "'" + value +
-                                                           "' is an option, not a value: give " +
-                                                           option->get_name() + " its value");
+        throw CLI::ValidationError(
+            option->get_name(),
+            "'" + value + "' is an option, not a value: give " + option->get_name() + " its value");
       }
       if (!is_integer || value.empty()) continue;
       const std::size_t digits = value[0] == '-' || value[0] == '+' ? 1 : 0;
-      const bool decimal =
-          digits < value.size() &&
-          std::all_of(value.begin() + long(digits), value.end(),
-                      [](char c) { return c >= '0' && c <= '9'; }) &&
-          (value[digits] != '0' || value.size() == digits + 1);
+      const bool decimal = digits < value.size() &&
+                           std::all_of(value.begin() + long(digits), value.end(),
+                                       [](char c) { return c >= '0' && c <= '9'; }) &&
+                           (value[digits] != '0' || value.size() == digits + 1);
       if (!decimal) {
         throw CLI::ValidationError(option->get_name(),
-                                   "'" + value + "' is not a whole number in decimal digits "
-                                   "(no leading zeros: 010 would read as octal 8)");
+                                   "'" + value +
+                                       "' is not a whole number in decimal digits "
+                                       "(no leading zeros: 010 would read as octal 8)");
       }
       if (is_unsigned && value[0] == '-') {
         throw CLI::ValidationError(option->get_name(), "'" + value + "' is negative");
@@ -361,8 +361,8 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return kExitUsage;
   }
   // --version: the project's version (tools/CMakeLists.txt gives it).
-  app.set_version_flag("--version", std::filesystem::path(argv[0]).filename().string() + " " +
-                                        PG_VERSION);
+  app.set_version_flag("--version",
+                       std::filesystem::path(argv[0]).filename().string() + " " + PG_VERSION);
   try {
     app.parse(argc, argv);
     check_values(app);

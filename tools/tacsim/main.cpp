@@ -75,8 +75,7 @@ void warn_about_object_sizes(const SceneRenderer& renderer) {
                  format_number(1e3 * extent.x(), "%.4g").c_str(),
                  format_number(1e3 * extent.y(), "%.4g").c_str(),
                  format_number(1e3 * extent.z(), "%.4g").c_str(), format_number(o.scale).c_str(),
-                 size > 1.0 ? "larger than a metre"
-                            : "smaller than two of the sensor's pixels");
+                 size > 1.0 ? "larger than a metre" : "smaller than two of the sensor's pixels");
   }
 }
 

@@ -105,7 +105,8 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
       rays_(make_gel_rays(sensor.camera, sensor.gel)),
       solver_(PoissonDstOptions{options.dst_backend, options.measure_fft_plans, 32}) {
   options_.crop_margin_px = std::max(options_.crop_margin_px, 1);
-  if (reference_normals.empty()) {
+  const bool gel_model = reference_normals.empty();
+  if (gel_model) {
     reference_normals_ = undeformed_gel_normals(rays_);
   } else {
     check_normal_image(reference_normals, rays_, "reference normals");
@@ -116,8 +117,15 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
   for (std::size_t i = 0; i < n; ++i) {
     float* nr = &reference_normals_.data[3 * i];
     if (!valid_normal(nr)) {
-      throw InputError("reference normals: pixel (" + std::to_string(i % rays_.width) + ", " +
-                       std::to_string(i / rays_.width) + ") is not a finite unit normal");
+      const std::string pixel = "pixel (" + std::to_string(i % rays_.width) + ", " +
+                                std::to_string(i / rays_.width) + ")";
+      if (gel_model) {  // the sensor's own gel model, which names no file (an audit's 2.5 rad)
+        throw InputError("the sensor's undeformed gel has no usable normal at " + pixel +
+                         ": its camera sees past the gel there, or along it (the camera's field "
+                         "of view, camera.fov_y_rad or fx and fy, against gel.width_m and "
+                         "gel.height_m)");
+      }
+      throw InputError("reference normals: " + pixel + " is not a finite unit normal");
     }
     // Made unit: the disturbance test compares angles as n.r against |n| (a reference of length
     // 0.99, as a network gives, had flagged every pixel; one of 1.01 widened the threshold to 8

@@ -253,10 +253,11 @@ namespace {
 // What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
 // for learned normals, its no-contact reference.
 struct SensorFeed {
-  SensorFeed(const Dataset& d, const TrackerConfig& config, bool learned)
+  // `reference`: the dataset's no-contact image, for learned normals (else empty).
+  SensorFeed(const Dataset& d, const TrackerConfig& config, ImageU8 reference)
       : dataset(&d),
         builder(d.info().sensor, config.contact_cloud()),
-        background(learned ? d.background() : ImageU8()) {}
+        background(std::move(reference)) {}
   const Dataset* dataset;
   ContactCloudBuilder builder;
   ImageU8 background;
@@ -287,7 +288,14 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   std::deque<SensorFeed> feeds;  // (a builder does not move)
-  for (const Dataset* d : datasets) feeds.emplace_back(*d, options.front_end, learned);
+  for (const Dataset* d : datasets) {
+    ImageU8 reference = learned ? d->background() : ImageU8();  // its errors name their file
+    try {
+      feeds.emplace_back(*d, options.front_end, std::move(reference));
+    } catch (const InputError& e) {  // the sensor's model cannot be tracked: whose it is
+      throw InputError(d->dir() + "/dataset.json: sensor: " + e.what());
+    }
+  }
   // The object's pose from whichever dataset gives it (they agree where several do).
   const std::vector<FramePose> truth = sequence_poses(datasets);
   const bool sensor_frame =

@@ -457,8 +457,8 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     const int n = options_.lost_after_frames;
     while (int(recent_anchor_failures_.size()) > std::max(1, 2 * n - 1))
       recent_anchor_failures_.pop_front();
-    const long recent = std::count(recent_anchor_failures_.begin(),
-                                   recent_anchor_failures_.end(), true);
+    const long recent =
+        std::count(recent_anchor_failures_.begin(), recent_anchor_failures_.end(), true);
     est.tracking_lost = options_.method != Method::kConstVel && n > 0 && failed &&
                         (unregistered_frames_ >= n || recent >= n);
   }

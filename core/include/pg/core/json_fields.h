@@ -107,8 +107,7 @@ int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) co
 template <>
 bool JsonFields::convert<bool>(const nlohmann::json& v, const std::string& key) const;
 template <>
-std::string JsonFields::convert<std::string>(const nlohmann::json& v,
-                                             const std::string& key) const;
+std::string JsonFields::convert<std::string>(const nlohmann::json& v, const std::string& key) const;
 template <>
 Eigen::Vector3d JsonFields::convert<Eigen::Vector3d>(const nlohmann::json& v,
                                                      const std::string& key) const;

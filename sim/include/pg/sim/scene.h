@@ -1,12 +1,12 @@
 #pragma once
 // Scene files: sensors, objects, trajectories and render options (JSON; schema in README.md).
 #include <cstdint>
+#include <nlohmann/json_fwd.hpp>
 #include <string>
 #include <vector>
 
 #include "pg/core/sensor.h"
 #include "pg/core/trajectory.h"
-#include <nlohmann/json_fwd.hpp>
 
 namespace pg {
 

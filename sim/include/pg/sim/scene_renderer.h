@@ -49,16 +49,16 @@ class SceneRenderer {
 
 struct RenderSummary {
   int frames = 0;
-  int contact_frames = 0;  // frames where some sensor saw contact
+  int contact_frames = 0;          // frames where some sensor saw contact
   int tracked_contact_frames = 0;  // of those, frames where the tracked object itself touched
   int shared_contact_frames = 0;   // frames where another object touched a gel the tracked did
-  int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
+  int clamped_frames = 0;          // frames with penetration beyond the gel's max indentation
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
   // Datasets of an earlier render into the folder (its sensors.json) of sensors this scene does
   // not have: left as they were, no longer listed.
   std::vector<std::string> earlier_sensor_dirs;
-  std::uintmax_t bytes_estimate = 0;      // estimate_dataset_bytes (0: not known)
+  std::uintmax_t bytes_estimate = 0;  // estimate_dataset_bytes (0: not known)
 };
 
 // Progress callback: (frames done, frames total).

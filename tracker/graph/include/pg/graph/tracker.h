@@ -148,10 +148,10 @@ struct TrackerEstimate {
   // Of the image-to-patch registration, if it got that far; with several sensors, the directions
   // none of their registrations constrains.
   int unconstrained_directions = 0;
-  int rejected_registrations = 0;       // converged, but too far from the prediction
-  int unconverged_registrations = 0;    // ICP failed (too few points or matches, iteration limit)
-  int overridden_registrations = 0;     // accepted, but the solution disagrees (see GraphOptions)
-  bool tracking_lost = false;           // see GraphOptions::lost_after_frames
+  int rejected_registrations = 0;     // converged, but too far from the prediction
+  int unconverged_registrations = 0;  // ICP failed (too few points or matches, iteration limit)
+  int overridden_registrations = 0;   // accepted, but the solution disagrees (see GraphOptions)
+  bool tracking_lost = false;         // see GraphOptions::lost_after_frames
   // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
   // pose then holds the previous frame's, the object pose the prediction); or a measurement was
   // missing (SensorInput::measurement_missing).
