@@ -447,11 +447,10 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   const bool anchor_failed = std::any_of(anchors.begin(), anchors.end(), tried) &&
                              std::none_of(anchors.begin(), anchors.end(),
                                           [](Outcome a) { return a == Outcome::kAccepted; });
-  // Lost: contact, but for lost_after_frames frames running the anchor failed, or it fails now
-  // and failed as often among the last 2 x lost_after_frames - 1 (every other one failing).
+  // Lost: contact, and the anchor fails now and failed in lost_after_frames of the last
+  // 2 x lost_after_frames - 1 (so when it failed that many frames running, or every other one).
   if (cur.contact) {
     const bool failed = anchor_failed && !est.new_episode;
-    unregistered_frames_ = failed ? unregistered_frames_ + 1 : 0;
     if (est.new_episode) recent_anchor_failures_.clear();
     recent_anchor_failures_.push_back(failed);
     const int n = options_.lost_after_frames;
@@ -459,8 +458,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       recent_anchor_failures_.pop_front();
     const long recent =
         std::count(recent_anchor_failures_.begin(), recent_anchor_failures_.end(), true);
-    est.tracking_lost = options_.method != Method::kConstVel && n > 0 && failed &&
-                        (unregistered_frames_ >= n || recent >= n);
+    est.tracking_lost = options_.method != Method::kConstVel && n > 0 && failed && recent >= n;
   }
 
   Frame& solved = frames_.back();

@@ -265,7 +265,6 @@ class PatchGraphTracker {
   std::vector<Frame> frames_;
   std::vector<Factor> factors_;
   bool in_episode_ = false;
-  int unregistered_frames_ = 0;  // consecutive contact frames whose anchor failed
   // The episode's last contact frames, newest last: whether each one's anchor failed
   // (GraphOptions::lost_after_frames).
   std::deque<bool> recent_anchor_failures_;
