@@ -2,7 +2,9 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <filesystem>
 
 #include "pg/core/error.h"
@@ -126,6 +128,17 @@ void write_image(const std::string& path, const ImageU8& image) {
 
 void write_image_u16(const std::string& path, const ImageF& image) {
   write(path, image, OIIO::TypeDesc::FLOAT, OIIO::TypeDesc::UINT16);
+}
+
+std::optional<std::array<int, 3>> first_non_finite(const ImageF& image) {
+  const auto bad =
+      std::find_if(image.data.begin(), image.data.end(), [](float v) { return !std::isfinite(v); });
+  if (bad == image.data.end()) return std::nullopt;
+  const std::size_t k = std::size_t(bad - image.data.begin());
+  const std::size_t pixel = k / std::size_t(image.channels);
+  return std::array<int, 3>{int(pixel % std::size_t(image.width)),
+                            int(pixel / std::size_t(image.width)),
+                            int(k % std::size_t(image.channels))};
 }
 
 ImageShape read_image_shape(const std::string& path) {

@@ -146,14 +146,11 @@ torch::Tensor image_to_tensor(const ImageF& image) {
 
 ImageF true_normals(const Dataset& dataset, int frame) {
   ImageF n = dataset.normal(frame);
-  for (std::size_t k = 0; k < n.data.size(); ++k) {
-    if (!std::isfinite(n.data[k])) {
-      const std::size_t pixel = k / 3;
-      throw InputError(dataset_frame_path(dataset.dir(), "normal", frame) + ": pixel (" +
-                       std::to_string(pixel % n.width) + ", " + std::to_string(pixel / n.width) +
-                       ") is not finite; the ground-truth normals training and evaluation compare "
-                       "with must be finite");
-    }
+  if (const auto bad = first_non_finite(n)) {
+    throw InputError(dataset_frame_path(dataset.dir(), "normal", frame) + ": pixel (" +
+                     std::to_string((*bad)[0]) + ", " + std::to_string((*bad)[1]) +
+                     ") is not finite; the ground-truth normals training and evaluation compare "
+                     "with must be finite");
   }
   return n;
 }

@@ -164,18 +164,14 @@ void SensorRenderer::State::prepare() {
                        "cropped)");
     }
     ImageF rgb(real.width, real.height, 3);
-    for (int y = 0; y < real.height; ++y) {
-      for (int x = 0; x < real.width; ++x) {
-        for (int c = 0; c < 3; ++c) {
-          const float v = real.at(x, y, c);
-          if (!std::isfinite(v)) {  // a float image (EXR) can hold them; clamped, they read black
-            throw InputError(settings.background + ": pixel (" + std::to_string(x) + ", " +
-                             std::to_string(y) + ") channel " + std::to_string(c) +
-                             " is not a finite number");
-          }
-          rgb.at(x, y, c) = v;
-        }
-      }
+    for (int y = 0; y < real.height; ++y)
+      for (int x = 0; x < real.width; ++x)
+        for (int c = 0; c < 3; ++c) rgb.at(x, y, c) = real.at(x, y, c);
+    // A float image (EXR) can hold values that are no number; clamped, they read black.
+    if (const auto bad = first_non_finite(rgb)) {
+      throw InputError(settings.background + ": pixel (" + std::to_string((*bad)[0]) + ", " +
+                       std::to_string((*bad)[1]) + ") channel " + std::to_string((*bad)[2]) +
+                       " is not a finite number");
     }
     background = resample_bilinear(rgb, w, h);
     blend_blur = gaussian_kernel(sensor.shading.background_blur_m * gel.px_per_m);

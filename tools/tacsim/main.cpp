@@ -225,14 +225,11 @@ long decode_every_frame(const Dataset& d) {
       // A float frame's numbers finite too: a NaN decodes as well as a number (the tracker
       // counts such normals as rejected, but a dataset should not hold them).
       const auto finite = [&](const ImageF& image, const char* name) {
-        const auto bad = std::find_if(image.data.begin(), image.data.end(),
-                                      [](float v) { return !std::isfinite(v); });
-        if (bad == image.data.end()) return;
-        const std::size_t at = std::size_t(bad - image.data.begin()) / std::size_t(image.channels);
-        throw InputError(dataset_frame_path(d.dir(), name, i) + ": pixel (" +
-                         std::to_string(at % std::size_t(image.width)) + ", " +
-                         std::to_string(at / std::size_t(image.width)) +
-                         ") is not a finite number");
+        if (const auto bad = first_non_finite(image)) {
+          throw InputError(dataset_frame_path(d.dir(), name, i) + ": pixel (" +
+                           std::to_string((*bad)[0]) + ", " + std::to_string((*bad)[1]) +
+                           ") is not a finite number");
+        }
       };
       if (output == "normal") finite(d.normal(i), "normal");
       if (output == "normal_png") d.normal_png(i);

@@ -1,7 +1,9 @@
 #pragma once
 // Images as the sensor streams them: width x height, 1-3 interleaved channels, row-major.
 // File I/O goes through OpenImageIO (PNG, EXR, JPEG, ...), chosen by the file extension.
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -15,7 +17,8 @@ struct Image {
   std::vector<T> data;  // index (y * width + x) * channels + c
 
   Image() = default;
-  Image(int w, int h, int c, T fill = T()) : width(w), height(h), channels(c), data(std::size_t(w) * h * c, fill) {}
+  Image(int w, int h, int c, T fill = T())
+      : width(w), height(h), channels(c), data(std::size_t(w) * h * c, fill) {}
 
   bool empty() const { return data.empty(); }
   std::size_t index(int x, int y, int c = 0) const {
@@ -28,6 +31,10 @@ struct Image {
 
 using ImageF = Image<float>;
 using ImageU8 = Image<std::uint8_t>;
+
+// The first value of `image` (in storage order) that is not a finite number, as {x, y, channel};
+// none when every value is finite. For errors that name the pixel.
+std::optional<std::array<int, 3>> first_non_finite(const ImageF& image);
 
 // Reads any format OpenImageIO knows. 8-bit files read as float are scaled to [0, 1].
 // Throws InputError naming the path when the file is missing or unreadable.
