@@ -106,10 +106,11 @@ void check_can_write(const std::string& path) {
   fs::remove(probe, ec);
 }
 
-void write_text_atomically(const std::string& path, std::string_view text) {
+void write_text_atomically(const std::string& path, std::string_view text,
+                           const std::string& what) {
+  const std::string cannot = ": cannot write" + (what.empty() ? "" : " the " + what);
   if (is_special_file(path)) {  // /dev/stdout, /dev/null, a FIFO: written to, not replaced
-    if (const auto cause = try_write(path, text))
-      throw InputError(path + ": cannot write" + *cause);
+    if (const auto cause = try_write(path, text)) throw InputError(path + cannot + *cause);
     return;
   }
   const std::string target = replaceable_file(path);
@@ -117,11 +118,13 @@ void write_text_atomically(const std::string& path, std::string_view text) {
   std::error_code ec;
   if (const auto cause = try_write(tmp, text)) {
     fs::remove(tmp, ec);
-    throw InputError(path + ": cannot write" + *cause);
+    throw InputError(path + cannot + *cause);
   }
   fs::rename(tmp, target, ec);
   if (ec) {
-    const std::string message = path + ": cannot replace it with " + tmp + ": " + ec.message();
+    const std::string message = what.empty()
+                                    ? path + ": cannot replace it with " + tmp + ": " + ec.message()
+                                    : path + cannot + ": " + ec.message();
     fs::remove(tmp, ec);
     throw InputError(message);
   }

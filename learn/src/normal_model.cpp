@@ -186,7 +186,7 @@ void save_model(const std::string& path, Generator& generator, const NormalModel
 
 void save_archive(torch::serialize::OutputArchive& archive, const std::string& path,
                   const std::string& what) {
-  const std::string target = replaceable_file(path);
+  replaceable_file(path);  // refuses a device or pipe, which a whole-file write would stream into
   // Serialised in memory first: Torch's own file writer, on a disk that fills, throws from its
   // destructor, which ends the program (SIGABRT, its temporary file left behind).
   std::ostringstream bytes;
@@ -197,23 +197,7 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
     throw InputError(path + ": cannot write the " + what + " (" + why.substr(0, why.find('\n')) +
                      ")");
   }
-  const std::string tmp = temporary_path_for(target);
-  std::error_code ec;
-  try {
-    write_text_file(tmp, bytes.str());
-  } catch (const InputError& e) {  // "TMP: cannot write (CAUSE)"
-    fs::remove(tmp, ec);
-    const std::string message = e.what();
-    const std::size_t cause = message.rfind(": cannot write");
-    throw InputError(path + ": cannot write the " + what +
-                     (cause == std::string::npos ? "" : message.substr(cause + 14)));
-  }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    const std::string why = ec.message();
-    fs::remove(tmp, ec);
-    throw InputError(path + ": cannot write the " + what + ": " + why);
-  }
+  write_text_atomically(path, bytes.str(), what);
 }
 
 namespace {

@@ -28,8 +28,10 @@ void write_text_file(const std::string& path, std::string_view text);
 // The same through a temporary file beside it (temporary_path_for) and a rename, so no reader
 // sees half a file: a write that fails leaves the previous file as it was and no temporary file.
 // A device or pipe at `path` (/dev/stdout, a FIFO) is written to directly, a symbolic link's
-// file replaced (replaceable_file).
-void write_text_atomically(const std::string& path, std::string_view text);
+// file replaced (replaceable_file). `what`, if given, names the file in the message: "PATH:
+// cannot write the WHAT (CAUSE)".
+void write_text_atomically(const std::string& path, std::string_view text,
+                           const std::string& what = "");
 // The file that a whole-file replacement (a temporary file renamed over it) of `path` renames
 // onto: `path`, or the file a symbolic link there points to (the link stays a link). Throws
 // InputError naming `path` when it is a device, pipe or socket, which a rename would replace
