@@ -7,7 +7,6 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
