@@ -261,6 +261,37 @@ TEST(Degeneracy, AFarCentresRollsStayRollsNotSlides) {
   }
 }
 
+// Learned normals bend a flat face into a dome of centimetres' radius, whose rolls would turn
+// every frame's tilt error into a slide. With flat_radius_m, three free directions rolling about
+// a farther centre are a flat face's: the slides along the contact and the spin about its normal.
+// A 6 mm ball keeps its rolls (167 rad of tilt per metre of slide, against 1 / 0.02 m = 50).
+TEST(Degeneracy, AFlatRadiusReadsTheRollsOfAFartherCentreAsAFlatFacesSlides) {
+  for (const double R : {0.006, 0.15, 1.0}) {
+    SCOPED_TRACE("radius " + std::to_string(R) + " m");
+    DegeneracyReport report = analyse_cloud_degeneracy(sphere_cap(R), kRatio);
+    ASSERT_EQ(report.unconstrained, 3);
+    report.flat_radius_m = 0.02;
+    const Matrix6Xd N = report.unconstrained_twists_at_origin();
+    ASSERT_EQ(N.cols(), 3);
+    Vector6d spin = Vector6d::Zero();
+    spin[5] = 1;  // about the z axis, through the cap's centroid
+    EXPECT_LT(off_span(spin, N), 1e-3) << N;
+    for (int axis = 0; axis < 2; ++axis) {
+      Vector6d roll = Vector6d::Zero(), slide = Vector6d::Zero();
+      roll.tail<3>() = Eigen::Vector3d::Unit(axis);
+      roll.head<3>() = -Eigen::Vector3d::Unit(axis).cross(Eigen::Vector3d(0, 0, R));
+      slide[axis] = 1;
+      if (R < 0.02) {
+        EXPECT_LT(off_span(roll, N), 1e-3) << "axis " << axis << "\n" << N;
+        EXPECT_GT(off_span(slide, N), 0.5) << "axis " << axis << "\n" << N;
+      } else {
+        EXPECT_LT(off_span(slide, N), 1e-3) << "axis " << axis << "\n" << N;
+        EXPECT_GT(off_span(roll, N), 0.5) << "axis " << axis << "\n" << N;
+      }
+    }
+  }
+}
+
 // Several sensors on one object: what none of their contacts constrains. A face under the object
 // and one at its side (normals z and x, 1 cm apart) leave only the slide along y between them;
 // two opposite faces (a pinch) the same three directions as one; a corner nothing.

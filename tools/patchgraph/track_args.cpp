@@ -35,10 +35,11 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "
                  "4 passes per frame, less error for more time")
       ->check(CLI::IsMember({1, 2, 4}));
-  app.add_option("--config", a.config,
-                 "Tracker config JSON (depth, mask, icp options): each key given replaces the "
-                 "default, the built-in options (for --normals MODEL with mask.relative_depth "
-                 "0.2, icp.symmetric false and depth.integration averaged)");
+  app.add_option(
+      "--config", a.config,
+      "Tracker config JSON (depth, mask, icp options): each key given replaces the "
+      "default, the built-in options (for --normals MODEL with mask.relative_depth "
+      "0.2, icp.symmetric false, icp.flat_radius_m 0.02 and depth.integration averaged)");
   app.add_option("--window", a.window, "Frames in the fixed-lag window; 0 = batch (default 5)")
       ->check(kNonNegative);
   app.add_option("--keyframe-interval", a.keyframe_interval,
@@ -307,6 +308,11 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
     // network's, whose errors it integrates on four decoupled sub-grids, it tracked the cube and
     // the toy brick a little better and the toy human worse (docs/learned_normals.md).
     o.front_end.depth.integration = DepthIntegration::kAveraged;
+    // The network bends a flat face into a dome of 5 cm to 1 m radius and tilts it by a few
+    // milliradians from frame to frame; as the dome's rolls that tilt became slides of up to
+    // 5 mm a frame, and the two-sensor regrasp was lost (docs/tracker.md). Read as flat, its
+    // slides and spin are free, as they are from the rendered normals.
+    o.front_end.icp.flat_radius_m = 0.02;
   }
   // A config file sets the keys it names on top of these (a file naming another key keeps the
   // learned normals' settings).

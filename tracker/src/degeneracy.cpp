@@ -88,9 +88,8 @@ void symmetric_eigen(const Matrix6d& H, Vector6d& values, Matrix6d& vectors) {
 // s^2 u^T H_rr u, at most sliver_cost x the threshold. A flat patch's spin (a free rotation) is
 // kept. A sliver_cost of kAllConstrained keeps only the free rotations.
 constexpr double kAllConstrained = std::numeric_limits<double>::infinity();
-Eigen::Matrix3d non_sliver_rotations(const Eigen::Matrix3Xd& rotations,
-                                     const Eigen::Matrix3d& H_rr, double threshold,
-                                     double sliver_cost) {
+Eigen::Matrix3d non_sliver_rotations(const Eigen::Matrix3Xd& rotations, const Eigen::Matrix3d& H_rr,
+                                     double threshold, double sliver_cost) {
   const Eigen::JacobiSVD<Eigen::Matrix3Xd> svd(rotations, Eigen::ComputeFullU);
   Eigen::Matrix3d resolved = Eigen::Matrix3d::Zero();
   for (int j = 0; j < int(svd.singularValues().size()); ++j) {
@@ -143,6 +142,26 @@ Eigen::Matrix3Xd rolling_rotations(const DegeneracyReport& report, const Matrix6
   return predicted;
 }
 
+// Three free twists N (about c) of a nearly flat contact become a flat face's: their tilt goes
+// when, over the span, it is less than the slide along the contact over report.flat_radius_m
+// (the rolls of a farther centre). Measured on the two-sensor regrasp's cube faces through the
+// default model: 1.2-21 rad of tilt per metre of slide (median 8), about 1e-4 from the rendered
+// normals; a 6 mm ball's rolls 167. Kept as they are when the tilt-free twists would no longer
+// span three directions.
+void drop_flat_tilt(const DegeneracyReport& report, Matrix6Xd& N) {
+  if (report.shape.mean_normal.norm() < kMinMeanNormal) return;
+  const Eigen::Vector3d n = report.shape.mean_normal.normalized();
+  const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - n * n.transpose();
+  const double tilt = (across * N.bottomRows<3>()).norm();
+  const double slide = (across * N.topRows<3>()).norm();
+  if (!(tilt * report.flat_radius_m < slide)) return;
+  Matrix6Xd flat = N;
+  flat.bottomRows<3>() = n * (n.transpose() * N.bottomRows<3>());
+  const Eigen::JacobiSVD<Matrix6Xd> svd(flat);
+  const auto& s = svd.singularValues();
+  if (s[s.size() - 1] > 1e-6 * s[0]) N = flat;
+}
+
 // DegeneracyReport::unconstrained_twists with the given sliver cost.
 Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
   const int k = report.unconstrained;
@@ -155,12 +174,12 @@ Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
   const Matrix6Xd free = report.eigenvectors.leftCols(k);
   const Eigen::Matrix3Xd rotations = free.bottomRows<3>();
   Matrix6Xd chosen = free;  // scaled coordinates
-  chosen.bottomRows<3>() = non_sliver_rotations(rotations, H_rr, threshold, sliver_cost) * rotations;
+  chosen.bottomRows<3>() =
+      non_sliver_rotations(rotations, H_rr, threshold, sliver_cost) * rotations;
   // A roll is no sliver: set aside the rotation rolling predicts, remove slivers from the rest.
   // Only for a contact whose normals face one side (a tactile contact's do; a mean normal
   // shorter than kMinMeanNormal has no direction to roll about).
-  if (report.shape.mean_normal.norm() >= kMinMeanNormal &&
-      !report.shape.shape_operator.isZero(0)) {
+  if (report.shape.mean_normal.norm() >= kMinMeanNormal && !report.shape.shape_operator.isZero(0)) {
     const Eigen::Matrix3Xd predicted = rolling_rotations(report, free);
     const Eigen::Matrix3Xd residual = rotations - predicted;
     const auto constrained_part = [&](const Eigen::Matrix3Xd& r) {
@@ -175,6 +194,7 @@ Matrix6Xd free_twists(const DegeneracyReport& report, double sliver_cost) {
     }
   }
   for (int i = 0; i < k; ++i) N.col(i) = unscale(chosen.col(i), report.rotation_scale_m);
+  if (k == 3 && report.flat_radius_m > 0) drop_flat_tilt(report, N);
   return N;
 }
 
@@ -207,7 +227,8 @@ ContactShape fit_contact_shape(const std::vector<Eigen::Vector3f>& points,
   for (int k = 0; k < 3; ++k) {
     if (eig.eigenvalues()[k] > 1e-9 * largest) inverse[k] = 1.0 / eig.eigenvalues()[k];
   }
-  const Eigen::Matrix3d K = B * eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  const Eigen::Matrix3d K =
+      B * eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
   shape.shape_operator = 0.5 * (K + K.transpose());
   if (!shape.shape_operator.allFinite() || !shape.mean_normal.allFinite()) return ContactShape();
   return shape;
@@ -227,11 +248,13 @@ Eigen::Matrix3d rotation_scale(const Eigen::Matrix3d& mean_outer_product_about_c
 
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
                                     const Eigen::Matrix3d& rotation_scale_m,
-                                    double min_eigenvalue_ratio, const ContactShape& shape) {
+                                    double min_eigenvalue_ratio, const ContactShape& shape,
+                                    double flat_radius_m) {
   DegeneracyReport report;
   report.centre_target = centre_target;
   report.rotation_scale_m = rotation_scale_m;
   report.shape = shape;
+  report.flat_radius_m = flat_radius_m;
   symmetric_eigen(H_scaled, report.eigenvalues, report.eigenvectors);
   const double largest = report.eigenvalues[5];
   // Never below the eigen-solver's rounding: a ratio of 0 took a flat patch's rounding-level

@@ -500,7 +500,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     D.bottomRightCorner<3, 3>() = L * Lambda.inverse();
     const DegeneracyReport degeneracy =
         analyse_degeneracy(D * H_scaled * D, c, Lambda, o.min_eigenvalue_ratio,
-                           shape_source.rotated(R));
+                           shape_source.rotated(R), o.flat_radius_m);
     if (!coarse) {
       result.inliers = eq.inliers;
       result.rms_m = std::sqrt(NormalEquations::total(eq.sq) / eq.inliers);

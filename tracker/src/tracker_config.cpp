@@ -84,6 +84,7 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
   o.coarse_points = int_in(f, "coarse_points", 0, 100000000, o.coarse_points);
   o.coarse_step_m = f.number_in("coarse_step_m", 0.0, 1.0, o.coarse_step_m);
   o.min_eigenvalue_ratio = f.number_in("min_eigenvalue_ratio", 0.0, 1.0, o.min_eigenvalue_ratio);
+  o.flat_radius_m = f.number_in("flat_radius_m", 0.0, 1e3, o.flat_radius_m);
   o.min_residual_sigma_m = f.number_in("min_residual_sigma_m", 1e-12, 1.0, o.min_residual_sigma_m);
   f.finish();
 }
@@ -145,6 +146,7 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"coarse_points", c.icp.coarse_points},
         {"coarse_step_m", c.icp.coarse_step_m},
         {"min_eigenvalue_ratio", c.icp.min_eigenvalue_ratio},
+        {"flat_radius_m", c.icp.flat_radius_m},
         {"min_residual_sigma_m", c.icp.min_residual_sigma_m}}},
   };
 }

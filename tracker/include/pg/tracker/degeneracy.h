@@ -27,7 +27,7 @@ using Matrix6Xd = Eigen::Matrix<double, 6, Eigen::Dynamic, Eigen::ColMajor, 6, 6
 // point, and for a cylinder, (I - a a^T) / r; zero for a plane). The sign of the normals does
 // not matter where it is used: n x (K rho) is the same for -n and -K.
 struct ContactShape {
-  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();  // not normalised; zero: unknown
+  Eigen::Vector3d mean_normal = Eigen::Vector3d::Zero();     // not normalised; zero: unknown
   Eigen::Matrix3d shape_operator = Eigen::Matrix3d::Zero();  // K [1/m]
   // The same shape in a frame rotated by R (points and normals mapped by R).
   ContactShape rotated(const Eigen::Matrix3d& R) const {
@@ -47,6 +47,9 @@ struct DegeneracyReport {
   Matrix6d eigenvectors = Matrix6d::Identity();
   int unconstrained = 6;            // how many of the first eigenvalues fall below the ratio
   double min_eigenvalue_ratio = 0;  // the ratio they were compared with [-]
+  // Three free directions that roll the contact about a centre farther than this are read as a
+  // flat face's two slides and spin (unconstrained_twists); 0: never [m].
+  double flat_radius_m = 0;
   // The contact's shape in the target frame (ContactShape), when the analysis was given it.
   ContactShape shape;
 
@@ -65,16 +68,23 @@ struct DegeneracyReport {
   // kappa along the slide, from `shape`), is kept when it explains all but a tenth of the
   // direction's constrained rotation and the directions then fit the data at least twice as
   // well; without a shape, every sliver is removed as before.
+  // With flat_radius_m set, three free directions whose tilt (rotation across the contact's mean
+  // normal) is less than their slide along the contact over flat_radius_m lose that tilt: they
+  // are then the two slides and the spin of a flat face. Learned normals bend a flat face into a
+  // dome of several centimetres' radius, whose rolls turn every frame's tilt error into a slide
+  // (an option for them: a real ball that large has such rolls).
   Matrix6Xd unconstrained_twists() const;
   // The same directions as twists [rho; phi] about the target frame's origin.
   Matrix6Xd unconstrained_twists_at_origin() const;
 };
 
 // Eigen-decomposes H_scaled (the Hessian in [rho_c; Lambda phi]); eigenvalues below
-// min_eigenvalue_ratio times the largest (or not positive) are unconstrained.
+// min_eigenvalue_ratio times the largest (or not positive) are unconstrained. flat_radius_m: see
+// DegeneracyReport.
 DegeneracyReport analyse_degeneracy(const Matrix6d& H_scaled, const Eigen::Vector3d& centre_target,
                                     const Eigen::Matrix3d& rotation_scale_m,
-                                    double min_eigenvalue_ratio, const ContactShape& shape = {});
+                                    double min_eigenvalue_ratio, const ContactShape& shape = {},
+                                    double flat_radius_m = 0);
 
 // What a registration of `cloud` could constrain at best: the degeneracy of its point-to-plane
 // Hessian at perfect alignment with itself (each point's residual along its own normal), about

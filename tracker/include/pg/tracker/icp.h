@@ -42,6 +42,10 @@ struct IcpOptions {
   // Degeneracy: a direction is unconstrained when its eigenvalue of the scaled Hessian (see
   // degeneracy.h) is below this fraction of the largest [-].
   double min_eigenvalue_ratio = 5e-3;
+  // Three free directions rolling the contact about a centre farther than this are taken for a
+  // flat face's slides and spin (DegeneracyReport::flat_radius_m); 0: off, as for exact normals,
+  // where a large ball's rolls are real. `track` sets 0.02 for learned normals [m].
+  double flat_radius_m = 0;
   // Floor of the residual sigma used for the information matrix (exact synthetic data would
   // otherwise give infinite information) [m].
   double min_residual_sigma_m = 1e-5;

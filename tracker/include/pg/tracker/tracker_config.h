@@ -10,7 +10,7 @@
 //     "icp":   {"max_iterations": 30, "max_correspondence_m": 1e-3, "kernel": "huber",
 //               "kernel_scale_m": 1e-4, "convergence_translation_m": 1e-7,
 //               "convergence_rotation_rad": 1e-6, "min_points": 20, "voxel_size_m": 0,
-//               "min_eigenvalue_ratio": 5e-3, "min_residual_sigma_m": 1e-5}
+//               "min_eigenvalue_ratio": 5e-3, "flat_radius_m": 0, "min_residual_sigma_m": 1e-5}
 //   }
 #include <nlohmann/json_fwd.hpp>
 #include <string>
