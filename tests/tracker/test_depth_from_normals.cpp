@@ -23,7 +23,8 @@ TEST(PoissonDst, FastSizesFactorIntoSmallPrimesAndAreMinimal) {
     const int m = dst_fast_size(n);
     ASSERT_GE(m, n);
     int k = m + 1;
-    for (int p : {2, 3, 5, 7}) while (k % p == 0) k /= p;
+    for (int p : {2, 3, 5, 7})
+      while (k % p == 0) k /= p;
     EXPECT_EQ(k, 1) << n;
   }
   EXPECT_EQ(dst_fast_size(319), 319);
@@ -33,27 +34,31 @@ TEST(PoissonDst, FastSizesFactorIntoSmallPrimesAndAreMinimal) {
 
 TEST(PoissonDst, SolvesItsDiscreteOperatorToFloatPrecisionAndReusesPlans) {
   for (DstBackend backend : {DstBackend::kRealFft, DstBackend::kFftwR2r}) {
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> uni(-1, 1);
-  PoissonDstSolver solver(PoissonDstOptions{backend, false, 32});
-  for (auto [nx, ny] : {std::pair{15, 20}, std::pair{34, 26}, std::pair{15, 20}, std::pair{1, 7}}) {
-    // A random w with w = 0 outside; f = its 5-point Laplacian; the solve must give w back.
-    std::vector<float> w(nx * ny);
-    for (auto& v : w) v = uni(rng);
-    auto at = [&](int x, int y) { return (x < 0 || y < 0 || x >= nx || y >= ny) ? 0.0f : w[y * nx + x]; };
-    float* f = solver.grid(nx, ny);
-    for (int y = 0; y < ny; ++y) {
-      for (int x = 0; x < nx; ++x) {
-        f[y * nx + x] = at(x + 1, y) + at(x - 1, y) + at(x, y + 1) + at(x, y - 1) - 4 * at(x, y);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> uni(-1, 1);
+    PoissonDstSolver solver(PoissonDstOptions{backend, false, 32});
+    for (auto [nx, ny] :
+         {std::pair{15, 20}, std::pair{34, 26}, std::pair{15, 20}, std::pair{1, 7}}) {
+      // A random w with w = 0 outside; f = its 5-point Laplacian; the solve must give w back.
+      std::vector<float> w(nx * ny);
+      for (auto& v : w) v = uni(rng);
+      auto at = [&](int x, int y) {
+        return (x < 0 || y < 0 || x >= nx || y >= ny) ? 0.0f : w[y * nx + x];
+      };
+      float* f = solver.grid(nx, ny);
+      for (int y = 0; y < ny; ++y) {
+        for (int x = 0; x < nx; ++x) {
+          f[y * nx + x] = at(x + 1, y) + at(x - 1, y) + at(x, y + 1) + at(x, y - 1) - 4 * at(x, y);
+        }
       }
+      solver.solve();
+      double max_err = 0;
+      for (int i = 0; i < nx * ny; ++i) max_err = std::max(max_err, double(std::abs(f[i] - w[i])));
+      EXPECT_LT(max_err, 2e-5) << nx << " x " << ny
+                               << (backend == DstBackend::kRealFft ? " real fft" : " r2r");
     }
-    solver.solve();
-    double max_err = 0;
-    for (int i = 0; i < nx * ny; ++i) max_err = std::max(max_err, double(std::abs(f[i] - w[i])));
-    EXPECT_LT(max_err, 2e-5) << nx << " x " << ny << (backend == DstBackend::kRealFft ? " real fft" : " r2r");
-  }
-  EXPECT_EQ(solver.plans_created(), 3);
-  EXPECT_EQ(solver.cached_sizes(), 3);
+    EXPECT_EQ(solver.plans_created(), 3);
+    EXPECT_EQ(solver.cached_sizes(), 3);
   }
 }
 
@@ -104,9 +109,8 @@ TEST_P(AnalyticSphere, DepthWithinTwoPercentOfPressInTheCore) {
     EXPECT_GT(core, 100);
     EXPECT_LT(max_err, (parity ? 0.04 : 0.02) * sc.press_m)
         << sc.preset << (crop ? " cropped" : " full") << (parity ? " parity" : " averaged")
-        << ": largest core error " << max_err * 1e6
-        << " um for a press of " << sc.press_m * 1e6 << " um (true max " << true_max * 1e6
-        << " um), " << core << " core pixels";
+        << ": largest core error " << max_err * 1e6 << " um for a press of " << sc.press_m * 1e6
+        << " um (true max " << true_max * 1e6 << " um), " << core << " core pixels";
     if (crop) {
       EXPECT_LT(out.window.area(), long(sensor.camera.width) * sensor.camera.height / 2)
           << "the crop should cover the contact, not the image";
@@ -120,8 +124,7 @@ INSTANTIATE_TEST_SUITE_P(Resolutions, AnalyticSphere,
                                            SphereCase{"digit_240x320", 0.0003}),
                          [](const ::testing::TestParamInfo<SphereCase>& info) {
                            return std::string(info.param.preset) + "_press" +
-                                  std::to_string(int(std::lround(info.param.press_m * 1e6))) +
-                                  "um";
+                                  std::to_string(int(std::lround(info.param.press_m * 1e6))) + "um";
                          });
 
 TEST(DepthFromNormals, GelModelReferenceMatchesANoContactFrameReference) {
@@ -192,7 +195,8 @@ TEST(DepthBadInput, AllBackgroundFrameIsNoContact) {
 
 TEST(DepthBadInput, TinyContactBelowTheMinimumAreaIsNoContact) {
   const SensorModel sensor = sensor_preset("digit");
-  // A 2 mm sphere pressed 0.15 mm: about 0.9 mm^2 of contact, of which ~0.2 mm^2 deeper than 0.1 mm.
+  // A 2 mm sphere pressed 0.15 mm: about 0.9 mm^2 of contact, of which ~0.2 mm^2 deeper than 0.1
+  // mm.
   const auto frame = analytic_sphere_frame(sensor, {0, 0, 0.001 - 0.00015}, 0.001);
   ContactCloudOptions options;
   options.mask.min_area_m2 = 1e-6;
