@@ -1,6 +1,7 @@
 #include "pg/tracker/contact_cloud.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <utility>
 
@@ -51,6 +52,19 @@ void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   frame.rejected_normals = frame.depth.invalid_normals;
   contact_mask(frame.depth.depth, frame.depth.window, options_.mask, rays().pixel_area_m2(),
                frame.mask);
+  // A contact that reaches the image's edge: integrated again with the image mirrored across
+  // those edges (DepthFromNormals::compute), and masked again. Not from the disturbed pixels
+  // alone: a network's normals differ from the reference a little everywhere, and mirrored
+  // across every edge their error is held by none (the default scene from learned normals
+  // 0.72 -> 3.47 mm RMSE).
+  const PixelRect& b = frame.mask.box;
+  const std::array<bool, 4> edges = {b.x0 == 0, b.y0 == 0, b.x1 == rays().width,
+                                     b.y1 == rays().height};
+  if (frame.mask.contact && std::find(edges.begin(), edges.end(), true) != edges.end()) {
+    depth_.compute(normals, frame.depth, edges);
+    contact_mask(frame.depth.depth, frame.depth.window, options_.mask, rays().pixel_area_m2(),
+                 frame.mask);
+  }
   frame.cloud_sensor.clear();
   frame.status = ContactStatus::kNoContact;
   frame.core = false;

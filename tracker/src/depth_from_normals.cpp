@@ -88,6 +88,29 @@ void fast_window(int lo, int hi, int margin, int& out_lo, int& out_hi, bool even
   out_hi = out_lo + n;
 }
 
+// The image row or column each of `count` grid positions from `first` reads (-1: none, past an
+// edge not mirrored or past the mirrored copy) and the sign of the gradient's component along
+// the axis there: a position mirrored across an edge reads the pixel as far inside it, the
+// gradient's component across the edge reversed.
+void map_grid_axis(int first, int count, int size, bool mirror_low, bool mirror_high,
+                   std::vector<int>& source, std::vector<float>& sign) {
+  source.resize(std::size_t(count));
+  sign.resize(std::size_t(count));
+  for (int k = 0; k < count; ++k) {
+    int v = first + k;
+    float s = 1.0f;
+    if (v < 0 && mirror_low) {
+      v = -1 - v;
+      s = -1.0f;
+    } else if (v >= size && mirror_high) {
+      v = 2 * size - 1 - v;
+      s = -1.0f;
+    }
+    source[std::size_t(k)] = v >= 0 && v < size ? v : -1;
+    sign[std::size_t(k)] = s;
+  }
+}
+
 void check_normal_image(const ImageF& image, const GelRays& rays, const char* what) {
   if (!image.same_shape(rays.width, rays.height, 3)) {
     throw InputError(std::string(what) + ": expected a " + std::to_string(rays.width) + " x " +
@@ -140,7 +163,8 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
   }
 }
 
-void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
+void DepthFromNormals::compute(const ImageF& normals, DepthResult& out,
+                               const std::array<bool, 4>& mirror_edges) {
   check_normal_image(normals, rays_, "normals");
   const int W = rays_.width, H = rays_.height;
 
@@ -155,6 +179,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   }
   out.window = {};
   out.disturbed_box = {};
+  out.mirrored = {};
   out.disturbed_pixels = out.invalid_normals = out.clamped_normals = 0;
 
   // 1. Which pixels differ from the reference, row by row.
@@ -180,8 +205,16 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   if (out.disturbed_pixels == 0) return;  // flat: u = 0 everywhere
   out.disturbed_box = {bx0, by0, bx1 + 1, by1 + 1};
 
-  // 2. The Poisson grid: the disturbed box plus margin, or the whole image, at fast DST sizes.
-  const PixelRect need = options_.crop ? out.disturbed_box : PixelRect{0, 0, W, H};
+  // 2. The Poisson grid: the disturbed box plus margin, or the whole image, at fast DST sizes;
+  // with the box's mirror image across each edge to mirror (the header's compute).
+  const std::array<bool, 4> reached = {bx0 == 0, by0 == 0, bx1 == W - 1, by1 == H - 1};
+  for (int e = 0; e < 4; ++e) out.mirrored[e] = mirror_edges[e] && reached[e];
+  const PixelRect box = options_.crop ? out.disturbed_box : PixelRect{0, 0, W, H};
+  PixelRect need = box;
+  if (out.mirrored[0]) need.x0 = -box.x1;
+  if (out.mirrored[1]) need.y0 = -box.y1;
+  if (out.mirrored[2]) need.x1 = 2 * W - box.x0;
+  if (out.mirrored[3]) need.y1 = 2 * H - box.y0;
   const int margin = options_.crop ? options_.crop_margin_px : 0;
   PixelRect& win = out.window;
   const bool parity = options_.integration == DepthIntegration::kParity;
@@ -189,31 +222,38 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out) {
   fast_window(need.y0, need.y1, margin, win.y0, win.y1, parity);
   const int nx = win.width(), ny = win.height();
 
-  // 3. g - g_ref over the grid and a one-pixel ring; zero outside the image. Invalid normals
-  // are holes, filled afterwards from their row's valid neighbours.
+  // 3. g - g_ref over the grid and a one-pixel ring: the image's own inside it, mirrored across
+  // an edge the contact reaches, zero past any other edge. Invalid normals are holes, filled
+  // afterwards from their row's valid neighbours.
   const int gw = nx + 2, gh = ny + 2;
   gx_.assign(std::size_t(gw) * gh, 0.0f);
   gy_.assign(std::size_t(gw) * gh, 0.0f);
+  map_grid_axis(win.x0 - 1, gw, W, out.mirrored[0], out.mirrored[2], source_x_, sign_x_);
+  map_grid_axis(win.y0 - 1, gh, H, out.mirrored[1], out.mirrored[3], source_y_, sign_y_);
   std::vector<std::size_t> holes;  // grid indices; allocated only for a frame that has some
-  const PixelRect ring = PixelRect{win.x0 - 1, win.y0 - 1, win.x1 + 1, win.y1 + 1}.clipped(W, H);
   const float* nimg = normals.data.data();
   const float fx = float(rays_.fx), fy = float(rays_.fy);
   const float min_dot = float(options_.min_normal_dot_ray);
-  for (int y = ring.y0; y < ring.y1; ++y) {
-    for (int x = ring.x0; x < ring.x1; ++x) {
+  for (int gy = 0; gy < gh; ++gy) {
+    const int y = source_y_[std::size_t(gy)];
+    if (y < 0) continue;
+    const bool own_row = y == win.y0 - 1 + gy;
+    for (int gx = 0; gx < gw; ++gx) {
+      const int x = source_x_[std::size_t(gx)];
+      if (x < 0) continue;
       const std::size_t i = std::size_t(y) * W + x;
+      const std::size_t j = std::size_t(gy) * gw + gx;
       const float* n = nimg + 3 * i;
       if (!valid_normal(n)) {
-        holes.push_back(std::size_t(y - win.y0 + 1) * gw + (x - win.x0 + 1));
+        holes.push_back(j);
         continue;
       }
-      float gx, gy;
-      if (!log_depth_gradient(n, rays_.dir_sensor[i], fx, fy, min_dot, gx, gy)) {
-        ++out.clamped_normals;
-      }
-      const std::size_t j = std::size_t(y - win.y0 + 1) * gw + (x - win.x0 + 1);
-      gx_[j] = gx - reference_gradient_[2 * i];
-      gy_[j] = gy - reference_gradient_[2 * i + 1];
+      float g_x, g_y;
+      const bool unclamped = log_depth_gradient(n, rays_.dir_sensor[i], fx, fy, min_dot, g_x, g_y);
+      // (A mirrored pixel is the image's own pixel again: counted once.)
+      if (!unclamped && own_row && x == win.x0 - 1 + gx) ++out.clamped_normals;
+      gx_[j] = sign_x_[std::size_t(gx)] * (g_x - reference_gradient_[2 * i]);
+      gy_[j] = sign_y_[std::size_t(gy)] * (g_y - reference_gradient_[2 * i + 1]);
     }
   }
 

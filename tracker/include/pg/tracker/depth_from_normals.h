@@ -11,6 +11,7 @@
 // Only the difference from a reference (no-contact) normal image is integrated, so the curved
 // gel's own shape cancels: w = ln(t / t_gel) solves  lap w = div(g - g_ref), w = 0 where the gel
 // is undisturbed, and the indentation is u = t_gel - t = t_gel (1 - exp(w)).
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -51,8 +52,11 @@ struct DepthOptions {
 };
 
 struct DepthResult {
-  ImageF depth;             // indentation u [m] along the camera z axis, width x height x 1
-  PixelRect window;         // the Poisson grid in image coordinates (may reach past the image)
+  ImageF depth;      // indentation u [m] along the camera z axis, width x height x 1
+  PixelRect window;  // the Poisson grid in image coordinates (may reach past the image)
+  // Edges of the image (left, top, right, bottom) across which the grid held the image
+  // mirrored (DepthFromNormals::compute).
+  std::array<bool, 4> mirrored{};
   PixelRect disturbed_box;  // bounding box of the disturbed pixels (empty: none)
   int disturbed_pixels = 0;
   // NaN, inf, far from unit length or n.z <= 0: their gradient is interpolated from the valid
@@ -75,7 +79,14 @@ class DepthFromNormals {
 
   // Fills `out` (its buffers are reused across calls). Throws InputError if `normals` is not
   // width x height x 3.
-  void compute(const ImageF& normals, DepthResult& out);
+  // mirror_edges (left, top, right, bottom): edges of the image a contact reaches. A contact
+  // goes on past the image's edge, where nothing is known; integrated with the gradients there
+  // zero (the flat gel), as across the other edges, its depth is pulled toward zero at the edge
+  // and tilts. Across each of these edges that the disturbed pixels reach, the grid holds the
+  // image mirrored, its gradients reflected: the solution is symmetric about the edge, so nothing
+  // past it pulls (the least-squares boundary).
+  void compute(const ImageF& normals, DepthResult& out,
+               const std::array<bool, 4>& mirror_edges = {});
 
   const GelRays& rays() const { return rays_; }
   const DepthOptions& options() const { return options_; }
@@ -87,8 +98,12 @@ class DepthFromNormals {
   ImageF reference_normals_;
   std::vector<float> reference_gradient_;  // g_ref per pixel: (d ln t / dx, d ln t / dy)
   std::vector<float> gx_, gy_;             // g - g_ref over the grid plus a 1-pixel ring
-  std::vector<std::uint8_t> flags_;        // one row's disturbed flags
-  std::vector<float> w_;                   // ln(t / t_gel) over the grid (kParity)
+  // For each column (row) of that ring-padded grid: the image column (row) it reads, -1 for none,
+  // and the sign its gradient's x (y) component takes there (-1 across a mirrored edge).
+  std::vector<int> source_x_, source_y_;
+  std::vector<float> sign_x_, sign_y_;
+  std::vector<std::uint8_t> flags_;  // one row's disturbed flags
+  std::vector<float> w_;             // ln(t / t_gel) over the grid (kParity)
 
   // Solve for w over the nx x ny grid from gx_, gy_; the result is valid until the next solve.
   const float* integrate_averaged(int nx, int ny);
