@@ -910,6 +910,36 @@ TEST_F(PatchgraphCli, TheDefaultModelTracksTheRegraspsFlatFaces) {
   EXPECT_EQ(summary["lost_frames"].get<int>(), 0) << track.out;
 }
 
+// An object pressed further than the gel's maximum indentation (2 mm for the DIGIT): the
+// renderer clamps the indentation, the contact's shape is cut flat, and `track` says so (an
+// audit's default scene pressed 5 mm tracked 1.58 mm RMSE with only the render's warning). The
+// example's own 1 mm press does not reach it.
+TEST_F(PatchgraphCli, APressPastTheGelsMaximumIndentationIsWarnedAbout) {
+  nlohmann::json scene =
+      parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json");
+  scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
+  scene["objects"][0]["pose"]["position"] = {0.0, 0.0, 0.0025};  // 3.5 mm into the gel
+  const std::string scene_file = out("past_the_gel.json");
+  std::ofstream(scene_file) << scene.dump(2);
+  const std::string render = out("past_the_gel");
+  ASSERT_EQ(run(TACSIM_PATH, "render " + scene_file + " -q --outputs normal --out " + render).code,
+            0);
+  const CliRun past = patchgraph("track " + render + " -q --out " + out("past_the_gel_track"));
+  ASSERT_EQ(past.code, 0) << past.out;
+  EXPECT_NE(past.out.find("warning: in 10 frame(s) the contact reached the gel's maximum "
+                          "indentation (2.00 mm, the dataset's sensor gel.max_indentation_m)"),
+            std::string::npos)
+      << past.out;
+  EXPECT_EQ(parse_json_file(out("past_the_gel_track") + "/summary.json")["saturated_frames"], 10);
+  const std::string within = out("sphere_press_1mm");
+  ASSERT_EQ(render_scene("examples/sphere_press.json", "-q --outputs normal --out " + within).code,
+            0);
+  const CliRun pressed = patchgraph("track " + within + " -q --out " + out("sphere_press_track"));
+  ASSERT_EQ(pressed.code, 0) << pressed.out;
+  EXPECT_EQ(pressed.out.find("maximum indentation"), std::string::npos) << pressed.out;
+  EXPECT_EQ(parse_json_file(out("sphere_press_track") + "/summary.json")["saturated_frames"], 0);
+}
+
 // Each sensor may have its own normals model (--normals A,B in the sequence's order): sensors of
 // different image sizes, or real sensors each with its own illumination.
 TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {

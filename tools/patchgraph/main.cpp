@@ -204,6 +204,14 @@ int run_track(const TrackArgs& a) {
                  "(errors.csv: reference_mismatch)\n",
                  s.reference_mismatch_frames);
   }
+  if (s.saturated_frames > 0) {
+    std::fprintf(stderr,
+                 "warning: in %d frame(s) the contact reached the gel's maximum indentation "
+                 "(%.2f mm, the dataset's sensor gel.max_indentation_m): the object pressed "
+                 "further than the gel can show, its shape there is cut flat, and those frames' "
+                 "registrations see a plateau, not the object\n",
+                 s.saturated_frames, dataset.info().sensor.gel.max_indentation_m * 1e3);
+  }
   if (s.invalid_input_frames > 0) {
     std::fprintf(stderr,
                  "warning: %d frame(s) had a non-finite sensor pose, vision prior or point, or "

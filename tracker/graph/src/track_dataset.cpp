@@ -252,6 +252,10 @@ namespace {
 
 // What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
 // for learned normals, its no-contact reference.
+// A contact at this fraction of its gel's maximum indentation has reached it (FrameResult::
+// saturated): the renderer clamps there, and a real gel stops giving way.
+constexpr double kSaturatedFraction = 0.98;
+
 struct SensorFeed {
   // `reference`: the dataset's no-contact image, for learned normals (else empty).
   SensorFeed(const Dataset& d, const TrackerConfig& config, ImageU8 reference)
@@ -375,6 +379,9 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
       SensorInput& sensor = k == 0 ? input : input.other_sensors[k - 1];
       set_measurement(feed.contact, sensor);
       r.rejected_normals += feed.contact.rejected_normals;
+      r.saturated |= feed.contact.status == ContactStatus::kContact &&
+                     feed.contact.mask.deepest_m >=
+                         kSaturatedFraction * feed.dataset->info().sensor.gel.max_indentation_m;
       r.contact_points += int(sensor.cloud_sensor.size());
     }
     const TrackerEstimate est = run.tracker->add(input);
@@ -464,6 +471,7 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.invalid_input_frames += f.invalid_input;
     s.rejected_normal_frames += f.rejected_normals > 0;
     s.reference_mismatch_frames += f.reference_mismatch;
+    s.saturated_frames += f.saturated;
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
     if (f.contact) ++s.unconstrained_direction_frames[std::clamp(f.unconstrained_directions, 0, 6)];
@@ -553,6 +561,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
       {"invalid_input_frames", s.invalid_input_frames},
       {"rejected_normal_frames", s.rejected_normal_frames},
       {"reference_mismatch_frames", s.reference_mismatch_frames},
+      {"saturated_frames", s.saturated_frames},
       {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
       {"unconstrained_direction_frames", s.unconstrained_direction_frames},

@@ -42,8 +42,8 @@ struct TrackOptions {
 
 struct FrameResult {
   int frame = 0;
-  SE3 T_world_object;     // estimated, as it was right after this frame's update
-  SE3 T_world_object_gt;  // ground truth, where the dataset has it
+  SE3 T_world_object;              // estimated, as it was right after this frame's update
+  SE3 T_world_object_gt;           // ground truth, where the dataset has it
   bool ground_truth = true;        // false: the dataset has no object pose at this frame
   double translation_error_m = 0;  // NaN without ground truth
   double rotation_error_rad = 0;
@@ -65,6 +65,10 @@ struct FrameResult {
   // (pg/core/image_change.h), more than any press changes: the lighting changed or the camera
   // moved since the reference was taken, which the network reads as contact everywhere.
   bool reference_mismatch = false;
+  // A sensor's contact reached its gel's maximum indentation (the mask's deepest, a 98th
+  // percentile, at 98 % of gel.max_indentation_m or more): pressed further than the gel can
+  // show, the contact's shape is cut flat there.
+  bool saturated = false;
   bool tracking_lost = false;  // the tracker's own report (TrackerEstimate::tracking_lost)
   // Directions of the pose the image-to-patch registration could not see (0-6; a flat face 3, a
   // sphere 3, a rounded edge 2): the estimate follows the motion prior along them.
@@ -96,9 +100,10 @@ struct TrackSummary {
   // GraphOptions::max_registration_residual_m), both tracking warnings.
   int unconverged_registrations = 0;
   int overridden_registrations = 0;
-  int invalid_input_frames = 0;    // frames with a non-finite or missing input left out
-  int rejected_normal_frames = 0;  // frames with any rejected normal pixel
+  int invalid_input_frames = 0;       // frames with a non-finite or missing input left out
+  int rejected_normal_frames = 0;     // frames with any rejected normal pixel
   int reference_mismatch_frames = 0;  // frames with FrameResult::reference_mismatch
+  int saturated_frames = 0;           // frames with FrameResult::saturated
   // Frames whose image-to-image factor was left out for disagreeing with the image-to-patch one.
   int image_to_image_dropped = 0;
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
