@@ -402,6 +402,7 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     r.new_episode = est.new_episode;
     r.image_to_patch = est.image_to_patch;
     r.image_to_image_dropped = est.image_to_image_dropped;
+    r.registration_disagreement_rad = est.registration_disagreement_rad;
     r.rejected_registrations = est.rejected_registrations;
     r.unconverged_registrations = est.unconverged_registrations;
     r.overridden_registrations = est.overridden_registrations;
@@ -472,6 +473,9 @@ TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string
     s.rejected_normal_frames += f.rejected_normals > 0;
     s.reference_mismatch_frames += f.reference_mismatch;
     s.saturated_frames += f.saturated;
+    s.two_registration_frames += !std::isnan(f.registration_disagreement_rad);
+    s.disagreeing_registration_frames +=
+        f.registration_disagreement_rad > kDisagreeingRegistrationsRad;
     s.image_to_image_dropped += f.image_to_image_dropped;
     s.degenerate_frames += f.contact && f.unconstrained_directions > 0;
     if (f.contact) ++s.unconstrained_direction_frames[std::clamp(f.unconstrained_directions, 0, 6)];
@@ -562,6 +566,8 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
       {"rejected_normal_frames", s.rejected_normal_frames},
       {"reference_mismatch_frames", s.reference_mismatch_frames},
       {"saturated_frames", s.saturated_frames},
+      {"two_registration_frames", s.two_registration_frames},
+      {"disagreeing_registration_frames", s.disagreeing_registration_frames},
       {"image_to_image_dropped", s.image_to_image_dropped},
       {"degenerate_frames", s.degenerate_frames},
       {"unconstrained_direction_frames", s.unconstrained_direction_frames},

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
+#include <limits>
 #include <string>
 
 #include "pg/core/error.h"
@@ -135,14 +137,17 @@ Matrix6d PatchGraphTracker::registration_sqrt_info(const IcpResult& r, double si
   return projector / sigma + (Matrix6d::Identity() - projector) / options_.sigma_unconstrained;
 }
 
-bool PatchGraphTracker::gate_image_to_image(std::size_t first_registration) {
-  if (options_.image_to_image_gate_rad <= 0) return false;
-  std::size_t to_previous = factors_.size(), to_patch = factors_.size();
+double PatchGraphTracker::registration_disagreement(std::size_t first_registration,
+                                                    std::size_t& to_previous) const {
+  to_previous = factors_.size();
+  std::size_t to_patch = factors_.size();
   for (std::size_t k = first_registration; k < factors_.size(); ++k) {
     if (factors_[k].kind == FactorKind::kImageToImage) to_previous = k;
     if (factors_[k].kind == FactorKind::kImageToPatch) to_patch = k;
   }
-  if (to_previous == factors_.size() || to_patch == factors_.size()) return false;
+  if (to_previous == factors_.size() || to_patch == factors_.size()) {
+    return std::numeric_limits<double>::quiet_NaN();
+  }
   // The object in the current sensor frame, as each registration has it: the patch's answer
   // T_object_sensor inverted, and the previous frame's estimate carried by the image-to-image
   // answer T_previous_current.
@@ -151,7 +156,13 @@ bool PatchGraphTracker::gate_image_to_image(std::size_t first_registration) {
   const SE3 from_previous =
       factors_[to_previous].measured.inverse() *
       (pose_from_block(p.sensors[factors_[to_previous].sensor].e).inverse() * pose_from_block(p.o));
-  if (rotation_distance(from_previous, from_patch) <= options_.image_to_image_gate_rad) {
+  return rotation_distance(from_previous, from_patch);
+}
+
+bool PatchGraphTracker::gate_image_to_image(std::size_t first_registration, double& disagreement) {
+  std::size_t to_previous = 0;
+  disagreement = registration_disagreement(first_registration, to_previous);
+  if (options_.image_to_image_gate_rad <= 0 || !(disagreement > options_.image_to_image_gate_rad)) {
     return false;
   }
   factors_.erase(factors_.begin() + std::ptrdiff_t(to_previous));
@@ -402,7 +413,9 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     anchors[k] = m == Method::kImageToImage ? to_previous : to_patch;
     // When both registrations were accepted (a factor each from first_of_sensor on), the gate
     // may leave the image-to-image one out.
-    if (gate_image_to_image(first_of_sensor)) est.image_to_image_dropped = true;
+    double disagreement = 0;
+    if (gate_image_to_image(first_of_sensor, disagreement)) est.image_to_image_dropped = true;
+    est.registration_disagreement_rad = std::fmax(est.registration_disagreement_rad, disagreement);
   }
   // Another sensor's image-to-image factor may hold where one sensor's was left out.
   est.image_to_image =

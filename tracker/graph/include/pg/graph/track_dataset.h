@@ -51,7 +51,8 @@ struct FrameResult {
   int contact_sensors = 0;  // how many sensors touched
   bool new_episode = false;
   bool image_to_patch = false;
-  bool image_to_image_dropped = false;  // TrackerEstimate::image_to_image_dropped
+  bool image_to_image_dropped = false;       // TrackerEstimate::image_to_image_dropped
+  double registration_disagreement_rad = 0;  // TrackerEstimate's (NaN: not both registrations)
   int rejected_registrations = 0;
   int unconverged_registrations = 0;  // TrackerEstimate's counts, per frame
   int overridden_registrations = 0;
@@ -82,6 +83,11 @@ struct FrameResult {
   double normals_ms = 0;  // of which estimating the normals (0 for ground-truth normals)
 };
 
+// Two registrations of one frame turning the object further apart than this disagree
+// (TrackSummary::disagreeing_registration_frames): 10 mrad, beyond the benchmark's 99th
+// percentile on the cube and the toy brick (6.8 and 4.5 mrad; the toy human 27).
+constexpr double kDisagreeingRegistrationsRad = 0.01;
+
 struct TrackSummary {
   std::string method;
   std::uint64_t seed = 0;  // of the simulated sensor-pose and vision-prior noise
@@ -104,6 +110,11 @@ struct TrackSummary {
   int rejected_normal_frames = 0;     // frames with any rejected normal pixel
   int reference_mismatch_frames = 0;  // frames with FrameResult::reference_mismatch
   int saturated_frames = 0;           // frames with FrameResult::saturated
+  // Frames where both registrations of a sensor held, and those of them whose two answers turned
+  // the object more than kDisagreeingRegistrationsRad apart (FrameResult::
+  // registration_disagreement_rad): where the contact shows its rotation poorly.
+  int two_registration_frames = 0;
+  int disagreeing_registration_frames = 0;
   // Frames whose image-to-image factor was left out for disagreeing with the image-to-patch one.
   int image_to_image_dropped = 0;
   // Contact frames whose image-to-patch registration left a direction unconstrained: where the
