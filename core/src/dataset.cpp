@@ -200,7 +200,7 @@ void write_poses_csv(const std::string& path, const std::vector<FramePose>& pose
 }
 
 std::vector<FramePose> read_poses_csv(const std::string& path) {
-  if (fs::is_directory(path)) throw InputError(path + ": is a directory, not a poses.csv file");
+  require_regular_file(path, "a poses.csv file");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::string line;
@@ -545,6 +545,7 @@ ImageU8 Dataset::color(int frame) const {
 }
 ImageU8 Dataset::background() const {
   const std::string path = (fs::path(dir_) / "background.png").string();
+  require_regular_file(path, "a background image");  // not taken for a missing one
   if (fs::is_regular_file(path)) {
     ImageU8 image = read_image_u8(path);
     check_image(path, image, info_.width(), info_.height(), 3);

@@ -96,6 +96,16 @@ std::string replaceable_file(const std::string& path) {
   return ec ? path : target.string();
 }
 
+void require_regular_file(const std::string& path, const std::string& what) {
+  std::error_code ec;
+  const fs::file_status status = fs::status(path, ec);
+  if (!fs::exists(status)) return;
+  if (fs::is_directory(status)) throw InputError(path + ": is a directory, not " + what);
+  if (!fs::is_regular_file(status)) {
+    throw InputError(path + ": is not a regular file (a device, pipe or socket), not " + what);
+  }
+}
+
 void check_can_write(const std::string& path) {
   if (is_special_file(path)) return;
   const std::string probe = temporary_path_for(replaceable_file(path));

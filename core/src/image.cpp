@@ -15,12 +15,8 @@ namespace pg {
 namespace {
 
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
-  if (std::filesystem::is_directory(path)) {
-    throw InputError(path + ": is a directory, not an image file");
-  }
-  if (!std::filesystem::is_regular_file(path)) {
-    throw InputError(path + ": image file not found");
-  }
+  require_regular_file(path, "an image file");
+  if (!std::filesystem::is_regular_file(path)) throw InputError(path + ": image file not found");
   auto in = OIIO::ImageInput::open(path);
   if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
   return in;

@@ -9,6 +9,7 @@
 #include <set>
 #include <sstream>
 
+#include "pg/core/file_io.h"
 #include "pg/core/se3.h"
 
 namespace pg {
@@ -101,13 +102,7 @@ std::string without_json_tag(const std::string& what) {
 }
 
 nlohmann::json parse_json_file(const std::string& path) {
-  if (std::filesystem::is_directory(path)) {
-    throw InputError(path + ": is a directory, not a JSON file");
-  }
-  std::error_code ec;
-  if (std::filesystem::exists(path, ec) && !std::filesystem::is_regular_file(path, ec)) {
-    throw InputError(path + ": is not a regular file (a device, pipe or socket), not a JSON file");
-  }
+  require_regular_file(path, "a JSON file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::stringstream buffer;

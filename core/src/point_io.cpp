@@ -30,6 +30,7 @@ void write_ply(const std::string& path, const std::vector<Eigen::Vector3f>& poin
 
 std::vector<Eigen::Vector3f> read_ply(const std::string& path,
                                       std::vector<Eigen::Vector3f>* normals) {
+  require_regular_file(path, "a PLY file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path + ": cannot read the file (missing or not readable)");
   std::string line;

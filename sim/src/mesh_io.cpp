@@ -18,6 +18,7 @@
 #include "mesh_formats.h"
 #include "mesh_topology.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/sim/mesh.h"
 
 namespace pg {
@@ -45,12 +46,7 @@ std::string read_file(const std::string& path) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
   if (!std::filesystem::exists(status)) throw InputError(path + ": file not found");
-  if (std::filesystem::is_directory(status)) {
-    throw InputError(path + ": is a directory, not a mesh file");
-  }
-  if (!std::filesystem::is_regular_file(status)) {  // a device or a pipe would never end
-    throw InputError(path + ": is not a regular file (a device, pipe or socket), not a mesh file");
-  }
+  require_regular_file(path, "a mesh file");
   std::ifstream file(path, std::ios::binary);
   if (!file) throw InputError(path + ": cannot open for reading: " + std::strerror(errno));
   std::string bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());

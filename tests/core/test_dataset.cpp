@@ -623,6 +623,27 @@ TEST(FileIo, DevicesAndPipesAreWrittenToAndLinksStayLinks) {
   EXPECT_EQ(std::distance(fs::directory_iterator(tmp.path), fs::directory_iterator()), 3);
 }
 
+// A pipe with no writer given as an input file: opening it to read would block for ever (a
+// poses.csv did). Each reader refuses it by name instead, as it refuses a folder.
+TEST(FileIo, APipeToReadFromIsRefusedNotWaitedOn) {
+  TempDir tmp;
+  const std::string fifo = tmp.str("pipe");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  const std::string not_regular = "is not a regular file (a device, pipe or socket), not ";
+  testing_support::expect_input_error([&] { read_poses_csv(fifo); },
+                                      {fifo, not_regular + "a poses.csv file"});
+  testing_support::expect_input_error([&] { read_image_u8(fifo); },
+                                      {fifo, not_regular + "an image file"});
+  testing_support::expect_input_error([&] { parse_json_file(fifo); },
+                                      {fifo, not_regular + "a JSON file"});
+  testing_support::expect_input_error([&] { read_ply(fifo, nullptr); },
+                                      {fifo, not_regular + "a PLY file"});
+  testing_support::expect_input_error([&] { read_poses_csv(tmp.path.string()); },
+                                      {"is a directory, not a poses.csv file"});
+  testing_support::expect_input_error([&] { read_image_u8(tmp.str("missing.png")); },
+                                      {"missing.png: image file not found"});
+}
+
 TEST(Image, FormatsRoundTrip) {
   TempDir tmp;
   ImageF f(5, 4, 3);
@@ -702,6 +723,10 @@ TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheMedianOfFramesWithoutContact) 
   // Neither a reference nor a frame without contact; and a reference of the wrong size.
   fs::remove(tmp.str("b") + "/background.png");
   expect_input_error([&] { b.background(); }, "no frame that poses.csv marks as without");
+  // A pipe there is named as such, not taken for a missing reference (nor waited on).
+  ASSERT_EQ(mkfifo((tmp.str("b") + "/background.png").c_str(), 0600), 0);
+  expect_input_error([&] { b.background(); },
+                     "background.png: is not a regular file (a device, pipe or socket)");
   EXPECT_THROW(w.write_background(ImageU8(10, 10, 3)), InputError);
 }
 

@@ -44,6 +44,11 @@ bool is_special_file(const std::string& path);
 // write of `path` puts its temporary file (a folder not writable, /proc): checked before long
 // work rather than after it. A device or pipe passes (write_text_atomically writes to it).
 void check_can_write(const std::string& path);
+// Throws InputError naming `path`, read as `what` ("a mesh file"), when it is a directory ("PATH:
+// is a directory, not WHAT") or not a regular file ("PATH: is not a regular file (a device,
+// pipe or socket), not WHAT"): reading a pipe with no writer blocks for ever, a device may never
+// end. A path that does not exist passes (the caller's open says so in its own words).
+void require_regular_file(const std::string& path, const std::string& what);
 // A name beside `path` for the temporary file a write goes to before it is renamed to `path`:
 // PATH.tmp.PID.N, so that two processes (or threads) writing one file at once do not take each
 // other's temporary file away (the last rename wins, each file whole).
