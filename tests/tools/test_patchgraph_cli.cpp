@@ -284,6 +284,22 @@ TEST_F(PatchgraphCli, TrainNormalsOnAFullDiskSaysSo) {
   EXPECT_TRUE(fs::is_empty(dir)) << "a temporary or partial file was left";
 }
 
+// eval on a disk that fills as it writes its first run (a file-size limit): the error names the
+// file, and neither a half-written run folder nor an empty runs folder is left.
+TEST_F(PatchgraphCli, EvalOnAFullDiskLeavesNoHalfWrittenRun) {
+  const std::string dir = out("eval_full_disk");
+  fs::remove_all(dir);
+  const CliRun r = testing_support::run_command(
+      std::string("trap '' XFSZ; ulimit -f 8; exec ") + PATCHGRAPH_PATH,
+      "eval -q --no-plots --datasets " + data() + " --methods patchgraph --out " + dir);
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("error: " + dir +
+                       "/runs/data_patchgraph/poses.csv: cannot write (File too large)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(dir + "/runs")) << "an empty run folder was left";
+}
+
 // An output folder that cannot be made fails before the run, not after it (the dataset here has
 // a broken frame late on: that error would come first otherwise); a run that fails leaves no
 // empty output folder behind.

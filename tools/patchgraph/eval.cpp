@@ -241,7 +241,17 @@ int run_eval(const EvalArgs& args) {
             });
         frames_done += dataset.frames();
         const std::string name = names[k] + "_" + m;
-        write_track_outputs(run, sensors, (fs::path(args.out) / "runs" / name).string());
+        const fs::path run_dir = fs::path(args.out) / "runs" / name;
+        try {
+          write_track_outputs(run, sensors, run_dir.string());
+        } catch (const InputError&) {
+          // A run whose outputs could not all be written (a full disk) leaves none of them, and
+          // no empty runs folder (eval's own: it replaces them).
+          std::error_code ec;
+          fs::remove_all(run_dir, ec);
+          if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
+          throw;
+        }
         rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
         ++done;
         if (!args.track.quiet) {
