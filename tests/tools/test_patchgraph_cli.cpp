@@ -52,6 +52,12 @@ class PatchgraphCli : public ::testing::Test {
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static std::string data() { return (dir_ / "data").string(); }
   static std::string out(const std::string& name) { return (dir_ / name).string(); }
+  // Writes `scene` to OUT/NAME.json and renders it into OUT/NAME (tacsim render ARGS).
+  static CliRun render_scene_json(const nlohmann::json& scene, const std::string& name,
+                                  const std::string& args) {
+    std::ofstream(out(name + ".json")) << scene.dump(2);
+    return run(TACSIM_PATH, "render " + out(name + ".json") + " " + args + " --out " + out(name));
+  }
   // A fresh copy of the suite's dataset, to corrupt.
   static std::string data_copy(const std::string& name) {
     const std::string copy = out(name);
@@ -957,9 +963,8 @@ TEST_F(PatchgraphCli, RegistrationsThatDisagreeOnTheRotationAreWarnedAbout) {
          {"mesh", out("tetra.obj")},
          {"trajectory", {{"waypoints", waypoints}}}}}},
       {"render", {{"outputs", {"normal"}}, {"seed", 17}}}};
-  std::ofstream(out("tetra.json")) << scene.dump(2);
   const std::string render = out("tetra");
-  ASSERT_EQ(run(TACSIM_PATH, "render " + out("tetra.json") + " -q --out " + render).code, 0);
+  ASSERT_EQ(render_scene_json(scene, "tetra", "-q").code, 0);
   const CliRun vertex = patchgraph("track " + render + " -q --out " + out("tetra_track"));
   ASSERT_EQ(vertex.code, 0) << vertex.out;
   EXPECT_NE(vertex.out.find("registrations turned the object more than 10 mrad apart: the "
@@ -987,11 +992,8 @@ TEST_F(PatchgraphCli, APressPastTheGelsMaximumIndentationIsWarnedAbout) {
       parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json");
   scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
   scene["objects"][0]["pose"]["position"] = {0.0, 0.0, 0.0025};  // 3.5 mm into the gel
-  const std::string scene_file = out("past_the_gel.json");
-  std::ofstream(scene_file) << scene.dump(2);
   const std::string render = out("past_the_gel");
-  ASSERT_EQ(run(TACSIM_PATH, "render " + scene_file + " -q --outputs normal --out " + render).code,
-            0);
+  ASSERT_EQ(render_scene_json(scene, "past_the_gel", "-q --outputs normal").code, 0);
   const CliRun past = patchgraph("track " + render + " -q --out " + out("past_the_gel_track"));
   ASSERT_EQ(past.code, 0) << past.out;
   EXPECT_NE(past.out.find("warning: in 10 frame(s) the contact reached the gel's maximum "
@@ -1015,11 +1017,8 @@ TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {
       parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/two_digits_regrasp.json");
   scene["sensors"][1]["sensor"] = "digit_240x320";
   scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/cube.glb";
-  const std::string scene_file = out("mixed_sizes.json");
-  std::ofstream(scene_file) << scene.dump(2);
   const std::string render = out("mixed_sizes");
-  const CliRun rendered =
-      run(TACSIM_PATH, "render " + scene_file + " -q --outputs color,normal,mask --out " + render);
+  const CliRun rendered = render_scene_json(scene, "mixed_sizes", "-q --outputs color,normal,mask");
   ASSERT_EQ(rendered.code, 0) << rendered.out;
   const std::string below = render + "/digit_below", side = render + "/digit_side";
   // A model for the side sensor's 240x320 images: small and briefly trained (the test is which
@@ -2031,7 +2030,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
           "line 2: status found with the circle's cells empty: fill in u_px, v_px and radius_px, "
           "or set the status to no_press");
   refused(out("balls") + " --diameter 0.0127 --circles " + out("balls"), 1,
-          "a folder, not a CSV file (--circles)");
+          "is a directory, not a CSV file (--circles)");
   {
     std::string none = "frame,u_px,v_px,radius_px\n";
     for (int f = 0; f < 20; ++f) none += std::to_string(f) + ",,,\n";

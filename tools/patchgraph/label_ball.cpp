@@ -37,7 +37,6 @@ using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
 // status column holds found, given, no_press, skipped or nothing.
 // Frames not listed are searched.
 std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& rays, int frames) {
-  if (fs::is_directory(path)) throw InputError(path + ": a folder, not a CSV file (--circles)");
   require_regular_file(path, "a CSV file (--circles)");
   std::ifstream in(path);
   if (!in) throw InputError(path + ": cannot open (--circles)");

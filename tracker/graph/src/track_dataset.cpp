@@ -250,12 +250,12 @@ SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s, int frame
 
 namespace {
 
-// What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
-// for learned normals, its no-contact reference.
 // A contact at this fraction of its gel's maximum indentation has reached it (FrameResult::
 // saturated): the renderer clamps there, and a real gel stops giving way.
 constexpr double kSaturatedFraction = 0.98;
 
+// What one sensor's dataset needs beyond the tracker: its contact clouds, the frame's images and,
+// for learned normals, its no-contact reference.
 struct SensorFeed {
   // `reference`: the dataset's no-contact image, for learned normals (else empty).
   SensorFeed(const Dataset& d, const TrackerConfig& config, ImageU8 reference)
