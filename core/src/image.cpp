@@ -84,6 +84,8 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
 
 }  // namespace
 
+void set_image_codec_threads(int threads) { OIIO::attribute("exr_threads", std::max(0, threads)); }
+
 ImageF read_image_float(const std::string& path) {
   return read_image<float>(path, OIIO::TypeDesc::FLOAT);
 }

@@ -465,6 +465,9 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
   };
   check(color, "colour");
   check(background, "background");
+  // Flushing denormals (load's) is the calling thread's setting: this may be another thread
+  // (track_dataset's, reading the next frame while the tracker updates).
+  at::globalContext().setFlushDenormal(true);
   // The input encoding, normalisation and forward()'s edge padding in one pass: the network then
   // runs on an image whose sides are already multiples of what it needs. With phase averaging
   // the batch holds the frame shifted by each phase's pixel offset.

@@ -7,6 +7,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -26,11 +27,12 @@ using testing_support::TempDir;
 
 const std::string kRepo = PG_SOURCE_DIR;
 
-// Renders a scene (JSON; mesh paths relative to scene_dir) with normals only into dir and opens
-// it.
+// Renders a scene (JSON; mesh paths relative to scene_dir) with normals only (or `outputs`) into
+// dir and opens it.
 Dataset render(nlohmann::json scene, const fs::path& dir,
-               const std::string& scene_dir = kRepo + "/scenes") {
-  scene["render"]["outputs"] = {"normal"};
+               const std::string& scene_dir = kRepo + "/scenes",
+               const std::vector<std::string>& outputs = {"normal"}) {
+  scene["render"]["outputs"] = outputs;
   const Scene s = scene_from_json(scene, "test scene", scene_dir);
   const SceneRenderer renderer(s);
   render_scene_to_dataset(renderer, dir.string());
@@ -76,6 +78,60 @@ Dataset recorded(const Dataset& from, const std::vector<int>& kept, double fps, 
   }
   writer.finish();
   return Dataset::open(dir.string());
+}
+
+// Reading the next frame ahead on a second thread (TrackOptions::prefetch) changes no result,
+// from the dataset's normals or from a model's (a stand-in reading the colour's change against
+// the reference), and the model then runs on that thread.
+TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
+  TempDir tmp;
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
+  scene["frames"] = 40;
+  const Dataset d =
+      render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark", {"normal", "color"});
+  const std::thread::id caller = std::this_thread::get_id();
+  int calls = 0, calls_elsewhere = 0;
+  TrackOptions learned;
+  learned.normals_name = "colour stand-in";
+  learned.normals = [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
+    ++calls;
+    calls_elsewhere += std::this_thread::get_id() != caller;
+    ImageF n(color.width, color.height, 3);
+    for (std::size_t p = 0; p < n.data.size(); p += 3) {
+      const float dx = (float(color.data[p]) - float(reference.data[p])) / 255.0f;
+      const float dy = (float(color.data[p + 1]) - float(reference.data[p + 1])) / 255.0f;
+      const float length = std::sqrt(dx * dx + dy * dy + 1.0f);
+      n.data[p] = dx / length;
+      n.data[p + 1] = dy / length;
+      n.data[p + 2] = 1.0f / length;
+    }
+    return n;
+  };
+  for (const TrackOptions& options : {TrackOptions(), learned}) {
+    SCOPED_TRACE(options.normals_name);
+    TrackOptions in_turn = options;
+    in_turn.prefetch = false;
+    calls = calls_elsewhere = 0;
+    const TrackRun ahead = track_dataset(d, options);
+    if (options.normals) {
+      EXPECT_GT(calls, 20);
+      EXPECT_EQ(calls_elsewhere, calls) << "the model ran on the tracking thread";
+    }
+    calls = calls_elsewhere = 0;
+    const TrackRun one_thread = track_dataset(d, in_turn);
+    EXPECT_EQ(calls_elsewhere, 0);
+    EXPECT_GT(ahead.summary.contact_frames, 30);
+    EXPECT_GT(ahead.summary.throughput_fps, 0.0);
+    ASSERT_EQ(ahead.frames.size(), one_thread.frames.size());
+    for (std::size_t i = 0; i < ahead.frames.size(); ++i) {
+      const FrameResult& a = ahead.frames[i];
+      const FrameResult& b = one_thread.frames[i];
+      EXPECT_EQ(a.T_world_object.matrix(), b.T_world_object.matrix()) << "frame " << i;
+      EXPECT_EQ(a.contact_points, b.contact_points) << "frame " << i;
+      EXPECT_EQ(a.unconstrained_directions, b.unconstrained_directions) << "frame " << i;
+      EXPECT_EQ(a.tracking_lost, b.tracking_lost) << "frame " << i;
+    }
+  }
 }
 
 TrackSummary track(const Dataset& d, Method method) {

@@ -277,6 +277,7 @@ int run_track(const TrackArgs& a) {
   if (s.normals != "gt") {
     std::printf("of which normals from the model: median %.3f ms\n", s.median_normals_ms);
   }
+  std::printf("whole run       %.0f frames/s (with reading the images)\n", s.throughput_fps);
   std::fflush(stdout);
   if (!within_accuracy_gate(a, names, s.final_translation_error_m, s.final_rotation_error_rad)) {
     return kExitAccuracy;

@@ -100,6 +100,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
       ->check(kSeed);
   app.add_flag("--compare-batch", a.compare_batch,
                "Afterwards re-solve the whole sequence at once and report the difference");
+  app.add_flag("--no-prefetch", a.no_prefetch,
+               "Read each frame's images (and run --normals MODEL) on the tracking thread, not a "
+               "frame ahead on a second one: slower, but nothing runs beside the timed update");
   app.add_option("--max-translation", a.max_translation_m,
                  "Accuracy gate [m]: exit 3 when the final translation error (eval: the median "
                  "per object and method) is above it")
@@ -332,6 +335,7 @@ TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
   }
   o.seed = a.seed;
   o.compare_batch = a.compare_batch;
+  o.prefetch = !a.no_prefetch;
   if (o.graph.method == Method::kGroundTruthPatch) {
     const SurfaceSamples s = sample_surface(load_object_mesh(dataset), kModelSpacingM);
     o.model_object.points = s.points;

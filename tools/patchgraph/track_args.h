@@ -23,7 +23,7 @@ struct TrackArgs {
   std::string normals = "gt";
   int normals_threads = 1;
   int normals_phases = 1;  // NormalEstimator::set_phases
-  std::string config;  // tracker config JSON (depth, mask, icp options)
+  std::string config;      // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;
   std::string motion_frame = "sensor";  // GraphOptions::motion_frame
@@ -39,6 +39,7 @@ struct TrackArgs {
   std::uint64_t seed = 0;
   bool quiet = false;
   bool compare_batch = false;
+  bool no_prefetch = false;  // TrackOptions::prefetch off
   // Accuracy gate for CI (< 0: off): `track` fails when its final error, `eval` when any object
   // and method's median final error, is above these.
   double max_translation_m = -1, max_rotation_rad = -1;

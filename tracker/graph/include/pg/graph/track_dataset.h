@@ -38,6 +38,11 @@ struct TrackOptions {
   // (Dataset::background; a learned model), timed as part of the frame.
   std::function<ImageF(std::size_t sensor, const ImageU8& color, const ImageU8& reference)> normals;
   std::string normals_name = "gt";  // for the summary (with a model per sensor, their list)
+  // Decode the next frame's images, and read them with `normals`, on a second thread while the
+  // tracker updates with this frame's (`normals` is then called from that thread, one call at a
+  // time); false: all on the calling thread, one frame after the other. The same results either
+  // way.
+  bool prefetch = true;
 };
 
 struct FrameResult {
@@ -79,7 +84,9 @@ struct FrameResult {
   // mask.core_relative_depth of the deepest; with several sensors, every touching one's).
   int contact_points = 0;
   bool contact_core = false;
-  double frame_ms = 0;    // normals -> cloud -> registrations -> graph update
+  // Normals -> cloud -> registrations -> graph update (image decoding excluded; the model's
+  // part timed on the thread that ran it, TrackOptions::prefetch).
+  double frame_ms = 0;
   double normals_ms = 0;  // of which estimating the normals (0 for ground-truth normals)
 };
 
@@ -134,6 +141,9 @@ struct TrackSummary {
   double mean_frame_ms = 0;
   double median_frame_ms = 0;
   double hz = 0;  // 1000 / median_frame_ms
+  // Frames per second of the whole loop: decoding the images, the normals and the update (the
+  // next frame's decoding and model overlapped with this one's update, TrackOptions::prefetch).
+  double throughput_fps = 0;
   std::string normals = "gt";
   double median_normals_ms = 0;
   // The settings the run used beyond the graph's own (PatchGraphTracker::options()): the front
