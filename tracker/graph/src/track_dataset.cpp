@@ -267,10 +267,14 @@ struct SensorFeed {
   SensorFeed(const Dataset& d, const TrackerConfig& config, ImageU8 reference)
       : dataset(&d),
         builder(d.info().sensor, config.contact_cloud()),
-        background(std::move(reference)) {}
-  const Dataset* dataset;
+        background(std::move(reference)),
+        min_contact_pixels(builder.min_contact_pixels()) {}
+  // What prepare_frame reads, on its own thread: never changed once made.
+  const Dataset* const dataset;
   ContactCloudBuilder builder;
-  ImageU8 background;
+  const ImageU8 background;
+  const int min_contact_pixels;
+  // The tracking thread's alone.
   ContactFrame contact;
 };
 
@@ -320,11 +324,11 @@ std::vector<SensorImage> prepare_frame(const std::deque<SensorFeed>& feeds,
       // (Specks of the camera's size, but never more than the smallest contact: at 60x80 that
       // is 5 px, whose changes may come in regions of 7, 4 and 3 px.)
       image.in_regions =
-          changes.pixels_in_regions_of(std::min(kSpeckPixels, feed.builder.min_contact_pixels()));
+          changes.pixels_in_regions_of(std::min(kSpeckPixels, feed.min_contact_pixels));
     }
     // A frame no different from the reference beyond the camera's noise, or only in specks:
     // nothing pressed, no normals to estimate.
-    image.estimated = !image.dropout && image.in_regions >= feed.builder.min_contact_pixels();
+    image.estimated = !image.dropout && image.in_regions >= feed.min_contact_pixels;
     if (image.estimated) {
       const auto model_start = std::chrono::steady_clock::now();
       image.normals = options.normals(k, image.color, feed.background);
