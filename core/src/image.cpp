@@ -14,11 +14,16 @@ namespace pg {
 
 namespace {
 
+// An OpenImageIO error's first line: a reader may stack the same failure in several lines
+// (libpng's adds "PNG read error: " with the same words, then "PNG library error"), and an error
+// message is one line.
+std::string first_line(const std::string& error) { return error.substr(0, error.find('\n')); }
+
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
   require_regular_file(path, "an image file");
   if (!std::filesystem::is_regular_file(path)) throw InputError(path + ": image file not found");
   auto in = OIIO::ImageInput::open(path);
-  if (!in) throw InputError(path + ": cannot read image: " + OIIO::geterror());
+  if (!in) throw InputError(path + ": cannot read image: " + first_line(OIIO::geterror()));
   return in;
 }
 
@@ -42,7 +47,7 @@ Image<T> read_image(const std::string& path, OIIO::TypeDesc type,
   // A file cut short may decode "successfully" with the rest of the image made up (JPEG: grey);
   // the reader then holds an error (premature end of data).
   if (!in->read_image(0, 0, 0, spec.nchannels, type, image.data.data()) || in->has_error()) {
-    const std::string cause = in->geterror();
+    const std::string cause = first_line(in->geterror());
     throw InputError(path + ": cannot decode image: " +
                      (cause.empty() ? std::string("the file is damaged or cut short") : cause));
   }
@@ -64,7 +69,9 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
                      std::to_string(image.channels) + " channels");
   }
   auto out = OIIO::ImageOutput::create(path);
-  if (!out) throw InputError(path + ": no image writer for this extension: " + OIIO::geterror());
+  if (!out)
+    throw InputError(path +
+                     ": no image writer for this extension: " + first_line(OIIO::geterror()));
   // Float data goes to float files where the format supports it, 8 bits otherwise.
   if (file_type == OIIO::TypeDesc::UNKNOWN) {
     file_type = mem_type;
@@ -77,7 +84,7 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
   errno = 0;
   if (!out->open(path, spec) || !out->write_image(mem_type, image.data.data()) || !out->close()) {
     const int error_number = errno;
-    throw InputError(path + ": cannot write image: " + out->geterror() +
+    throw InputError(path + ": cannot write image: " + first_line(out->geterror()) +
                      write_failure_cause(path, error_number));
   }
 }
@@ -108,7 +115,8 @@ void check_image_output(const std::string& path) {
     throw InputError(path + ": is a folder; give the image file's name");
   }
   if (!OIIO::ImageOutput::create(path)) {
-    throw InputError(path + ": no image writer for this extension: " + OIIO::geterror());
+    throw InputError(path +
+                     ": no image writer for this extension: " + first_line(OIIO::geterror()));
   }
   const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
   if (!std::filesystem::is_directory(folder, ec)) {
