@@ -348,6 +348,52 @@ TEST_F(PatchgraphCli, AnOutputFolderThatCannotBeMadeFailsBeforeTheRun) {
   EXPECT_EQ(lines, 2);
 }
 
+// --window 0 solves all the frames so far at every frame: a sequence of more than 1000 frames is
+// told, before the run, that it grows with the square of its frames (the progress line's estimate
+// does not foresee it); the suite's 60 frames and the fixed-lag window are not.
+TEST_F(PatchgraphCli, ALongBatchRunIsNotedBeforeItStarts) {
+  // 1200 frames: the suite's 60 over and over (links to its files), renumbered.
+  const int frames = 1200;
+  const std::string long_data = data_copy_with_poses("long_batch", [&](std::vector<FramePose>& p) {
+    const std::vector<FramePose> once = p;
+    p.clear();
+    for (int i = 0; i < frames; ++i) {
+      p.push_back(once[std::size_t(i) % once.size()]);
+      p.back().frame = i;
+      p.back().time_s = i / 60.0;
+    }
+  });
+  nlohmann::json info = parse_json_file(long_data + "/dataset.json");
+  const int once = info["frames"].get<int>();
+  info["frames"] = frames;
+  std::ofstream(long_data + "/dataset.json") << info.dump(2);
+  for (const std::string output : {"color", "normal", "mask"}) {
+    for (int i = once; i < frames; ++i) {
+      fs::create_symlink(fs::absolute(dataset_frame_path(long_data, output, i % once)),
+                         dataset_frame_path(long_data, output, i));
+    }
+  }
+  // Each stopped before tracking: its output folder cannot be made.
+  std::ofstream(out("a_plain_file")) << "x";
+  const std::string unmakeable = out("a_plain_file") + "/out";
+  const std::string note = "note: --window 0 solves all the frames so far at every frame";
+  for (const std::string& command :
+       {"track " + long_data + " --window 0", "eval --datasets " + long_data + " --window 0"}) {
+    const CliRun r = patchgraph(command + " -q --out " + unmakeable);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(note), std::string::npos) << command << ": " << r.out;
+    EXPECT_NE(r.out.find("1200 frames will take about 16 times as long as its first 300"),
+              std::string::npos)
+        << r.out;
+  }
+  for (const std::string& command :
+       {"track " + long_data, "track " + data() + " --window 0", "track " + data()}) {
+    const CliRun r = patchgraph(command + " -q --out " + unmakeable);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_EQ(r.out.find(note), std::string::npos) << command << ": " << r.out;
+  }
+}
+
 // Two datasets of one folder name keep their own runs (named with their parents' folders), a
 // dataset or method given twice is refused (it would count twice in the medians).
 // A dataset folder named with a comma or a quote: results.csv quotes the cell (RFC 4180) instead

@@ -199,6 +199,7 @@ int run_eval(const EvalArgs& args) {
     check_normals_models(models, sensors);
     if (gtpatch) load_object_mesh(*sensors[0]);  // its mesh found before any run, not after
     note_missing_frames(sensors);
+    note_long_batch(args.track, *sensors[0]);
     const std::vector<FramePose> truth = sequence_poses(sensors);
     if (!truth.empty() && !truth.back().object_known) {
       throw InputError(sensors[0]->dir() + "/poses.csv" +

@@ -112,6 +112,7 @@ int run_track(const TrackArgs& a) {
           d.dir().c_str(), frames.size(), frames.front(), frames.back());
     }
   }
+  note_long_batch(a, dataset);
   const OutputFolder out(a.out, kTrackOutputFiles);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run = [&] {

@@ -247,6 +247,16 @@ std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& dataset
   return out;
 }
 
+void note_long_batch(const TrackArgs& args, const Dataset& dataset) {
+  if (args.window != 0 || dataset.frames() <= kLongBatchFrames) return;
+  std::fprintf(stderr,
+               "note: --window 0 solves all the frames so far at every frame: %s's %d frames will "
+               "take about %.0f times as long as its first 300 (at 300 frames a frame takes some "
+               "20 ms); --compare-batch solves the whole sequence once, after the fixed-lag "
+               "run\n",
+               dataset.dir().c_str(), dataset.frames(), std::pow(dataset.frames() / 300.0, 2));
+}
+
 int note_missing_frames(const std::vector<const Dataset*>& datasets) {
   const std::vector<std::vector<int>> frames = sequence_frames(datasets);
   int total = 0;

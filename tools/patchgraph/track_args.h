@@ -71,6 +71,11 @@ std::vector<const Dataset*> dataset_pointers(const std::vector<Dataset>& dataset
 // `datasets` without a frame at some of the primary's times (sequence_frames), where it adds
 // nothing. Returns how many such sensor-frames there are.
 int note_missing_frames(const std::vector<const Dataset*>& datasets);
+// --window 0 solves all the frames so far at every frame: a frame costs more the longer the
+// sequence and the run grows with the square of its frames, which a progress line's estimate
+// does not foresee. Prints a note when `dataset` has more than kLongBatchFrames frames.
+inline constexpr int kLongBatchFrames = 1000;
+void note_long_batch(const TrackArgs& args, const Dataset& dataset);
 // Checks --method, loads --config and, for gtpatch, the primary dataset's object mesh. `models`:
 // --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
 TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
