@@ -63,10 +63,14 @@ inline std::string file_text(const std::string& path) {
 // and waits for it to end. code: its exit status; -1 if it never showed `text` (it ended first,
 // or not within 5 minutes), was killed outright by the signal, or the log could not be made. A
 // run that ends on its own between showing `text` and the signal gives its own exit status
-// (the callers' runs take a second or more after the text they wait for).
+// (the callers' runs take a second or more after the text they wait for). `times` > 1 sends the
+// signal that many times, 2 ms apart (as coreutils `timeout` does: the job, then its group).
 inline CliRun run_and_signal(const std::string& binary, const std::string& args,
-                             const std::string& text, int signal_number, const std::string& log) {
+                             const std::string& text, int signal_number, const std::string& log,
+                             int times = 1) {
   const std::string command = "exec " + binary + " " + args;
+  // Emptied before the run starts: an earlier run's log holds `text` already.
+  std::ofstream(log, std::ios::trunc).close();
   const pid_t pid = fork();
   if (pid == 0) {
     std::signal(SIGINT, SIG_DFL);
@@ -85,7 +89,10 @@ inline CliRun run_and_signal(const std::string& binary, const std::string& args,
   while (!ended && std::chrono::steady_clock::now() < deadline) {
     ended = waitpid(pid, &status, WNOHANG) == pid;
     if (!ended && !signalled && read_log().find(text) != std::string::npos) {
-      kill(pid, signal_number);
+      for (int k = 0; k < times; ++k) {
+        if (k > 0) usleep(2000);  // the first one handled by then
+        kill(pid, signal_number);
+      }
       signalled = true;
     }
     if (!ended) usleep(10000);

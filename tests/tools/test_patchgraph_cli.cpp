@@ -1819,6 +1819,15 @@ TEST_F(PatchgraphCli, ASignalStopsARunAndSaysWhatItLeaves) {
             std::string::npos)
       << r.out;
   EXPECT_FALSE(fs::exists(track_out));
+  // Twice at once, as coreutils `timeout` signals a job and then its process group: one stop (a
+  // second signal had ended the run at once, leaving the empty folder it made).
+  r = testing_support::run_and_signal(PATCHGRAPH_PATH, "track " + long_data + " --out " + track_out,
+                                      "tracking ", SIGTERM, log, 2);
+  EXPECT_EQ(r.code, 128 + SIGTERM) << r.out;
+  EXPECT_NE(r.out.find("error: stopped by signal 15 (SIGTERM): nothing written to " + track_out),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(track_out));
 
   const std::string eval_out = out("stopped_eval");
   fs::remove_all(eval_out);

@@ -4,8 +4,12 @@
 // goes again, no temporary file stays, and run_cli exits with 128 + the signal's number, as a
 // shell reports a job it stopped. Only inside a StopOnSignals scope, around work that checks
 // (stop_if_asked, Progress::update); elsewhere a signal ends the process at once, as by default.
-// A second signal, of either kind, ends the process at once.
+// A second signal, of either kind, ends the process at once, unless it comes within
+// kRepeatedStopNs of the first: that is the same stop asked twice (coreutils `timeout` signals
+// the job and then its whole process group), which would otherwise end the run before it
+// cleaned up.
 #include <signal.h>
+#include <time.h>
 
 #include <atomic>
 #include <csignal>
@@ -16,15 +20,28 @@
 namespace pg {
 
 inline std::atomic<int> g_stop_signal{0};
+inline std::atomic<long long> g_stop_signal_ns{0};  // when it came, CLOCK_MONOTONIC
 static_assert(std::atomic<int>::is_always_lock_free, "read in a signal handler");
+static_assert(std::atomic<long long>::is_always_lock_free, "read in a signal handler");
+inline constexpr long long kRepeatedStopNs = 500'000'000;
 
 inline void on_stop_signal(int signal_number) {
-  g_stop_signal.store(signal_number);
-  struct sigaction fallback {};  // the next signal of either kind acts as unhandled
+  timespec now{};
+  clock_gettime(CLOCK_MONOTONIC, &now);  // async-signal-safe
+  const long long now_ns = now.tv_sec * 1'000'000'000LL + now.tv_nsec;
+  if (g_stop_signal.load() == 0) {
+    g_stop_signal_ns.store(now_ns);
+    g_stop_signal.store(signal_number);
+    return;
+  }
+  if (now_ns - g_stop_signal_ns.load() < kRepeatedStopNs) return;  // the first one again
+  // A later one: handled as without a handler, once this one returns (it is blocked until then).
+  struct sigaction fallback {};
   fallback.sa_handler = SIG_DFL;
   sigemptyset(&fallback.sa_mask);
   sigaction(SIGINT, &fallback, nullptr);
   sigaction(SIGTERM, &fallback, nullptr);
+  raise(signal_number);
 }
 
 // While it lives, SIGINT and SIGTERM set the flag that stop_if_asked turns into Stopped, except
@@ -45,9 +62,13 @@ class StopOnSignals {
     }
   }
   ~StopOnSignals() {
-    for (int k = 0; k < 2; ++k) sigaction(kSignals[k], &previous_[k], nullptr);
     const int pending = g_stop_signal.load();
-    if (pending != 0 && std::uncaught_exceptions() == 0) raise(pending);
+    // Stopping (the Stopped error unwinding to its message and exit status): the handler stays,
+    // so that the same stop asked again at once (coreutils `timeout`) does not end the process
+    // before it has said so.
+    if (pending != 0 && std::uncaught_exceptions() > 0) return;
+    for (int k = 0; k < 2; ++k) sigaction(kSignals[k], &previous_[k], nullptr);
+    if (pending != 0) raise(pending);
   }
   StopOnSignals(const StopOnSignals&) = delete;
   StopOnSignals& operator=(const StopOnSignals&) = delete;
