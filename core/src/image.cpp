@@ -93,6 +93,12 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
 
 void set_image_codec_threads(int threads) { OIIO::attribute("exr_threads", std::max(0, threads)); }
 
+int image_codec_threads() {
+  int threads = 0;
+  OIIO::getattribute("exr_threads", threads);
+  return threads;
+}
+
 ImageF read_image_float(const std::string& path) {
   return read_image<float>(path, OIIO::TypeDesc::FLOAT);
 }

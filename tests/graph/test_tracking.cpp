@@ -13,6 +13,7 @@
 
 #include "../common/test_support.h"
 #include "pg/core/error.h"
+#include "pg/core/image.h"
 #include "pg/core/json_fields.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/sim/mesh.h"
@@ -132,6 +133,44 @@ TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
       EXPECT_EQ(a.tracking_lost, b.tracking_lost) << "frame " << i;
     }
   }
+}
+
+// An error on either thread ends the run with it, whether the next frame is read ahead or not:
+// a damaged frame file (read on the second thread) names the file; an error on the tracking
+// thread (here from the progress callback) while the next frame is being read comes out as it
+// is. OpenEXR's decoding threads are as they were after the run.
+TEST(Tracking, AnErrorOnEitherThreadEndsTheRunWithIt) {
+  TempDir tmp;
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
+  scene["frames"] = 20;
+  const Dataset d = render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark");
+  const std::string victim = dataset_frame_path(d.dir(), "normal", 10);
+  fs::resize_file(victim, fs::file_size(victim) / 3);
+  set_image_codec_threads(3);
+  for (const bool prefetch : {true, false}) {
+    SCOPED_TRACE(prefetch ? "read ahead" : "one thread");
+    TrackOptions o;
+    o.prefetch = prefetch;
+    try {
+      track_dataset(d, o);
+      ADD_FAILURE() << "the damaged frame was not noticed";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("normal/000010.exr"), std::string::npos) << e.what();
+    }
+    int frames_seen = 0;
+    try {
+      track_dataset(d, o, [&](int done, int) {
+        frames_seen = done;
+        if (done == 5) throw std::runtime_error("stopped at frame 5");
+      });
+      ADD_FAILURE() << "the callback's error was lost";
+    } catch (const std::runtime_error& e) {
+      EXPECT_EQ(std::string(e.what()), "stopped at frame 5");
+    }
+    EXPECT_EQ(frames_seen, 5);
+    EXPECT_EQ(image_codec_threads(), 3);
+  }
+  set_image_codec_threads(0);
 }
 
 TrackSummary track(const Dataset& d, Method method) {

@@ -187,6 +187,9 @@ using Models = std::map<std::string, NormalsModels>;
 TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed,
                          const Models& models) {
   TrackOptions o = make_track_options(args_for(s, seed), dataset, models.at(s.normals));
+  // One thread, frame after frame: what bench measures is the update, with nothing beside it
+  // (and --threads is the threads it uses).
+  o.prefetch = false;
   o.front_end.icp.max_iterations = s.icp_iterations;
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;

@@ -29,7 +29,9 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "sequence's order, separated by commas (sensors of different sizes or "
                  "illumination; so a model's path cannot hold a comma)");
   app.add_option("--normals-threads", a.normals_threads,
-                 "Torch threads for --normals MODEL (default 1; 0: all cores)")
+                 "Torch threads for --normals MODEL (default 1; 0: all cores). The model runs "
+                 "beside the tracker's update (unless --no-prefetch), which takes a core of its "
+                 "own")
       ->check(kThreads);
   app.add_option("--normals-phases", a.normals_phases,
                  "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "

@@ -48,10 +48,12 @@ ImageF read_float_file(const std::string& path);
 ImageF read_u16_file(const std::string& path);
 
 // Threads OpenImageIO may use to decode or encode one image (the pool of its OpenEXR plugin,
-// process-wide; 0: one per core, its default). track_dataset sets 1: it reads the next frame on
-// a thread of its own beside the tracker's update, which a pool the size of the machine would
-// crowd (measured on 2 cores: the update 1.0 -> 1.3 ms a frame with the pool, 1.0 without).
+// process-wide; 0: one per core, its default). track_dataset sets 1 while it runs: it reads the
+// next frame on a thread of its own beside the tracker's update, which a pool the size of the
+// machine would crowd (measured on 2 cores: the update 1.0 -> 1.3 ms a frame with the pool, 1.0
+// without).
 void set_image_codec_threads(int threads);
+int image_codec_threads();
 
 // Writes by extension. Float images go to EXR as 32-bit float; to PNG/JPEG they are clamped to
 // [0, 1] and quantised to 8 bits. Throws InputError naming the path on failure.
