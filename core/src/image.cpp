@@ -69,9 +69,10 @@ void write(const std::string& path, const Image<T>& image, OIIO::TypeDesc mem_ty
                      std::to_string(image.channels) + " channels");
   }
   auto out = OIIO::ImageOutput::create(path);
-  if (!out)
+  if (!out) {
     throw InputError(path +
                      ": no image writer for this extension: " + first_line(OIIO::geterror()));
+  }
   // Float data goes to float files where the format supports it, 8 bits otherwise.
   if (file_type == OIIO::TypeDesc::UNKNOWN) {
     file_type = mem_type;
