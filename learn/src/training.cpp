@@ -34,6 +34,9 @@ struct FrameSet {
   SensorModel sensor;  // the first dataset's (the model records it)
   bool sensor_set = false;
   ImageF gel;  // gel_normals(sensor); empty until the first dataset
+  // frame_background of the datasets read, each once; unknown_background: one did not say.
+  std::vector<std::string> backgrounds;
+  bool unknown_background = false;
   std::size_t size() const { return input.size(); }
 };
 
@@ -84,6 +87,13 @@ void load_frames(const std::vector<std::string>& dirs, FrameSet& set, FrameSet* 
     }
     const ImageU8 background = d.background();
     const torch::Tensor reference = colour_tensor(background);
+    const std::string kind = frame_background(d.info());
+    if (kind.empty()) {
+      set.unknown_background = true;
+    } else if (std::find(set.backgrounds.begin(), set.backgrounds.end(), kind) ==
+               set.backgrounds.end()) {
+      set.backgrounds.push_back(kind);
+    }
     if (!set.sensor_set) {
       set.sensor = d.info().sensor;
       set.sensor_set = true;
@@ -296,6 +306,7 @@ void train_normals(const TrainOptions& options,
   info.gel_relative = o.gel_relative;
   info.sensor = train.sensor;
   info.sensor_known = true;
+  if (!train.unknown_background) info.backgrounds = train.backgrounds;
   if (g) {
     if (init.width != train.width || init.height != train.height) {
       throw InputError("--init " + o.init_model + ": takes " + std::to_string(init.width) + "x" +
@@ -304,6 +315,13 @@ void train_normals(const TrainOptions& options,
     }
     info.input_mean = init.input_mean;
     info.input_std = init.input_std;
+    // Fine-tuned, it has seen its starting model's backgrounds as well.
+    if (init.backgrounds.empty()) info.backgrounds.clear();
+    for (const std::string& b : init.backgrounds) {
+      if (!info.backgrounds.empty() &&
+          std::find(info.backgrounds.begin(), info.backgrounds.end(), b) == info.backgrounds.end())
+        info.backgrounds.push_back(b);
+    }
     nlohmann::json base = {{"model", learn::canonical_or_given(o.init_model)},
                            {"epochs", init.epochs},
                            {"training_data", init.training_data}};
@@ -319,6 +337,7 @@ void train_normals(const TrainOptions& options,
     }
     g = learn::Generator(o.spec);
   }
+  std::sort(info.backgrounds.begin(), info.backgrounds.end());
   const bool gan = !mlp && o.gan_weight > 0;
   // The PatchGAN's three stride-2 and two 4x4 layers need 12 px a side.
   constexpr int kMinGanSide = 12;

@@ -222,6 +222,42 @@ TEST_F(NormalsTraining, AModelTellsImagesOfAnotherSensorsOptics) {
   EXPECT_EQ(committed.sensor_difference(sensor), "lights, shading and camera");
 }
 
+// A model records the backgrounds of its training frames and tells frames of another: a render
+// over a real no-contact image, or a recording, against the renderer's synthetic background.
+// A render that does not say how it was rendered is not warned about. The committed models were
+// trained on synthetic renders.
+TEST_F(NormalsTraining, AModelTellsFramesOfAnotherBackground) {
+  TrainOptions o = tiny_options(train_, val_, tmp_->str("background.pt"));
+  o.epochs = 1;
+  train_normals(o);
+  const NormalEstimator model = NormalEstimator::load(tmp_->str("background.pt"));
+  EXPECT_EQ(model.info().backgrounds, std::vector<std::string>{"synthetic"});
+  DatasetInfo info = Dataset::open(train_).info();
+  ASSERT_TRUE(info.render_known);
+  EXPECT_EQ(frame_background(info), "synthetic");
+  EXPECT_EQ(model.background_difference(info), "");
+  info.background = "/data/digit/bg.png";
+  EXPECT_EQ(frame_background(info), "real");
+  const std::string differ = model.background_difference(info);
+  EXPECT_NE(differ.find("its frames have a real sensor's background"), std::string::npos) << differ;
+  EXPECT_NE(differ.find(tmp_->str("background.pt") + " was trained only on frames with the "
+                        "renderer's synthetic background"),
+            std::string::npos)
+      << differ;
+  DatasetInfo recording;  // what patchgraph recording writes: no scene, no render settings
+  EXPECT_EQ(frame_background(recording), "real");
+  EXPECT_NE(model.background_difference(recording), "");
+  DatasetInfo older_render;
+  older_render.scene = "scenes/default.json";
+  EXPECT_EQ(frame_background(older_render), "");
+  EXPECT_EQ(model.background_difference(older_render), "");
+  for (const char* file : {"/models/normals_unet.pt", "/models/normals_mlp.pt"}) {
+    const NormalEstimator committed = NormalEstimator::load(kSource + file);
+    EXPECT_EQ(committed.info().backgrounds, std::vector<std::string>{"synthetic"}) << file;
+    EXPECT_NE(committed.background_difference(recording), "") << file;
+  }
+}
+
 TEST_F(NormalsTraining, FineTuningStartsFromTheModel) {
   const std::string base = tmp_->str("base.pt");
   std::vector<EpochReport> trained;

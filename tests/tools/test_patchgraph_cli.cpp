@@ -1472,6 +1472,11 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
   EXPECT_NE(t.out.find("background.png, the no-contact reference, holds camera noise"),
             std::string::npos)
       << t.out;
+  // A recording is a real sensor's: the default model, trained on synthetic renders, says so.
+  EXPECT_NE(t.out.find("warning: " + out("rec_one_reference") +
+                       ": its frames have a real sensor's background"),
+            std::string::npos)
+      << t.out;
   // The frames without contact against that one noisy reference: its noise changes about a
   // hundred pixels of each, in specks of a few pixels, which are no contact (before specks were
   // told from contacts, the model read each such frame as a dent of about 11 800 points).

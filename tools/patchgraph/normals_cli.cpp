@@ -298,6 +298,14 @@ int run_model_info(const ModelInfoArgs& a) {
   } else {
     std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
   }
+  std::string backgrounds;
+  for (const std::string& b : i.backgrounds) backgrounds += (backgrounds.empty() ? "" : " and ") + b;
+  std::printf("frames    %s\n", backgrounds.empty()
+                                   ? "background not recorded (a model file from before "
+                                     "2026-11-29, or data that did not say)"
+                                   : ("background " + backgrounds +
+                                      " (track and eval-normals warn on another)")
+                                         .c_str());
   // The rest of the command that trained it, as its options (alphabetical), for reproducing it.
   const auto settings = nlohmann::json::parse(
       i.settings_json.empty() ? "null" : i.settings_json, nullptr, false);
@@ -372,7 +380,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   model.set_phases(a.phases);
   check_evaluation_data(model, a.data);
   for (const std::string& dir : a.data) {
-    warn_of_other_optics(model, Dataset::open(dir).info().sensor, dir);
+    warn_of_other_optics(model, Dataset::open(dir).info(), dir);
   }
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",

@@ -195,9 +195,16 @@ const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_
   return models[sensor].get();
 }
 
-void warn_of_other_optics(const NormalEstimator& model, const SensorModel& sensor,
+void warn_of_other_optics(const NormalEstimator& model, const DatasetInfo& info,
                           const std::string& where) {
-  const std::string differ = model.sensor_difference(sensor);
+  const std::string background = model.background_difference(info);
+  if (!background.empty()) {
+    std::fprintf(stderr,
+                 "warning: %s: %s; train a model on such frames (docs/learned_normals.md "
+                 "\"Training data of your own\")\n",
+                 where.c_str(), background.c_str());
+  }
+  const std::string differ = model.sensor_difference(info.sensor);
   if (differ.empty()) return;
   std::fprintf(stderr,
                "warning: %s: its sensor differs in %s from the sensor %s was trained on "
@@ -221,7 +228,7 @@ void check_normals_models(const NormalsModels& models,
     check_normals_source(*datasets[k], model ? model->path() : "gt");
     if (model) {
       model->check_sensor(datasets[k]->info().sensor, datasets[k]->dir());
-      warn_of_other_optics(*model, datasets[k]->info().sensor, datasets[k]->dir());
+      warn_of_other_optics(*model, datasets[k]->info(), datasets[k]->dir());
     }
   }
 }

@@ -58,9 +58,10 @@ const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_
 // dataset, and that each dataset has what its model reads (colour images of the model's size;
 // without a model, its normal images). Throws InputError naming the dataset, or --normals.
 void check_normals_models(const NormalsModels& models, const std::vector<const Dataset*>& datasets);
-// Warns (stderr) when `sensor`'s optics differ from those `model` was trained on
+// Warns (stderr) when a dataset's frames (`info`) have another background than `model` was
+// trained on (NormalEstimator::background_difference), or its sensor other optics
 // (NormalEstimator::sensor_difference); `where` names the dataset.
-void warn_of_other_optics(const NormalEstimator& model, const SensorModel& sensor,
+void warn_of_other_optics(const NormalEstimator& model, const DatasetInfo& info,
                           const std::string& where);
 // The datasets of one sequence: DIR's own, or a render of several sensors' (its sensors.json, in
 // that order), each opened, and checked to be one sequence (check_same_sequence), all before any

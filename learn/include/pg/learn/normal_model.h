@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "pg/core/dataset.h"
 #include "pg/core/image.h"
 #include "pg/core/sensor.h"
 
@@ -59,7 +60,18 @@ struct NormalModelInfo {
   // gel-relative ones); sensor_known is false for an older file.
   SensorModel sensor;
   bool sensor_known = false;
+  // The backgrounds of its training frames (frame_background), sorted, each once; empty when a
+  // training dataset did not say (and in a file from before 2026-11-29, which did not record
+  // them). With --init, the starting model's too.
+  std::vector<std::string> backgrounds;
 };
+
+// What lies behind a dataset's imprints, as a network that reads the frame minus the no-contact
+// reference sees it: "synthetic" (a render on the renderer's own no-contact image) or "real" (a
+// render blended over a real sensor's no-contact image, TACTO's blend, which halves and blurs an
+// imprint's contrast; or a recording of a real sensor); "" when the dataset does not say (a
+// render from before dataset.json recorded its render settings).
+std::string frame_background(const DatasetInfo& info);
 
 // A trained model for inference. Not thread-safe: use one per thread.
 class NormalEstimator {
@@ -94,6 +106,11 @@ class NormalEstimator {
   // reads another sensor's shading as other slopes (a model of sensor A on a sensor of permuted
   // light colours: 23.6 deg contact error against 9.5).
   std::string sensor_difference(const SensorModel& sensor) const;
+  // "" when the frames of `info` have a background the model was trained on (or either does not
+  // say); else a sentence for a warning naming both (the default model, trained on synthetic
+  // renders, reads a sphere press rendered over the real DIGIT background 6.2 deg off in the
+  // contact, against 2.3 deg on its synthetic render).
+  std::string background_difference(const DatasetInfo& info) const;
 
  private:
   struct Impl;
