@@ -328,6 +328,18 @@ void DatasetWriter::check_folder(const std::string& dir) {
   } catch (const std::exception&) {
     // not a dataset's description
   }
+  const auto several_sensors = [&dir] {
+    try {
+      return !sensor_dataset_dirs(dir).empty();
+    } catch (const std::exception&) {
+      return false;  // a sensors.json of someone else's
+    }
+  };
+  if (!dataset && several_sensors()) {
+    throw InputError(dir + ": holds a render of several sensors (" + kSensorIndexFile +
+                     "); one sensor's dataset written there would leave their folders beside it; "
+                     "give a new or empty folder, or remove that render first");
+  }
   if (!dataset) {
     throw InputError(dir +
                      ": is not empty and holds no dataset (no dataset.json of the "
@@ -480,7 +492,8 @@ Dataset Dataset::open(const std::string& dir) {
                      " itself, to track them together)");
   }
   if (!fs::exists(info_path)) {
-    // A scene of several sensors writes one dataset per sensor, in folders under its --out.
+    // A scene of several sensors writes one dataset per sensor, in folders under its --out (an
+    // older render, without sensors.json), or DIR is a folder of datasets.
     std::string sensors;
     std::error_code ec;
     for (const auto& entry : fs::directory_iterator(dir, ec)) {
@@ -490,8 +503,9 @@ Dataset Dataset::open(const std::string& dir) {
     }
     if (!sensors.empty()) {
       throw InputError(
-          dir + ": is not a dataset, but holds datasets (one per sensor): " + sensors +
-          "; give one of those folders (patchgraph track takes several, to track them together)");
+          dir + ": is not a dataset, but holds datasets: " + sensors +
+          "; give one of those folders (patchgraph track takes several sensors' folders of one "
+          "sequence, to track them together)");
     }
     throw InputError(info_path +
                      ": missing: not a dataset folder (tacsim render writes one; a folder of a "

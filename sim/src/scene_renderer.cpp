@@ -217,8 +217,12 @@ std::string size_text(std::uintmax_t bytes) {
     std::snprintf(text, sizeof text, "%.1f TB", bytes / 1e12);
   } else if (bytes >= 1'000'000'000) {
     std::snprintf(text, sizeof text, "%.1f GB", bytes / 1e9);
-  } else {
+  } else if (bytes >= 1'000'000) {
     std::snprintf(text, sizeof text, "%.1f MB", bytes / 1e6);
+  } else if (bytes >= 1'000) {
+    std::snprintf(text, sizeof text, "%.1f kB", bytes / 1e3);
+  } else {
+    std::snprintf(text, sizeof text, "%ju bytes", std::uintmax_t(bytes));
   }
   return text;
 }

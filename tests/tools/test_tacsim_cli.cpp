@@ -550,6 +550,27 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("holds a dataset; a scene of 2 sensors"), std::string::npos) << r.out;
   EXPECT_EQ(Dataset::open(d).frames(), 10);  // untouched
+  // A one-sensor scene into a render of several: refused by what the folder holds (it had read
+  // "holds no dataset").
+  const std::string pinch = tmp.str("pinch");
+  ASSERT_EQ(
+      tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " + pinch)
+          .code,
+      0);
+  r = tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + pinch);
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(pinch + ": holds a render of several sensors (sensors.json)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(sensor_dataset_dirs(pinch).size(), 2u);
+  EXPECT_FALSE(fs::exists(pinch + "/dataset.json"));
+  // A folder of datasets is named as such (it had said "one per sensor" of any).
+  r = tacsim("info " + tmp.path.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find(tmp.path.string() + ": is not a dataset, but holds datasets: d; give one "
+                       "of those folders"),
+            std::string::npos)
+      << r.out;
   r = tacsim("render " + kScenes + "examples/no_contact.json -q --outputs mask --out " + d);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(Dataset::open(d).frames(), 5);
