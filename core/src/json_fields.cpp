@@ -197,7 +197,7 @@ bool whole_number(const nlohmann::json& v, long long& out) {
 
 void JsonFields::integer_error(const std::string& key, const char* expected,
                                const nlohmann::json& v) const {
-  if (v.is_number_float()) {
+  if (v.is_number()) {
     throw InputError(field(key) + ": expected " + expected + ", got " + v.dump());
   }
   type_error(key, expected, v);
@@ -208,7 +208,7 @@ int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) co
   long long i = 0;
   if (!whole_number(v, i)) integer_error(key, "an integer", v);
   if (i < -2147483647LL || i > 2147483647LL) {
-    throw InputError(field(key) + ": integer out of range");
+    throw InputError(field(key) + ": integer out of range, got " + v.dump());
   }
   return static_cast<int>(i);
 }

@@ -240,24 +240,24 @@ void train_normals(const TrainOptions& options,
   const bool mlp = o.spec.arch == "mlp";
   if (mlp && (set("--l1-weight", o.l1_weight != defaults.l1_weight) ||
               (o.gan_weight != 0 && set("--gan-weight", o.gan_weight != defaults.gan_weight)))) {
-    throw InputError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
+    throw UsageError(std::string(o.init_model.empty() ? "--arch mlp" : "--init " + o.init_model) +
                      ": the per-pixel MLP trains on an L2 loss alone; --l1-weight and "
                      "--gan-weight do not apply to it");
   }
   if (o.init_model.empty() && mlp &&
       (set("--depth", o.spec.depth != defaults.spec.depth) ||
        set("--width", o.spec.base_width != defaults.spec.base_width))) {
-    throw InputError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
+    throw UsageError("--arch mlp: --depth and --width do not apply to it (--hidden: its width)");
   }
   if (o.init_model.empty() && !mlp &&
       set("--hidden", o.spec.mlp_hidden != defaults.spec.mlp_hidden)) {
-    throw InputError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
+    throw UsageError("--arch " + o.spec.arch + ": --hidden applies to the MLP only");
   }
   if (o.train_data.empty()) throw InputError("--data: no training datasets given");
   if (o.out.empty()) throw InputError("--out: no model file given");
-  if (o.epochs < 1 || o.batch < 1) throw InputError("--epochs and --batch must be at least 1");
+  if (o.epochs < 1 || o.batch < 1) throw UsageError("--epochs and --batch must be at least 1");
   if (o.decay_epochs < 0 || o.decay_epochs > o.epochs) {
-    throw InputError("--decay-epochs: " + std::to_string(o.decay_epochs) +
+    throw UsageError("--decay-epochs: " + std::to_string(o.decay_epochs) +
                      " is not between 0 and --epochs (" + std::to_string(o.epochs) + ")");
   }
   // Fail now, not after the training, when the model cannot be written.

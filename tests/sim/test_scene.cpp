@@ -243,7 +243,7 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
        {": frames", "expected an integer, got 2.5"}},
       {"a seed below zero",
        [](json& j) { j["render"]["seed"] = -3; },
-       {": render.seed", "expected a non-negative integer"}},
+       {": render.seed", "expected a non-negative integer, got -3"}},
       {"unknown top-level key", [](json& j) { j["colour"] = "red"; }, {": colour: unknown key"}},
       {"unknown nested key",
        [](json& j) { j["objects"][0]["colour"] = "red"; },

@@ -139,11 +139,12 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   EXPECT_TRUE(fs::exists(tmp.str("b/bench.png"))) << r.out;
 }
 
+// (--no-plots, eval's spelling, is bench's --no-plot too.)
 TEST(PatchgraphBench, UnknownNormalsSourceFailsBeforeTracking) {
   TempDir tmp;
   const auto r = testing_support::run_command(
       PATCHGRAPH_PATH,
-      "bench --quick -q --no-plot --normals gt no_such_model.pt --out " + tmp.str("b"));
+      "bench --quick -q --no-plots --normals gt no_such_model.pt --out " + tmp.str("b"));
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
 }

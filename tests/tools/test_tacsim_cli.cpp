@@ -74,6 +74,16 @@ TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {
              tmp.str("o"));
   EXPECT_EQ(r.code, 2);  // a bad option value: a usage error, as CLI11's own
   EXPECT_NE(r.out.find("colour"), std::string::npos) << r.out;
+  // An empty name in the list (an unset shell variable) is refused, not skipped.
+  for (const char* list : {"color,,normal", "color,", ",mask"}) {
+    r = tacsim("render " + kScenes + "examples/sphere_press.json --outputs " + list + " --out " +
+               tmp.str("o"));
+    EXPECT_EQ(r.code, 2) << list;
+    EXPECT_NE(r.out.find(std::string("--outputs ") + list + ": an empty name in the list"),
+              std::string::npos)
+        << r.out;
+  }
+  EXPECT_FALSE(fs::exists(tmp.str("o")));
   r = tacsim("info " + tmp.str("nothing"));
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("nothing"), std::string::npos) << r.out;

@@ -280,13 +280,6 @@ inline std::string unfinished_dataset_note(const std::string& out, const std::st
   }
 }
 
-// A combination of options that cannot run, found after parsing (one of two options that
-// exclude each other must be given, say): exit 2, as CLI11's own usage errors.
-class UsageError : public InputError {
- public:
-  using InputError::InputError;
-};
-
 // Runs `check`, a check of option values that throws InputError, and throws its complaint as a
 // UsageError (exit 2): a bad option value is a usage error, whichever function finds it.
 template <typename F>

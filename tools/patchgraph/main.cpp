@@ -322,7 +322,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember(method_names()));
   cmd_eval->add_option("--out,-o", eval.out, "Output folder")->required();
   add_track_options(*cmd_eval, eval.track, /*with_method=*/false);
-  cmd_eval->add_flag("--no-plots", eval.no_plots, "Skip the matplotlib plots");
+  cmd_eval->add_flag("--no-plots,--no-plot", eval.no_plots, "Skip the matplotlib plots");
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 
   TrackBenchArgs bench;
@@ -341,7 +341,7 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--threads", bench.threads, "Threads (default: all cores)")
       ->check(kThreads);
   cmd_bench->add_flag("--quick", bench.quick, "2 scenes x 60 frames, 6 settings (smoke test)");
-  cmd_bench->add_flag("--no-plot", bench.no_plot, "Skip the matplotlib plot");
+  cmd_bench->add_flag("--no-plot,--no-plots", bench.no_plot, "Skip the matplotlib plot");
   cmd_bench->add_flag("--quiet,-q", bench.quiet, "No progress lines");
 
   TrainNormalsArgs train_normals_args;

@@ -30,12 +30,16 @@
 namespace pg {
 namespace {
 
-std::vector<std::string> split_list(const std::string& s) {
+// The comma-separated names of `s`; an empty name (",," or a comma at either end: a shell
+// variable left unset, say) is a usage error naming `what`.
+std::vector<std::string> split_list(const std::string& s, const std::string& what) {
   std::vector<std::string> out;
   std::stringstream ss(s);
   std::string item;
-  while (std::getline(ss, item, ',')) {
-    if (!item.empty()) out.push_back(item);
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  if (!s.empty() && s.back() == ',') out.emplace_back();
+  if (std::find(out.begin(), out.end(), "") != out.end()) {
+    throw UsageError(what + " " + s + ": an empty name in the list");
   }
   return out;
 }
@@ -81,7 +85,7 @@ void warn_about_object_sizes(const SceneRenderer& renderer) {
 int run_render(const RenderArgs& a) {
   if (a.out.empty()) throw InputError("--out: empty; give the dataset's folder");
   RenderOverrides overrides;
-  overrides.outputs = split_list(a.outputs);
+  overrides.outputs = split_list(a.outputs, "--outputs");
   if (a.outputs_given) as_usage_error([&] { check_output_names(overrides.outputs, "--outputs"); });
   overrides.width = a.width;
   overrides.height = a.height;

@@ -13,6 +13,13 @@ class InputError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// A combination of options that cannot run, found after parsing (one of two options that
+// exclude each other must be given, say): tools exit 2, as for CLI11's own usage errors.
+class UsageError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 // `text` as it may be quoted in a message: bytes outside printable ASCII as \xNN, and cut after
 // `max_chars` characters with "...", so that a garbage file (a 2 MB binary "line") gives a short,
 // printable message.
