@@ -329,6 +329,7 @@ void DatasetWriter::check_folder(const std::string& dir) {
     // not a dataset's description
   }
   const auto several_sensors = [&dir] {
+    if (fs::exists(fs::path(dir) / "dataset.json")) return false;  // of another format
     try {
       return !sensor_dataset_dirs(dir).empty();
     } catch (const std::exception&) {
