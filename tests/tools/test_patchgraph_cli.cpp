@@ -2098,6 +2098,13 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     for (int f = 0; f < 20; ++f) none += std::to_string(f) + ",,,\n";
     refused(circles(none), 1, "every frame of");
   }
+  // A decimal comma splits a number in two cells (17,589: radius 17 and a cell 589); it had been
+  // taken as radius 17 without a word.
+  refused(circles("frame,u_px,v_px,radius_px\n3,38.8,103.9,17,589\n"), 1,
+          "line 2: 5 cells, the header has 4 (a decimal comma?");
+  // A frame said to have no press, with a circle: which is it? (It had been used as given.)
+  refused(circles("frame,u_px,v_px,radius_px,status\n3,40,80,10,no_press\n"), 1,
+          "line 2: status no_press with a circle");
   refused(circles("frame,u_px,v_px,radius_px\n3,0x3C,80,10\n"), 1,
           "line 2: u_px: '0x3C' is not a finite decimal number");
   refused(circles("frame,u_px,v_px,radius_px\n3,-40,80,10\n"), 1,

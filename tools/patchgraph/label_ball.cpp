@@ -63,6 +63,13 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
     const std::vector<std::string> cells = csv_cells(line);
     const auto cell = [&](int c) { return c < int(cells.size()) ? cells[std::size_t(c)] : ""; };
     const std::string at = path + ": line " + std::to_string(number) + ": ";
+    // More cells than the header: a decimal comma (17,589 read as 17 and a cell 589) would
+    // shift the circle's numbers without a word. (Fewer: the row's last cells left out, empty.)
+    if (cells.size() > header.size()) {
+      throw InputError(at + std::to_string(cells.size()) + " cells, the header has " +
+                       std::to_string(header.size()) +
+                       " (a decimal comma? numbers take a point: 17.5)");
+    }
     const char* statuses[] = {"", "found", "given", "no_press", "skipped"};
     if (status >= 0 &&
         std::find(std::begin(statuses), std::end(statuses), cell(status)) == std::end(statuses)) {
@@ -109,6 +116,11 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
                          " is empty: give u_px, v_px and radius_px, or none of "
                          "them for a frame without a press");
       }
+    }
+    if (status >= 0 && cell(status) == "no_press") {
+      throw InputError(at +
+                       "status no_press with a circle: empty the circle's cells for a frame "
+                       "without a press, or set the status to given to use the circle");
     }
     if (!(v[3] > 0)) throw InputError(at + "radius_px: " + format_number(v[3]) + " is not > 0");
     const Eigen::Vector2d centre(v[1], v[2]);
@@ -216,7 +228,7 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
   cmd->add_option("--circles", a.circles,
                   "CSV of contact circles given by hand: frame,u_px,v_px,radius_px (the "
                   "circles.csv a run writes, corrected); empty circle cells: no press in that "
-                  "frame (status no_press or none; skipped: search it again)");
+                  "frame (status no_press or an empty status; skipped: search it again)");
   cmd->add_option("--out,-o", a.out, "The labelled dataset (color, normal, depth, mask)")
       ->required();
   cmd->add_option("--gel", a.gel,
