@@ -1589,6 +1589,7 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                               " --static-sensor --object cube -q --out " + out("rec"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("60 frames"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("numbers skip"), std::string::npos) << r.out;
   const Dataset rec = Dataset::open(out("rec"));
   ASSERT_EQ(rec.frames(), 60);
   EXPECT_EQ(rec.color(17).data, rendered.color(17).data);
@@ -1638,6 +1639,59 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                           "--sensor gelsight_mini takes 240x320 frames)"),
             std::string::npos)
       << size.out;
+  // A background of another size than the frames is named as such (the hints for frames of its
+  // size, which the frames do not need, had led nowhere).
+  const CliRun background_size =
+      patchgraph("recording --images " + frames.string() + " --background " +
+                 (dir_ / "rec_background_x2.png").string() + " --static-sensor -q --out " +
+                 out("rec_bad"));
+  EXPECT_EQ(background_size.code, 1) << background_size.out;
+  EXPECT_NE(background_size.out.find("rec_background_x2.png: 240x320 px, the frames 120x160 px: "
+                                     "the no-contact image must come from the same camera"),
+            std::string::npos)
+      << background_size.out;
+  // Landscape frames of the portrait sensor: turned, at this size or at twice it.
+  const auto turned = [](const ImageU8& image) {
+    ImageU8 t(image.height, image.width, image.channels);
+    for (int y = 0; y < t.height; ++y) {
+      for (int x = 0; x < t.width; ++x) {
+        for (int c = 0; c < t.channels; ++c) t.at(x, y, c) = image.at(y, x, c);
+      }
+    }
+    return t;
+  };
+  for (const int factor : {1, 2}) {
+    const fs::path landscape = dir_ / ("rec_landscape" + std::to_string(factor));
+    fs::create_directories(landscape);
+    ImageU8 frame = turned(rendered.color(3));
+    if (factor == 2) frame = doubled(frame);
+    write_image((landscape / "f0.png").string(), frame);
+    write_image((landscape / "f1.png").string(), frame);
+    const CliRun l = patchgraph("recording --images " + landscape.string() + " --background " +
+                                (dir_ / "rec_background.png").string() +
+                                " --static-sensor -q --out " + out("rec_bad"));
+    EXPECT_EQ(l.code, 1) << l.out;
+    EXPECT_NE(l.out.find("the image is turned by 90 degrees (the sensor's are portrait): turn "
+                         "the frames first, no option turns them" +
+                         std::string(factor == 2 ? "; turned, they take --downsample 2)" : ")")),
+              std::string::npos)
+        << l.out;
+  }
+  // Frames whose numbers skip some (a camera's dropped frames) are warned about.
+  const fs::path gaps = dir_ / "rec_gap_frames";
+  fs::create_directories(gaps);
+  for (const int n : {0, 1, 2, 5, 6, 9}) {
+    write_image((gaps / ("img_00" + std::to_string(n) + ".png")).string(), rendered.color(n));
+  }
+  const CliRun gapped = patchgraph("recording --images " + gaps.string() + " --background " +
+                                   (dir_ / "rec_background.png").string() +
+                                   " --static-sensor -q --out " + out("rec_gaps"));
+  EXPECT_EQ(gapped.code, 0) << gapped.out;
+  EXPECT_NE(gapped.out.find("the frames' numbers skip 4: 3-4 (after img_002.png), 7-8 (after "
+                            "img_006.png); each image becomes the next frame"),
+            std::string::npos)
+      << gapped.out;
+  EXPECT_EQ(Dataset::open(out("rec_gaps")).frames(), 6);
   fs::create_directories(dir_ / "rec_empty");
   const CliRun empty = patchgraph("recording --images " + (dir_ / "rec_empty").string() +
                                   " --background " + (dir_ / "rec_background.png").string() +

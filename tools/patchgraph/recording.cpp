@@ -79,6 +79,42 @@ std::vector<fs::path> image_files(const std::string& dir, const std::string& opt
   return files;
 }
 
+// Warns when the frames' numbers (the last run of digits in each name, when every name has one
+// and they rise in name order) skip some: each image becomes the next frame, and the tracker
+// steps its motion priors per frame, so a frame missing from the camera's numbering is a jump.
+void warn_of_numbering_gaps(const std::vector<fs::path>& files, const std::string& dir) {
+  std::vector<long long> numbers;
+  for (const fs::path& file : files) {
+    const std::string stem = file.stem().string();
+    const std::size_t end = stem.find_last_of("0123456789");
+    if (end == std::string::npos) return;
+    std::size_t begin = end;
+    while (begin > 0 && std::isdigit(static_cast<unsigned char>(stem[begin - 1]))) --begin;
+    if (end - begin >= 18) return;  // not a frame counter
+    numbers.push_back(std::stoll(stem.substr(begin, end - begin + 1)));
+    if (numbers.size() > 1 && numbers.back() <= numbers[numbers.size() - 2]) return;
+  }
+  std::string gaps;
+  long long missing = 0;
+  int listed = 0;
+  for (std::size_t i = 1; i < numbers.size(); ++i) {
+    const long long from = numbers[i - 1] + 1, to = numbers[i] - 1;
+    if (to < from) continue;
+    missing += to - from + 1;
+    if (++listed <= 3) {
+      gaps += (gaps.empty() ? "" : ", ") + std::to_string(from) +
+              (to > from ? "-" + std::to_string(to) : "") + " (after " +
+              files[i - 1].filename().string() + ")";
+    }
+  }
+  if (missing == 0) return;
+  std::fprintf(stderr,
+               "warning: %s: the frames' numbers skip %lld: %s%s; each image becomes the next "
+               "frame, and the tracker steps its motion priors per frame, so a missing frame is a "
+               "jump in the motion (ball presses for label-ball do not mind)\n",
+               dir.c_str(), missing, gaps.c_str(), listed > 3 ? " and more" : "");
+}
+
 // Throws InputError naming the file unless an image of this shape is a frame of the sensor:
 // RGB (or RGBA) at the camera's size times `factor`.
 void check_frame_shape(const std::string& path, const ImageShape& raw, const CameraModel& camera,
@@ -109,9 +145,17 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
         hints.push_back("--sensor " + name + " takes " + size(raw.width, raw.height) + " frames");
       }
     }
-    if (raw.width == camera.height * factor && raw.height == camera.width * factor) {
+    // Turned by 90 degrees (a camera driver's landscape frames of a portrait sensor), at this
+    // factor or another.
+    if (raw.width % camera.height == 0 && raw.height % camera.width == 0 &&
+        raw.width / camera.height == raw.height / camera.width) {
+      const int turned = raw.width / camera.height;
       hints.push_back("the image is turned by 90 degrees (the sensor's are " +
-                      std::string(camera.width < camera.height ? "portrait" : "landscape") + ")");
+                      std::string(camera.width < camera.height ? "portrait" : "landscape") +
+                      "): turn the frames first, no option turns them" +
+                      (turned != factor ? "; turned, they take --downsample " +
+                                              std::to_string(turned)
+                                        : std::string()));
     }
     if (!hints.empty()) {
       text += " (";
@@ -242,6 +286,7 @@ int run_recording(const RecordingArgs& a) {
   if (files.empty()) {
     throw InputError(a.images + ": every image in it is a --background image; no frame is left");
   }
+  warn_of_numbering_gaps(files, a.images);
   if (skipped.size() == 1) {
     std::fprintf(stderr, "note: %s is a --background image: not taken as a frame\n",
                  skipped[0].string().c_str());
@@ -301,6 +346,20 @@ int run_recording(const RecordingArgs& a) {
     } else {
       check_frame_shape(file.string(), read_image_shape(file.string()), sensor.camera,
                         a.downsample);
+    }
+  }
+  // A no-contact image of another size than the frames (which fit): said so, rather than
+  // hints for the frames that they do not need.
+  const ImageShape frame_shape = read_image_shape(files.front().string());
+  for (const fs::path& file : references) {
+    const ImageShape shape = read_image_shape(file.string());
+    if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
+      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) +
+                       "x" + std::to_string(shape.height) + " px, the frames " +
+                       std::to_string(frame_shape.width) + "x" +
+                       std::to_string(frame_shape.height) +
+                       " px: the no-contact image must come from the same camera at the same "
+                       "settings as the frames");
     }
   }
   std::vector<ImageU8> no_contact;
