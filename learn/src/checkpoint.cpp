@@ -139,6 +139,7 @@ void save_checkpoint(const TrainOptions& o, int epochs_done, const TrainingState
                       {"run", run_settings(o)},
                       {"input_mean", s.input_mean},
                       {"input_std", s.input_std},
+                      {"labels_hash", s.labels_hash},
                       {"history", s.history}};
   a.write("info", c10::IValue(j.dump()));
   a.write("epoch", c10::IValue(int64_t(epochs_done)));
@@ -206,6 +207,14 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
                                              : "the --init model " + o.init_model) +
                        " changed since); resume with the data it was trained on, or remove it "
                        "(or train into another --out) to start a new run");
+    }
+    // (A checkpoint written before the labels' hash was recorded is not checked.)
+    if (j.contains("labels_hash") && j.at("labels_hash").get<std::string>() != s.labels_hash) {
+      throw InputError(checkpoint +
+                       ": was trained on other labels than --data holds now (its normal or mask "
+                       "images changed since: labelled again?); resume with the labels it was "
+                       "trained on, or remove it (or train into another --out) to start a new "
+                       "run");
     }
     s.history = j.at("history");
     torch::serialize::InputArchive sub;

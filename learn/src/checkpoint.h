@@ -25,6 +25,9 @@ struct TrainingState {
   // model's): a resumed run must find the same.
   const std::array<float, 3>& input_mean;
   const std::array<float, 3>& input_std;
+  // A hash of the training frames' labels (normals and masks): a resumed run must find the same
+  // (a label-ball run into the same folder changes them and not the colour frames).
+  const std::string& labels_hash;
 };
 
 // A path as one file is always named (symbolic links and ".." resolved), or as given.

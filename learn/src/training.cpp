@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -62,6 +63,24 @@ void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background,
   }
   set.target.push_back(learn::image_to_tensor(normals));
   set.mask.push_back(learn::mask_tensor(d.mask(i)));
+}
+
+// FNV-1a over the bytes of the training targets and masks, in hex.
+std::string labels_hash(const FrameSet& set) {
+  std::uint64_t h = 1469598103934665603ull;
+  const auto add = [&h](const torch::Tensor& t) {
+    const torch::Tensor c = t.contiguous();
+    const auto* bytes = static_cast<const unsigned char*>(c.data_ptr());
+    const std::size_t n = std::size_t(c.numel()) * c.element_size();
+    for (std::size_t i = 0; i < n; ++i) h = (h ^ bytes[i]) * 1099511628211ull;
+  };
+  for (std::size_t i = 0; i < set.size(); ++i) {
+    add(set.target[i]);
+    add(set.mask[i]);
+  }
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
+  return text;
 }
 
 // Reads the datasets; every `hold_out_every`-th frame (0: none) goes to `held_out`.
@@ -370,8 +389,9 @@ void train_normals(const TrainOptions& options,
                                   : std::string()));
   };
   nlohmann::json history = nlohmann::json::array();
+  const std::string labels = labels_hash(train);
   learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
-                             history, info.input_mean, info.input_std};
+                             history, info.input_mean, info.input_std,    labels};
   const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =

@@ -435,6 +435,17 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
                            "this run's data gives (--data's frames changed since)"),
               std::string::npos)
         << changed;
+    // Its labels changed, the colour frames not (labelled again into the same folder): refused
+    // too (it had resumed on the new labels).
+    fs::remove_all(copy);
+    fs::copy(train_, copy, fs::copy_options::recursive);
+    train_normals(first);
+    fs::copy_file(dataset_frame_path(copy, "normal", 1), dataset_frame_path(copy, "normal", 0),
+                  fs::copy_options::overwrite_existing);
+    const std::string relabelled = input_error_message([&] { train_normals(again); });
+    EXPECT_NE(relabelled.find("copy.pt.ckpt: was trained on other labels than --data holds now"),
+              std::string::npos)
+        << relabelled;
   }
   std::vector<int> resumed;
   train_normals(part, [&](const EpochReport& r) { resumed.push_back(r.epoch); });
