@@ -784,6 +784,7 @@ TEST_F(PatchgraphCli, ModelInfoDescribesTheModel) {
   for (const std::string line :
        {"network   unet (depth 5, width 12), 587931 parameters, normals in the sensor frame",
         "images    120x160 (the only size it takes)", "sensor    digit: 3 lights",
+        "frames    background synthetic (track and eval-normals warn on another)",
         "trained   25 epoch(s) on 12 dataset(s)", "--noise-augment 10 ", "--seed 1 ",
         "; validated on 2 dataset(s)\n", "last      epoch 25: loss "}) {
     EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
@@ -2041,6 +2042,16 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   const CliRun train = patchgraph("train-normals --data " + out("balls_labelled") +
                                   " --epochs 1 --depth 2 --width 4 -q --out " + out("ball.pt"));
   EXPECT_EQ(train.code, 0) << train.out;
+  // Evaluated on its own training frames, it says so; labels of a render keep its background.
+  const CliRun own = patchgraph("eval-normals -q --model " + out("ball.pt") + " --data " +
+                                out("balls_labelled"));
+  EXPECT_EQ(own.code, 0) << own.out;
+  EXPECT_NE(own.out.find("note: " + out("balls_labelled") + " is among the datasets " +
+                         out("ball.pt") + " was trained on"),
+            std::string::npos)
+      << own.out;
+  EXPECT_NE(patchgraph("model-info " + out("ball.pt")).out.find("frames    background synthetic"),
+            std::string::npos);
 
   // By hand: frame 0 has no press, frame 1's circle is given 2 px wider than found.
   {

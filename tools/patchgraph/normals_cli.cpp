@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -381,6 +382,17 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   check_evaluation_data(model, a.data);
   for (const std::string& dir : a.data) {
     warn_of_other_optics(model, Dataset::open(dir).info(), dir);
+    // Its own training frames measure the fit, not how the model reads frames it has not seen.
+    const auto& trained = model.info().training_data;
+    if (std::any_of(trained.begin(), trained.end(), [&](const std::string& t) {
+          std::error_code ec;
+          return std::filesystem::equivalent(dir, t, ec);
+        })) {
+      std::fprintf(stderr,
+                   "note: %s is among the datasets %s was trained on: its figures measure the "
+                   "fit, not how the model reads frames it has not seen\n",
+                   dir.c_str(), a.model.c_str());
+    }
   }
   nlohmann::json results = nlohmann::json::array();
   std::printf("%-40s %7s %12s %12s %14s %12s %9s\n", "dataset", "frames", "MSE contact",
