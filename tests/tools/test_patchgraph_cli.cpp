@@ -2112,6 +2112,12 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   EXPECT_NE(small.out.find("18 skipped"), std::string::npos) << small.out;
   EXPECT_NE(small.out.find("warning: frame 0 skipped: the contact is wider"), std::string::npos)
       << small.out;
+  // ... and the presses it could be are said to be suspect as well.
+  EXPECT_NE(small.out.find("warning: 18 of the 20 presses are wider than a ball of diameter 4 mm "
+                           "makes: if --diameter is wrong, the 2 labelled are labelled with the "
+                           "wrong ball too"),
+            std::string::npos)
+      << small.out;
   refused(data() + "_no_such --diameter 0.0127", 1, "_no_such");
   // A no-contact reference that shows a press itself (a frame of the presses taken for it):
   // its press differs from nearly every frame, which is warned about; the render's own is not.

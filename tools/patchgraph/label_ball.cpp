@@ -418,6 +418,19 @@ int run_label_ball(const LabelBallArgs& a) {
     ++shown;
   }
   if (skipped > shown) std::fprintf(stderr, "warning: %d more skipped\n", skipped - shown);
+  // Presses too wide for the ball: with a diameter given wrong (its radius, say), the presses
+  // narrow enough to pass are labelled with the wrong ball too.
+  const int too_wide = int(std::count_if(labels.begin(), labels.end(), [](const FrameLabel& l) {
+    return l.kind == FrameLabel::kSkipped &&
+           l.press.reason.find("is the diameter right?") != std::string::npos;
+  }));
+  if (presses > 0 && too_wide >= 3 && 4 * too_wide >= presses + too_wide) {
+    std::fprintf(stderr,
+                 "warning: %d of the %d presses are wider than a ball of diameter %s mm makes: "
+                 "if --diameter is wrong, the %d labelled are labelled with the wrong ball too "
+                 "(too deep for a smaller ball); check it is the ball's diameter, in metres\n",
+                 too_wide, presses + too_wide, format_number(a.diameter * 1e3).c_str(), presses);
+  }
   // A reference that shows a press itself: frames where the ball is elsewhere show two changes
   // (skipped), and the reference's own press is found, the same circle in frame after frame.
   // Separate hand presses never land within a pixel of each other three times (a ball held still

@@ -395,10 +395,13 @@ int run_recording(const RecordingArgs& a) {
     }
     writer.finish();
     // Which file each frame came from, for the messages that name frames by number (label-ball's
-    // "frame 17 skipped", errors.csv's rows).
+    // "frame 17 skipped", errors.csv's rows), absolute: the dataset is read from elsewhere.
     std::string sources = "frame,file\n";
     for (int i = 0; i < frames; ++i) {
-      sources += std::to_string(i) + "," + csv_field(files[std::size_t(i)].string()) + "\n";
+      std::error_code ec;
+      const fs::path file = fs::absolute(files[std::size_t(i)], ec).lexically_normal();
+      sources += std::to_string(i) + "," + csv_field((ec ? files[std::size_t(i)] : file).string()) +
+                 "\n";
     }
     write_text_atomically((fs::path(a.out) / "sources.csv").string(), sources);
   } catch (...) {
