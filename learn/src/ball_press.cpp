@@ -467,6 +467,22 @@ BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
     return outside;
   }
   BallPress press = fit_press(rays, boundary, {}, radius_m);
+  if (!press.found) return press;
+  // A circle given where the frame shows no press (a slip of frame or place) would label a ball
+  // where there is none.
+  int changed = 0;
+  for_each_changed_pixel(color, reference, [&](int x, int y) {
+    changed += (Eigen::Vector2d(x, y) - centre_px).norm() <= radius_px;
+    return changed < kMinPressPixels;
+  });
+  if (changed < kMinPressPixels) {
+    press.found = false;
+    press.reason = format(
+        "the frame shows no change from the no-contact reference inside the given circle (%.0f "
+        "px changed, a press changes at least %.0f): does the frame show that press?",
+        changed, kMinPressPixels);
+    return press;
+  }
   place(color, reference, rays, radius_m, gel, &press);
   return press;
 }

@@ -284,6 +284,15 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   EXPECT_FALSE(arc.found);
   EXPECT_NE(arc.reason.find("less than half of the contact's circle"), std::string::npos)
       << arc.reason;
+  // A circle given where the frame shows no press (the press is elsewhere) labels no ball there.
+  const BallPress elsewhere =
+      ball_press_from_circle(reference, reference, rays, found.centre_px, found.radius_px,
+                             kBallRadius, gel);
+  EXPECT_FALSE(elsewhere.found);
+  EXPECT_NE(elsewhere.reason.find("no change from the no-contact reference inside the given "
+                                  "circle (0 px changed"),
+            std::string::npos)
+      << elsewhere.reason;
   // The whole frame brighter than the reference (the LEDs, a dropout): no press, and why.
   ImageU8 brighter = reference;
   for (auto& v : brighter.data) v = std::uint8_t(std::min(255, v + 20));
