@@ -2026,6 +2026,22 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   EXPECT_EQ(rows[2][2], "found");
   EXPECT_EQ(rows[0][11], "fit");
   EXPECT_EQ(rows[2][11], "shading") << "placed by the shading, not through the circle alone";
+  // Each press changes the colour as the sensor's model renders the labelled ball: about 1.
+  EXPECT_EQ(rows[0][12], "shading_ratio");
+  for (std::size_t i = 1; i < rows.size(); ++i) {
+    EXPECT_NEAR(std::stod(rows[i].at(12)), 1.0, 0.15) << "frame " << rows[i][0];
+  }
+  EXPECT_EQ(r.out.find("change the colour more"), std::string::npos) << r.out;
+  // The default scene's cube corner is round enough to pass as a ball's press, but it changes
+  // the colour about three times as much as the ball would: said (it had been labelled 30 deg
+  // off without a word).
+  const CliRun corner =
+      patchgraph("label-ball " + data() + " --diameter 0.0127 -q --out " + out("corner_labelled"));
+  EXPECT_EQ(corner.code, 0) << corner.out;
+  EXPECT_NE(corner.out.find("warning: 60 of the 60 presses change the colour more than 1.5 times "
+                            "as much as the sensor's model shows for a ball of diameter 12.7 mm"),
+            std::string::npos)
+      << corner.out;
   // The render's gel is elastic, and so are the labels: the sink-in around the contact is
   // indented too. --gel rigid labels the ball's shape alone, and the dataset says which.
   EXPECT_TRUE(labelled.info().sensor.gel.elastic.enabled);

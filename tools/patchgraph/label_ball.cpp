@@ -6,7 +6,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -19,6 +21,8 @@
 #include "pg/core/gel_rays.h"
 #include "pg/core/image_change.h"
 #include "pg/learn/ball_press.h"
+#include "pg/sim/primitives.h"
+#include "pg/sim/renderer.h"
 
 namespace pg {
 
@@ -140,7 +144,61 @@ struct FrameLabel {
   enum Kind { kPress, kNoPress, kSkipped } kind = kSkipped;
   bool given = false;  // from --circles
   BallPress press;
+  double shading_ratio = std::numeric_limits<double>::quiet_NaN();  // BallShading (a press)
 };
+
+// How much the frame changes over the labelled ball's middle against what the sensor's model
+// renders for that ball there (its lights, shading and background, no noise): the summed
+// absolute colour change over the middle (within 0.75 of the circle's radius) of the frame
+// against its reference, over that of the render against its no-contact image. A press of the
+// ball reads about 1 (0.99-1.12 on the repository's renders of ball presses, the real DIGIT
+// background's included); a press of something steeper than the ball's cap (a corner, an edge,
+// a stud, a smaller ball) changes the colour more than the ball would: 2-3.1 (the cube corner of
+// scenes/default.json 3.1, cube, stud and ellipsoid presses 2.0-2.4 in the median). A real
+// sensor's frames have its own contrast, which the model's may not match.
+class BallShading {
+ public:
+  BallShading(const DatasetInfo& info, double radius_m) {
+    SensorModel sensor = info.sensor;
+    sensor.noise.sigma = 0;
+    RenderSettings settings;
+    settings.normal = settings.depth = settings.mask = false;
+    settings.noise = false;
+    settings.shadows = info.render_known && info.shadows;
+    std::error_code ec;
+    // A render over a real background recorded its image; one moved since, or a recording,
+    // is rendered on the model's own.
+    if (info.render_known && fs::is_regular_file(info.background, ec)) {
+      settings.background = info.background;
+    }
+    renderer_ = std::make_unique<SensorRenderer>(
+        sensor,
+        std::vector<std::shared_ptr<const ObjectShape>>{
+            std::make_shared<ObjectShape>(make_uv_sphere(float(radius_m), 48, 96))},
+        settings);
+  }
+
+  double ratio(const ImageU8& color, const ImageU8& reference, const BallPress& press) const {
+    const RenderedFrame ball = renderer_->render({SE3::Translation(press.centre_m)}, 0);
+    const ImageU8& none = renderer_->background_color_u8();
+    double measured = 0, modelled = 0;
+    for (int y = 0; y < color.height; ++y) {
+      for (int x = 0; x < color.width; ++x) {
+        if ((Eigen::Vector2d(x, y) - press.centre_px).norm() > 0.75 * press.radius_px) continue;
+        for (int c = 0; c < 3; ++c) {
+          measured += std::abs(int(color.at(x, y, c)) - int(reference.at(x, y, c)));
+          modelled += std::abs(int(ball.images.color.at(x, y, c)) - int(none.at(x, y, c)));
+        }
+      }
+    }
+    return modelled > 0 ? measured / modelled : std::numeric_limits<double>::quiet_NaN();
+  }
+
+ private:
+  std::unique_ptr<SensorRenderer> renderer_;
+};
+// Presses whose median BallShading ratio is above this are warned about.
+constexpr double kSteeperThanTheBall = 1.5;
 
 // Presses at many places leave each pixel untouched in most frames. Pixels that differ from the
 // reference in nearly every frame are the reference's own: a press in it (or other lighting),
@@ -179,7 +237,7 @@ class ReferenceChange {
 std::string circles_csv(const std::vector<FrameLabel>& labels) {
   std::string text =
       "frame,labelled_frame,status,u_px,v_px,radius_px,centre_x_m,centre_y_m,centre_z_m,"
-      "depth_m,rms_px,fit,reason\n";
+      "depth_m,rms_px,fit,shading_ratio,reason\n";
   int labelled = 0;
   char row[512];
   for (std::size_t f = 0; f < labels.size(); ++f) {
@@ -192,12 +250,14 @@ std::string circles_csv(const std::vector<FrameLabel>& labels) {
       const BallPress& p = l.press;
       // A given circle's fit RMS would measure it against itself: left empty.
       const std::string rms = l.given ? "" : format_number(p.rms_px, "%.3f");
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%s,%s,\n", f,
-                    index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
+      const std::string ratio =
+          std::isfinite(l.shading_ratio) ? format_number(l.shading_ratio, "%.3f") : "";
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%s,%s,%s,\n",
+                    f, index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
                     p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, rms.c_str(),
-                    p.shading_fit ? "shading" : "circle");
+                    p.shading_fit ? "shading" : "circle", ratio.c_str());
     } else {
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,,%s\n", f, index.c_str(), status,
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,,,,,,,,,,,%s\n", f, index.c_str(), status,
                     csv_field(l.press.reason).c_str());
     }
     text += row;
@@ -277,6 +337,7 @@ int run_label_ball(const LabelBallArgs& a) {
   std::vector<FrameLabel> labels(std::size_t(d.frames()));
   int presses = 0, no_press = 0;
   ReferenceChange reference_change(reference, d.frames());
+  const BallShading shading(d.info(), radius);
   try {
     const StopOnSignals stop;
     Progress progress("finding presses", d.frames(), !a.quiet);
@@ -300,6 +361,7 @@ int run_label_ball(const LabelBallArgs& a) {
                  : l.press.no_change ? FrameLabel::kNoPress
                                      : FrameLabel::kSkipped;
       }
+      if (l.kind == FrameLabel::kPress) l.shading_ratio = shading.ratio(color, reference, l.press);
       presses += l.kind == FrameLabel::kPress;
       no_press += l.kind == FrameLabel::kNoPress;
       progress.update(f + 1);
@@ -418,6 +480,27 @@ int run_label_ball(const LabelBallArgs& a) {
     ++shown;
   }
   if (skipped > shown) std::fprintf(stderr, "warning: %d more skipped\n", skipped - shown);
+  // Presses that change the colour more than the ball would: not (all) of the ball.
+  std::vector<double> ratios;
+  for (const FrameLabel& l : labels) {
+    if (l.kind == FrameLabel::kPress && std::isfinite(l.shading_ratio))
+      ratios.push_back(l.shading_ratio);
+  }
+  std::sort(ratios.begin(), ratios.end());
+  if (!ratios.empty() && ratios[ratios.size() / 2] > kSteeperThanTheBall) {
+    const int steeper = int(std::count_if(ratios.begin(), ratios.end(),
+                                          [](double r) { return r > kSteeperThanTheBall; }));
+    std::fprintf(stderr,
+                 "warning: %d of the %zu presses change the colour more than %s times as much as "
+                 "the sensor's model shows for a ball of diameter %s mm there (median %.2f; "
+                 "circles.csv's shading_ratio, about 1 for that ball's presses): are they all "
+                 "of that ball? A press of something steeper (a corner, an edge, a smaller ball) "
+                 "is labelled with the ball's shallower slopes%s\n",
+                 steeper, ratios.size(), format_number(kSteeperThanTheBall).c_str(),
+                 format_number(a.diameter * 1e3).c_str(), ratios[ratios.size() / 2],
+                 d.info().render_known ? ""
+                                       : "; or the sensor has more contrast than its model");
+  }
   // Presses too wide for the ball: with a diameter given wrong (its radius, say), the presses
   // narrow enough to pass are labelled with the wrong ball too.
   const int too_wide = int(std::count_if(labels.begin(), labels.end(), [](const FrameLabel& l) {
