@@ -449,12 +449,13 @@ std::string NormalEstimator::background_difference(const DatasetInfo& info) cons
     return "";
   }
   const auto frames = [](const std::string& background) {
-    return background == "real" ? std::string("a real sensor's background (a recording, or a "
-                                              "render over a real no-contact image)")
+    return background == "real" ? std::string(
+                                      "a real sensor's background (a recording, or a "
+                                      "render over a real no-contact image)")
                                 : std::string("the renderer's synthetic background");
   };
-  return "its frames have " + frames(b) + ", and " + impl_->path + " was trained only on frames with " +
-         frames(known.front()) +
+  return "its frames have " + frames(b) + ", and " + impl_->path +
+         " was trained only on frames with " + frames(known.front()) +
          ": a network reads another background's contrast as other slopes (the default model "
          "reads a press over the real DIGIT background 6.2 deg off, against 2.3 deg on the "
          "synthetic one)";

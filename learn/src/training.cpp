@@ -391,7 +391,7 @@ void train_normals(const TrainOptions& options,
   nlohmann::json history = nlohmann::json::array();
   const std::string labels = labels_hash(train);
   learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
-                             history, info.input_mean, info.input_std,    labels};
+                             history, info.input_mean, info.input_std,     labels};
   const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =

@@ -285,9 +285,8 @@ TEST_F(BallPressLabels, CirclesByHandAndFramesWithoutABall) {
   EXPECT_NE(arc.reason.find("less than half of the contact's circle"), std::string::npos)
       << arc.reason;
   // A circle given where the frame shows no press (the press is elsewhere) labels no ball there.
-  const BallPress elsewhere =
-      ball_press_from_circle(reference, reference, rays, found.centre_px, found.radius_px,
-                             kBallRadius, gel);
+  const BallPress elsewhere = ball_press_from_circle(reference, reference, rays, found.centre_px,
+                                                     found.radius_px, kBallRadius, gel);
   EXPECT_FALSE(elsewhere.found);
   EXPECT_NE(elsewhere.reason.find("no change from the no-contact reference inside the given "
                                   "circle (0 px changed"),

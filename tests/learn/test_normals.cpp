@@ -241,7 +241,7 @@ TEST_F(NormalsTraining, AModelTellsFramesOfAnotherBackground) {
   const std::string differ = model.background_difference(info);
   EXPECT_NE(differ.find("its frames have a real sensor's background"), std::string::npos) << differ;
   EXPECT_NE(differ.find(tmp_->str("background.pt") + " was trained only on frames with the "
-                        "renderer's synthetic background"),
+                                                     "renderer's synthetic background"),
             std::string::npos)
       << differ;
   DatasetInfo recording;  // what patchgraph recording writes: no scene, no render settings

@@ -1642,10 +1642,9 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
       << size.out;
   // A background of another size than the frames is named as such (the hints for frames of its
   // size, which the frames do not need, had led nowhere).
-  const CliRun background_size =
-      patchgraph("recording --images " + frames.string() + " --background " +
-                 (dir_ / "rec_background_x2.png").string() + " --static-sensor -q --out " +
-                 out("rec_bad"));
+  const CliRun background_size = patchgraph(
+      "recording --images " + frames.string() + " --background " +
+      (dir_ / "rec_background_x2.png").string() + " --static-sensor -q --out " + out("rec_bad"));
   EXPECT_EQ(background_size.code, 1) << background_size.out;
   EXPECT_NE(background_size.out.find("rec_background_x2.png: 240x320 px, the frames 120x160 px: "
                                      "the no-contact image must come from the same camera"),
@@ -2059,8 +2058,8 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
                                   " --epochs 1 --depth 2 --width 4 -q --out " + out("ball.pt"));
   EXPECT_EQ(train.code, 0) << train.out;
   // Evaluated on its own training frames, it says so; labels of a render keep its background.
-  const CliRun own = patchgraph("eval-normals -q --model " + out("ball.pt") + " --data " +
-                                out("balls_labelled"));
+  const CliRun own =
+      patchgraph("eval-normals -q --model " + out("ball.pt") + " --data " + out("balls_labelled"));
   EXPECT_EQ(own.code, 0) << own.out;
   EXPECT_NE(own.out.find("note: " + out("balls_labelled") + " is among the datasets " +
                          out("ball.pt") + " was trained on"),

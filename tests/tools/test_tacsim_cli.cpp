@@ -563,10 +563,10 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   // A one-sensor scene into a render of several: refused by what the folder holds (it had read
   // "holds no dataset").
   const std::string pinch = tmp.str("pinch");
-  ASSERT_EQ(
-      tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " + pinch)
-          .code,
-      0);
+  ASSERT_EQ(tacsim("render " + kScenes + "examples/two_digits_pinch.json -q --outputs mask --out " +
+                   pinch)
+                .code,
+            0);
   r = tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + pinch);
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find(pinch + ": holds a render of several sensors (sensors.json)"),
@@ -578,7 +578,7 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   r = tacsim("info " + tmp.path.string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find(tmp.path.string() + ": is not a dataset, but holds datasets: d; give one "
-                       "of those folders"),
+                                           "of those folders"),
             std::string::npos)
       << r.out;
   r = tacsim("render " + kScenes + "examples/no_contact.json -q --outputs mask --out " + d);

@@ -252,8 +252,8 @@ std::string circles_csv(const std::vector<FrameLabel>& labels) {
       const std::string rms = l.given ? "" : format_number(p.rms_px, "%.3f");
       const std::string ratio =
           std::isfinite(l.shading_ratio) ? format_number(l.shading_ratio, "%.3f") : "";
-      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%s,%s,%s,\n",
-                    f, index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
+      std::snprintf(row, sizeof(row), "%zu,%s,%s,%.3f,%.3f,%.3f,%.7g,%.7g,%.7g,%.6g,%s,%s,%s,\n", f,
+                    index.c_str(), status, p.centre_px.x(), p.centre_px.y(), p.radius_px,
                     p.centre_m.x(), p.centre_m.y(), p.centre_m.z(), p.depth_m, rms.c_str(),
                     p.shading_fit ? "shading" : "circle", ratio.c_str());
     } else {
@@ -498,8 +498,7 @@ int run_label_ball(const LabelBallArgs& a) {
                  "is labelled with the ball's shallower slopes%s\n",
                  steeper, ratios.size(), format_number(kSteeperThanTheBall).c_str(),
                  format_number(a.diameter * 1e3).c_str(), ratios[ratios.size() / 2],
-                 d.info().render_known ? ""
-                                       : "; or the sensor has more contrast than its model");
+                 d.info().render_known ? "" : "; or the sensor has more contrast than its model");
   }
   // Presses too wide for the ball: with a diameter given wrong (its radius, say), the presses
   // narrow enough to pass are labelled with the wrong ball too.

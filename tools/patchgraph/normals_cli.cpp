@@ -300,13 +300,14 @@ int run_model_info(const ModelInfoArgs& a) {
     std::printf("sensor    not recorded (a model file from before 2026-11-27)\n");
   }
   std::string backgrounds;
-  for (const std::string& b : i.backgrounds) backgrounds += (backgrounds.empty() ? "" : " and ") + b;
-  std::printf("frames    %s\n", backgrounds.empty()
-                                   ? "background not recorded (a model file from before "
-                                     "2026-11-29, or data that did not say)"
-                                   : ("background " + backgrounds +
-                                      " (track and eval-normals warn on another)")
-                                         .c_str());
+  for (const std::string& b : i.backgrounds)
+    backgrounds += (backgrounds.empty() ? "" : " and ") + b;
+  std::printf(
+      "frames    %s\n",
+      backgrounds.empty()
+          ? "background not recorded (a model file from before "
+            "2026-11-29, or data that did not say)"
+          : ("background " + backgrounds + " (track and eval-normals warn on another)").c_str());
   // The rest of the command that trained it, as its options (alphabetical), for reproducing it.
   const auto settings = nlohmann::json::parse(
       i.settings_json.empty() ? "null" : i.settings_json, nullptr, false);

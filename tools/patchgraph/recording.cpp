@@ -153,9 +153,9 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
       hints.push_back("the image is turned by 90 degrees (the sensor's are " +
                       std::string(camera.width < camera.height ? "portrait" : "landscape") +
                       "): turn the frames first, no option turns them" +
-                      (turned != factor ? "; turned, they take --downsample " +
-                                              std::to_string(turned)
-                                        : std::string()));
+                      (turned != factor
+                           ? "; turned, they take --downsample " + std::to_string(turned)
+                           : std::string()));
     }
     if (!hints.empty()) {
       text += " (";
@@ -354,8 +354,8 @@ int run_recording(const RecordingArgs& a) {
   for (const fs::path& file : references) {
     const ImageShape shape = read_image_shape(file.string());
     if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
-      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) +
-                       "x" + std::to_string(shape.height) + " px, the frames " +
+      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) + "x" +
+                       std::to_string(shape.height) + " px, the frames " +
                        std::to_string(frame_shape.width) + "x" +
                        std::to_string(frame_shape.height) +
                        " px: the no-contact image must come from the same camera at the same "
@@ -400,8 +400,8 @@ int run_recording(const RecordingArgs& a) {
     for (int i = 0; i < frames; ++i) {
       std::error_code ec;
       const fs::path file = fs::absolute(files[std::size_t(i)], ec).lexically_normal();
-      sources += std::to_string(i) + "," + csv_field((ec ? files[std::size_t(i)] : file).string()) +
-                 "\n";
+      sources +=
+          std::to_string(i) + "," + csv_field((ec ? files[std::size_t(i)] : file).string()) + "\n";
     }
     write_text_atomically((fs::path(a.out) / "sources.csv").string(), sources);
   } catch (...) {
