@@ -287,6 +287,22 @@ int run_recording(const RecordingArgs& a) {
     throw InputError(a.images + ": every image in it is a --background image; no frame is left");
   }
   warn_of_numbering_gaps(files, a.images);
+  // Lossy frames: JPEG's 8x8 blocks change pixels of their own, which the press search and the
+  // contact mask read as the gel's.
+  const auto jpeg = [](const fs::path& file) {
+    std::string ext = file.extension().string();
+    for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return ext == ".jpg" || ext == ".jpeg";
+  };
+  const long jpegs = std::count_if(files.begin(), files.end(), jpeg);
+  if (jpegs > 0) {
+    std::fprintf(stderr,
+                 "note: %ld of the %zu frames are JPEG: its compression changes pixels of its own, "
+                 "which the contact mask and label-ball's press search read as the gel's (an "
+                 "audit's ball presses: quality 75-90 labelled as PNG, 50 not); a lossless format "
+                 "(PNG) keeps the camera's frames as they were\n",
+                 jpegs, files.size());
+  }
   if (skipped.size() == 1) {
     std::fprintf(stderr, "note: %s is a --background image: not taken as a frame\n",
                  skipped[0].string().c_str());
