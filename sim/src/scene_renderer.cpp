@@ -268,21 +268,33 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
 
 std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene) {
   const std::string tracked = scene.objects[std::size_t(scene.tracked_object)].name;
+  const bool several = summary.sensor_contact.size() > 1;
   std::string text;
-  if (summary.tracked_contact_frames < summary.contact_frames) {
-    text = "warning: " + scene.path + ": in " +
-           std::to_string(summary.contact_frames - summary.tracked_contact_frames) + " of the " +
-           std::to_string(summary.contact_frames) +
-           " contact frames only objects other than the tracked one ('" + tracked +
-           "', tracked_object) touch the gel; a tracker reading the dataset takes their contact "
-           "for the tracked object's";
-  }
-  if (summary.shared_contact_frames > 0) {
-    text += (text.empty() ? "" : "\n") + std::string("warning: ") + scene.path + ": in " +
-            std::to_string(summary.shared_contact_frames) + " of the " +
-            std::to_string(summary.contact_frames) +
-            " contact frames another object touches a gel beside the tracked one ('" + tracked +
-            "'); a tracker reading the dataset takes both contacts for the tracked object's";
+  const auto line = [&](const std::string& body) {
+    text += (text.empty() ? "" : "\n") + std::string("warning: ") + scene.path + ": " + body;
+  };
+  for (std::size_t i = 0; i < summary.sensor_contact.size(); ++i) {
+    const SensorContact& c = summary.sensor_contact[i];
+    std::string others;
+    for (const int k : c.others) {
+      others += (others.empty() ? "'" : ", '") + scene.objects[std::size_t(k)].name + "'";
+    }
+    const std::string whose = several ? "sensor '" + scene.sensors[i].name + "': in " : "in ";
+    const std::string frames = " of " + std::string(several ? "its " : "the ") +
+                               std::to_string(c.contact_frames) + " contact frames ";
+    const std::string gel = several ? "its gel" : "the gel";
+    const std::string dataset = several ? "its dataset" : "the dataset";
+    if (c.untracked_frames > 0) {
+      line(whose + std::to_string(c.untracked_frames) + frames +
+           "only objects other than the tracked one ('" + tracked + "', tracked_object) touch " +
+           gel + " (" + others + "); a tracker reading " + dataset +
+           " takes their contact for the tracked object's");
+    }
+    if (c.shared_frames > 0) {
+      line(whose + std::to_string(c.shared_frames) + frames + "another object (" + others +
+           ") touches " + gel + " along with the tracked one ('" + tracked +
+           "'); a tracker reading " + dataset + " takes both contacts for the tracked object's");
+    }
   }
   return text;
 }
@@ -389,31 +401,38 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
       writers.back()->write_background(renderer.sensor(i).background_color_u8());
     summary.dataset_dirs.push_back(dir);
   }
-  std::atomic<int> done{0}, contact_frames{0}, tracked_contact_frames{0}, shared_contact_frames{0},
-      clamped_frames{0};
-  std::mutex progress_mutex;
+  std::atomic<int> done{0}, contact_frames{0}, clamped_frames{0};
+  std::mutex progress_mutex, contact_mutex;
+  summary.sensor_contact.assign(std::size_t(renderer.sensor_count()), SensorContact{});
+  std::vector<std::vector<bool>> others_seen(std::size_t(renderer.sensor_count()),
+                                             std::vector<bool>(scene.objects.size(), false));
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(0, scene.frames, [&](int frame) {
     const auto frames = renderer.render_frame(frame);
-    bool contact = false, tracked = false, shared = false, clamped = false;
+    bool contact = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
       const RenderStats& stats = frames[i].stats;
       write_rendered_frame(renderer, frame, i, frames[i], *writers[i], frame);
       contact = contact || stats.contact;
-      const std::vector<int>& pixels = stats.object_contact_pixels;
-      const bool tracked_here =
-          pixels.empty() ? stats.contact : pixels[std::size_t(scene.tracked_object)] > 0;
-      tracked = tracked || tracked_here;
-      // Another object in the same image as the tracked one: its contact joins the tracked
-      // object's cloud.
-      for (std::size_t k = 0; k < pixels.size(); ++k) {
-        shared = shared || (tracked_here && int(k) != scene.tracked_object && pixels[k] > 0);
-      }
       clamped = clamped || stats.clamped_pixels > 0;
+      if (!stats.contact) continue;
+      // Per sensor: each dataset is tracked as the tracked object's. Another object in its image
+      // (alone, or beside the tracked one, whose cloud it joins) would be taken for it.
+      const std::vector<int>& pixels = stats.object_contact_pixels;
+      const bool tracked_here = pixels.empty() || pixels[std::size_t(scene.tracked_object)] > 0;
+      bool other = false;
+      std::lock_guard<std::mutex> lock(contact_mutex);
+      for (std::size_t k = 0; k < pixels.size(); ++k) {
+        if (int(k) == scene.tracked_object || pixels[k] == 0) continue;
+        other = true;
+        others_seen[std::size_t(i)][k] = true;
+      }
+      SensorContact& c = summary.sensor_contact[std::size_t(i)];
+      ++c.contact_frames;
+      c.untracked_frames += !tracked_here;
+      c.shared_frames += tracked_here && other;
     }
     contact_frames += contact;
-    tracked_contact_frames += tracked;
-    shared_contact_frames += shared;
     clamped_frames += clamped;
     const int n = ++done;
     if (progress) {
@@ -443,9 +462,12 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   }
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   summary.contact_frames = contact_frames;
-  summary.tracked_contact_frames = tracked_contact_frames;
-  summary.shared_contact_frames = shared_contact_frames;
   summary.clamped_frames = clamped_frames;
+  for (std::size_t i = 0; i < others_seen.size(); ++i) {
+    for (std::size_t k = 0; k < others_seen[i].size(); ++k) {
+      if (others_seen[i][k]) summary.sensor_contact[i].others.push_back(int(k));
+    }
+  }
   return summary;
 }
 

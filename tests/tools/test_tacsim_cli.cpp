@@ -824,10 +824,28 @@ TEST(TacsimCli, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
   r = tacsim("render " + tmp.str("two.json") + " -q --out " + tmp.str("two"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("warning: " + tmp.str("two.json") +
-                       ": in 3 of the 3 contact frames another object touches a gel beside the "
-                       "tracked one ('a')"),
+                       ": in 3 of the 3 contact frames another object ('b') touches the gel along "
+                       "with the tracked one ('a')"),
             std::string::npos)
       << r.out;
+  // Two sensors, each pressed by one sphere: the second sensor's dataset holds only the other
+  // sphere's contact, said of that sensor (it had been said of no sensor: the tracked one touched
+  // the first sensor in the same frames).
+  std::ofstream(tmp.str("apart.json"))
+      << R"({"frames": 3, "render": {"outputs": ["mask"]},
+             "sensors": [{"name": "near"}, {"name": "far", "pose": {"position": [0.1, 0.0, 0.0]}}],
+             "objects": [{"name": "a", "mesh": ")"
+      << meshes << R"(sphere_r4mm.glb", "pose": {"position": [0.0, 0.0, 0.0035]}},
+             {"name": "b", "mesh": ")"
+      << meshes << R"(sphere_r4mm.glb", "pose": {"position": [0.1, 0.0, 0.0035]}}]})";
+  r = tacsim("render " + tmp.str("apart.json") + " -q --out " + tmp.str("apart"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("warning: " + tmp.str("apart.json") +
+                       ": sensor 'far': in 3 of its 3 contact frames only objects other than the "
+                       "tracked one ('a', tracked_object) touch its gel ('b')"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("sensor 'near'"), std::string::npos) << r.out;
 }
 
 // Scenes whose sensors differ in image size share one sheet: every cell is as large as the

@@ -47,12 +47,20 @@ class SceneRenderer {
   std::vector<std::unique_ptr<SensorRenderer>> sensors_;
 };
 
+// What touched one sensor's gel over a render: its dataset's contact is taken for the tracked
+// object's.
+struct SensorContact {
+  int contact_frames = 0;    // frames in which something touched this sensor's gel
+  int untracked_frames = 0;  // of those, frames in which only other objects did
+  int shared_frames = 0;     // frames in which another object touched it along with the tracked
+  std::vector<int> others;   // the other objects that touched it (scene indices, ascending)
+};
+
 struct RenderSummary {
   int frames = 0;
-  int contact_frames = 0;          // frames where some sensor saw contact
-  int tracked_contact_frames = 0;  // of those, frames where the tracked object itself touched
-  int shared_contact_frames = 0;   // frames where another object touched a gel the tracked did
-  int clamped_frames = 0;          // frames with penetration beyond the gel's max indentation
+  int contact_frames = 0;  // frames where some sensor saw contact
+  int clamped_frames = 0;  // frames with penetration beyond the gel's max indentation
+  std::vector<SensorContact> sensor_contact;  // one per sensor
   double seconds = 0;
   std::vector<std::string> dataset_dirs;  // one per sensor
   // Datasets of an earlier render into the folder (its sensors.json) of sensors this scene does
@@ -76,11 +84,12 @@ std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer);
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress = nullptr);
 
-// "" when the tracked object alone touched the gel in every contact frame of a render; else the
-// warnings (one a line), naming the scene: of the frames where only other objects touch, and of
-// those where another touches a gel beside the tracked one. A tracker reading the dataset takes
-// every contact for the tracked object's (its poses are that object's), so another object's
-// touch would be registered as its motion. tacsim render and patchgraph bench print it.
+// "" when the tracked object alone touched each sensor's gel in every contact frame of a render;
+// else the warnings (one a line), naming the scene, the sensor (of several) and the objects: of
+// the frames where only other objects touch a sensor's gel, and of those where another touches it
+// along with the tracked one. A tracker reading a sensor's dataset takes every contact for the
+// tracked object's (its poses are that object's), so another object's touch would be registered
+// as its motion. tacsim render and patchgraph bench print it.
 std::string untracked_contact_warning(const RenderSummary& summary, const Scene& scene);
 
 }  // namespace pg
