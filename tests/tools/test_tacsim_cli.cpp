@@ -812,7 +812,7 @@ TEST(TacsimCli, OtherObjectsTouchingWithoutTheTrackedOneAreWarnedAbout) {
   r = scene("sphere");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out.find("only objects other than"), std::string::npos) << r.out;
-  EXPECT_EQ(r.out.find("beside the tracked one"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("along with the tracked one"), std::string::npos) << r.out;
   // Two spheres pressing side by side: the tracker would take both for the tracked one (it had
   // not been said).
   std::ofstream(tmp.str("two.json"))
