@@ -309,6 +309,7 @@ class BoxTree {
 void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
   const int n = static_cast<int>(mesh.triangles.size());
   const EdgeTriangles by_edge = triangles_by_edge(mesh.triangles);
+  for (const auto& edge : by_edge) report.border_edges += edge.second.size() == 1;
   const Surfaces surfaces = find_surfaces(mesh.triangles, by_edge);
   std::vector<std::int8_t> flip(static_cast<size_t>(n), -1);  // -1: not reached yet
   // 1. Each surface's triangles, turned consistently (flip 1: against the seed's direction).
@@ -349,6 +350,8 @@ void orient_surfaces(TriangleMesh& mesh, MeshLoadReport& report) {
     }
     // A closed surface (part is all of it when every edge has two triangles).
     part.closed = surfaces.closed[surfaces.of_triangle[part.triangles[0]]];
+    ++report.surfaces;
+    report.open_surfaces += !part.closed;
     for (int t : part.triangles) {
       const Eigen::Vector3i& tri = mesh.triangles[t];
       const Eigen::Vector3d a = mesh.vertices[static_cast<size_t>(tri[0])].cast<double>();
@@ -482,6 +485,13 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
     std::cerr << "warning: " << path << ": " << report.inside_out_parts_turned
               << " closed part(s) had every triangle facing inward (clockwise seen from "
                  "outside); turned them outward\n";
+  }
+  if (report.border_edges > 0) {
+    std::cerr << "warning: " << path << ": " << report.open_surfaces << " of its "
+              << report.surfaces << " surface(s) open, " << report.border_edges
+              << " edge(s) of a single triangle (a hole, a missing face): an open surface "
+                 "presses the gel only where it crosses it, so a solid with a hole presses part "
+                 "of its imprint, or none; a watertight mesh renders as a solid\n";
   }
   return mesh;
 }

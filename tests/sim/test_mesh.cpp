@@ -547,7 +547,9 @@ TEST_F(MeshIoTest, DegenerateTrianglesAreDroppedCountedAndWarned) {
   EXPECT_EQ(report.degenerate_triangles_dropped, 2);
   ASSERT_EQ(mesh.triangles.size(), 2u);
   EXPECT_EQ(mesh.triangles[1], Eigen::Vector3i(1, 0, 4));
-  EXPECT_EQ(err, "warning: " + path + ": dropped 2 degenerate triangles\n");
+  // (Then it is an open sheet, said too.)
+  EXPECT_EQ(err.substr(0, err.find('\n') + 1),
+            "warning: " + path + ": dropped 2 degenerate triangles\n");
 
   const std::string all = write("all.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n");
   ::testing::internal::CaptureStderr();
@@ -616,13 +618,23 @@ TEST_F(MeshIoTest, AnInsideOutClosedPartIsTurnedOutwardAndWarned) {
   EXPECT_NEAR(signed_volume(turned), 1.0, 1e-9);
   EXPECT_TRUE(Contains(err, path + ": 1 closed part(s) had every triangle facing inward")) << err;
 
-  // Without its last face the cube is open: nothing to turn.
+  EXPECT_EQ(report.border_edges, 0);
+  EXPECT_EQ(report.open_surfaces, 0);
+  EXPECT_EQ(report.surfaces, 1);
+
+  // Without its last triangle the cube is open: nothing to turn; the hole is said (a solid with a
+  // hole rendered a partial imprint without a word).
   const std::string open = inward.substr(0, inward.rfind("f "));
   ::testing::internal::CaptureStderr();
   const TriangleMesh kept = load_mesh(write("open.obj", open), 1.0, &report);
-  ::testing::internal::GetCapturedStderr();
+  const std::string open_err = ::testing::internal::GetCapturedStderr();
   EXPECT_EQ(report.inside_out_parts_turned, 0);
   EXPECT_EQ(kept.triangles[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(report.border_edges, 3);
+  EXPECT_EQ(report.open_surfaces, 1);
+  EXPECT_TRUE(Contains(open_err, "open.obj: 1 of its 1 surface(s) open, 3 edge(s) of a single "
+                                 "triangle (a hole, a missing face)"))
+      << open_err;
 }
 
 // Exporters that give every face its own corners (flat shading, UV seams; GLB and PLY as often

@@ -18,6 +18,9 @@ struct MeshLoadReport {
   int duplicate_triangles_dropped = 0;   // the same three corners as an earlier triangle
   int triangles_turned_to_match = 0;     // faced against the rest of their surface
   int inside_out_parts_turned = 0;       // closed surfaces whose triangles all faced inward
+  int border_edges = 0;                  // edges of a single triangle: a hole, a missing face
+  int open_surfaces = 0;                 // surfaces with border edges
+  int surfaces = 0;                      // surfaces (triangles joined by shared edges)
 };
 
 // Loads a mesh and multiplies its vertices by `scale`. Throws pg::InputError naming the file for:
@@ -28,7 +31,9 @@ struct MeshLoadReport {
 // are triangles repeating an earlier one's corners; each surface (triangles joined by edges) is
 // oriented: triangles facing against the rest of it are turned to match, and a closed surface
 // facing inward is turned outward. Each of these is counted in `report`, and a warning is printed
-// to stderr when it changed anything.
+// to stderr when it changed anything. An open surface (a hole, a missing face) is counted and
+// warned about too: the renderer counts it only where it crosses the gel, so a solid with a hole
+// presses a partial imprint.
 TriangleMesh load_mesh(const std::string& path, double scale = 1.0,
                        MeshLoadReport* report = nullptr);
 
