@@ -1,11 +1,14 @@
 #include "pg/sim/scene.h"
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "pg/core/dataset.h"
 #include "pg/core/json_fields.h"
+#include "pg/core/numbers.h"
+#include "pg/core/se3.h"
 
 namespace pg {
 
@@ -72,6 +75,31 @@ Trajectory read_motion(JsonFields& f) {
       throw InputError(where + ".frame: frames must increase strictly (" +
                        std::to_string(wp.frame) + " after " +
                        std::to_string(waypoints.back().frame) + ")");
+    }
+    // Between two waypoints the orientation turns the shorter way (slerp): a turn about one
+    // axis of more than pi in one step, written with an angle beyond +-pi (a spin as yaw 0 ->
+    // 6.28), turns less than it says, or not at all. (Steps that change several angles go from
+    // one orientation to another, and angles within +-pi that wrap, 3.11 -> -3.12, mean the
+    // short way.)
+    if (!waypoints.empty()) {
+      const Eigen::Vector3d step = wp.rpy_rad - waypoints.back().rpy_rad;
+      // (pi written to a few digits, 3.141593, is not beyond it.)
+      const double wrap = kPi + 1e-3;
+      const bool beyond_pi = wp.rpy_rad.cwiseAbs().maxCoeff() > wrap ||
+                             waypoints.back().rpy_rad.cwiseAbs().maxCoeff() > wrap;
+      const int changed = int((step.array().abs() > 1e-9).count());
+      if (changed == 1 && beyond_pi && step.cwiseAbs().maxCoeff() > kPi) {
+        const double turn =
+            rotation_distance(pose_from_position_rpy(Eigen::Vector3d::Zero(), wp.rpy_rad),
+                              pose_from_position_rpy(Eigen::Vector3d::Zero(),
+                                                     waypoints.back().rpy_rad));
+        std::fprintf(stderr,
+                     "warning: %s.rpy: one angle changes by %.3g rad since the waypoint before, "
+                     "more than pi: between waypoints the object turns the shorter way from one "
+                     "orientation to the other (here %.2f rad); for a longer turn, add waypoints "
+                     "less than pi apart\n",
+                     where.c_str(), step.cwiseAbs().maxCoeff(), turn);
+      }
     }
     waypoints.push_back(wp);
   }

@@ -381,6 +381,34 @@ TEST_F(SceneFileTest, ObjectNamesAndOutputsAreEachGivenOnce) {
 
 // The norm of [1e200, 0, 0, 0] squared overflows; such a quaternion is still a rotation (half a
 // turn about x) and must not be normalised to [0, 0, 0, 0].
+// Between waypoints the orientation takes the shorter way: a spin written as one angle going
+// beyond pi (yaw 0 -> 2 pi) turns less than it says, here not at all, and is warned about,
+// naming the waypoint; an angle wrapping within +-pi (3.141593 -> -3.08: 0.06 rad, as the
+// benchmark's scenes have it) and a step changing several angles are not.
+TEST_F(SceneFileTest, ASpinBetweenTwoWaypointsIsWarnedAbout) {
+  const auto warnings = [&](const Vector3d& from, const Vector3d& to) {
+    json j = minimal_scene();
+    j["frames"] = 11;
+    j["objects"][0]["trajectory"] = {
+        {"waypoints", {waypoint(0, Vector3d::Zero(), from), waypoint(10, Vector3d::Zero(), to)}}};
+    const std::string path = write("spin.json", j);
+    ::testing::internal::CaptureStderr();
+    const Scene s = load_scene(path);
+    const std::string err = ::testing::internal::GetCapturedStderr();
+    return std::make_pair(err, rotation_distance(s.objects[0].T_world_object.at(0),
+                                                 s.objects[0].T_world_object.at(5)));
+  };
+  const auto [spin, spin_turn] = warnings(Vector3d::Zero(), Vector3d(0, 0, 2 * kPi));
+  EXPECT_LT(spin_turn, 1e-9) << "the shorter way: no turn";
+  EXPECT_NE(spin.find("objects[0].trajectory.waypoints[1].rpy: one angle changes by 6.28 rad "
+                      "since the waypoint before, more than pi"),
+            std::string::npos)
+      << spin;
+  EXPECT_NE(spin.find("(here 0.00 rad)"), std::string::npos) << spin;
+  EXPECT_EQ(warnings(Vector3d(3.141593, 0, 1.6), Vector3d(-3.08, 0, 1.6)).first, "");
+  EXPECT_EQ(warnings(Vector3d::Zero(), Vector3d(3.5, 0.2, 0)).first, "");
+}
+
 TEST_F(SceneFileTest, QuaternionsOfAnyFiniteScaleAreNormalised) {
   json j = minimal_scene();
   j["objects"][0]["pose"] = {{"position", {0, 0, 0.01}}, {"quaternion", {1e200, 0, 0, 0}}};
