@@ -79,10 +79,24 @@ Eigen::Vector3d undeformed_gel_point(const CameraModel& camera, const GelModel& 
 
 Eigen::Vector2d view_beyond_gel(const CameraModel& camera, const GelModel& gel) {
   Eigen::Vector2d beyond = Eigen::Vector2d::Zero();
+  const double half_w = 0.5 * gel.width_m, half_h = 0.5 * gel.height_m;
   const auto reach = [&](int x, int y) {
-    const Eigen::Vector3d p = undeformed_gel_point(camera, gel, x, y);
-    beyond.x() = std::max(beyond.x(), std::abs(p.x()) - 0.5 * gel.width_m);
-    beyond.y() = std::max(beyond.y(), std::abs(p.y()) - 0.5 * gel.height_m);
+    // Where the ray meets the gel's surface, continued past its edges at the edge's height: the
+    // dome's formula beyond the gel is no surface (a wide camera's corner rays met it hundreds of
+    // millimetres out). z <- surface_z(the ray's point at z, held to the gel's rectangle).
+    const Eigen::Vector3d d = camera.ray(x, y);
+    double z = 0.0;
+    for (int it = 0; it < 100; ++it) {
+      const double t = z + camera.distance_m;
+      const double z_next = gel.surface_z(std::clamp(d.x() * t, -half_w, half_w),
+                                          std::clamp(d.y() * t, -half_h, half_h));
+      const bool done = std::abs(z_next - z) < 1e-13;
+      z = z_next;
+      if (done) break;
+    }
+    const double t = z + camera.distance_m;
+    beyond.x() = std::max(beyond.x(), std::abs(d.x() * t) - half_w);
+    beyond.y() = std::max(beyond.y(), std::abs(d.y() * t) - half_h);
   };
   // The ray's x grows with the column and its y with the row: the image's border reaches
   // farthest.

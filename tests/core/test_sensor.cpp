@@ -60,7 +60,9 @@ TEST(SensorPreset, GelsightMiniScale) {
 
 // How far a camera sees past its gel: nowhere on the presets; a wider field of view of the DIGIT
 // past its 20 mm width first (its image is 0.75 as wide as tall, its gel 0.67), by what the
-// pixel rays' hits on the flat part of the gel say.
+// pixel rays' hits on the gel, continued past its edges at the edge's height, say. A very wide
+// image sees past the gel's sides only as far as the rays reach at that height (it had read 643
+// mm along x, and 148 mm along y, where the view stays within the gel).
 TEST(SensorPreset, TheCameraSeesPastTheGelOnlyWithAWiderView) {
   for (const auto& name : sensor_preset_names()) {
     const SensorModel s = sensor_preset(name);
@@ -72,17 +74,32 @@ TEST(SensorPreset, TheCameraSeesPastTheGelOnlyWithAWiderView) {
   wide.camera.fx = wide.camera.fy;
   const Eigen::Vector2d beyond = view_beyond_gel(wide.camera, wide.gel);
   // The farthest along x: the first column's rays near the middle row, where the gel sags least.
-  // Where that ray meets the gel, by bisection on t - distance = surface_z(d t):
+  // Past the edge the gel is continued at the edge's height there: that ray meets the plane
+  // z = surface_z(-width / 2, y at the hit).
   const Eigen::Vector3d d = wide.camera.ray(0, 79);
   double lo = 0, hi = 2 * wide.camera.distance_m;
   for (int it = 0; it < 100; ++it) {
     const double t = 0.5 * (lo + hi);
-    const bool before = t - wide.camera.distance_m < wide.gel.surface_z(d.x() * t, d.y() * t);
+    const bool before =
+        t - wide.camera.distance_m < wide.gel.surface_z(-wide.gel.width_m / 2, d.y() * t);
     (before ? lo : hi) = t;
   }
   EXPECT_NEAR(beyond.x(), std::abs(d.x()) * lo - wide.gel.width_m / 2, 1e-7);
   EXPECT_GT(beyond.x(), 2e-3);
   EXPECT_LT(beyond.y(), beyond.x());
+  // 640 x 160 px at the DIGIT's 1.05 rad vertical view: about 50 mm to either side at the gel,
+  // and within its 30 mm along y.
+  SensorModel strip = sensor_preset("digit");
+  strip.camera.width = 640;
+  strip.camera.cx = 319.5;
+  const Eigen::Vector2d strip_beyond = view_beyond_gel(strip.camera, strip.gel);
+  // (The first column's ray through the middle row, at the height of the gel's edge there.)
+  const double half_view =
+      std::abs(strip.camera.ray(0, 80).x()) *
+      (strip.camera.distance_m + strip.gel.surface_z(-strip.gel.width_m / 2, 0.0));
+  EXPECT_NEAR(strip_beyond.x(), half_view - strip.gel.width_m / 2, 1e-5);
+  EXPECT_LT(strip_beyond.x(), 0.05);
+  EXPECT_EQ(strip_beyond.y(), 0.0);
 }
 
 TEST(SensorPreset, UnknownNameListsKnownOnes) {

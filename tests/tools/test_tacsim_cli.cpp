@@ -289,8 +289,8 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
   // the render draws gel where a real sensor shows its housing.
   const CliRun r = render_sensor("wide", R"({"camera": {"fov_y_rad": 1.4}})", "mask");
   ASSERT_EQ(r.code, 0) << r.out;
-  EXPECT_NE(r.out.find("warning: sensor wide's camera sees past its gel's edges, by 2.3 mm along "
-                       "x and 0.4 mm along y (gel.width_m 20.0 mm, gel.height_m 30.0 mm)"),
+  EXPECT_NE(r.out.find("warning: sensor wide's camera sees past its gel's edges, by 2.8 mm along "
+                       "x and 0.5 mm along y (gel.width_m 20.0 mm, gel.height_m 30.0 mm)"),
             std::string::npos)
       << r.out;
 }

@@ -39,8 +39,8 @@ Eigen::Vector3d undeformed_gel_point(const CameraModel& camera, const GelModel& 
                                      double y);
 
 // How far the image's pixel centres reach past the gel's own width_m x height_m on the undeformed
-// gel, along x and y [m] (0 where they stay within it). The renderer draws gel there, where a
-// real sensor shows its housing.
+// gel, continued past its edges at the edge's height, along x and y [m] (0 where they stay within
+// it). The renderer draws gel there, where a real sensor shows its housing.
 Eigen::Vector2d view_beyond_gel(const CameraModel& camera, const GelModel& gel);
 
 // The rigid gel (TACTO's model) indented by a sphere of `radius` [m] centred at `centre` in S:
