@@ -152,16 +152,20 @@ void SensorRenderer::State::prepare() {
   if (!settings.background.empty()) {
     const ImageF real = read_image_float(settings.background);
     if (real.channels < 3) {
-      throw InputError(settings.background + ": background image must be RGB");
+      throw InputError(settings.background + ": " + std::to_string(real.channels) +
+                       (real.channels == 1 ? " channel (grey)" : " channels") +
+                       "; a background image must be RGB, as the sensor's camera sees it");
     }
     // It is scaled to the sensor's image, not cropped: another shape would stretch it.
     const double aspect = double(real.width) / real.height, wanted = double(w) / h;
     if (std::abs(aspect / wanted - 1.0) > 0.02) {
+      const bool turned = std::abs(1.0 / aspect / wanted - 1.0) <= 0.02;
       throw InputError(settings.background + ": background image is " + std::to_string(real.width) +
                        "x" + std::to_string(real.height) + ", not of the sensor's shape (" +
                        std::to_string(w) + "x" + std::to_string(h) +
-                       " or a multiple; a background is scaled to the sensor's image, never "
-                       "cropped)");
+                       ", or any size of that shape; a background is scaled to the sensor's "
+                       "image, never cropped)" +
+                       (turned ? ": it is turned by 90 degrees; turn it first" : ""));
     }
     ImageF rgb(real.width, real.height, 3);
     for (int y = 0; y < real.height; ++y)

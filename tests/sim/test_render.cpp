@@ -542,7 +542,11 @@ TEST(RenderBadInput, ABackgroundOfAnotherShapeIsRefused) {
     ADD_FAILURE() << "expected an InputError";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find(path + ": background image is 160x120, not of the "
-                                                "sensor's shape (120x160 or a multiple;"),
+                                                "sensor's shape (120x160, or any size of that "
+                                                "shape;"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find(": it is turned by 90 degrees; turn it first"),
               std::string::npos)
         << e.what();
   }

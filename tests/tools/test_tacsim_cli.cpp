@@ -754,7 +754,7 @@ TEST(TacsimCli, OverridesAreCheckedAndFileErrorsSayWhereTheSceneNamesTheFile) {
        {std::pair<std::string, std::string>{"Synthetic",
                                             ": no such image file (give an image, or synthetic "
                                             "or none)"},
-        {"grey.png", ": background image must be RGB"},
+        {"grey.png", ": 1 channel (grey); a background image must be RGB"},
         {"nan.exr", ": pixel (7, 3) channel 1 is not a finite number"}}) {
     std::ofstream(tmp.str("scene.json"))
         << R"({"frames": 2, "sensors": [{}], "objects": [{"mesh": ")" << PG_SOURCE_DIR
