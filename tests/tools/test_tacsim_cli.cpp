@@ -506,15 +506,28 @@ TEST(TacsimCli, TwoSensorsPinchingWriteADatasetEach) {
     }
   }
   EXPECT_EQ(datasets, 2);
+  // info describes each sensor's dataset of the render (it had refused the render's folder).
   const CliRun info = tacsim("info " + tmp.str("d"));
-  EXPECT_EQ(info.code, 1);
-  EXPECT_NE(info.out.find(tmp.str("d") +
-                          ": is not a dataset, but a render of several sensors "
-                          "(sensors.json): digit_bottom, digit_top; give one of those "
-                          "folders (patchgraph track takes " +
-                          tmp.str("d") + " itself"),
+  EXPECT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("render    " + tmp.str("d") +
+                          ": 2 sensors (sensors.json): digit_bottom, digit_top\n"),
             std::string::npos)
       << info.out;
+  EXPECT_NE(info.out.find("dataset   " + tmp.str("d") + "/digit_top\n"), std::string::npos)
+      << info.out;
+  // A dataset reader, given the render's folder, names its sensors' folders.
+  try {
+    Dataset::open(tmp.str("d"));
+    ADD_FAILURE() << "the render's folder opened as one dataset";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(tmp.str("d") +
+                                         ": is not a dataset, but a render of several sensors "
+                                         "(sensors.json): digit_bottom, digit_top; give one of "
+                                         "those folders (patchgraph track takes " +
+                                         tmp.str("d") + " itself"),
+              std::string::npos)
+        << e.what();
+  }
   // Rendered again with a sensor of another name: the new one's folder is listed, the earlier
   // one's is left as it was and said so (it had stayed without a word).
   std::string scene = testing_support::file_text(kScenes + "examples/two_digits_pinch.json");

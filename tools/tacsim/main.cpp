@@ -262,7 +262,7 @@ long decode_every_frame(const Dataset& d) {
   return files;
 }
 
-int run_info(const std::string& dir, bool check) {
+void print_dataset_info(const std::string& dir, bool check) {
   const Dataset d = Dataset::open(dir);
   const DatasetInfo& info = d.info();
   int contact = 0, contact_unknown = 0, object_known = 0;
@@ -309,6 +309,26 @@ int run_info(const std::string& dir, bool check) {
     const long files = decode_every_frame(d);
     std::printf("checked   %ld frame files: each reads, at %dx%d\n", files, info.width(),
                 info.height());
+  }
+}
+
+// A dataset, or a render of several sensors (its sensors.json): each sensor's dataset in turn.
+int run_info(const std::string& dir, bool check) {
+  std::vector<std::string> sensors = sensor_dataset_dirs(dir);
+  if (sensors.size() == 1 && sensors[0] == dir) sensors.clear();
+  if (sensors.empty()) {
+    print_dataset_info(dir, check);  // Dataset::open says what DIR lacks
+    return kExitOk;
+  }
+  std::string names;
+  for (const std::string& s : sensors) {
+    names += (names.empty() ? "" : ", ") + std::filesystem::path(s).filename().string();
+  }
+  std::printf("render    %s: %zu sensors (%s): %s\n", dir.c_str(), sensors.size(),
+              kSensorIndexFile, names.c_str());
+  for (const std::string& s : sensors) {
+    std::printf("\n");
+    print_dataset_info(s, check);
   }
   return kExitOk;
 }
