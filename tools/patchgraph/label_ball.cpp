@@ -171,11 +171,15 @@ class BallShading {
     if (info.render_known && fs::is_regular_file(info.background, ec)) {
       settings.background = info.background;
     }
-    renderer_ = std::make_unique<SensorRenderer>(
-        sensor,
-        std::vector<std::shared_ptr<const ObjectShape>>{
-            std::make_shared<ObjectShape>(make_uv_sphere(float(radius_m), 48, 96))},
-        settings);
+    const std::vector<std::shared_ptr<const ObjectShape>> ball = {
+        std::make_shared<ObjectShape>(make_uv_sphere(float(radius_m), 48, 96))};
+    // A check, not the labelling: a background image that no longer reads is left out.
+    try {
+      renderer_ = std::make_unique<SensorRenderer>(sensor, ball, settings);
+    } catch (const InputError&) {
+      settings.background.clear();
+      renderer_ = std::make_unique<SensorRenderer>(sensor, ball, settings);
+    }
   }
 
   double ratio(const ImageU8& color, const ImageU8& reference, const BallPress& press) const {
