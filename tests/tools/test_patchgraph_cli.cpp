@@ -1671,12 +1671,52 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                 (dir_ / "rec_background.png").string() +
                                 " --static-sensor -q --out " + out("rec_bad"));
     EXPECT_EQ(l.code, 1) << l.out;
-    EXPECT_NE(l.out.find("the image is turned by 90 degrees (the sensor's are portrait): turn "
-                         "the frames first, no option turns them" +
+    EXPECT_NE(l.out.find("the image is turned by 90 degrees (the sensor's are portrait): "
+                         "--rotate 90 or 270 turns the frames, whichever puts the sensor's "
+                         "lights where its model has them" +
                          std::string(factor == 2 ? "; turned, they take --downsample 2)" : ")")),
               std::string::npos)
         << l.out;
   }
+  // --rotate turns a camera's landscape frames (and the no-contact image) back: frames turned
+  // a quarter counter-clockwise, read with --rotate 90, are the rendered frames again; the same
+  // turn given to portrait frames is named.
+  const auto counter_clockwise = [](const ImageU8& image) {
+    ImageU8 t(image.height, image.width, image.channels);
+    for (int y = 0; y < t.height; ++y) {
+      for (int x = 0; x < t.width; ++x) {
+        for (int c = 0; c < t.channels; ++c) t.at(x, y, c) = image.at(image.width - 1 - y, x, c);
+      }
+    }
+    return t;
+  };
+  const fs::path sideways = dir_ / "rec_sideways";
+  fs::create_directories(sideways);
+  for (int i = 0; i < 3; ++i) {
+    write_image((sideways / ("f" + std::to_string(i) + ".png")).string(),
+                counter_clockwise(rendered.color(i)));
+  }
+  write_image((dir_ / "rec_sideways_background.png").string(),
+              counter_clockwise(rendered.background()));
+  const CliRun rotated = patchgraph("recording --images " + sideways.string() + " --background " +
+                                    (dir_ / "rec_sideways_background.png").string() +
+                                    " --rotate 90 --static-sensor -q --out " + out("rec_rotated"));
+  ASSERT_EQ(rotated.code, 0) << rotated.out;
+  EXPECT_NE(rotated.out.find("(160x120 px, turned 90 degrees clockwise) -> "), std::string::npos)
+      << rotated.out;
+  const Dataset turned_back = Dataset::open(out("rec_rotated"));
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(turned_back.color(i).data, rendered.color(i).data) << i;
+  EXPECT_EQ(turned_back.background().data, rendered.background().data);
+  const CliRun twice = patchgraph("recording --images " + frames.string() + " --background " +
+                                  (dir_ / "rec_background.png").string() +
+                                  " --rotate 270 --static-sensor -q --out " + out("rec_bad"));
+  EXPECT_EQ(twice.code, 1) << twice.out;
+  EXPECT_NE(twice.out.find("), as --rotate 270 turned it: leave --rotate out"), std::string::npos)
+      << twice.out;
+  EXPECT_EQ(patchgraph("recording --images " + sideways.string() +
+                       " --rotate 45 --static-sensor -q --out " + out("rec_bad"))
+                .code,
+            2);
   // Frames whose numbers skip some (a camera's dropped frames) are warned about.
   const fs::path gaps = dir_ / "rec_gap_frames";
   fs::create_directories(gaps);

@@ -118,7 +118,7 @@ void warn_of_numbering_gaps(const std::vector<fs::path>& files, const std::strin
 // Throws InputError naming the file unless an image of this shape is a frame of the sensor:
 // RGB (or RGBA) at the camera's size times `factor`.
 void check_frame_shape(const std::string& path, const ImageShape& raw, const CameraModel& camera,
-                       int factor) {
+                       int factor, int rotate = 0) {
   if (raw.channels != 3 && raw.channels != 4) {
     throw InputError(path + ": " + std::to_string(raw.channels) +
                      (raw.channels == 1 ? " channel (grey)" : " channels") +
@@ -152,7 +152,10 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
       const int turned = raw.width / camera.height;
       hints.push_back("the image is turned by 90 degrees (the sensor's are " +
                       std::string(camera.width < camera.height ? "portrait" : "landscape") +
-                      "): turn the frames first, no option turns them" +
+                      (rotate == 0 ? "): --rotate 90 or 270 turns the frames, whichever puts "
+                                     "the sensor's lights where its model has them"
+                                   : "), as --rotate " + std::to_string(rotate) +
+                                         " turned it: leave --rotate out") +
                       (turned != factor
                            ? "; turned, they take --downsample " + std::to_string(turned)
                            : std::string()));
@@ -166,11 +169,41 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
   }
 }
 
-// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, and
-// `factor` x `factor` pixel blocks are averaged (rounded to the nearest level).
-ImageU8 sensor_image(const std::string& path, const CameraModel& camera, int factor) {
-  const ImageU8 raw = read_image_u8(path);
-  check_frame_shape(path, {raw.width, raw.height, raw.channels}, camera, factor);
+// How a camera's files become the sensor's frames: turned clockwise by `rotate` degrees (a
+// driver's landscape frames of a portrait sensor), then `factor` x `factor` blocks averaged.
+struct FrameReading {
+  CameraModel camera;
+  int factor = 1;
+  int rotate = 0;
+  // A file's image shape once turned.
+  ImageShape turned(const ImageShape& raw) const {
+    return rotate % 180 == 0 ? raw : ImageShape{raw.height, raw.width, raw.channels};
+  }
+};
+
+// `image` turned clockwise by `degrees` (0, 90, 180 or 270).
+ImageU8 rotate_clockwise(const ImageU8& image, int degrees) {
+  if (degrees == 0) return image;
+  const int w = image.width, h = image.height;
+  ImageU8 out = degrees == 180 ? ImageU8(w, h, image.channels) : ImageU8(h, w, image.channels);
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      // The source pixel of (x, y): clockwise, the first column becomes the first row.
+      const int sx = degrees == 90 ? y : degrees == 180 ? w - 1 - x : w - 1 - y;
+      const int sy = degrees == 90 ? h - 1 - x : degrees == 180 ? h - 1 - y : x;
+      for (int c = 0; c < image.channels; ++c) out.at(x, y, c) = image.at(sx, sy, c);
+    }
+  }
+  return out;
+}
+
+// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, the
+// image turned and `factor` x `factor` pixel blocks averaged (rounded to the nearest level).
+ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
+  const CameraModel& camera = reading.camera;
+  const int factor = reading.factor;
+  const ImageU8 raw = rotate_clockwise(read_image_u8(path), reading.rotate);
+  check_frame_shape(path, {raw.width, raw.height, raw.channels}, camera, factor, reading.rotate);
   ImageU8 out(camera.width, camera.height, 3);
   const int n = factor * factor;
   for (int y = 0; y < out.height; ++y) {
@@ -261,6 +294,10 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
       ->check(range_check(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
       ->check(CLI::Range(1, 16));
+  cmd->add_option("--rotate", a.rotate,
+                  "Turn each image clockwise by 90, 180 or 270 degrees first (a camera driver's "
+                  "landscape frames of a portrait sensor; default 0)")
+      ->check(CLI::IsMember({0, 90, 180, 270}));
   cmd->add_option("--object", a.object, "Name of the object, for the outputs");
   cmd->add_option("--out,-o", a.out, "Output dataset folder")->required();
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
@@ -356,12 +393,13 @@ int run_recording(const RecordingArgs& a) {
   // dataset, every frame is decoded whole too: one cut short half-way would otherwise fail only
   // after the earlier dataset is gone (a new --out is removed again on failure).
   const bool out_existed = fs::exists(a.out);
+  const FrameReading reading{sensor.camera, a.downsample, a.rotate};
   for (const fs::path& file : files) {
     if (out_existed) {
-      sensor_image(file.string(), sensor.camera, a.downsample);
+      sensor_image(file.string(), reading);
     } else {
-      check_frame_shape(file.string(), read_image_shape(file.string()), sensor.camera,
-                        a.downsample);
+      check_frame_shape(file.string(), reading.turned(read_image_shape(file.string())),
+                        sensor.camera, a.downsample, a.rotate);
     }
   }
   // A no-contact image of another size than the frames (which fit): said so, rather than
@@ -380,7 +418,7 @@ int run_recording(const RecordingArgs& a) {
   }
   std::vector<ImageU8> no_contact;
   for (const fs::path& file : references) {
-    no_contact.push_back(sensor_image(file.string(), sensor.camera, a.downsample));
+    no_contact.push_back(sensor_image(file.string(), reading));
   }
   const ImageU8 background = median_image(no_contact);
   const std::vector<std::string> warnings = reference_warnings(
@@ -389,7 +427,7 @@ int run_recording(const RecordingArgs& a) {
           ? "--background " + references[0].string()
           : "the median of the " + std::to_string(references.size()) + " --background images");
   FrameImages images;
-  images.color = sensor_image(files.front().string(), sensor.camera, a.downsample);
+  images.color = sensor_image(files.front().string(), reading);
 
   DatasetInfo info;
   info.sensor = sensor;
@@ -405,7 +443,7 @@ int run_recording(const RecordingArgs& a) {
     writer.write_background(background);
     Progress progress("importing", frames, !a.quiet);
     for (int i = 0; i < frames; ++i) {
-      if (i > 0) images.color = sensor_image(files[i].string(), sensor.camera, a.downsample);
+      if (i > 0) images.color = sensor_image(files[i].string(), reading);
       writer.write_frame(poses[i], images);
       progress.update(i + 1);
     }
@@ -426,10 +464,13 @@ int run_recording(const RecordingArgs& a) {
   int object_poses = 0;
   for (const auto& p : poses) object_poses += p.object_known;
   const int w = sensor.camera.width, h = sensor.camera.height, n = a.downsample;
+  const bool turned = a.rotate % 180 != 0;
   std::printf(
-      "%d frames of %s (%dx%d px) -> %s (%dx%d px); the object's pose is given in %d of "
+      "%d frames of %s (%dx%d px%s) -> %s (%dx%d px); the object's pose is given in %d of "
       "them\n",
-      frames, a.images.c_str(), w * n, h * n, a.out.c_str(), w, h, object_poses);
+      frames, a.images.c_str(), (turned ? h : w) * n, (turned ? w : h) * n,
+      a.rotate ? (", turned " + std::to_string(a.rotate) + " degrees clockwise").c_str() : "",
+      a.out.c_str(), w, h, object_poses);
   if (references.size() > 1) {
     std::printf("the no-contact reference (background.png) is the median of %zu images\n",
                 references.size());

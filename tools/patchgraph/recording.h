@@ -17,6 +17,7 @@ struct RecordingArgs {
   std::string sensor_file;
   double fps = 0.0;    // 0: not given (60 with --static-sensor; --poses' time column's rate)
   int downsample = 1;  // average N x N pixel blocks
+  int rotate = 0;      // turn each image clockwise by this many degrees first (0, 90, 180, 270)
   std::string object;  // name of the object, for the outputs
   std::string out;
   bool quiet = false;
