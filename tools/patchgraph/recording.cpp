@@ -150,15 +150,15 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
     if (raw.width % camera.height == 0 && raw.height % camera.width == 0 &&
         raw.width / camera.height == raw.height / camera.width) {
       const int turned = raw.width / camera.height;
-      hints.push_back("the image is turned by 90 degrees (the sensor's are " +
-                      std::string(camera.width < camera.height ? "portrait" : "landscape") +
-                      (rotate == 0 ? "): --rotate 90 or 270 turns the frames, whichever puts "
-                                     "the sensor's lights where its model has them"
-                                   : "), as --rotate " + std::to_string(rotate) +
-                                         " turned it: leave --rotate out") +
-                      (turned != factor
-                           ? "; turned, they take --downsample " + std::to_string(turned)
-                           : std::string()));
+      hints.push_back(
+          "the image is turned by 90 degrees (the sensor's are " +
+          std::string(camera.width < camera.height ? "portrait" : "landscape") +
+          (rotate == 0
+               ? "): --rotate 90 or 270 turns the frames, whichever puts "
+                 "the sensor's lights where its model has them"
+               : "), as --rotate " + std::to_string(rotate) + " turned it: leave --rotate out") +
+          (turned != factor ? "; turned, they take --downsample " + std::to_string(turned)
+                            : std::string()));
     }
     if (!hints.empty()) {
       text += " (";
