@@ -89,10 +89,9 @@ Trajectory read_motion(JsonFields& f) {
                              waypoints.back().rpy_rad.cwiseAbs().maxCoeff() > wrap;
       const int changed = int((step.array().abs() > 1e-9).count());
       if (changed == 1 && beyond_pi && step.cwiseAbs().maxCoeff() > kPi) {
-        const double turn =
-            rotation_distance(pose_from_position_rpy(Eigen::Vector3d::Zero(), wp.rpy_rad),
-                              pose_from_position_rpy(Eigen::Vector3d::Zero(),
-                                                     waypoints.back().rpy_rad));
+        const double turn = rotation_distance(
+            pose_from_position_rpy(Eigen::Vector3d::Zero(), wp.rpy_rad),
+            pose_from_position_rpy(Eigen::Vector3d::Zero(), waypoints.back().rpy_rad));
         std::fprintf(stderr,
                      "warning: %s.rpy: one angle changes by %.3g rad since the waypoint before, "
                      "more than pi: between waypoints the object turns the shorter way from one "

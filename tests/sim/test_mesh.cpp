@@ -632,8 +632,9 @@ TEST_F(MeshIoTest, AnInsideOutClosedPartIsTurnedOutwardAndWarned) {
   EXPECT_EQ(kept.triangles[0], Eigen::Vector3i(0, 1, 2));
   EXPECT_EQ(report.border_edges, 3);
   EXPECT_EQ(report.open_surfaces, 1);
-  EXPECT_TRUE(Contains(open_err, "open.obj: 1 of its 1 surface(s) open, 3 edge(s) of a single "
-                                 "triangle (a hole, a missing face)"))
+  EXPECT_TRUE(Contains(open_err,
+                       "open.obj: 1 of its 1 surface(s) open, 3 edge(s) of a single "
+                       "triangle (a hole, a missing face)"))
       << open_err;
 }
 

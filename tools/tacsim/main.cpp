@@ -324,8 +324,8 @@ int run_info(const std::string& dir, bool check) {
   for (const std::string& s : sensors) {
     names += (names.empty() ? "" : ", ") + std::filesystem::path(s).filename().string();
   }
-  std::printf("render    %s: %zu sensors (%s): %s\n", dir.c_str(), sensors.size(),
-              kSensorIndexFile, names.c_str());
+  std::printf("render    %s: %zu sensors (%s): %s\n", dir.c_str(), sensors.size(), kSensorIndexFile,
+              names.c_str());
   for (const std::string& s : sensors) {
     std::printf("\n");
     print_dataset_info(s, check);
