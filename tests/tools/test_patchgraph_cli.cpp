@@ -1650,12 +1650,13 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
                                      "the no-contact image must come from the same camera"),
             std::string::npos)
       << background_size.out;
-  // Landscape frames of the portrait sensor: turned, at this size or at twice it.
-  const auto turned = [](const ImageU8& image) {
+  // Landscape frames of the portrait sensor (turned a quarter counter-clockwise): named as
+  // turned, at this size or at twice it.
+  const auto counter_clockwise = [](const ImageU8& image) {
     ImageU8 t(image.height, image.width, image.channels);
     for (int y = 0; y < t.height; ++y) {
       for (int x = 0; x < t.width; ++x) {
-        for (int c = 0; c < t.channels; ++c) t.at(x, y, c) = image.at(y, x, c);
+        for (int c = 0; c < t.channels; ++c) t.at(x, y, c) = image.at(image.width - 1 - y, x, c);
       }
     }
     return t;
@@ -1663,7 +1664,7 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   for (const int factor : {1, 2}) {
     const fs::path landscape = dir_ / ("rec_landscape" + std::to_string(factor));
     fs::create_directories(landscape);
-    ImageU8 frame = turned(rendered.color(3));
+    ImageU8 frame = counter_clockwise(rendered.color(3));
     if (factor == 2) frame = doubled(frame);
     write_image((landscape / "f0.png").string(), frame);
     write_image((landscape / "f1.png").string(), frame);
@@ -1681,15 +1682,6 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
   // --rotate turns a camera's landscape frames (and the no-contact image) back: frames turned
   // a quarter counter-clockwise, read with --rotate 90, are the rendered frames again; the same
   // turn given to portrait frames is named.
-  const auto counter_clockwise = [](const ImageU8& image) {
-    ImageU8 t(image.height, image.width, image.channels);
-    for (int y = 0; y < t.height; ++y) {
-      for (int x = 0; x < t.width; ++x) {
-        for (int c = 0; c < t.channels; ++c) t.at(x, y, c) = image.at(image.width - 1 - y, x, c);
-      }
-    }
-    return t;
-  };
   const fs::path sideways = dir_ / "rec_sideways";
   fs::create_directories(sideways);
   for (int i = 0; i < 3; ++i) {
