@@ -105,6 +105,19 @@ inline std::string markdown_cell(std::string text) {
   return out;
 }
 
+// The comma-separated items of an option's value, every one kept: "a,,b" and "a," hold an empty
+// item (an unset shell variable, say), for the caller to refuse by name.
+inline std::vector<std::string> comma_items(const std::string& text) {
+  std::vector<std::string> items;
+  std::size_t start = 0;
+  for (std::size_t comma; (comma = text.find(',', start)) != std::string::npos;
+       start = comma + 1) {
+    items.push_back(text.substr(start, comma - start));
+  }
+  if (!text.empty()) items.push_back(text.substr(start));
+  return items;
+}
+
 // `value` as printf's `format` gives it (a number in a message or a help text).
 inline std::string format_number(double value, const char* format = "%g") {
   char text[48];

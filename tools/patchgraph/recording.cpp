@@ -23,9 +23,15 @@ namespace fs = std::filesystem;
 
 namespace {
 
-bool is_image_file(const fs::path& path) {
+// The file's extension in lower case (".png").
+std::string lower_extension(const fs::path& path) {
   std::string ext = path.extension().string();
   for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext;
+}
+
+bool is_image_file(const fs::path& path) {
+  const std::string ext = lower_extension(path);
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tif" ||
          ext == ".tiff";
 }
@@ -115,10 +121,24 @@ void warn_of_numbering_gaps(const std::vector<fs::path>& files, const std::strin
                dir.c_str(), missing, gaps.c_str(), listed > 3 ? " and more" : "");
 }
 
-// Throws InputError naming the file unless an image of this shape is a frame of the sensor:
-// RGB (or RGBA) at the camera's size times `factor`.
-void check_frame_shape(const std::string& path, const ImageShape& raw, const CameraModel& camera,
-                       int factor, int rotate = 0) {
+// How a camera's files become the sensor's frames: turned clockwise by `rotate` degrees (a
+// driver's landscape frames of a portrait sensor), then `factor` x `factor` blocks averaged.
+struct FrameReading {
+  CameraModel camera;
+  int factor = 1;
+  int rotate = 0;
+  // A file's image shape once turned.
+  ImageShape turned(const ImageShape& raw) const {
+    return rotate % 180 == 0 ? raw : ImageShape{raw.height, raw.width, raw.channels};
+  }
+};
+
+// Throws InputError naming the file unless an image of this shape (turned as `reading` turns it)
+// is a frame of the sensor: RGB (or RGBA) at the camera's size times the factor.
+void check_frame_shape(const std::string& path, const ImageShape& raw,
+                       const FrameReading& reading) {
+  const CameraModel& camera = reading.camera;
+  const int factor = reading.factor, rotate = reading.rotate;
   if (raw.channels != 3 && raw.channels != 4) {
     throw InputError(path + ": " + std::to_string(raw.channels) +
                      (raw.channels == 1 ? " channel (grey)" : " channels") +
@@ -169,18 +189,6 @@ void check_frame_shape(const std::string& path, const ImageShape& raw, const Cam
   }
 }
 
-// How a camera's files become the sensor's frames: turned clockwise by `rotate` degrees (a
-// driver's landscape frames of a portrait sensor), then `factor` x `factor` blocks averaged.
-struct FrameReading {
-  CameraModel camera;
-  int factor = 1;
-  int rotate = 0;
-  // A file's image shape once turned.
-  ImageShape turned(const ImageShape& raw) const {
-    return rotate % 180 == 0 ? raw : ImageShape{raw.height, raw.width, raw.channels};
-  }
-};
-
 // `image` turned clockwise by `degrees` (0, 90, 180 or 270).
 ImageU8 rotate_clockwise(const ImageU8& image, int degrees) {
   if (degrees == 0) return image;
@@ -203,7 +211,7 @@ ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
   const CameraModel& camera = reading.camera;
   const int factor = reading.factor;
   const ImageU8 raw = rotate_clockwise(read_image_u8(path), reading.rotate);
-  check_frame_shape(path, {raw.width, raw.height, raw.channels}, camera, factor, reading.rotate);
+  check_frame_shape(path, {raw.width, raw.height, raw.channels}, reading);
   ImageU8 out(camera.width, camera.height, 3);
   const int n = factor * factor;
   for (int y = 0; y < out.height; ++y) {
@@ -327,8 +335,7 @@ int run_recording(const RecordingArgs& a) {
   // Lossy frames: JPEG's 8x8 blocks change pixels of their own, which the press search and the
   // contact mask read as the gel's.
   const auto jpeg = [](const fs::path& file) {
-    std::string ext = file.extension().string();
-    for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    const std::string ext = lower_extension(file);
     return ext == ".jpg" || ext == ".jpeg";
   };
   const long jpegs = std::count_if(files.begin(), files.end(), jpeg);
@@ -398,8 +405,7 @@ int run_recording(const RecordingArgs& a) {
     if (out_existed) {
       sensor_image(file.string(), reading);
     } else {
-      check_frame_shape(file.string(), reading.turned(read_image_shape(file.string())),
-                        sensor.camera, a.downsample, a.rotate);
+      check_frame_shape(file.string(), reading.turned(read_image_shape(file.string())), reading);
     }
   }
   // A no-contact image of another size than the frames (which fit): said so, rather than

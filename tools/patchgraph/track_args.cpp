@@ -159,10 +159,7 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
 NormalsModels load_normals_models(const TrackArgs& a) {
   if (a.normals == "gt") return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
-  std::vector<std::string> paths;
-  std::stringstream list(a.normals);
-  for (std::string path; std::getline(list, path, ',');) paths.push_back(path);
-  if (a.normals.back() == ',') paths.emplace_back();
+  const std::vector<std::string> paths = comma_items(a.normals);
   std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
   NormalsModels models;
   for (const std::string& path : paths) {

@@ -12,7 +12,6 @@
 #include <limits>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -33,11 +32,7 @@ namespace {
 // The comma-separated names of `s`; an empty name (",," or a comma at either end: a shell
 // variable left unset, say) is a usage error naming `what`.
 std::vector<std::string> split_list(const std::string& s, const std::string& what) {
-  std::vector<std::string> out;
-  std::stringstream ss(s);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(item);
-  if (!s.empty() && s.back() == ',') out.emplace_back();
+  const std::vector<std::string> out = comma_items(s);
   if (std::find(out.begin(), out.end(), "") != out.end()) {
     throw UsageError(what + " " + s + ": an empty name in the list");
   }
