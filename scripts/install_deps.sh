@@ -4,12 +4,15 @@
 # install would otherwise get the unoptimised reference BLAS (ATLAS -> OpenBLAS alone made the
 # default U-Net's inference 1.2x faster here). patchgraph links it ahead of the ATLAS that Ceres
 # brings in (tools/CMakeLists.txt), or ATLAS would still answer them.
+# libav*-dev: `patchgraph recording --video` decodes video files with FFmpeg's libraries; the
+# ffmpeg command makes the tests' videos (and a user's lossless re-encodes, docs).
 set -euo pipefail
 packages=(
   cmake g++ make pkg-config
   libeigen3-dev nlohmann-json3-dev libopenimageio-dev libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
   libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev libopenblas0-openmp zlib1g-dev
+  libavformat-dev libavcodec-dev libswscale-dev libavutil-dev ffmpeg
   python3-matplotlib
 )
 missing=()

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -1858,6 +1859,156 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
       << short_frame.out;
   EXPECT_EQ(Dataset::open(out("rec")).frames(), 60) << "the first recording is intact";
   EXPECT_EQ(Dataset::open(out("rec")).color(31).data, rendered.color(31).data);
+}
+
+// Runs the ffmpeg command (installed by scripts/install_deps.sh beside FFmpeg's libraries) with
+// `args`; its exit code (127: not found).
+int ffmpeg(const std::string& args) {
+  return std::system(("ffmpeg -nostdin -loglevel error -y " + args + " >/dev/null 2>&1").c_str()) ==
+                 0
+             ? 0
+         : std::system("command -v ffmpeg >/dev/null 2>&1") == 0 ? 1
+                                                                 : 127;
+}
+
+// The mean of |a - b| over every value of two images of one shape.
+double mean_abs_difference(const ImageU8& a, const ImageU8& b) {
+  double sum = 0.0;
+  for (std::size_t k = 0; k < a.data.size(); ++k) sum += std::abs(int(a.data[k]) - int(b.data[k]));
+  return sum / double(a.data.size());
+}
+
+// A video file of a sensor's frames (FFmpeg decodes it) becomes a dataset as its frames would:
+// a lossless video's frames are the camera's to the byte; a lossy one's are said to be lossy;
+// the rate is the video's; what is wrong with a file is named.
+TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
+  const Dataset rendered = Dataset::open(data());
+  const fs::path pngs = dir_ / "vid_pngs";
+  fs::create_directories(pngs);
+  for (int i = 0; i < rendered.frames(); ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    write_image((pngs / name).string(), rendered.color(i));
+  }
+  write_image((dir_ / "vid_background.png").string(), rendered.background());
+  const std::string lossless = out("vid_lossless.mkv"), lossy = out("vid_420.mp4"),
+                    still = out("vid_still.mkv"), gaps = out("vid_gaps.mkv");
+  const std::string frames_in = "-framerate 30 -i " + (pngs / "%06d.png").string();
+  ASSERT_EQ(ffmpeg(frames_in + " -c:v ffv1 -pix_fmt bgr0 " + lossless), 0)
+      << "the ffmpeg command is missing (scripts/install_deps.sh installs it) or failed";
+  ASSERT_EQ(ffmpeg(frames_in + " -c:v libx264 -pix_fmt yuv420p " + lossy), 0);
+  // Five frames of the no-contact image, and the frames with 10-12 dropped (their timestamps
+  // kept).
+  ASSERT_EQ(ffmpeg("-loop 1 -framerate 30 -i " + out("vid_background.png") +
+                   " -frames:v 5 -c:v ffv1 -pix_fmt bgr0 " + still),
+            0);
+  ASSERT_EQ(ffmpeg(frames_in + " -vf \"select=not(between(n\\,10\\,12))\" -fps_mode passthrough " +
+                   "-c:v ffv1 -pix_fmt bgr0 " + gaps),
+            0);
+
+  const CliRun r = patchgraph("recording --video " + lossless + " --background " + still +
+                              " --static-sensor -q --out " + out("vid_rec"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("60 frames of " + lossless + " (120x160 px)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("the median of 5 images"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("note:"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("warning:"), std::string::npos) << r.out;
+  const Dataset rec = Dataset::open(out("vid_rec"));
+  ASSERT_EQ(rec.frames(), 60);
+  for (const int i : {0, 17, 59}) EXPECT_EQ(rec.color(i).data, rendered.color(i).data) << i;
+  EXPECT_EQ(rec.background().data, rendered.background().data);
+  EXPECT_NEAR(rec.info().fps, 30.0, 1e-9);  // the video's rate
+  EXPECT_NEAR(rec.poses()[3].time_s, 0.1, 1e-9);
+  const auto sources = read_csv_table(out("vid_rec") + "/sources.csv");
+  ASSERT_EQ(sources.rows.size(), 60u);
+  ASSERT_EQ(sources.column.size(), 3u);  // frame, file, time_s
+  EXPECT_EQ(sources.cell(3, "frame"), "3");
+  EXPECT_EQ(sources.cell(3, "file"), fs::absolute(lossless).lexically_normal().string());
+  EXPECT_NEAR(std::stod(sources.cell(3, "time_s")), 0.1, 1e-3);  // Matroska's millisecond stamps
+
+  // 4:2:0 video (ffmpeg's default for H.264 from RGB): noted, and its frames are not the
+  // camera's.
+  const CliRun l =
+      patchgraph("recording --video " + lossy + " --background " + out("vid_background.png") +
+                 " --static-sensor -q --out " + out("vid_lossy"));
+  ASSERT_EQ(l.code, 0) << l.out;
+  EXPECT_NE(l.out.find("(h264, yuv420p) stores the colour at a lower resolution than the "
+                       "brightness"),
+            std::string::npos)
+      << l.out;
+  const double off =
+      mean_abs_difference(Dataset::open(out("vid_lossy")).color(17), rendered.color(17));
+  EXPECT_GT(off, 0.5);
+  EXPECT_LT(off, 12.0);
+
+  // Dropped frames: each decoded frame is the next frame, and the gap is warned about.
+  const CliRun g =
+      patchgraph("recording --video " + gaps + " --background " + out("vid_background.png") +
+                 " --static-sensor -q --out " + out("vid_gaps"));
+  ASSERT_EQ(g.code, 0) << g.out;
+  EXPECT_EQ(g.out.find("cut short"), std::string::npos) << g.out;
+  EXPECT_NE(g.out.find("its timestamps skip about 3 frames at 1 place, after frame 9 (133 ms)"),
+            std::string::npos)
+      << g.out;
+  EXPECT_EQ(Dataset::open(out("vid_gaps")).frames(), 57);
+  EXPECT_EQ(Dataset::open(out("vid_gaps")).color(10).data, rendered.color(13).data);
+
+  // With poses: one row per frame, and rows of another rate than the video's are warned about.
+  const CliRun posed = patchgraph("recording --video " + lossless + " --background " + still +
+                                  " --poses " + data() + "/poses.csv -q --out " + out("vid_posed"));
+  ASSERT_EQ(posed.code, 0) << posed.out;
+  EXPECT_NE(posed.out.find("the time column gives 60 frames per second, the video " + lossless +
+                           " 30: are the rows the video's frames?"),
+            std::string::npos)
+      << posed.out;
+  const CliRun short_poses =
+      patchgraph("recording --video " + gaps + " --background " + still + " --poses " + data() +
+                 "/poses.csv -q --out " + out("vid_bad"));
+  EXPECT_EQ(short_poses.code, 1) << short_poses.out;
+  EXPECT_NE(short_poses.out.find("60 rows, but " + gaps + " holds 57 frames"), std::string::npos)
+      << short_poses.out;
+
+  // A file cut short: its header's frame count is more than decodes.
+  const std::string cut = out("vid_cut.mkv");
+  fs::copy_file(lossless, cut, fs::copy_options::overwrite_existing);
+  fs::resize_file(cut, fs::file_size(cut) / 2);
+  const CliRun c = patchgraph("recording --video " + cut + " --background " + still +
+                              " --static-sensor -q --out " + out("vid_cut"));
+  ASSERT_EQ(c.code, 0) << c.out;
+  EXPECT_NE(c.out.find("its header says it lasts 2 s, its "), std::string::npos) << c.out;
+  EXPECT_NE(c.out.find("is it cut short"), std::string::npos) << c.out;
+
+  // What cannot be read: named, exit 1, nothing written; both or neither source: a usage error.
+  std::ofstream(out("vid_text.mp4")) << "not a video";
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {out("vid_text.mp4"), out("vid_text.mp4") + ": not a video FFmpeg can read"},
+      {out("vid_missing.mp4"), out("vid_missing.mp4") + ": no such file"},
+      {out("vid_background.png"), out("vid_background.png") +
+                                      ": an image, not a video (give the folder of the frames as "
+                                      "--images)"},
+  };
+  for (const auto& [video, message] : bad) {
+    const CliRun b = patchgraph("recording --video " + video + " --background " + still +
+                                " --static-sensor -q --out " + out("vid_bad2"));
+    EXPECT_EQ(b.code, 1) << b.out;
+    EXPECT_NE(b.out.find(message), std::string::npos) << b.out;
+    EXPECT_FALSE(fs::exists(out("vid_bad2")));
+  }
+  const CliRun big =
+      patchgraph("recording --video " + lossless + " --background " + still +
+                 " --sensor digit_240x320 --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(big.code, 1) << big.out;
+  EXPECT_NE(big.out.find(lossless + ": 120x160 px, but the sensor's frames are 240x320 px"),
+            std::string::npos)
+      << big.out;
+  EXPECT_EQ(patchgraph("recording --video " + lossless + " --images " + pngs.string() +
+                       " --background " + still + " --static-sensor -q --out " + out("vid_bad2"))
+                .code,
+            2);
+  const CliRun neither = patchgraph("recording --background " + still +
+                                    " --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(neither.code, 2) << neither.out;
+  EXPECT_NE(neither.out.find("--images or --video"), std::string::npos) << neither.out;
 }
 
 // A render with its normals as 16-bit PNG only (the normal_png output, a sixth of the EXR's

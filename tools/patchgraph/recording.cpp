@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <vector>
 
 #include "../common/cli_main.h"
@@ -16,6 +17,7 @@
 #include "pg/core/image_change.h"
 #include "pg/core/sensor.h"
 #include "pg/graph/track_dataset.h"
+#include "video.h"
 
 namespace pg {
 
@@ -205,13 +207,14 @@ ImageU8 rotate_clockwise(const ImageU8& image, int degrees) {
   return out;
 }
 
-// An 8-bit RGB image of the sensor's size from a frame file: an alpha channel is dropped, the
-// image turned and `factor` x `factor` pixel blocks averaged (rounded to the nearest level).
-ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
+// An 8-bit RGB image of the sensor's size from a camera's image (`name` in messages): an alpha
+// channel is dropped, the image turned and `factor` x `factor` pixel blocks averaged (rounded to
+// the nearest level).
+ImageU8 sensor_image(const ImageU8& image, const std::string& name, const FrameReading& reading) {
   const CameraModel& camera = reading.camera;
   const int factor = reading.factor;
-  const ImageU8 raw = rotate_clockwise(read_image_u8(path), reading.rotate);
-  check_frame_shape(path, {raw.width, raw.height, raw.channels}, reading);
+  const ImageU8 raw = rotate_clockwise(image, reading.rotate);
+  check_frame_shape(name, {raw.width, raw.height, raw.channels}, reading);
   ImageU8 out(camera.width, camera.height, 3);
   const int n = factor * factor;
   for (int y = 0; y < out.height; ++y) {
@@ -226,6 +229,11 @@ ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
     }
   }
   return out;
+}
+
+// The same from an image file.
+ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
+  return sensor_image(read_image_u8(path), path, reading);
 }
 
 // The no-contact images --background names: each file, and the image files of each folder;
@@ -247,6 +255,164 @@ std::vector<fs::path> background_files(const std::vector<std::string>& given) {
     }
   }
   return files;
+}
+
+// The frame files of --images in name order, less the --background images kept among them;
+// notes what is skipped, dropped frames and lossy files.
+std::vector<fs::path> frame_files(const std::string& dir, const std::vector<fs::path>& references) {
+  // A no-contact image kept beside the frames is the reference, not a frame.
+  std::vector<fs::path> files, skipped;
+  for (const fs::path& file : image_files(dir, "--images")) {
+    const bool reference = std::any_of(references.begin(), references.end(), [&](const auto& r) {
+      std::error_code ec;
+      return fs::equivalent(file, r, ec);
+    });
+    (reference ? skipped : files).push_back(file);
+  }
+  if (files.empty()) {
+    throw InputError(dir + ": every image in it is a --background image; no frame is left");
+  }
+  warn_of_numbering_gaps(files, dir);
+  // Lossy frames: JPEG's 8x8 blocks change pixels of their own, which the press search and the
+  // contact mask read as the gel's.
+  const auto jpeg = [](const fs::path& file) {
+    const std::string ext = lower_extension(file);
+    return ext == ".jpg" || ext == ".jpeg";
+  };
+  const long jpegs = std::count_if(files.begin(), files.end(), jpeg);
+  if (jpegs > 0) {
+    std::fprintf(stderr,
+                 "note: %ld of the %zu frames are JPEG: its compression changes pixels of its own, "
+                 "which the contact mask and label-ball's press search read as the gel's (an "
+                 "audit's ball presses: quality 75-90 labelled as PNG, 50 not); a lossless format "
+                 "(PNG) keeps the camera's frames as they were\n",
+                 jpegs, files.size());
+  }
+  if (skipped.size() == 1) {
+    std::fprintf(stderr, "note: %s is a --background image: not taken as a frame\n",
+                 skipped[0].string().c_str());
+  } else if (!skipped.empty()) {
+    std::fprintf(stderr,
+                 "note: %zu images of %s are --background images (the first %s, the last %s): not "
+                 "taken as frames\n",
+                 skipped.size(), dir.c_str(), skipped.front().filename().string().c_str(),
+                 skipped.back().filename().string().c_str());
+  }
+  return files;
+}
+
+// A video's frames as `reading` makes them the sensor's, read through once: what it is, and
+// each frame's time in it.
+struct VideoScan {
+  VideoInfo info;
+  std::vector<double> times_s;
+  double fps = 0.0;  // the camera's rate: one over the median step between frames
+};
+
+// Warns when the video's timestamps skip frames (a webcam's dropped frames, a variable-rate
+// file): each decoded frame becomes the next frame, and the tracker steps per frame.
+void warn_of_time_gaps(const std::vector<double>& times, double step, const std::string& path) {
+  int gaps = 0;
+  long missing = 0;
+  std::string listed;
+  for (std::size_t i = 1; i < times.size(); ++i) {
+    const double dt = times[i] - times[i - 1];
+    if (!(dt > 1.5 * step)) continue;
+    missing += std::lround(dt / step) - 1;
+    if (++gaps <= 3) {
+      listed += (listed.empty() ? "" : ", ") + std::string("after frame ") + std::to_string(i - 1) +
+                " (" + format_number(dt * 1e3) + " ms)";
+    }
+  }
+  if (gaps == 0) return;
+  std::fprintf(stderr,
+               "warning: %s: its timestamps skip about %ld frames at %d place%s, %s%s (the "
+               "frames are %s ms apart): each decoded frame becomes the next frame, and the "
+               "tracker steps its motion priors per frame, so a dropped frame is a jump in the "
+               "motion\n",
+               path.c_str(), missing, gaps, gaps > 1 ? "s" : "", listed.c_str(),
+               gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
+}
+
+VideoScan scan_video(const std::string& path, const FrameReading& reading) {
+  VideoReader reader(path);
+  VideoScan scan;
+  scan.info = reader.info();
+  const VideoInfo& info = scan.info;
+  check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
+  ImageU8 raw;
+  double time_s = 0.0;
+  while (reader.next(raw, time_s)) scan.times_s.push_back(time_s);
+  if (scan.times_s.empty()) throw InputError(path + ": holds no frame (--video)");
+  std::vector<double> steps;
+  for (std::size_t i = 1; i < scan.times_s.size(); ++i) {
+    steps.push_back(scan.times_s[i] - scan.times_s[i - 1]);
+  }
+  double step = 0.0;
+  if (!steps.empty()) {
+    std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+    step = steps[steps.size() / 2];
+  }
+  // The container's rate where the steps agree with it (a Matroska file's millisecond stamps
+  // step 16 and 17 ms at 60 frames per second), else the steps'.
+  scan.fps = info.fps > 0 && (!(step > 0) || std::abs(info.fps * step - 1.0) < 0.05) ? info.fps
+             : step > 0                                                              ? 1.0 / step
+                                                                                     : 60.0;
+  if (step > 0) warn_of_time_gaps(scan.times_s, step, path);
+  // Cut short: fewer frames than the header counts, or frames that end before its duration.
+  const long decoded = long(scan.times_s.size());
+  const double end_s = scan.times_s.back() + (step > 0 ? step : 1.0 / scan.fps);
+  std::string header;
+  if (info.header_frames > decoded + 1) {
+    header = "its header says " + std::to_string(info.header_frames) + " frames, " +
+             std::to_string(decoded) + " decoded";
+  } else if (info.header_frames == 0 && info.duration_s > end_s + 1.5 / scan.fps) {
+    header = "its header says it lasts " + format_number(info.duration_s) + " s, its " +
+             std::to_string(decoded) + " frames end at " + format_number(end_s) + " s";
+  }
+  if (!header.empty()) {
+    std::fprintf(stderr,
+                 "warning: %s: %s: is it cut short (a recording stopped before its file was "
+                 "closed)? The dataset holds the %ld frames that decoded\n",
+                 path.c_str(), header.c_str(), decoded);
+  }
+  // What the codec does to the frames: the network reads the gel's shading from colour edges
+  // a pixel wide.
+  const std::string codec = info.codec + ", " + info.pixel_format;
+  if (info.chroma_subsampled) {
+    std::fprintf(stderr,
+                 "note: %s (%s) stores the colour at a lower resolution than the brightness: "
+                 "each colour sample spans 2 or 4 pixels, which blurs the press's colour edges "
+                 "that the normals are read from (measured on renders at ffmpeg's default "
+                 "H.264 quality: the default model's contact angle 10%% worse); a lossless RGB "
+                 "video (ffmpeg -c:v ffv1 -pix_fmt bgr0, or -c:v libx264rgb -qp 0), PNG frames, "
+                 "or at least -pix_fmt yuv444p keep the colour at full resolution\n",
+                 path.c_str(), codec.c_str());
+  } else if (info.lossy_codec) {
+    std::fprintf(stderr,
+                 "note: %s (%s) is compressed with loss, which changes pixels of its own that "
+                 "the contact mask and the normals read as the gel's; a lossless video (ffmpeg "
+                 "-c:v ffv1) or PNG frames keep the camera's frames as they were\n",
+                 path.c_str(), codec.c_str());
+  }
+  return scan;
+}
+
+// A video's frame size, for the checks that compare it with the frames'.
+ImageShape video_frame_shape(const std::string& path) {
+  const VideoReader reader(path);
+  return {reader.info().width, reader.info().height, 3};
+}
+
+// Every frame of a video as the sensor's image.
+std::vector<ImageU8> video_frames(const std::string& path, const FrameReading& reading) {
+  VideoReader reader(path);
+  std::vector<ImageU8> frames;
+  ImageU8 raw;
+  double time_s = 0.0;
+  while (reader.next(raw, time_s)) frames.push_back(sensor_image(raw, path, reading));
+  if (frames.empty()) throw InputError(path + ": holds no frame (--background)");
+  return frames;
 }
 
 // The frame rate of a poses file's time column (first to last row), so that dataset.json says
@@ -280,11 +446,16 @@ double frame_rate(const std::vector<FramePose>& poses, const std::string& path, 
 CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   CLI::App* cmd = app.add_subcommand(
       "recording", "Make a dataset of a real sensor's frames, for track --normals MODEL");
-  cmd->add_option("--images", a.images, "Folder of the frames (png, jpg, ...), in name order")
-      ->required();
+  auto* images =
+      cmd->add_option("--images", a.images, "Folder of the frames (png, jpg, ...), in name order");
+  cmd->add_option("--video", a.video,
+                  "A video file of the frames (mp4, avi, mkv, ...; decoded with FFmpeg), instead "
+                  "of --images")
+      ->excludes(images);
   cmd->add_option("--background", a.backgrounds,
-                  "The sensor's image with nothing touching; or several such frames (files, or "
-                  "a folder): their per-pixel median is the reference, with less camera noise")
+                  "The sensor's image with nothing touching; or several such frames (files, a "
+                  "folder, or videos): their per-pixel median is the reference, with less camera "
+                  "noise")
       ->required();
   auto* poses = cmd->add_option("--poses", a.poses,
                                 "poses.csv in the dataset format, one row per frame (the object "
@@ -297,7 +468,8 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   cmd->add_option("--sensor-file", a.sensor_file, "Sensor config file (instead of --sensor)")
       ->excludes(preset);
   cmd->add_option("--fps", a.fps,
-                  "Frame rate: the time column with --static-sensor (default 60); with --poses "
+                  "Frame rate: the time column with --static-sensor (default 60, or the video's); "
+                  "with --poses "
                   "it is the time column's and --fps, if given, must agree")
       ->check(range_check(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
@@ -317,64 +489,41 @@ int run_recording(const RecordingArgs& a) {
     throw UsageError(
         "--poses or --static-sensor: the tracker needs the sensor's pose in every frame");
   }
-  check_output_is_not_input(a.out, a.images, "--images");
+  if (a.images.empty() == a.video.empty()) {
+    throw UsageError("--images or --video: the frames are a folder of images or a video file");
+  }
+  const bool from_video = !a.video.empty();
+  const std::string source = from_video ? a.video : a.images;
+  if (!from_video) check_output_is_not_input(a.out, a.images, "--images");
   const std::vector<fs::path> references = background_files(a.backgrounds);
-  // A no-contact image kept beside the frames is the reference, not a frame.
-  std::vector<fs::path> files, skipped;
-  for (const fs::path& file : image_files(a.images, "--images")) {
-    const bool reference = std::any_of(references.begin(), references.end(), [&](const auto& r) {
-      std::error_code ec;
-      return fs::equivalent(file, r, ec);
-    });
-    (reference ? skipped : files).push_back(file);
+  const SensorModel sensor =
+      a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
+  const FrameReading reading{sensor.camera, a.downsample, a.rotate};
+  // The frames: image files, or a video's frames (each decoded once here, so that a file cut
+  // short or of another size fails before anything is written).
+  std::vector<fs::path> files;
+  VideoScan video;
+  if (from_video) {
+    video = scan_video(a.video, reading);
+  } else {
+    files = frame_files(a.images, references);
   }
-  if (files.empty()) {
-    throw InputError(a.images + ": every image in it is a --background image; no frame is left");
-  }
-  warn_of_numbering_gaps(files, a.images);
-  // Lossy frames: JPEG's 8x8 blocks change pixels of their own, which the press search and the
-  // contact mask read as the gel's.
-  const auto jpeg = [](const fs::path& file) {
-    const std::string ext = lower_extension(file);
-    return ext == ".jpg" || ext == ".jpeg";
-  };
-  const long jpegs = std::count_if(files.begin(), files.end(), jpeg);
-  if (jpegs > 0) {
-    std::fprintf(stderr,
-                 "note: %ld of the %zu frames are JPEG: its compression changes pixels of its own, "
-                 "which the contact mask and label-ball's press search read as the gel's (an "
-                 "audit's ball presses: quality 75-90 labelled as PNG, 50 not); a lossless format "
-                 "(PNG) keeps the camera's frames as they were\n",
-                 jpegs, files.size());
-  }
-  if (skipped.size() == 1) {
-    std::fprintf(stderr, "note: %s is a --background image: not taken as a frame\n",
-                 skipped[0].string().c_str());
-  } else if (!skipped.empty()) {
-    std::fprintf(stderr,
-                 "note: %zu images of %s are --background images (the first %s, the last %s): not "
-                 "taken as frames\n",
-                 skipped.size(), a.images.c_str(), skipped.front().filename().string().c_str(),
-                 skipped.back().filename().string().c_str());
-  }
+  const int frames = from_video ? int(video.times_s.size()) : int(files.size());
   // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
   // output folders (DatasetWriter::finish): --images must be none of them.
   for (const std::string& output : dataset_output_names()) {
     std::error_code ec;
-    if (fs::equivalent(a.images, fs::path(a.out) / output, ec)) {
+    if (!from_video && fs::equivalent(a.images, fs::path(a.out) / output, ec)) {
       throw InputError(a.out + ": its " + output +
                        " folder is --images; the frames would be overwritten or removed");
     }
   }
-  const SensorModel sensor =
-      a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
-  const int frames = int(files.size());
   std::vector<FramePose> poses(frames);
-  double fps = a.fps > 0 ? a.fps : 60.0;
+  double fps = a.fps > 0 ? a.fps : from_video ? video.fps : 60.0;
   if (!a.poses.empty()) {
     poses = read_poses_csv(a.poses);
     if (int(poses.size()) != frames) {
-      throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + a.images +
+      throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + source +
                        " holds " + std::to_string(frames) + " frames");
     }
     fps = frame_rate(poses, a.poses, a.fps);
@@ -384,6 +533,12 @@ int run_recording(const RecordingArgs& a) {
                    "in the last): the dataset says 60 frames per second; --fps sets the rate\n",
                    a.poses.c_str(), format_number(poses.front().time_s).c_str(),
                    format_number(poses.back().time_s).c_str());
+    } else if (from_video && a.fps <= 0 && std::abs(fps - video.fps) > 0.01 * video.fps) {
+      std::fprintf(stderr,
+                   "warning: %s: the time column gives %s frames per second, the video %s %s: "
+                   "are the rows the video's frames?\n",
+                   a.poses.c_str(), format_number(fps).c_str(), a.video.c_str(),
+                   format_number(video.fps).c_str());
     }
     object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
   } else {
@@ -400,7 +555,6 @@ int run_recording(const RecordingArgs& a) {
   // dataset, every frame is decoded whole too: one cut short half-way would otherwise fail only
   // after the earlier dataset is gone (a new --out is removed again on failure).
   const bool out_existed = fs::exists(a.out);
-  const FrameReading reading{sensor.camera, a.downsample, a.rotate};
   for (const fs::path& file : files) {
     if (out_existed) {
       sensor_image(file.string(), reading);
@@ -410,9 +564,13 @@ int run_recording(const RecordingArgs& a) {
   }
   // A no-contact image of another size than the frames (which fit): said so, rather than
   // hints for the frames that they do not need.
-  const ImageShape frame_shape = read_image_shape(files.front().string());
+  const ImageShape frame_shape = from_video ? ImageShape{video.info.width, video.info.height, 3}
+                                            : read_image_shape(files.front().string());
+  std::vector<ImageU8> no_contact;
   for (const fs::path& file : references) {
-    const ImageShape shape = read_image_shape(file.string());
+    const bool is_video = has_video_extension(file.string());
+    const ImageShape shape =
+        is_video ? video_frame_shape(file.string()) : read_image_shape(file.string());
     if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
       throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) + "x" +
                        std::to_string(shape.height) + " px, the frames " +
@@ -421,19 +579,20 @@ int run_recording(const RecordingArgs& a) {
                        " px: the no-contact image must come from the same camera at the same "
                        "settings as the frames");
     }
-  }
-  std::vector<ImageU8> no_contact;
-  for (const fs::path& file : references) {
-    no_contact.push_back(sensor_image(file.string(), reading));
+    if (is_video) {
+      for (ImageU8& frame : video_frames(file.string(), reading))
+        no_contact.push_back(std::move(frame));
+    } else {
+      no_contact.push_back(sensor_image(file.string(), reading));
+    }
   }
   const ImageU8 background = median_image(no_contact);
-  const std::vector<std::string> warnings = reference_warnings(
-      background,
-      references.size() == 1
+  const std::string reference_name =
+      references.size() == 1 && no_contact.size() == 1
           ? "--background " + references[0].string()
-          : "the median of the " + std::to_string(references.size()) + " --background images");
-  FrameImages images;
-  images.color = sensor_image(files.front().string(), reading);
+          : "the median of the " + std::to_string(no_contact.size()) + " --background images";
+  const std::vector<std::string> warnings = reference_warnings(background, reference_name);
+  if (!from_video && !out_existed) sensor_image(files.front().string(), reading);  // whole
 
   DatasetInfo info;
   info.sensor = sensor;
@@ -448,20 +607,42 @@ int run_recording(const RecordingArgs& a) {
     DatasetWriter writer(a.out, info);
     writer.write_background(background);
     Progress progress("importing", frames, !a.quiet);
+    std::unique_ptr<VideoReader> reader;
+    if (from_video) reader = std::make_unique<VideoReader>(a.video);
+    FrameImages images;
     for (int i = 0; i < frames; ++i) {
-      if (i > 0) images.color = sensor_image(files[i].string(), reading);
+      if (reader) {
+        ImageU8 raw;
+        double time_s = 0.0;
+        if (!reader->next(raw, time_s)) {
+          throw InputError(a.video + ": ended after " + std::to_string(i) +
+                           " frames, where it "
+                           "had " +
+                           std::to_string(frames) + " a moment before");
+        }
+        images.color = sensor_image(raw, a.video, reading);
+      } else {
+        images.color = sensor_image(files[std::size_t(i)].string(), reading);
+      }
       writer.write_frame(poses[i], images);
       progress.update(i + 1);
     }
     writer.finish();
     // Which file each frame came from, for the messages that name frames by number (label-ball's
-    // "frame 17 skipped", errors.csv's rows), absolute: the dataset is read from elsewhere.
-    std::string sources = "frame,file\n";
-    for (int i = 0; i < frames; ++i) {
+    // "frame 17 skipped", errors.csv's rows), absolute: the dataset is read from elsewhere. A
+    // video's frames are named by the video and their time in it.
+    const auto absolute = [](const fs::path& file) {
       std::error_code ec;
-      const fs::path file = fs::absolute(files[std::size_t(i)], ec).lexically_normal();
+      const fs::path path = fs::absolute(file, ec).lexically_normal();
+      return csv_field((ec ? file : path).string());
+    };
+    std::string sources = from_video ? "frame,file,time_s\n" : "frame,file\n";
+    for (int i = 0; i < frames; ++i) {
       sources +=
-          std::to_string(i) + "," + csv_field((ec ? files[std::size_t(i)] : file).string()) + "\n";
+          std::to_string(i) + "," +
+          (from_video ? absolute(a.video) + "," + format_number(video.times_s[std::size_t(i)])
+                      : absolute(files[std::size_t(i)])) +
+          "\n";
     }
     write_text_atomically((fs::path(a.out) / "sources.csv").string(), sources);
   } catch (...) {
@@ -474,12 +655,12 @@ int run_recording(const RecordingArgs& a) {
   std::printf(
       "%d frames of %s (%dx%d px%s) -> %s (%dx%d px); the object's pose is given in %d of "
       "them\n",
-      frames, a.images.c_str(), (turned ? h : w) * n, (turned ? w : h) * n,
+      frames, source.c_str(), (turned ? h : w) * n, (turned ? w : h) * n,
       a.rotate ? (", turned " + std::to_string(a.rotate) + " degrees clockwise").c_str() : "",
       a.out.c_str(), w, h, object_poses);
-  if (references.size() > 1) {
+  if (no_contact.size() > 1) {
     std::printf("the no-contact reference (background.png) is the median of %zu images\n",
-                references.size());
+                no_contact.size());
   }
   std::fflush(stdout);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());

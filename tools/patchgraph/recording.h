@@ -8,7 +8,8 @@ namespace pg {
 
 struct RecordingArgs {
   std::string images;          // folder of the frames, taken in file-name order
-  // The sensor's images with nothing touching (files, or folders of them): their per-pixel
+  std::string video;           // or a video file of them (one of the two)
+  // The sensor's images with nothing touching (files, folders of them, or videos): their per-pixel
   // median is the no-contact reference.
   std::vector<std::string> backgrounds;
   std::string poses;           // poses.csv in the dataset's format, one row per frame

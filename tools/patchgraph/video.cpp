@@ -1,0 +1,244 @@
+#include "video.h"
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/imgutils.h>
+#include <libavutil/pixdesc.h>
+#include <libswscale/swscale.h>
+}
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <cstring>
+#include <filesystem>
+
+#include "pg/core/error.h"
+
+namespace pg {
+
+namespace {
+
+std::string av_error_text(int code) {
+  std::array<char, AV_ERROR_MAX_STRING_SIZE> text{};
+  av_strerror(code, text.data(), text.size());
+  return text.data();
+}
+
+}  // namespace
+
+// OpenImageIO reads movies through FFmpeg too, but its 2.4 reader has swscale write past the end
+// of an unpadded frame buffer (valgrind: invalid writes on a 4:2:0 H.264 file), so the frames are
+// decoded here, into buffers FFmpeg allocates with its own padding.
+struct VideoReader::State {
+  std::string path;
+  VideoInfo info;
+  AVFormatContext* format = nullptr;
+  AVCodecContext* decoder = nullptr;
+  SwsContext* scaler = nullptr;
+  AVPacket* packet = nullptr;
+  AVFrame* frame = nullptr;
+  AVFrame* rgb = nullptr;
+  int stream = -1;
+  double time_base = 0.0;
+  bool flushed = false;  // the decoder was told the stream ended
+  bool ended = false;
+  int frames = 0;
+  double first_time = 0.0;
+
+  [[noreturn]] void fail(const std::string& what) const { throw InputError(path + ": " + what); }
+
+  ~State() {
+    sws_freeContext(scaler);
+    av_frame_free(&rgb);
+    av_frame_free(&frame);
+    av_packet_free(&packet);
+    avcodec_free_context(&decoder);
+    avformat_close_input(&format);
+  }
+
+  // The decoded frame as RGB into `out`.
+  void convert(ImageU8& out) {
+    const int w = frame->width, h = frame->height;
+    if (w != info.width || h != info.height) {
+      fail("frame " + std::to_string(frames) + " is " + std::to_string(w) + "x" +
+           std::to_string(h) + " px, the video's first " + std::to_string(info.width) + "x" +
+           std::to_string(info.height) + " px: a video's frames must be of one size");
+    }
+    const auto format_in = static_cast<AVPixelFormat>(frame->format);
+    scaler = sws_getCachedContext(scaler, w, h, format_in, w, h, AV_PIX_FMT_RGB24,
+                                  SWS_BICUBIC | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT, nullptr,
+                                  nullptr, nullptr);
+    if (!scaler) {
+      fail("cannot convert its pixel format " +
+           std::string(av_get_pix_fmt_name(format_in) ? av_get_pix_fmt_name(format_in) : "?") +
+           " to RGB");
+    }
+    // The frame's own colour matrix and range (BT.709 in HD video, full range in MJPEG), where
+    // it says; FFmpeg's default (BT.601, limited range) where it does not.
+    const AVPixFmtDescriptor* desc = av_pix_fmt_desc_get(format_in);
+    const bool yuv = desc && !(desc->flags & AV_PIX_FMT_FLAG_RGB) && desc->nb_components >= 3;
+    if (yuv) {
+      const int space =
+          frame->colorspace == AVCOL_SPC_UNSPECIFIED ? SWS_CS_DEFAULT : int(frame->colorspace);
+      const int full_range = frame->color_range == AVCOL_RANGE_JPEG ? 1 : 0;
+      int* inv = nullptr;
+      int* table = nullptr;
+      int src_range = 0, dst_range = 0, brightness = 0, contrast = 0, saturation = 0;
+      if (sws_getColorspaceDetails(scaler, &inv, &src_range, &table, &dst_range, &brightness,
+                                   &contrast, &saturation) >= 0) {
+        sws_setColorspaceDetails(scaler, sws_getCoefficients(space), full_range || src_range, table,
+                                 1, brightness, contrast, saturation);
+      }
+    }
+    if (!rgb->data[0]) {
+      rgb->format = AV_PIX_FMT_RGB24;
+      rgb->width = w;
+      rgb->height = h;
+      // Padded rows and end: swscale's vector code writes whole blocks.
+      if (av_frame_get_buffer(rgb, 64) < 0)
+        fail("out of memory for a " + std::to_string(w) + "px frame");
+    }
+    sws_scale(scaler, frame->data, frame->linesize, 0, h, rgb->data, rgb->linesize);
+    out = ImageU8(w, h, 3);
+    for (int y = 0; y < h; ++y) {
+      std::memcpy(&out.data[std::size_t(y) * w * 3],
+                  rgb->data[0] + std::size_t(y) * rgb->linesize[0], std::size_t(w) * 3);
+    }
+  }
+};
+
+VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()) {
+  s_->path = path;
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) s_->fail("no such file");
+  if (std::filesystem::is_directory(path, ec)) s_->fail("a folder, not a video file");
+  av_log_set_level(AV_LOG_QUIET);  // errors are reported here, with the file's name
+  int code = avformat_open_input(&s_->format, path.c_str(), nullptr, nullptr);
+  if (code < 0) s_->fail("not a video FFmpeg can read (" + av_error_text(code) + ")");
+  code = avformat_find_stream_info(s_->format, nullptr);
+  if (code < 0) s_->fail("cannot read its streams (" + av_error_text(code) + ")");
+  // FFmpeg reads a single image as a one-frame video; a folder of them is --images.
+  const std::string demuxer = s_->format->iformat->name;
+  if (demuxer == "image2" ||
+      (demuxer.size() > 5 && demuxer.substr(demuxer.size() - 5) == "_pipe")) {
+    s_->fail("an image, not a video (give the folder of the frames as --images)");
+  }
+  const AVCodec* codec = nullptr;
+  s_->stream = av_find_best_stream(s_->format, AVMEDIA_TYPE_VIDEO, -1, -1, &codec, 0);
+  if (s_->stream < 0) {
+    s_->fail(s_->stream == AVERROR_DECODER_NOT_FOUND
+                 ? "its video's codec has no decoder in this FFmpeg"
+                 : "holds no video stream");
+  }
+  const AVStream* stream = s_->format->streams[s_->stream];
+  s_->decoder = avcodec_alloc_context3(codec);
+  if (!s_->decoder || avcodec_parameters_to_context(s_->decoder, stream->codecpar) < 0) {
+    s_->fail("cannot set up its decoder");
+  }
+  s_->decoder->thread_count = 1;  // small frames; the tracker's tools keep the other core
+  code = avcodec_open2(s_->decoder, codec, nullptr);
+  if (code < 0)
+    s_->fail("cannot open its " + std::string(codec->name) + " decoder (" + av_error_text(code) +
+             ")");
+  s_->packet = av_packet_alloc();
+  s_->frame = av_frame_alloc();
+  s_->rgb = av_frame_alloc();
+  if (!s_->packet || !s_->frame || !s_->rgb) s_->fail("out of memory");
+  s_->time_base = av_q2d(stream->time_base);
+
+  VideoInfo& info = s_->info;
+  info.width = stream->codecpar->width;
+  info.height = stream->codecpar->height;
+  if (info.width <= 0 || info.height <= 0) s_->fail("its video stream gives no frame size");
+  info.codec = codec->name;
+  const auto pixel_format = static_cast<AVPixelFormat>(stream->codecpar->format);
+  const char* format_name = av_get_pix_fmt_name(pixel_format);
+  info.pixel_format = format_name ? format_name : "unknown";
+  if (const AVPixFmtDescriptor* desc = av_pix_fmt_desc_get(pixel_format)) {
+    info.chroma_subsampled = !(desc->flags & AV_PIX_FMT_FLAG_RGB) && desc->nb_components >= 3 &&
+                             (desc->log2_chroma_w > 0 || desc->log2_chroma_h > 0);
+  }
+  if (const AVCodecDescriptor* desc = avcodec_descriptor_get(stream->codecpar->codec_id)) {
+    info.lossy_codec =
+        (desc->props & AV_CODEC_PROP_LOSSY) && !(desc->props & AV_CODEC_PROP_LOSSLESS);
+    info.lossless_codec =
+        (desc->props & AV_CODEC_PROP_LOSSLESS) && !(desc->props & AV_CODEC_PROP_LOSSY);
+  }
+  const AVRational rate =
+      stream->avg_frame_rate.num > 0 ? stream->avg_frame_rate : stream->r_frame_rate;
+  info.fps = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0.0;
+  info.header_frames = stream->nb_frames > 0 ? long(stream->nb_frames) : 0;
+  info.duration_s = stream->duration != AV_NOPTS_VALUE ? stream->duration * s_->time_base
+                    : s_->format->duration != AV_NOPTS_VALUE
+                        ? double(s_->format->duration) / AV_TIME_BASE
+                        : 0.0;
+}
+
+VideoReader::~VideoReader() = default;
+
+const VideoInfo& VideoReader::info() const { return s_->info; }
+
+int VideoReader::frames_read() const { return s_->frames; }
+
+bool VideoReader::next(ImageU8& rgb, double& time_s) {
+  State& s = *s_;
+  while (!s.ended) {
+    const int got = avcodec_receive_frame(s.decoder, s.frame);
+    if (got == 0) {
+      s.convert(rgb);
+      const std::int64_t stamp = s.frame->best_effort_timestamp;
+      const double t = stamp == AV_NOPTS_VALUE ? s.frames / (s.info.fps > 0 ? s.info.fps : 60.0)
+                                               : stamp * s.time_base;
+      if (s.frames == 0) s.first_time = t;
+      time_s = t - s.first_time;
+      ++s.frames;
+      av_frame_unref(s.frame);
+      return true;
+    }
+    if (got == AVERROR_EOF) {
+      s.ended = true;
+      break;
+    }
+    if (got != AVERROR(EAGAIN)) {
+      s.fail("frame " + std::to_string(s.frames) + " does not decode (" + av_error_text(got) + ")");
+    }
+    if (s.flushed) {  // nothing more will come
+      s.ended = true;
+      break;
+    }
+    // The decoder wants input: the next packet of the video stream, or the end.
+    const int read = av_read_frame(s.format, s.packet);
+    if (read == AVERROR_EOF) {
+      avcodec_send_packet(s.decoder, nullptr);
+      s.flushed = true;
+      continue;
+    }
+    if (read < 0) {
+      s.fail("cannot read on after frame " + std::to_string(s.frames) + " (" + av_error_text(read) +
+             ")");
+    }
+    if (s.packet->stream_index == s.stream) {
+      const int sent = avcodec_send_packet(s.decoder, s.packet);
+      if (sent < 0 && sent != AVERROR(EAGAIN)) {
+        av_packet_unref(s.packet);
+        s.fail("frame " + std::to_string(s.frames) + " does not decode (" + av_error_text(sent) +
+               ")");
+      }
+    }
+    av_packet_unref(s.packet);
+  }
+  return false;
+}
+
+bool has_video_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  static const std::array<const char*, 14> kVideo = {".mp4",  ".m4v", ".mov",  ".avi", ".mkv",
+                                                     ".webm", ".mpg", ".mpeg", ".ts",  ".wmv",
+                                                     ".flv",  ".ogv", ".h264", ".264"};
+  return std::any_of(kVideo.begin(), kVideo.end(), [&](const char* e) { return ext == e; });
+}
+
+}  // namespace pg

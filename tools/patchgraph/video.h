@@ -1,0 +1,56 @@
+#pragma once
+// A video file's frames, decoded in order by FFmpeg's libraries (libavformat, libavcodec,
+// libswscale), as 8-bit RGB: `patchgraph recording --video`. FFmpeg is included only by video.cpp.
+#include <memory>
+#include <string>
+
+#include "pg/core/image.h"
+
+namespace pg {
+
+// What a video file says about itself before its frames are decoded.
+struct VideoInfo {
+  int width = 0, height = 0;
+  std::string codec;         // "h264", "ffv1", ...
+  std::string pixel_format;  // the decoder's: "yuv420p", "bgr0", ...
+  // The stream's average frame rate, 0 if the container gives none.
+  double fps = 0.0;
+  // The colour is stored at a lower resolution than the brightness (4:2:0, 4:2:2: each colour
+  // sample covers 2 or 4 pixels).
+  bool chroma_subsampled = false;
+  // The codec is lossy by design (MJPEG, MPEG-4 part 2); false where it may be either (H.264 at
+  // -qp 0 is lossless) or is lossless (FFV1, PNG, raw).
+  bool lossy_codec = false;
+  bool lossless_codec = false;  // only lossless (FFV1, PNG, raw video, ...)
+  // What the file's header says of its length: its frame count and its duration (0 where it
+  // does not say), so that a file cut short can be told.
+  long header_frames = 0;
+  double duration_s = 0.0;
+};
+
+class VideoReader {
+ public:
+  // Opens the file's best video stream; throws InputError naming the file when it is missing,
+  // not a video FFmpeg can read, or has no video stream.
+  explicit VideoReader(const std::string& path);
+  ~VideoReader();
+  VideoReader(const VideoReader&) = delete;
+  VideoReader& operator=(const VideoReader&) = delete;
+
+  const VideoInfo& info() const;
+  // The next frame as RGB (3 channels) and its time in seconds from the stream's start; false
+  // after the last. Throws InputError naming the file and frame when a frame does not decode or
+  // changes size.
+  bool next(ImageU8& rgb, double& time_s);
+  int frames_read() const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> s_;
+};
+
+// Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...), for options
+// that take images or videos.
+bool has_video_extension(const std::string& path);
+
+}  // namespace pg
