@@ -1978,6 +1978,60 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   EXPECT_NE(c.out.find("its header says it lasts 2 s, its "), std::string::npos) << c.out;
   EXPECT_NE(c.out.find("is it cut short"), std::string::npos) << c.out;
 
+  // A recording that starts before the touch: its first frames are the reference
+  // (--background-frames), and stay frames; frames of it that show a press are warned about.
+  const fs::path start = dir_ / "vid_start_pngs";
+  fs::create_directories(start);
+  for (int i = 0; i < 5 + rendered.frames(); ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", i);
+    write_image((start / name).string(), i < 5 ? rendered.background() : rendered.color(i - 5));
+  }
+  const std::string started = out("vid_start.mkv");
+  ASSERT_EQ(ffmpeg("-framerate 30 -i " + (start / "%06d.png").string() +
+                   " -c:v ffv1 -pix_fmt bgr0 " + started),
+            0);
+  for (const std::string& frames_from : {"--video " + started, "--images " + start.string()}) {
+    const CliRun own = patchgraph("recording " + frames_from +
+                                  " --background-frames 0-4 --static-sensor -q --out " +
+                                  out("vid_own"));
+    ASSERT_EQ(own.code, 0) << own.out;
+    EXPECT_NE(own.out.find("the median of 5 images (frames 0-4 among them)"), std::string::npos)
+        << own.out;
+    EXPECT_EQ(own.out.find("warning"), std::string::npos) << own.out;
+    const Dataset with_own = Dataset::open(out("vid_own"));
+    EXPECT_EQ(with_own.frames(), 65);
+    EXPECT_EQ(with_own.background().data, rendered.background().data);
+    EXPECT_EQ(with_own.color(5 + 17).data, rendered.color(17).data);
+    const CliRun touched = patchgraph("recording " + frames_from +
+                                      " --background-frames 0-6 --static-sensor -q --out " +
+                                      out("vid_own"));
+    EXPECT_EQ(touched.code, 0) << touched.out;
+    EXPECT_NE(touched.out.find("--background-frames 0-6: frames 5-6 differ from the reference "
+                               "as a press would"),
+              std::string::npos)
+        << touched.out;
+  }
+  const CliRun past = patchgraph("recording --video " + started +
+                                 " --background-frames 60-70 --static-sensor -q --out " +
+                                 out("vid_bad2"));
+  EXPECT_EQ(past.code, 1) << past.out;
+  EXPECT_NE(past.out.find("--background-frames 60-70: " + started + " holds 65 frames (0-64)"),
+            std::string::npos)
+      << past.out;
+  for (const std::string range : {"5-2", "x", "a-3", "1-"}) {
+    const CliRun bad_range = patchgraph("recording --video " + started + " --background-frames " +
+                                        range + " --static-sensor -q --out " + out("vid_bad2"));
+    EXPECT_EQ(bad_range.code, 2) << range << ": " << bad_range.out;
+    EXPECT_NE(bad_range.out.find("--background-frames " + range + ": "), std::string::npos)
+        << bad_range.out;
+  }
+  const CliRun no_reference =
+      patchgraph("recording --video " + started + " --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(no_reference.code, 2) << no_reference.out;
+  EXPECT_NE(no_reference.out.find("--background or --background-frames"), std::string::npos)
+      << no_reference.out;
+
   // What cannot be read: named, exit 1, nothing written; both or neither source: a usage error.
   std::ofstream(out("vid_text.mp4")) << "not a video";
   const std::vector<std::pair<std::string, std::string>> bad = {

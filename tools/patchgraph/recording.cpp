@@ -15,8 +15,10 @@
 #include "pg/core/file_io.h"
 #include "pg/core/image.h"
 #include "pg/core/image_change.h"
+#include "pg/core/gel_rays.h"
 #include "pg/core/sensor.h"
 #include "pg/graph/track_dataset.h"
+#include "pg/tracker/contact_cloud.h"
 #include "video.h"
 
 namespace pg {
@@ -307,7 +309,36 @@ struct VideoScan {
   VideoInfo info;
   std::vector<double> times_s;
   double fps = 0.0;  // the camera's rate: one over the median step between frames
+  std::vector<ImageU8> kept;  // the frames of the range asked for, as the sensor's images
 };
+
+// Frames FIRST to LAST of the frames, both included.
+struct FrameRange {
+  int first = 0, last = -1;
+  bool empty() const { return last < first; }
+  bool contains(int i) const { return i >= first && i <= last; }
+};
+
+// --background-frames' "FIRST-LAST" (or one frame's number); a usage error unless it is one.
+FrameRange parse_frame_range(const std::string& text) {
+  FrameRange range;
+  if (text.empty()) return range;
+  const std::size_t dash = text.find('-');
+  const auto number = [&](const std::string& part) {
+    if (part.empty() || part.size() > 9 ||
+        !std::all_of(part.begin(), part.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      throw UsageError("--background-frames " + text +
+                       ": give FIRST-LAST, the frames' numbers from 0 (0-29: the first 30)");
+    }
+    return std::stoi(part);
+  };
+  range.first = number(text.substr(0, dash));
+  range.last = dash == std::string::npos ? range.first : number(text.substr(dash + 1));
+  if (range.last < range.first) {
+    throw UsageError("--background-frames " + text + ": the last frame comes before the first");
+  }
+  return range;
+}
 
 // Warns when the video's timestamps skip frames (a webcam's dropped frames, a variable-rate
 // file): each decoded frame becomes the next frame, and the tracker steps per frame.
@@ -334,7 +365,7 @@ void warn_of_time_gaps(const std::vector<double>& times, double step, const std:
                gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
 }
 
-VideoScan scan_video(const std::string& path, const FrameReading& reading) {
+VideoScan scan_video(const std::string& path, const FrameReading& reading, const FrameRange& keep) {
   VideoReader reader(path);
   VideoScan scan;
   scan.info = reader.info();
@@ -342,7 +373,10 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading) {
   check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
   ImageU8 raw;
   double time_s = 0.0;
-  while (reader.next(raw, time_s)) scan.times_s.push_back(time_s);
+  while (reader.next(raw, time_s)) {
+    if (keep.contains(int(scan.times_s.size()))) scan.kept.push_back(sensor_image(raw, path, reading));
+    scan.times_s.push_back(time_s);
+  }
   if (scan.times_s.empty()) throw InputError(path + ": holds no frame (--video)");
   std::vector<double> steps;
   for (std::size_t i = 1; i < scan.times_s.size(); ++i) {
@@ -415,6 +449,32 @@ std::vector<ImageU8> video_frames(const std::string& path, const FrameReading& r
   return frames;
 }
 
+// The frames among `images` (numbered from `first`) that differ from `reference` as a contact
+// would, as the tracker's no-change test tells one (changed regions of the smallest contact's
+// size, ContactCloudOptions' mask.min_area_m2 on this sensor), listed ("frames 25-29"); "" when
+// none does.
+std::string frames_that_show_contact(const std::vector<ImageU8>& images, int first,
+                                     const ImageU8& reference, const SensorModel& sensor) {
+  const int min_contact =
+      min_contact_pixels(make_gel_rays(sensor.camera, sensor.gel), ContactCloudOptions().mask);
+  std::vector<int> touched;
+  for (std::size_t k = 0; k < images.size(); ++k) {
+    if (pixels_beyond_specks(changed_regions(images[k], reference), min_contact) >= min_contact) {
+      touched.push_back(first + int(k));
+    }
+  }
+  if (touched.empty()) return "";
+  std::string list;
+  for (std::size_t k = 0; k < touched.size();) {
+    std::size_t end = k;
+    while (end + 1 < touched.size() && touched[end + 1] == touched[end] + 1) ++end;
+    list += (list.empty() ? "" : ", ") + std::to_string(touched[k]) +
+            (end > k ? "-" + std::to_string(touched[end]) : "");
+    k = end + 1;
+  }
+  return (touched.size() == 1 ? "frame " : "frames ") + list;
+}
+
 // The frame rate of a poses file's time column (first to last row), so that dataset.json says
 // what the rows do; `given` (--fps, 0 if not) must agree with it to 1 %. A single row or a
 // constant time column has none: `given`, or 60.
@@ -455,8 +515,11 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
   cmd->add_option("--background", a.backgrounds,
                   "The sensor's image with nothing touching; or several such frames (files, a "
                   "folder, or videos): their per-pixel median is the reference, with less camera "
-                  "noise")
-      ->required();
+                  "noise");
+  cmd->add_option("--background-frames", a.background_frames,
+                  "FIRST-LAST: frames of --images or --video with nothing touching (a recording "
+                  "that starts before the touch), numbered from 0; their median is the "
+                  "reference (with --background's images, if given), and they stay frames");
   auto* poses = cmd->add_option("--poses", a.poses,
                                 "poses.csv in the dataset format, one row per frame (the object "
                                 "pose and contact cells may be empty)");
@@ -492,6 +555,12 @@ int run_recording(const RecordingArgs& a) {
   if (a.images.empty() == a.video.empty()) {
     throw UsageError("--images or --video: the frames are a folder of images or a video file");
   }
+  if (a.backgrounds.empty() && a.background_frames.empty()) {
+    throw UsageError(
+        "--background or --background-frames: the network reads each frame against the sensor's "
+        "image with nothing touching");
+  }
+  const FrameRange keep = parse_frame_range(a.background_frames);
   const bool from_video = !a.video.empty();
   const std::string source = from_video ? a.video : a.images;
   if (!from_video) check_output_is_not_input(a.out, a.images, "--images");
@@ -504,11 +573,15 @@ int run_recording(const RecordingArgs& a) {
   std::vector<fs::path> files;
   VideoScan video;
   if (from_video) {
-    video = scan_video(a.video, reading);
+    video = scan_video(a.video, reading, keep);
   } else {
     files = frame_files(a.images, references);
   }
   const int frames = from_video ? int(video.times_s.size()) : int(files.size());
+  if (!keep.empty() && keep.last >= frames) {
+    throw InputError("--background-frames " + a.background_frames + ": " + source + " holds " +
+                     std::to_string(frames) + " frames (0-" + std::to_string(frames - 1) + ")");
+  }
   // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
   // output folders (DatasetWriter::finish): --images must be none of them.
   for (const std::string& output : dataset_output_names()) {
@@ -586,12 +659,29 @@ int run_recording(const RecordingArgs& a) {
       no_contact.push_back(sensor_image(file.string(), reading));
     }
   }
+  // The recording's own frames without contact.
+  std::vector<ImageU8> own = std::move(video.kept);
+  for (int i = keep.first; !from_video && i <= keep.last; ++i) {
+    own.push_back(sensor_image(files[std::size_t(i)].string(), reading));
+  }
+  no_contact.insert(no_contact.end(), own.begin(), own.end());
   const ImageU8 background = median_image(no_contact);
   const std::string reference_name =
-      references.size() == 1 && no_contact.size() == 1
-          ? "--background " + references[0].string()
-          : "the median of the " + std::to_string(no_contact.size()) + " --background images";
-  const std::vector<std::string> warnings = reference_warnings(background, reference_name);
+      references.size() == 1 && no_contact.size() == 1 ? "--background " + references[0].string()
+      : own.size() == 1 && no_contact.size() == 1
+          ? "frame " + a.background_frames + " (--background-frames)"
+          : "the median of the " + std::to_string(no_contact.size()) + " no-contact images";
+  std::vector<std::string> warnings = reference_warnings(background, reference_name);
+  if (!own.empty()) {
+    const std::string touched = frames_that_show_contact(own, keep.first, background, sensor);
+    if (!touched.empty()) {
+      warnings.push_back("--background-frames " + a.background_frames + ": " + touched +
+                         " differ from the reference as a press would (a changed region of a "
+                         "contact's size): if something touched the gel there, the reference "
+                         "holds it, and the network reads every frame against it; give frames "
+                         "from before the first touch");
+    }
+  }
   if (!from_video && !out_existed) sensor_image(files.front().string(), reading);  // whole
 
   DatasetInfo info;
@@ -659,8 +749,10 @@ int run_recording(const RecordingArgs& a) {
       a.rotate ? (", turned " + std::to_string(a.rotate) + " degrees clockwise").c_str() : "",
       a.out.c_str(), w, h, object_poses);
   if (no_contact.size() > 1) {
-    std::printf("the no-contact reference (background.png) is the median of %zu images\n",
-                no_contact.size());
+    std::printf("the no-contact reference (background.png) is the median of %zu images%s\n",
+                no_contact.size(),
+                own.empty() ? ""
+                            : (" (frames " + a.background_frames + " among them)").c_str());
   }
   std::fflush(stdout);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());

@@ -12,6 +12,9 @@ struct RecordingArgs {
   // The sensor's images with nothing touching (files, folders of them, or videos): their per-pixel
   // median is the no-contact reference.
   std::vector<std::string> backgrounds;
+  // "FIRST-LAST": frames of --images or --video that show nothing touching, whose median is
+  // the reference too (with --background, or instead of it); they stay frames of the dataset.
+  std::string background_frames;
   std::string poses;           // poses.csv in the dataset's format, one row per frame
   bool static_sensor = false;  // no poses file: the sensor did not move (the world is its frame)
   std::string sensor = "digit";

@@ -98,8 +98,12 @@ void ContactCloudBuilder::build_untouched(ContactFrame& frame) const {
   set_without_normals(frame, ContactStatus::kNoContact, 0);
 }
 
+int min_contact_pixels(const GelRays& rays, const MaskOptions& mask) {
+  return std::max(1, int(std::ceil(mask.min_area_m2 / rays.pixel_area_m2())));
+}
+
 int ContactCloudBuilder::min_contact_pixels() const {
-  return std::max(1, int(std::ceil(options_.mask.min_area_m2 / rays().pixel_area_m2())));
+  return pg::min_contact_pixels(rays(), options_.mask);
 }
 
 void ContactCloudBuilder::keep_core_if_as_constrained(const ImageF& normals, ContactFrame& frame) {

@@ -321,10 +321,7 @@ std::vector<SensorImage> prepare_frame(const std::deque<SensorFeed>& feeds,
       // the image (more than a press changes).
       const ChangedRegions changes = changed_regions(image.color, feed.background);
       image.changed = changes.changed;
-      // (Specks of the camera's size, but never more than the smallest contact: at 60x80 that
-      // is 5 px, whose changes may come in regions of 7, 4 and 3 px.)
-      image.in_regions =
-          changes.pixels_in_regions_of(std::min(kSpeckPixels, feed.min_contact_pixels));
+      image.in_regions = pixels_beyond_specks(changes, feed.min_contact_pixels);
     }
     // A frame no different from the reference beyond the camera's noise, or only in specks:
     // nothing pressed, no normals to estimate.

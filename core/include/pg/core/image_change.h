@@ -89,6 +89,15 @@ ChangedRegions changed_regions(const ImageU8& color, const ImageU8& reference);
 // a smaller least contact (a small image's) takes the smaller of the two.
 constexpr int kSpeckPixels = 12;
 
+// The changed pixels in regions larger than specks: of kSpeckPixels or more, or of the smallest
+// contact `min_contact_pixels` where that is less (at 60x80 it is 5 px, whose changes may come
+// in regions of 7, 4 and 3 px). A frame shows a contact when they are at least
+// `min_contact_pixels` (the tracker's no-change test).
+inline int pixels_beyond_specks(const ChangedRegions& changes, int min_contact_pixels) {
+  return changes.pixels_in_regions_of(min_contact_pixels < kSpeckPixels ? min_contact_pixels
+                                                                        : kSpeckPixels);
+}
+
 // The per-pixel and per-channel median of images of one size (of an even count, the two middle
 // values' mean, rounded up): a no-contact reference from several frames. Not their mean: the
 // camera's noise is clipped at 0 and 255, so where the gel saturates a channel the mean sits

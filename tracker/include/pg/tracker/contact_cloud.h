@@ -53,6 +53,10 @@ int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8
                          const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor,
                          float min_indentation_m = 0.0f);
 
+// The smallest contact, mask.min_area_m2, in pixels of the sensor whose rays these are (at
+// least 1).
+int min_contact_pixels(const GelRays& rays, const MaskOptions& mask);
+
 // Coordinates the steps for one sensor; keeps the per-sensor constants, FFTW plans and scratch
 // buffers, so frames allocate nothing once the sizes have been seen. Not thread-safe: one per
 // thread (or per sensor).
