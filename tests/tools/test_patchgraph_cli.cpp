@@ -1992,9 +1992,9 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
                    " -c:v ffv1 -pix_fmt bgr0 " + started),
             0);
   for (const std::string& frames_from : {"--video " + started, "--images " + start.string()}) {
-    const CliRun own = patchgraph("recording " + frames_from +
-                                  " --background-frames 0-4 --static-sensor -q --out " +
-                                  out("vid_own"));
+    const CliRun own =
+        patchgraph("recording " + frames_from +
+                   " --background-frames 0-4 --static-sensor -q --out " + out("vid_own"));
     ASSERT_EQ(own.code, 0) << own.out;
     EXPECT_NE(own.out.find("the median of 5 images (frames 0-4 among them)"), std::string::npos)
         << own.out;
@@ -2003,18 +2003,18 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
     EXPECT_EQ(with_own.frames(), 65);
     EXPECT_EQ(with_own.background().data, rendered.background().data);
     EXPECT_EQ(with_own.color(5 + 17).data, rendered.color(17).data);
-    const CliRun touched = patchgraph("recording " + frames_from +
-                                      " --background-frames 0-6 --static-sensor -q --out " +
-                                      out("vid_own"));
+    const CliRun touched =
+        patchgraph("recording " + frames_from +
+                   " --background-frames 0-6 --static-sensor -q --out " + out("vid_own"));
     EXPECT_EQ(touched.code, 0) << touched.out;
     EXPECT_NE(touched.out.find("--background-frames 0-6: frames 5-6 differ from the reference "
                                "as a press would"),
               std::string::npos)
         << touched.out;
   }
-  const CliRun past = patchgraph("recording --video " + started +
-                                 " --background-frames 60-70 --static-sensor -q --out " +
-                                 out("vid_bad2"));
+  const CliRun past =
+      patchgraph("recording --video " + started +
+                 " --background-frames 60-70 --static-sensor -q --out " + out("vid_bad2"));
   EXPECT_EQ(past.code, 1) << past.out;
   EXPECT_NE(past.out.find("--background-frames 60-70: " + started + " holds 65 frames (0-64)"),
             std::string::npos)

@@ -13,9 +13,9 @@
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/gel_rays.h"
 #include "pg/core/image.h"
 #include "pg/core/image_change.h"
-#include "pg/core/gel_rays.h"
 #include "pg/core/sensor.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/tracker/contact_cloud.h"
@@ -308,7 +308,7 @@ std::vector<fs::path> frame_files(const std::string& dir, const std::vector<fs::
 struct VideoScan {
   VideoInfo info;
   std::vector<double> times_s;
-  double fps = 0.0;  // the camera's rate: one over the median step between frames
+  double fps = 0.0;           // the camera's rate: one over the median step between frames
   std::vector<ImageU8> kept;  // the frames of the range asked for, as the sensor's images
 };
 
@@ -374,7 +374,8 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   ImageU8 raw;
   double time_s = 0.0;
   while (reader.next(raw, time_s)) {
-    if (keep.contains(int(scan.times_s.size()))) scan.kept.push_back(sensor_image(raw, path, reading));
+    if (keep.contains(int(scan.times_s.size())))
+      scan.kept.push_back(sensor_image(raw, path, reading));
     scan.times_s.push_back(time_s);
   }
   if (scan.times_s.empty()) throw InputError(path + ": holds no frame (--video)");
@@ -751,8 +752,7 @@ int run_recording(const RecordingArgs& a) {
   if (no_contact.size() > 1) {
     std::printf("the no-contact reference (background.png) is the median of %zu images%s\n",
                 no_contact.size(),
-                own.empty() ? ""
-                            : (" (frames " + a.background_frames + " among them)").c_str());
+                own.empty() ? "" : (" (frames " + a.background_frames + " among them)").c_str());
   }
   std::fflush(stdout);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
