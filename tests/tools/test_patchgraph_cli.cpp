@@ -1940,6 +1940,20 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
       mean_abs_difference(Dataset::open(out("vid_lossy")).color(17), rendered.color(17));
   EXPECT_GT(off, 0.5);
   EXPECT_LT(off, 12.0);
+  // A phone's video shown turned by its display matrix: decoded as stored, and said so.
+  const std::string turned = out("vid_turned.mp4");
+  ASSERT_EQ(ffmpeg("-i " + lossy + " -c copy -metadata:s:v:0 rotate=90 " + turned), 0);
+  const CliRun t = patchgraph("recording --video " + turned + " --background " +
+                              out("vid_background.png") + " --static-sensor -q --out " +
+                              out("vid_turned"));
+  ASSERT_EQ(t.code, 0) << t.out;
+  EXPECT_NE(t.out.find("its metadata (a display matrix) has players show it turned by a quarter "
+                       "turn, which decoding does not do; --rotate 90 or 270 turns the frames"),
+            std::string::npos)
+      << t.out;
+  EXPECT_EQ(Dataset::open(out("vid_turned")).color(17).data,
+            Dataset::open(out("vid_lossy")).color(17).data);
+  EXPECT_EQ(l.out.find("display matrix"), std::string::npos) << l.out;
 
   // Dropped frames: each decoded frame is the next frame, and the gap is warned about.
   const CliRun g =

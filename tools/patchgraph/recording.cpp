@@ -370,6 +370,17 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   VideoScan scan;
   scan.info = reader.info();
   const VideoInfo& info = scan.info;
+  // A phone's video is stored turned and shown upright by its display matrix, which decoding
+  // does not apply: said before the size check, whose hint may otherwise be the only word.
+  if (info.display_rotation != 0 && reading.rotate == 0) {
+    const bool quarter = info.display_rotation % 180 != 0;
+    std::fprintf(stderr,
+                 "note: %s: its metadata (a display matrix) has players show it turned by %s, "
+                 "which decoding does not do; %s turns the frames%s\n",
+                 path.c_str(), quarter ? "a quarter turn" : "half a turn",
+                 quarter ? "--rotate 90 or 270" : "--rotate 180",
+                 quarter ? ", whichever puts the sensor's lights where its model has them" : "");
+  }
   check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
   ImageU8 raw;
   double time_s = 0.0;

@@ -3,6 +3,7 @@
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
+#include <libavutil/display.h>
 #include <libavutil/imgutils.h>
 #include <libavutil/pixdesc.h>
 #include <libswscale/swscale.h>
@@ -10,6 +11,8 @@ extern "C" {
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdint>
 #include <cctype>
 #include <cstring>
 #include <filesystem>
@@ -169,6 +172,12 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
   const AVRational rate =
       stream->avg_frame_rate.num > 0 ? stream->avg_frame_rate : stream->r_frame_rate;
   info.fps = rate.num > 0 && rate.den > 0 ? av_q2d(rate) : 0.0;
+  if (const auto* matrix = reinterpret_cast<const std::int32_t*>(
+          av_stream_get_side_data(stream, AV_PKT_DATA_DISPLAYMATRIX, nullptr))) {
+    // The matrix turns the frame counter-clockwise by this angle; a player turns it back.
+    const double turn = -av_display_rotation_get(matrix);
+    if (std::isfinite(turn)) info.display_rotation = ((int(std::lround(turn / 90.0)) % 4 + 4) % 4) * 90;
+  }
   info.header_frames = stream->nb_frames > 0 ? long(stream->nb_frames) : 0;
   info.duration_s = stream->duration != AV_NOPTS_VALUE ? stream->duration * s_->time_base
                     : s_->format->duration != AV_NOPTS_VALUE

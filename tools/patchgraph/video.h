@@ -22,6 +22,10 @@ struct VideoInfo {
   // -qp 0 is lossless) or is lossless (FFV1, PNG, raw).
   bool lossy_codec = false;
   bool lossless_codec = false;  // only lossless (FFV1, PNG, raw video, ...)
+  // How far a player turns the frames to show them (0, 90, 180 or 270 degrees: a phone's display
+  // matrix, whose direction conventions vary between writers); the frames are decoded as
+  // stored, not turned.
+  int display_rotation = 0;
   // What the file's header says of its length: its frame count and its duration (0 where it
   // does not say), so that a file cut short can be told.
   long header_frames = 0;
