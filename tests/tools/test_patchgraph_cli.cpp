@@ -1943,9 +1943,9 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   // A phone's video shown turned by its display matrix: decoded as stored, and said so.
   const std::string turned = out("vid_turned.mp4");
   ASSERT_EQ(ffmpeg("-i " + lossy + " -c copy -metadata:s:v:0 rotate=90 " + turned), 0);
-  const CliRun t = patchgraph("recording --video " + turned + " --background " +
-                              out("vid_background.png") + " --static-sensor -q --out " +
-                              out("vid_turned"));
+  const CliRun t =
+      patchgraph("recording --video " + turned + " --background " + out("vid_background.png") +
+                 " --static-sensor -q --out " + out("vid_turned"));
   ASSERT_EQ(t.code, 0) << t.out;
   EXPECT_NE(t.out.find("its metadata (a display matrix) has players show it turned by a quarter "
                        "turn, which decoding does not do; --rotate 90 or 270 turns the frames"),

@@ -11,9 +11,9 @@ extern "C" {
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdint>
-#include <cctype>
 #include <cstring>
 #include <filesystem>
 
@@ -176,7 +176,8 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
           av_stream_get_side_data(stream, AV_PKT_DATA_DISPLAYMATRIX, nullptr))) {
     // The matrix turns the frame counter-clockwise by this angle; a player turns it back.
     const double turn = -av_display_rotation_get(matrix);
-    if (std::isfinite(turn)) info.display_rotation = ((int(std::lround(turn / 90.0)) % 4 + 4) % 4) * 90;
+    if (std::isfinite(turn))
+      info.display_rotation = ((int(std::lround(turn / 90.0)) % 4 + 4) % 4) * 90;
   }
   info.header_frames = stream->nb_frames > 0 ? long(stream->nb_frames) : 0;
   info.duration_s = stream->duration != AV_NOPTS_VALUE ? stream->duration * s_->time_base
