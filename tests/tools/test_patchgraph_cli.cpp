@@ -1947,8 +1947,10 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
       patchgraph("recording --video " + turned + " --background " + out("vid_background.png") +
                  " --static-sensor -q --out " + out("vid_turned"));
   ASSERT_EQ(t.code, 0) << t.out;
-  EXPECT_NE(t.out.find("its metadata (a display matrix) has players show it turned by a quarter "
-                       "turn, which decoding does not do; --rotate 90 or 270 turns the frames"),
+  // (ffmpeg's "rotate" tag of 90 is a display matrix that players, ffmpeg among them, turn
+  // back by 270 degrees clockwise.)
+  EXPECT_NE(t.out.find("its metadata (a display matrix) has players show it turned by 270 "
+                       "degrees, which decoding does not do; --rotate 270 turns the frames so"),
             std::string::npos)
       << t.out;
   EXPECT_EQ(Dataset::open(out("vid_turned")).color(17).data,
@@ -1991,6 +1993,61 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   ASSERT_EQ(c.code, 0) << c.out;
   EXPECT_NE(c.out.find("its header says it lasts 2 s, its "), std::string::npos) << c.out;
   EXPECT_NE(c.out.find("is it cut short"), std::string::npos) << c.out;
+  // An AVI cut in the middle of a frame: that frame is left out, not kept with the rows of the
+  // frame before (it had been); every frame kept is the camera's.
+  const std::string avi = out("vid_cut.avi");
+  ASSERT_EQ(ffmpeg(frames_in + " -c:v ffv1 -pix_fmt bgr0 " + avi), 0);
+  fs::resize_file(avi, fs::file_size(avi) * 6 / 10);
+  const CliRun cut_avi = patchgraph("recording --video " + avi + " --background " + still +
+                                    " --static-sensor -q --out " + out("vid_cut_avi"));
+  ASSERT_EQ(cut_avi.code, 0) << cut_avi.out;
+  EXPECT_NE(cut_avi.out.find("1 frame left out as damaged (the first: its data is cut short)"),
+            std::string::npos)
+      << cut_avi.out;
+  const Dataset kept = Dataset::open(out("vid_cut_avi"));
+  EXPECT_GT(kept.frames(), 30);
+  for (int i = 0; i < kept.frames(); ++i) {
+    EXPECT_EQ(kept.color(i).data, rendered.color(i).data) << "frame " << i;
+  }
+  // Timestamps that jitter drop no frame: not warned about. (+-7 ms at 30 frames per second,
+  // which the stream's time base rounds to steps of 0, 33 and 67 ms, none missing.)
+  const std::string jitter = out("vid_jitter.mkv");
+  ASSERT_EQ(ffmpeg(frames_in + " -vf \"setpts=(N/30+(random(0)-0.5)*0.014)/TB\" " +
+                   "-fps_mode passthrough -c:v ffv1 -pix_fmt bgr0 " + jitter),
+            0);
+  const CliRun jittered = patchgraph("recording --video " + jitter + " --background " + still +
+                                     " --static-sensor -q --out " + out("vid_jitter"));
+  ASSERT_EQ(jittered.code, 0) << jittered.out;
+  EXPECT_EQ(jittered.out.find("warning"), std::string::npos) << jittered.out;
+  EXPECT_EQ(Dataset::open(out("vid_jitter")).frames(), 60);
+  // --fps over the video's own rate: warned about, and it is the dataset's.
+  const CliRun rate = patchgraph("recording --video " + lossless + " --background " + still +
+                                 " --static-sensor --fps 60 -q --out " + out("vid_rate"));
+  ASSERT_EQ(rate.code, 0) << rate.out;
+  EXPECT_NE(rate.out.find("--fps 60 replaces " + lossless + "'s own rate, 30 frames per second"),
+            std::string::npos)
+      << rate.out;
+  EXPECT_NEAR(Dataset::open(out("vid_rate")).info().fps, 60.0, 1e-9);
+  // A --background video with presses in it, and --background-frames that --poses marks as in
+  // contact: warned about.
+  const CliRun pressed_background =
+      patchgraph("recording --video " + lossless + " --background " + lossless +
+                 " --static-sensor -q --out " + out("vid_pressed"));
+  ASSERT_EQ(pressed_background.code, 0) << pressed_background.out;
+  EXPECT_NE(pressed_background.out.find("warning: --background " + lossless + ": frames "),
+            std::string::npos)
+      << pressed_background.out;
+  EXPECT_NE(pressed_background.out.find("differ from the reference as a press would"),
+            std::string::npos)
+      << pressed_background.out;
+  const CliRun marked = patchgraph("recording --video " + lossless +
+                                   " --background-frames 0-2 --poses " + data() +
+                                   "/poses.csv -q --out " + out("vid_marked"));
+  ASSERT_EQ(marked.code, 0) << marked.out;
+  EXPECT_NE(marked.out.find("--background-frames 0-2: " + data() +
+                            "/poses.csv marks frames 0-2 as in contact"),
+            std::string::npos)
+      << marked.out;
 
   // A recording that starts before the touch: its first frames are the reference
   // (--background-frames), and stay frames; frames of it that show a press are warned about.
@@ -2010,7 +2067,7 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
         patchgraph("recording " + frames_from +
                    " --background-frames 0-4 --static-sensor -q --out " + out("vid_own"));
     ASSERT_EQ(own.code, 0) << own.out;
-    EXPECT_NE(own.out.find("the median of 5 images (frames 0-4 among them)"), std::string::npos)
+    EXPECT_NE(own.out.find("the median of 5 images (frames 0-4)\n"), std::string::npos)
         << own.out;
     EXPECT_EQ(own.out.find("warning"), std::string::npos) << own.out;
     const Dataset with_own = Dataset::open(out("vid_own"));
@@ -2048,9 +2105,14 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
 
   // What cannot be read: named, exit 1, nothing written; both or neither source: a usage error.
   std::ofstream(out("vid_text.mp4")) << "not a video";
+  ASSERT_EQ(ffmpeg(frames_in + " -c:v ffv1 -pix_fmt gray " + out("vid_grey.mkv")), 0);
+  ASSERT_EQ(std::system(("mkfifo " + out("vid_pipe.mkv")).c_str()), 0);
   const std::vector<std::pair<std::string, std::string>> bad = {
       {out("vid_text.mp4"), out("vid_text.mp4") + ": not a video FFmpeg can read"},
       {out("vid_missing.mp4"), out("vid_missing.mp4") + ": no such file"},
+      {out("vid_grey.mkv"), out("vid_grey.mkv") +
+                                ": grey frames (pixel format gray); a tactile sensor's frame is RGB"},
+      {out("vid_pipe.mkv"), out("vid_pipe.mkv") + ": not a regular file (a pipe or a device)"},
       {out("vid_background.png"), out("vid_background.png") +
                                       ": an image, not a video (give the folder of the frames as "
                                       "--images)"},

@@ -378,8 +378,8 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
+  } catch (const CLI::ParseError& e) {  // said as the tools' own errors are
+    std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
     return kExitUsage;
   }
   try {

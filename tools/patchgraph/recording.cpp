@@ -189,7 +189,7 @@ void check_frame_shape(const std::string& path, const ImageShape& raw,
       for (std::size_t k = 0; k < hints.size(); ++k) text += (k ? "; " : "") + hints[k];
       text += ")";
     }
-    throw InputError(text + "; the frames and --background must be of one size");
+    throw InputError(text);
   }
 }
 
@@ -343,6 +343,10 @@ FrameRange parse_frame_range(const std::string& text) {
 // Warns when the video's timestamps skip frames (a webcam's dropped frames, a variable-rate
 // file): each decoded frame becomes the next frame, and the tracker steps per frame.
 void warn_of_time_gaps(const std::vector<double>& times, double step, const std::string& path) {
+  // Jitter (a step of 25 ms after one of 8 at 60 frames per second) is no dropped frame: frames
+  // are missing only when the span holds more steps than frames.
+  const long span_steps = std::lround((times.back() - times.front()) / step);
+  if (span_steps + 1 <= long(times.size())) return;
   int gaps = 0;
   long missing = 0;
   std::string listed;
@@ -357,11 +361,12 @@ void warn_of_time_gaps(const std::vector<double>& times, double step, const std:
   }
   if (gaps == 0) return;
   std::fprintf(stderr,
-               "warning: %s: its timestamps skip about %ld frames at %d place%s, %s%s (the "
+               "warning: %s: its timestamps skip about %ld frame%s at %d place%s, %s%s (the "
                "frames are %s ms apart): each decoded frame becomes the next frame, and the "
                "tracker steps its motion priors per frame, so a dropped frame is a jump in the "
                "motion\n",
-               path.c_str(), missing, gaps, gaps > 1 ? "s" : "", listed.c_str(),
+               path.c_str(), missing, missing == 1 ? "" : "s", gaps, gaps > 1 ? "s" : "",
+               listed.c_str(),
                gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
 }
 
@@ -372,14 +377,23 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   const VideoInfo& info = scan.info;
   // A phone's video is stored turned and shown upright by its display matrix, which decoding
   // does not apply: said before the size check, whose hint may otherwise be the only word.
-  if (info.display_rotation != 0 && reading.rotate == 0) {
-    const bool quarter = info.display_rotation % 180 != 0;
+  if (info.display_rotation != reading.rotate && info.display_rotation != 0) {
     std::fprintf(stderr,
-                 "note: %s: its metadata (a display matrix) has players show it turned by %s, "
-                 "which decoding does not do; %s turns the frames%s\n",
-                 path.c_str(), quarter ? "a quarter turn" : "half a turn",
-                 quarter ? "--rotate 90 or 270" : "--rotate 180",
-                 quarter ? ", whichever puts the sensor's lights where its model has them" : "");
+                 "note: %s: its metadata (a display matrix) has players show it turned by %d "
+                 "degrees, which decoding does not do; --rotate %d turns the frames so (if that "
+                 "puts the sensor's lights where its model has them)\n",
+                 path.c_str(), info.display_rotation, info.display_rotation);
+  }
+  if (info.video_streams > 1) {
+    std::fprintf(stderr,
+                 "note: %s holds %d video streams; the frames are those of stream %d (%dx%d px, "
+                 "%s), the one FFmpeg takes as the main one\n",
+                 path.c_str(), info.video_streams, info.stream_index, info.width, info.height,
+                 info.codec.c_str());
+  }
+  if (info.grey) {
+    throw InputError(path + ": grey frames (pixel format " + info.pixel_format +
+                     "); a tactile sensor's frame is RGB");
   }
   check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
   ImageU8 raw;
@@ -389,7 +403,19 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
       scan.kept.push_back(sensor_image(raw, path, reading));
     scan.times_s.push_back(time_s);
   }
-  if (scan.times_s.empty()) throw InputError(path + ": holds no frame (--video)");
+  if (scan.times_s.empty()) {
+    throw InputError(path + ": holds no frame" +
+                     (reader.damaged_frames() > 0 ? " that decodes (" + reader.first_damage() + ")"
+                                                  : std::string()) +
+                     " (--video)");
+  }
+  if (reader.damaged_frames() > 0) {
+    std::fprintf(stderr,
+                 "warning: %s: %d frame%s left out as damaged (the first: %s); the %zu that "
+                 "decoded whole are the dataset's frames\n",
+                 path.c_str(), reader.damaged_frames(), reader.damaged_frames() == 1 ? "" : "s",
+                 reader.first_damage().c_str(), scan.times_s.size());
+  }
   std::vector<double> steps;
   for (std::size_t i = 1; i < scan.times_s.size(); ++i) {
     steps.push_back(scan.times_s[i] - scan.times_s[i - 1]);
@@ -404,7 +430,7 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   scan.fps = info.fps > 0 && (!(step > 0) || std::abs(info.fps * step - 1.0) < 0.05) ? info.fps
              : step > 0                                                              ? 1.0 / step
                                                                                      : 60.0;
-  if (step > 0) warn_of_time_gaps(scan.times_s, step, path);
+  if (step > 0 && !info.coarse_times) warn_of_time_gaps(scan.times_s, 1.0 / scan.fps, path);
   // Cut short: fewer frames than the header counts, or frames that end before its duration.
   const long decoded = long(scan.times_s.size());
   const double end_s = scan.times_s.back() + (step > 0 ? step : 1.0 / scan.fps);
@@ -425,21 +451,37 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   // What the codec does to the frames: the network reads the gel's shading from colour edges
   // a pixel wide.
   const std::string codec = info.codec + ", " + info.pixel_format;
-  if (info.chroma_subsampled) {
+  if (info.chroma_subsampled && info.lossless_codec) {
+    std::fprintf(stderr,
+                 "note: %s (%s) holds the colour at a lower resolution than the brightness, as "
+                 "the camera sent it (a webcam's YUYV): each colour sample spans 2 or 4 pixels, "
+                 "which blurs the press's colour edges that the normals are read from; a camera "
+                 "mode in RGB, if the camera has one, keeps them\n",
+                 path.c_str(), codec.c_str());
+  } else if (info.palette) {
+    std::fprintf(stderr,
+                 "note: %s (%s) holds at most 256 colours (a palette): the gel's shading is "
+                 "quantised to them; PNG frames or a lossless video (ffmpeg -c:v ffv1) keep the "
+                 "camera's frames as they were\n",
+                 path.c_str(), codec.c_str());
+  } else if (info.chroma_subsampled) {
     std::fprintf(stderr,
                  "note: %s (%s) stores the colour at a lower resolution than the brightness: "
                  "each colour sample spans 2 or 4 pixels, which blurs the press's colour edges "
-                 "that the normals are read from (measured on renders at ffmpeg's default "
-                 "H.264 quality: the default model's contact angle 10%% worse); a lossless RGB "
+                 "that the normals are read from (measured on renders, H.264 at CRF 23: the "
+                 "default model's contact angle 10%% worse than on PNG frames); a lossless RGB "
                  "video (ffmpeg -c:v ffv1 -pix_fmt bgr0, or -c:v libx264rgb -qp 0), PNG frames, "
                  "or at least -pix_fmt yuv444p keep the colour at full resolution\n",
                  path.c_str(), codec.c_str());
-  } else if (info.lossy_codec) {
+  } else if (!info.lossless_codec) {
     std::fprintf(stderr,
-                 "note: %s (%s) is compressed with loss, which changes pixels of its own that "
-                 "the contact mask and the normals read as the gel's; a lossless video (ffmpeg "
-                 "-c:v ffv1) or PNG frames keep the camera's frames as they were\n",
-                 path.c_str(), codec.c_str());
+                 "note: %s (%s) is %s, which changes pixels of its own that the contact mask "
+                 "and the normals read as the gel's; a lossless video (ffmpeg -c:v ffv1) or PNG "
+                 "frames keep the camera's frames as they were\n",
+                 path.c_str(), codec.c_str(),
+                 info.lossy_codec ? "compressed with loss"
+                                  : "compressed with loss unless it was made lossless (H.264 at "
+                                    "-qp 0)");
   }
   return scan;
 }
@@ -461,30 +503,34 @@ std::vector<ImageU8> video_frames(const std::string& path, const FrameReading& r
   return frames;
 }
 
-// The frames among `images` (numbered from `first`) that differ from `reference` as a contact
-// would, as the tracker's no-change test tells one (changed regions of the smallest contact's
-// size, ContactCloudOptions' mask.min_area_m2 on this sensor), listed ("frames 25-29"); "" when
-// none does.
-std::string frames_that_show_contact(const std::vector<ImageU8>& images, int first,
-                                     const ImageU8& reference, const SensorModel& sensor) {
+// Frame numbers as ranges: "frame 5", "frames 5-6, 9"; "" for none.
+std::string frame_list(const std::vector<int>& numbers) {
+  std::string list;
+  for (std::size_t k = 0; k < numbers.size();) {
+    std::size_t end = k;
+    while (end + 1 < numbers.size() && numbers[end + 1] == numbers[end] + 1) ++end;
+    list += (list.empty() ? "" : ", ") + std::to_string(numbers[k]) +
+            (end > k ? "-" + std::to_string(numbers[end]) : "");
+    k = end + 1;
+  }
+  return list.empty() ? "" : (numbers.size() == 1 ? "frame " : "frames ") + list;
+}
+
+// The numbers (from `first`) of the images in [begin, end) that differ from `reference` as a
+// contact would, as the tracker's no-change test tells one (changed regions of the smallest
+// contact's size, ContactCloudOptions' mask.min_area_m2 on this sensor).
+std::vector<int> frames_that_show_contact(std::vector<ImageU8>::const_iterator begin,
+                                          std::vector<ImageU8>::const_iterator end, int first,
+                                          const ImageU8& reference, const SensorModel& sensor) {
   const int min_contact =
       min_contact_pixels(make_gel_rays(sensor.camera, sensor.gel), ContactCloudOptions().mask);
   std::vector<int> touched;
-  for (std::size_t k = 0; k < images.size(); ++k) {
-    if (pixels_beyond_specks(changed_regions(images[k], reference), min_contact) >= min_contact) {
-      touched.push_back(first + int(k));
+  for (auto image = begin; image != end; ++image) {
+    if (pixels_beyond_specks(changed_regions(*image, reference), min_contact) >= min_contact) {
+      touched.push_back(first + int(image - begin));
     }
   }
-  if (touched.empty()) return "";
-  std::string list;
-  for (std::size_t k = 0; k < touched.size();) {
-    std::size_t end = k;
-    while (end + 1 < touched.size() && touched[end + 1] == touched[end] + 1) ++end;
-    list += (list.empty() ? "" : ", ") + std::to_string(touched[k]) +
-            (end > k ? "-" + std::to_string(touched[end]) : "");
-    k = end + 1;
-  }
-  return (touched.size() == 1 ? "frame " : "frames ") + list;
+  return touched;
 }
 
 // The frame rate of a poses file's time column (first to last row), so that dataset.json says
@@ -525,9 +571,9 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
                   "of --images")
       ->excludes(images);
   cmd->add_option("--background", a.backgrounds,
-                  "The sensor's image with nothing touching; or several such frames (files, a "
-                  "folder, or videos): their per-pixel median is the reference, with less camera "
-                  "noise");
+                  "The sensor's image with nothing touching; or several such frames (image "
+                  "files, a folder of them, or videos): their per-pixel median is the reference, "
+                  "with less camera noise");
   cmd->add_option("--background-frames", a.background_frames,
                   "FIRST-LAST: frames of --images or --video with nothing touching (a recording "
                   "that starts before the touch), numbered from 0; their median is the "
@@ -605,6 +651,12 @@ int run_recording(const RecordingArgs& a) {
   }
   std::vector<FramePose> poses(frames);
   double fps = a.fps > 0 ? a.fps : from_video ? video.fps : 60.0;
+  if (from_video && a.fps > 0 && a.poses.empty() && std::abs(a.fps - video.fps) > 0.01 * video.fps) {
+    std::fprintf(stderr,
+                 "warning: --fps %s replaces %s's own rate, %s frames per second, in the time "
+                 "column (sources.csv keeps the video's times)\n",
+                 format_number(a.fps).c_str(), a.video.c_str(), format_number(video.fps).c_str());
+  }
   if (!a.poses.empty()) {
     poses = read_poses_csv(a.poses);
     if (int(poses.size()) != frames) {
@@ -652,6 +704,13 @@ int run_recording(const RecordingArgs& a) {
   const ImageShape frame_shape = from_video ? ImageShape{video.info.width, video.info.height, 3}
                                             : read_image_shape(files.front().string());
   std::vector<ImageU8> no_contact;
+  // Which of no_contact's images each --background input gave.
+  struct Slice {
+    std::string name;
+    bool video;
+    std::size_t begin, count;
+  };
+  std::vector<Slice> slices;
   for (const fs::path& file : references) {
     const bool is_video = has_video_extension(file.string());
     const ImageShape shape =
@@ -664,12 +723,14 @@ int run_recording(const RecordingArgs& a) {
                        " px: the no-contact image must come from the same camera at the same "
                        "settings as the frames");
     }
+    slices.push_back({file.string(), is_video, no_contact.size(), 0});
     if (is_video) {
       for (ImageU8& frame : video_frames(file.string(), reading))
         no_contact.push_back(std::move(frame));
     } else {
       no_contact.push_back(sensor_image(file.string(), reading));
     }
+    slices.back().count = no_contact.size() - slices.back().begin;
   }
   // The recording's own frames without contact.
   std::vector<ImageU8> own = std::move(video.kept);
@@ -681,18 +742,42 @@ int run_recording(const RecordingArgs& a) {
   const std::string reference_name =
       references.size() == 1 && no_contact.size() == 1 ? "--background " + references[0].string()
       : own.size() == 1 && no_contact.size() == 1
-          ? "frame " + a.background_frames + " (--background-frames)"
+          ? "frame " + std::to_string(keep.first) + " (--background-frames)"
           : "the median of the " + std::to_string(no_contact.size()) + " no-contact images";
   std::vector<std::string> warnings = reference_warnings(background, reference_name);
-  if (!own.empty()) {
-    const std::string touched = frames_that_show_contact(own, keep.first, background, sensor);
-    if (!touched.empty()) {
-      warnings.push_back("--background-frames " + a.background_frames + ": " + touched +
-                         " differ from the reference as a press would (a changed region of a "
-                         "contact's size): if something touched the gel there, the reference "
-                         "holds it, and the network reads every frame against it; give frames "
-                         "from before the first touch");
+  // No-contact images that show a press: checked against their median (one image alone is the
+  // reference), and against the contact column of --poses.
+  const auto pressed = [&](const std::string& what, const std::string& how) {
+    warnings.push_back(what + ": " + how + ": if something touched the gel there, the reference "
+                       "holds it, and the network reads every frame against it; give images from "
+                       "before the first touch");
+  };
+  const std::string range_option = "--background-frames " + a.background_frames;
+  if (no_contact.size() > 1) {
+    for (const Slice& slice : slices) {
+      const auto first = no_contact.begin() + std::ptrdiff_t(slice.begin);
+      const std::vector<int> touched = frames_that_show_contact(
+          first, first + std::ptrdiff_t(slice.count), 0, background, sensor);
+      if (touched.empty()) continue;
+      pressed("--background " + slice.name,
+              (slice.video ? frame_list(touched) + " differ" : std::string("it differs")) +
+                  " from the reference as a press would (a changed region of a contact's size)");
     }
+    const std::vector<int> touched =
+        frames_that_show_contact(own.begin(), own.end(), keep.first, background, sensor);
+    if (!touched.empty()) {
+      pressed(range_option, frame_list(touched) +
+                                " differ from the reference as a press would (a changed region "
+                                "of a contact's size)");
+    }
+  }
+  std::vector<int> in_contact;
+  for (int i = keep.first; i <= keep.last; ++i) {
+    const FramePose& p = poses[std::size_t(i)];
+    if (p.contact_known && p.contact) in_contact.push_back(i);
+  }
+  if (!in_contact.empty()) {
+    pressed(range_option, a.poses + " marks " + frame_list(in_contact) + " as in contact");
   }
   if (!from_video && !out_existed) sensor_image(files.front().string(), reading);  // whole
 
@@ -763,7 +848,9 @@ int run_recording(const RecordingArgs& a) {
   if (no_contact.size() > 1) {
     std::printf("the no-contact reference (background.png) is the median of %zu images%s\n",
                 no_contact.size(),
-                own.empty() ? "" : (" (frames " + a.background_frames + " among them)").c_str());
+                own.empty()                        ? ""
+                : own.size() == no_contact.size() ? (" (frames " + a.background_frames + ")").c_str()
+                    : (" (frames " + a.background_frames + " among them)").c_str());
   }
   std::fflush(stdout);
   for (const std::string& w : warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());

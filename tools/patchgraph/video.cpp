@@ -15,6 +15,7 @@ extern "C" {
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <vector>
 #include <filesystem>
 
 #include "pg/core/error.h"
@@ -49,6 +50,11 @@ struct VideoReader::State {
   bool ended = false;
   int frames = 0;
   double first_time = 0.0;
+  // Damaged frames, left out: the stream times of packets the demuxer found cut short, and
+  // how many frames or packets did not decode whole.
+  std::vector<std::int64_t> corrupt_packets;
+  int damaged = 0;
+  std::string damage;  // what the first damage was
 
   [[noreturn]] void fail(const std::string& what) const { throw InputError(path + ": " + what); }
 
@@ -116,10 +122,25 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
   s_->path = path;
   std::error_code ec;
   if (!std::filesystem::exists(path, ec)) s_->fail("no such file");
-  if (std::filesystem::is_directory(path, ec)) s_->fail("a folder, not a video file");
+  if (std::filesystem::is_directory(path, ec)) {
+    s_->fail("a folder, not a video file (a folder of frames is --images)");
+  }
+  // Read twice (counted, then written), so a pipe's stream would be gone the second time.
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    s_->fail("not a regular file (a pipe or a device): give a video file");
+  }
   av_log_set_level(AV_LOG_QUIET);  // errors are reported here, with the file's name
   int code = avformat_open_input(&s_->format, path.c_str(), nullptr, nullptr);
-  if (code < 0) s_->fail("not a video FFmpeg can read (" + av_error_text(code) + ")");
+  if (code < 0) {
+    const std::string ext = std::filesystem::path(path).extension().string();
+    const bool mp4 = ext == ".mp4" || ext == ".MP4" || ext == ".mov" || ext == ".MOV" ||
+                     ext == ".m4v";
+    s_->fail("not a video FFmpeg can read (" + av_error_text(code) + ")" +
+             (mp4 ? "; an MP4 or MOV whose recording never finished lacks the index written "
+                    "at its end, and cannot be read (a recorder writing fragmented MP4, or "
+                    "Matroska, leaves a readable file when cut short)"
+                  : ""));
+  }
   code = avformat_find_stream_info(s_->format, nullptr);
   if (code < 0) s_->fail("cannot read its streams (" + av_error_text(code) + ")");
   // FFmpeg reads a single image as a one-frame video; a folder of them is --images.
@@ -162,7 +183,22 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
   if (const AVPixFmtDescriptor* desc = av_pix_fmt_desc_get(pixel_format)) {
     info.chroma_subsampled = !(desc->flags & AV_PIX_FMT_FLAG_RGB) && desc->nb_components >= 3 &&
                              (desc->log2_chroma_w > 0 || desc->log2_chroma_h > 0);
+    info.grey = !(desc->flags & AV_PIX_FMT_FLAG_PAL) && desc->nb_components < 3;
+    info.palette = (desc->flags & AV_PIX_FMT_FLAG_PAL) != 0;
   }
+  // GIF decodes to RGBA from its palette of 256 colours, with delays in hundredths of a second
+  // (a 60 Hz file's 1.67 cs as 1 and 2 cs, which readers take as 10): its times say little.
+  if (info.codec == "gif") {
+    info.palette = true;
+    info.coarse_times = true;
+  }
+  info.video_streams = 0;
+  for (unsigned k = 0; k < s_->format->nb_streams; ++k) {
+    const AVStream* other = s_->format->streams[k];
+    info.video_streams += other->codecpar->codec_type == AVMEDIA_TYPE_VIDEO &&
+                          !(other->disposition & AV_DISPOSITION_ATTACHED_PIC);
+  }
+  info.stream_index = s_->stream;
   if (const AVCodecDescriptor* desc = avcodec_descriptor_get(stream->codecpar->codec_id)) {
     info.lossy_codec =
         (desc->props & AV_CODEC_PROP_LOSSY) && !(desc->props & AV_CODEC_PROP_LOSSLESS);
@@ -180,8 +216,10 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
       info.display_rotation = ((int(std::lround(turn / 90.0)) % 4 + 4) % 4) * 90;
   }
   info.header_frames = stream->nb_frames > 0 ? long(stream->nb_frames) : 0;
+  // The stream's duration; the file's only when the stream is all it holds (another stream may
+  // run longer).
   info.duration_s = stream->duration != AV_NOPTS_VALUE ? stream->duration * s_->time_base
-                    : s_->format->duration != AV_NOPTS_VALUE
+                    : s_->format->duration != AV_NOPTS_VALUE && s_->format->nb_streams == 1
                         ? double(s_->format->duration) / AV_TIME_BASE
                         : 0.0;
 }
@@ -192,11 +230,27 @@ const VideoInfo& VideoReader::info() const { return s_->info; }
 
 int VideoReader::frames_read() const { return s_->frames; }
 
+int VideoReader::damaged_frames() const { return s_->damaged; }
+
+const std::string& VideoReader::first_damage() const { return s_->damage; }
+
 bool VideoReader::next(ImageU8& rgb, double& time_s) {
   State& s = *s_;
+  const auto damaged = [&](const std::string& what) {
+    if (s.damaged++ == 0) s.damage = what;
+  };
   while (!s.ended) {
     const int got = avcodec_receive_frame(s.decoder, s.frame);
     if (got == 0) {
+      const std::int64_t pts = s.frame->pts;
+      const bool cut = pts != AV_NOPTS_VALUE &&
+                       std::find(s.corrupt_packets.begin(), s.corrupt_packets.end(), pts) !=
+                           s.corrupt_packets.end();
+      if (cut || (s.frame->flags & AV_FRAME_FLAG_CORRUPT) || s.frame->decode_error_flags) {
+        damaged(cut ? "its data is cut short" : "the decoder found it damaged");
+        av_frame_unref(s.frame);
+        continue;
+      }
       s.convert(rgb);
       const std::int64_t stamp = s.frame->best_effort_timestamp;
       const double t = stamp == AV_NOPTS_VALUE ? s.frames / (s.info.fps > 0 ? s.info.fps : 60.0)
@@ -207,34 +261,31 @@ bool VideoReader::next(ImageU8& rgb, double& time_s) {
       av_frame_unref(s.frame);
       return true;
     }
-    if (got == AVERROR_EOF) {
+    if (got == AVERROR_EOF || (got != AVERROR(EAGAIN) && s.flushed)) {
+      if (got != AVERROR_EOF) damaged("it does not decode (" + av_error_text(got) + ")");
       s.ended = true;
       break;
     }
-    if (got != AVERROR(EAGAIN)) {
-      s.fail("frame " + std::to_string(s.frames) + " does not decode (" + av_error_text(got) + ")");
-    }
+    // A frame that does not decode is left out and counted; then, as after EAGAIN, the decoder
+    // is fed: the next packet of the video stream, or the end.
+    if (got != AVERROR(EAGAIN)) damaged("it does not decode (" + av_error_text(got) + ")");
     if (s.flushed) {  // nothing more will come
       s.ended = true;
       break;
     }
-    // The decoder wants input: the next packet of the video stream, or the end.
     const int read = av_read_frame(s.format, s.packet);
-    if (read == AVERROR_EOF) {
+    if (read == AVERROR_EOF || read < 0) {
+      // A read error past the start is a file cut short: what decoded so far is kept.
+      if (read != AVERROR_EOF) damaged("it cannot be read on (" + av_error_text(read) + ")");
       avcodec_send_packet(s.decoder, nullptr);
       s.flushed = true;
       continue;
     }
-    if (read < 0) {
-      s.fail("cannot read on after frame " + std::to_string(s.frames) + " (" + av_error_text(read) +
-             ")");
-    }
     if (s.packet->stream_index == s.stream) {
+      if (s.packet->flags & AV_PKT_FLAG_CORRUPT) s.corrupt_packets.push_back(s.packet->pts);
       const int sent = avcodec_send_packet(s.decoder, s.packet);
-      if (sent < 0 && sent != AVERROR(EAGAIN)) {
-        av_packet_unref(s.packet);
-        s.fail("frame " + std::to_string(s.frames) + " does not decode (" + av_error_text(sent) +
-               ")");
+      if (sent < 0 && sent != AVERROR(EAGAIN)) {  // a packet that does not decode: left out
+        damaged("it does not decode (" + av_error_text(sent) + ")");
       }
     }
     av_packet_unref(s.packet);

@@ -22,6 +22,11 @@ struct VideoInfo {
   // -qp 0 is lossless) or is lossless (FFV1, PNG, raw).
   bool lossy_codec = false;
   bool lossless_codec = false;  // only lossless (FFV1, PNG, raw video, ...)
+  bool grey = false;     // one channel (and alpha): no colour to read the lights from
+  bool palette = false;  // 256 colours at most (GIF)
+  bool coarse_times = false;  // its timestamps do not time the frames (GIF)
+  int video_streams = 1;  // how many the file holds (cover pictures not counted)
+  int stream_index = 0;   // the one read
   // How far a player turns the frames to show them (0, 90, 180 or 270 degrees: a phone's display
   // matrix, whose direction conventions vary between writers); the frames are decoded as
   // stored, not turned.
@@ -43,10 +48,14 @@ class VideoReader {
 
   const VideoInfo& info() const;
   // The next frame as RGB (3 channels) and its time in seconds from the stream's start; false
-  // after the last. Throws InputError naming the file and frame when a frame does not decode or
-  // changes size.
+  // after the last. A frame that does not decode whole (a file cut short, a damaged packet) is
+  // left out and counted (damaged_frames). Throws InputError naming the file and frame when a
+  // frame changes size.
   bool next(ImageU8& rgb, double& time_s);
   int frames_read() const;
+  // Frames or packets left out as damaged so far, and what the first one's damage was.
+  int damaged_frames() const;
+  const std::string& first_damage() const;
 
  private:
   struct State;
