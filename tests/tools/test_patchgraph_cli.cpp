@@ -2040,9 +2040,9 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   EXPECT_NE(pressed_background.out.find("differ from the reference as a press would"),
             std::string::npos)
       << pressed_background.out;
-  const CliRun marked = patchgraph("recording --video " + lossless +
-                                   " --background-frames 0-2 --poses " + data() +
-                                   "/poses.csv -q --out " + out("vid_marked"));
+  const CliRun marked =
+      patchgraph("recording --video " + lossless + " --background-frames 0-2 --poses " + data() +
+                 "/poses.csv -q --out " + out("vid_marked"));
   ASSERT_EQ(marked.code, 0) << marked.out;
   EXPECT_NE(marked.out.find("--background-frames 0-2: " + data() +
                             "/poses.csv marks frames 0-2 as in contact"),
@@ -2067,8 +2067,7 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
         patchgraph("recording " + frames_from +
                    " --background-frames 0-4 --static-sensor -q --out " + out("vid_own"));
     ASSERT_EQ(own.code, 0) << own.out;
-    EXPECT_NE(own.out.find("the median of 5 images (frames 0-4)\n"), std::string::npos)
-        << own.out;
+    EXPECT_NE(own.out.find("the median of 5 images (frames 0-4)\n"), std::string::npos) << own.out;
     EXPECT_EQ(own.out.find("warning"), std::string::npos) << own.out;
     const Dataset with_own = Dataset::open(out("vid_own"));
     EXPECT_EQ(with_own.frames(), 65);
@@ -2110,8 +2109,8 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   const std::vector<std::pair<std::string, std::string>> bad = {
       {out("vid_text.mp4"), out("vid_text.mp4") + ": not a video FFmpeg can read"},
       {out("vid_missing.mp4"), out("vid_missing.mp4") + ": no such file"},
-      {out("vid_grey.mkv"), out("vid_grey.mkv") +
-                                ": grey frames (pixel format gray); a tactile sensor's frame is RGB"},
+      {out("vid_grey.mkv"),
+       out("vid_grey.mkv") + ": grey frames (pixel format gray); a tactile sensor's frame is RGB"},
       {out("vid_pipe.mkv"), out("vid_pipe.mkv") + ": not a regular file (a pipe or a device)"},
       {out("vid_background.png"), out("vid_background.png") +
                                       ": an image, not a video (give the folder of the frames as "

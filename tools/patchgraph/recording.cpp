@@ -366,8 +366,7 @@ void warn_of_time_gaps(const std::vector<double>& times, double step, const std:
                "tracker steps its motion priors per frame, so a dropped frame is a jump in the "
                "motion\n",
                path.c_str(), missing, missing == 1 ? "" : "s", gaps, gaps > 1 ? "s" : "",
-               listed.c_str(),
-               gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
+               listed.c_str(), gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
 }
 
 VideoScan scan_video(const std::string& path, const FrameReading& reading, const FrameRange& keep) {
@@ -651,7 +650,8 @@ int run_recording(const RecordingArgs& a) {
   }
   std::vector<FramePose> poses(frames);
   double fps = a.fps > 0 ? a.fps : from_video ? video.fps : 60.0;
-  if (from_video && a.fps > 0 && a.poses.empty() && std::abs(a.fps - video.fps) > 0.01 * video.fps) {
+  if (from_video && a.fps > 0 && a.poses.empty() &&
+      std::abs(a.fps - video.fps) > 0.01 * video.fps) {
     std::fprintf(stderr,
                  "warning: --fps %s replaces %s's own rate, %s frames per second, in the time "
                  "column (sources.csv keeps the video's times)\n",
@@ -748,7 +748,8 @@ int run_recording(const RecordingArgs& a) {
   // No-contact images that show a press: checked against their median (one image alone is the
   // reference), and against the contact column of --poses.
   const auto pressed = [&](const std::string& what, const std::string& how) {
-    warnings.push_back(what + ": " + how + ": if something touched the gel there, the reference "
+    warnings.push_back(what + ": " + how +
+                       ": if something touched the gel there, the reference "
                        "holds it, and the network reads every frame against it; give images from "
                        "before the first touch");
   };
@@ -848,8 +849,9 @@ int run_recording(const RecordingArgs& a) {
   if (no_contact.size() > 1) {
     std::printf("the no-contact reference (background.png) is the median of %zu images%s\n",
                 no_contact.size(),
-                own.empty()                        ? ""
-                : own.size() == no_contact.size() ? (" (frames " + a.background_frames + ")").c_str()
+                own.empty() ? ""
+                : own.size() == no_contact.size()
+                    ? (" (frames " + a.background_frames + ")").c_str()
                     : (" (frames " + a.background_frames + " among them)").c_str());
   }
   std::fflush(stdout);

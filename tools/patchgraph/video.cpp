@@ -15,8 +15,8 @@ extern "C" {
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <vector>
 #include <filesystem>
+#include <vector>
 
 #include "pg/core/error.h"
 
@@ -133,8 +133,8 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
   int code = avformat_open_input(&s_->format, path.c_str(), nullptr, nullptr);
   if (code < 0) {
     const std::string ext = std::filesystem::path(path).extension().string();
-    const bool mp4 = ext == ".mp4" || ext == ".MP4" || ext == ".mov" || ext == ".MOV" ||
-                     ext == ".m4v";
+    const bool mp4 =
+        ext == ".mp4" || ext == ".MP4" || ext == ".mov" || ext == ".MOV" || ext == ".m4v";
     s_->fail("not a video FFmpeg can read (" + av_error_text(code) + ")" +
              (mp4 ? "; an MP4 or MOV whose recording never finished lacks the index written "
                     "at its end, and cannot be read (a recorder writing fragmented MP4, or "

@@ -22,11 +22,11 @@ struct VideoInfo {
   // -qp 0 is lossless) or is lossless (FFV1, PNG, raw).
   bool lossy_codec = false;
   bool lossless_codec = false;  // only lossless (FFV1, PNG, raw video, ...)
-  bool grey = false;     // one channel (and alpha): no colour to read the lights from
-  bool palette = false;  // 256 colours at most (GIF)
-  bool coarse_times = false;  // its timestamps do not time the frames (GIF)
-  int video_streams = 1;  // how many the file holds (cover pictures not counted)
-  int stream_index = 0;   // the one read
+  bool grey = false;            // one channel (and alpha): no colour to read the lights from
+  bool palette = false;         // 256 colours at most (GIF)
+  bool coarse_times = false;    // its timestamps do not time the frames (GIF)
+  int video_streams = 1;        // how many the file holds (cover pictures not counted)
+  int stream_index = 0;         // the one read
   // How far a player turns the frames to show them (0, 90, 180 or 270 degrees: a phone's display
   // matrix, whose direction conventions vary between writers); the frames are decoded as
   // stored, not turned.
