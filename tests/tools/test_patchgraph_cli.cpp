@@ -2009,6 +2009,28 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   for (int i = 0; i < kept.frames(); ++i) {
     EXPECT_EQ(kept.color(i).data, rendered.color(i).data) << "frame " << i;
   }
+  // An MP4 cut short has no index (written last) and cannot be read: said why. A fragmented
+  // MP4, as recorders write to survive a crash, keeps what decodes.
+  const std::string cut_mp4 = out("vid_cut.mp4"), fragmented = out("vid_fragmented.mp4");
+  fs::copy_file(lossy, cut_mp4, fs::copy_options::overwrite_existing);
+  fs::resize_file(cut_mp4, fs::file_size(cut_mp4) / 2);
+  const CliRun no_index = patchgraph("recording --video " + cut_mp4 + " --background " + still +
+                                     " --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(no_index.code, 1) << no_index.out;
+  EXPECT_NE(no_index.out.find("an MP4 or MOV whose recording never finished lacks the index"),
+            std::string::npos)
+      << no_index.out;
+  ASSERT_EQ(ffmpeg(frames_in + " -c:v libx264 -pix_fmt yuv444p -movflags frag_keyframe+empty_moov " +
+                   fragmented),
+            0);
+  fs::resize_file(fragmented, fs::file_size(fragmented) / 2);
+  const CliRun fragment = patchgraph("recording --video " + fragmented + " --background " + still +
+                                     " --static-sensor -q --out " + out("vid_fragment"));
+  ASSERT_EQ(fragment.code, 0) << fragment.out;
+  // (Its first frame, a key frame, is most of its bytes: half the file holds about 12 of 60
+  // frames, as many as ffprobe counts.)
+  EXPECT_GE(Dataset::open(out("vid_fragment")).frames(), 5);
+  EXPECT_NE(fragment.out.find("is it cut short"), std::string::npos) << fragment.out;
   // Timestamps that jitter drop no frame: not warned about. (+-7 ms at 30 frames per second,
   // which the stream's time base rounds to steps of 0, 33 and 67 ms, none missing.)
   const std::string jitter = out("vid_jitter.mkv");

@@ -27,15 +27,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The file's extension in lower case (".png").
-std::string lower_extension(const fs::path& path) {
-  std::string ext = path.extension().string();
-  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  return ext;
-}
-
 bool is_image_file(const fs::path& path) {
-  const std::string ext = lower_extension(path);
+  const std::string ext = lower_extension(path.string());
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".bmp" || ext == ".tif" ||
          ext == ".tiff";
 }
@@ -278,7 +271,7 @@ std::vector<fs::path> frame_files(const std::string& dir, const std::vector<fs::
   // Lossy frames: JPEG's 8x8 blocks change pixels of their own, which the press search and the
   // contact mask read as the gel's.
   const auto jpeg = [](const fs::path& file) {
-    const std::string ext = lower_extension(file);
+    const std::string ext = lower_extension(file.string());
     return ext == ".jpg" || ext == ".jpeg";
   };
   const long jpegs = std::count_if(files.begin(), files.end(), jpeg);
@@ -558,6 +551,146 @@ double frame_rate(const std::vector<FramePose>& poses, const std::string& path, 
   return given > 0 ? given : rate;
 }
 
+// The dataset's poses and frame rate.
+struct RecordingPoses {
+  std::vector<FramePose> poses;
+  double fps = 60.0;
+};
+
+// --poses' rows, one per frame, at its time column's rate; or a still sensor's, the time column
+// at --fps, the video's rate (`video_fps`, 0 for image files) or 60.
+RecordingPoses recording_poses(const RecordingArgs& a, int frames, const std::string& source,
+                               double video_fps) {
+  const bool from_video = video_fps > 0;
+  std::vector<FramePose> poses(frames);
+  double fps = a.fps > 0 ? a.fps : from_video ? video_fps : 60.0;
+  if (from_video && a.fps > 0 && a.poses.empty() &&
+      std::abs(a.fps - video_fps) > 0.01 * video_fps) {
+    std::fprintf(stderr,
+                 "warning: --fps %s replaces %s's own rate, %s frames per second, in the time "
+                 "column (sources.csv keeps the video's times)\n",
+                 format_number(a.fps).c_str(), a.video.c_str(), format_number(video_fps).c_str());
+  }
+  if (!a.poses.empty()) {
+    poses = read_poses_csv(a.poses);
+    if (int(poses.size()) != frames) {
+      throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + source +
+                       " holds " + std::to_string(frames) + " frames");
+    }
+    fps = frame_rate(poses, a.poses, a.fps);
+    if (frames > 1 && !(poses.back().time_s > poses.front().time_s) && a.fps <= 0) {
+      std::fprintf(stderr,
+                   "warning: %s: the time column does not advance (%s s in the first row, %s s "
+                   "in the last): the dataset says 60 frames per second; --fps sets the rate\n",
+                   a.poses.c_str(), format_number(poses.front().time_s).c_str(),
+                   format_number(poses.back().time_s).c_str());
+    } else if (from_video && a.fps <= 0 && std::abs(fps - video_fps) > 0.01 * video_fps) {
+      std::fprintf(stderr,
+                   "warning: %s: the time column gives %s frames per second, the video %s %s: "
+                   "are the rows the video's frames?\n",
+                   a.poses.c_str(), format_number(fps).c_str(), a.video.c_str(),
+                   format_number(video_fps).c_str());
+    }
+    object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
+  } else {
+    for (int i = 0; i < frames; ++i) {
+      poses[i].frame = i;
+      poses[i].time_s = i / fps;
+      poses[i].object_known = false;
+      poses[i].contact_known = false;
+    }
+  }
+  return {poses, fps};
+}
+
+// The no-contact images --background names (image files, folders of them, videos), each input
+// checked against the frames' size, with which of the images each one gave.
+struct NoContactImages {
+  struct Slice {
+    std::string name;
+    bool video;
+    std::size_t begin, count;
+  };
+  std::vector<ImageU8> images;
+  std::vector<Slice> slices;
+};
+
+NoContactImages background_images(const std::vector<fs::path>& references,
+                                   const ImageShape& frame_shape, const FrameReading& reading) {
+  NoContactImages given;
+  for (const fs::path& file : references) {
+    const bool is_video = has_video_extension(file.string());
+    const ImageShape shape =
+        is_video ? video_frame_shape(file.string()) : read_image_shape(file.string());
+    // Of another size than the frames (which fit): said so, rather than hints for the frames
+    // that they do not need.
+    if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
+      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) + "x" +
+                       std::to_string(shape.height) + " px, the frames " +
+                       std::to_string(frame_shape.width) + "x" +
+                       std::to_string(frame_shape.height) +
+                       " px: the no-contact image must come from the same camera at the same "
+                       "settings as the frames");
+    }
+    given.slices.push_back({file.string(), is_video, given.images.size(), 0});
+    if (is_video) {
+      for (ImageU8& frame : video_frames(file.string(), reading)) {
+        given.images.push_back(std::move(frame));
+      }
+    } else {
+      given.images.push_back(sensor_image(file.string(), reading));
+    }
+    given.slices.back().count = given.images.size() - given.slices.back().begin;
+  }
+  return given;
+}
+
+// Warnings about no-contact images that show a press: each input's images (and the recording's
+// own, `own`, frames `keep` of it) against their median `background` (one image alone is the
+// reference), and `keep` against the contact column of --poses.
+std::vector<std::string> press_warnings(const NoContactImages& given,
+                                        const std::vector<ImageU8>& own, const FrameRange& keep,
+                                        const ImageU8& background, const SensorModel& sensor,
+                                        const std::vector<FramePose>& poses,
+                                        const RecordingArgs& a) {
+  std::vector<std::string> warnings;
+  const auto pressed = [&](const std::string& what, const std::string& how) {
+    warnings.push_back(what + ": " + how +
+                       ": if something touched the gel there, the reference holds it, and the "
+                       "network reads every frame against it; give images from before the first "
+                       "touch");
+  };
+  const auto differ = [](const std::vector<int>& touched) {
+    return frame_list(touched) + (touched.size() == 1 ? " differs" : " differ") +
+           " from the reference as a press would (a changed region of a contact's size)";
+  };
+  const std::string range_option = "--background-frames " + a.background_frames;
+  if (given.images.size() + own.size() > 1) {
+    for (const NoContactImages::Slice& slice : given.slices) {
+      const auto first = given.images.begin() + std::ptrdiff_t(slice.begin);
+      const std::vector<int> touched = frames_that_show_contact(
+          first, first + std::ptrdiff_t(slice.count), 0, background, sensor);
+      if (touched.empty()) continue;
+      pressed("--background " + slice.name,
+              slice.video ? differ(touched)
+                          : "it differs from the reference as a press would (a changed region "
+                            "of a contact's size)");
+    }
+    const std::vector<int> touched =
+        frames_that_show_contact(own.begin(), own.end(), keep.first, background, sensor);
+    if (!touched.empty()) pressed(range_option, differ(touched));
+  }
+  std::vector<int> in_contact;
+  for (int i = keep.first; i <= keep.last; ++i) {
+    const FramePose& p = poses[std::size_t(i)];
+    if (p.contact_known && p.contact) in_contact.push_back(i);
+  }
+  if (!in_contact.empty()) {
+    pressed(range_option, a.poses + " marks " + frame_list(in_contact) + " as in contact");
+  }
+  return warnings;
+}
+
 }  // namespace
 
 CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
@@ -648,44 +781,8 @@ int run_recording(const RecordingArgs& a) {
                        " folder is --images; the frames would be overwritten or removed");
     }
   }
-  std::vector<FramePose> poses(frames);
-  double fps = a.fps > 0 ? a.fps : from_video ? video.fps : 60.0;
-  if (from_video && a.fps > 0 && a.poses.empty() &&
-      std::abs(a.fps - video.fps) > 0.01 * video.fps) {
-    std::fprintf(stderr,
-                 "warning: --fps %s replaces %s's own rate, %s frames per second, in the time "
-                 "column (sources.csv keeps the video's times)\n",
-                 format_number(a.fps).c_str(), a.video.c_str(), format_number(video.fps).c_str());
-  }
-  if (!a.poses.empty()) {
-    poses = read_poses_csv(a.poses);
-    if (int(poses.size()) != frames) {
-      throw InputError(a.poses + ": " + std::to_string(poses.size()) + " rows, but " + source +
-                       " holds " + std::to_string(frames) + " frames");
-    }
-    fps = frame_rate(poses, a.poses, a.fps);
-    if (frames > 1 && !(poses.back().time_s > poses.front().time_s) && a.fps <= 0) {
-      std::fprintf(stderr,
-                   "warning: %s: the time column does not advance (%s s in the first row, %s s "
-                   "in the last): the dataset says 60 frames per second; --fps sets the rate\n",
-                   a.poses.c_str(), format_number(poses.front().time_s).c_str(),
-                   format_number(poses.back().time_s).c_str());
-    } else if (from_video && a.fps <= 0 && std::abs(fps - video.fps) > 0.01 * video.fps) {
-      std::fprintf(stderr,
-                   "warning: %s: the time column gives %s frames per second, the video %s %s: "
-                   "are the rows the video's frames?\n",
-                   a.poses.c_str(), format_number(fps).c_str(), a.video.c_str(),
-                   format_number(video.fps).c_str());
-    }
-    object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
-  } else {
-    for (int i = 0; i < frames; ++i) {
-      poses[i].frame = i;
-      poses[i].time_s = i / fps;
-      poses[i].object_known = false;
-      poses[i].contact_known = false;
-    }
-  }
+  const RecordingPoses timing = recording_poses(a, frames, source, from_video ? video.fps : 0.0);
+  const std::vector<FramePose>& poses = timing.poses;
   // Read everything that can fail before writing anything: every frame's header (a frame of
   // another size half-way through would otherwise leave an earlier dataset in --out replaced by
   // half a new one), the background and the first frame whole. When --out holds an earlier
@@ -699,44 +796,16 @@ int run_recording(const RecordingArgs& a) {
       check_frame_shape(file.string(), reading.turned(read_image_shape(file.string())), reading);
     }
   }
-  // A no-contact image of another size than the frames (which fit): said so, rather than
-  // hints for the frames that they do not need.
+  // The no-contact reference: the median of the --background images and --background-frames.
   const ImageShape frame_shape = from_video ? ImageShape{video.info.width, video.info.height, 3}
                                             : read_image_shape(files.front().string());
-  std::vector<ImageU8> no_contact;
-  // Which of no_contact's images each --background input gave.
-  struct Slice {
-    std::string name;
-    bool video;
-    std::size_t begin, count;
-  };
-  std::vector<Slice> slices;
-  for (const fs::path& file : references) {
-    const bool is_video = has_video_extension(file.string());
-    const ImageShape shape =
-        is_video ? video_frame_shape(file.string()) : read_image_shape(file.string());
-    if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
-      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) + "x" +
-                       std::to_string(shape.height) + " px, the frames " +
-                       std::to_string(frame_shape.width) + "x" +
-                       std::to_string(frame_shape.height) +
-                       " px: the no-contact image must come from the same camera at the same "
-                       "settings as the frames");
-    }
-    slices.push_back({file.string(), is_video, no_contact.size(), 0});
-    if (is_video) {
-      for (ImageU8& frame : video_frames(file.string(), reading))
-        no_contact.push_back(std::move(frame));
-    } else {
-      no_contact.push_back(sensor_image(file.string(), reading));
-    }
-    slices.back().count = no_contact.size() - slices.back().begin;
-  }
+  const NoContactImages given = background_images(references, frame_shape, reading);
   // The recording's own frames without contact.
   std::vector<ImageU8> own = std::move(video.kept);
   for (int i = keep.first; !from_video && i <= keep.last; ++i) {
     own.push_back(sensor_image(files[std::size_t(i)].string(), reading));
   }
+  std::vector<ImageU8> no_contact = given.images;
   no_contact.insert(no_contact.end(), own.begin(), own.end());
   const ImageU8 background = median_image(no_contact);
   const std::string reference_name =
@@ -745,47 +814,15 @@ int run_recording(const RecordingArgs& a) {
           ? "frame " + std::to_string(keep.first) + " (--background-frames)"
           : "the median of the " + std::to_string(no_contact.size()) + " no-contact images";
   std::vector<std::string> warnings = reference_warnings(background, reference_name);
-  // No-contact images that show a press: checked against their median (one image alone is the
-  // reference), and against the contact column of --poses.
-  const auto pressed = [&](const std::string& what, const std::string& how) {
-    warnings.push_back(what + ": " + how +
-                       ": if something touched the gel there, the reference "
-                       "holds it, and the network reads every frame against it; give images from "
-                       "before the first touch");
-  };
-  const std::string range_option = "--background-frames " + a.background_frames;
-  if (no_contact.size() > 1) {
-    for (const Slice& slice : slices) {
-      const auto first = no_contact.begin() + std::ptrdiff_t(slice.begin);
-      const std::vector<int> touched = frames_that_show_contact(
-          first, first + std::ptrdiff_t(slice.count), 0, background, sensor);
-      if (touched.empty()) continue;
-      pressed("--background " + slice.name,
-              (slice.video ? frame_list(touched) + " differ" : std::string("it differs")) +
-                  " from the reference as a press would (a changed region of a contact's size)");
-    }
-    const std::vector<int> touched =
-        frames_that_show_contact(own.begin(), own.end(), keep.first, background, sensor);
-    if (!touched.empty()) {
-      pressed(range_option, frame_list(touched) +
-                                " differ from the reference as a press would (a changed region "
-                                "of a contact's size)");
-    }
-  }
-  std::vector<int> in_contact;
-  for (int i = keep.first; i <= keep.last; ++i) {
-    const FramePose& p = poses[std::size_t(i)];
-    if (p.contact_known && p.contact) in_contact.push_back(i);
-  }
-  if (!in_contact.empty()) {
-    pressed(range_option, a.poses + " marks " + frame_list(in_contact) + " as in contact");
+  for (std::string& w : press_warnings(given, own, keep, background, sensor, poses, a)) {
+    warnings.push_back(std::move(w));
   }
   if (!from_video && !out_existed) sensor_image(files.front().string(), reading);  // whole
 
   DatasetInfo info;
   info.sensor = sensor;
   info.frames = frames;
-  info.fps = fps;
+  info.fps = timing.fps;
   info.outputs = {"color"};
   info.object_name = a.object;
   // A frame that turns out unreadable half-way leaves no half-written dataset behind (unless the

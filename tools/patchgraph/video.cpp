@@ -132,9 +132,8 @@ VideoReader::VideoReader(const std::string& path) : s_(std::make_unique<State>()
   av_log_set_level(AV_LOG_QUIET);  // errors are reported here, with the file's name
   int code = avformat_open_input(&s_->format, path.c_str(), nullptr, nullptr);
   if (code < 0) {
-    const std::string ext = std::filesystem::path(path).extension().string();
-    const bool mp4 =
-        ext == ".mp4" || ext == ".MP4" || ext == ".mov" || ext == ".MOV" || ext == ".m4v";
+    const std::string ext = lower_extension(path);
+    const bool mp4 = ext == ".mp4" || ext == ".mov" || ext == ".m4v";
     s_->fail("not a video FFmpeg can read (" + av_error_text(code) + ")" +
              (mp4 ? "; an MP4 or MOV whose recording never finished lacks the index written "
                     "at its end, and cannot be read (a recorder writing fragmented MP4, or "
@@ -228,8 +227,6 @@ VideoReader::~VideoReader() = default;
 
 const VideoInfo& VideoReader::info() const { return s_->info; }
 
-int VideoReader::frames_read() const { return s_->frames; }
-
 int VideoReader::damaged_frames() const { return s_->damaged; }
 
 const std::string& VideoReader::first_damage() const { return s_->damage; }
@@ -293,9 +290,14 @@ bool VideoReader::next(ImageU8& rgb, double& time_s) {
   return false;
 }
 
-bool has_video_extension(const std::string& path) {
+std::string lower_extension(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();
   for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext;
+}
+
+bool has_video_extension(const std::string& path) {
+  const std::string ext = lower_extension(path);
   static const std::array<const char*, 14> kVideo = {".mp4",  ".m4v", ".mov",  ".avi", ".mkv",
                                                      ".webm", ".mpg", ".mpeg", ".ts",  ".wmv",
                                                      ".flv",  ".ogv", ".h264", ".264"};

@@ -52,7 +52,6 @@ class VideoReader {
   // left out and counted (damaged_frames). Throws InputError naming the file and frame when a
   // frame changes size.
   bool next(ImageU8& rgb, double& time_s);
-  int frames_read() const;
   // Frames or packets left out as damaged so far, and what the first one's damage was.
   int damaged_frames() const;
   const std::string& first_damage() const;
@@ -65,5 +64,8 @@ class VideoReader {
 // Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...), for options
 // that take images or videos.
 bool has_video_extension(const std::string& path);
+
+// The file's extension in lower case (".png").
+std::string lower_extension(const std::string& path);
 
 }  // namespace pg
