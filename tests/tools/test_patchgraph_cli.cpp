@@ -2020,9 +2020,10 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   EXPECT_NE(no_index.out.find("an MP4 or MOV whose recording never finished lacks the index"),
             std::string::npos)
       << no_index.out;
-  ASSERT_EQ(ffmpeg(frames_in + " -c:v libx264 -pix_fmt yuv444p -movflags frag_keyframe+empty_moov " +
-                   fragmented),
-            0);
+  ASSERT_EQ(
+      ffmpeg(frames_in + " -c:v libx264 -pix_fmt yuv444p -movflags frag_keyframe+empty_moov " +
+             fragmented),
+      0);
   fs::resize_file(fragmented, fs::file_size(fragmented) / 2);
   const CliRun fragment = patchgraph("recording --video " + fragmented + " --background " + still +
                                      " --static-sensor -q --out " + out("vid_fragment"));

@@ -616,7 +616,7 @@ struct NoContactImages {
 };
 
 NoContactImages background_images(const std::vector<fs::path>& references,
-                                   const ImageShape& frame_shape, const FrameReading& reading) {
+                                  const ImageShape& frame_shape, const FrameReading& reading) {
   NoContactImages given;
   for (const fs::path& file : references) {
     const bool is_video = has_video_extension(file.string());
