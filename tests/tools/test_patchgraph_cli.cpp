@@ -1932,7 +1932,7 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
       patchgraph("recording --video " + lossy + " --background " + out("vid_background.png") +
                  " --static-sensor -q --out " + out("vid_lossy"));
   ASSERT_EQ(l.code, 0) << l.out;
-  EXPECT_NE(l.out.find("(h264, yuv420p) stores the colour at a lower resolution than the "
+  EXPECT_NE(l.out.find("(h264, yuv420p) holds the colour at a lower resolution than the "
                        "brightness"),
             std::string::npos)
       << l.out;

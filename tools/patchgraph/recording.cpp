@@ -362,6 +362,40 @@ void warn_of_time_gaps(const std::vector<double>& times, double step, const std:
                listed.c_str(), gaps > 3 ? " and more" : "", format_number(step * 1e3).c_str());
 }
 
+// What a video's codec and pixel format do to a sensor's frames, as a note's text; "" when it
+// keeps them as they were.
+std::string codec_note(const VideoInfo& info) {
+  const std::string subsampled =
+      "holds the colour at a lower resolution than the brightness: each colour sample spans 2 "
+      "or 4 pixels, which blurs the press's colour edges that the normals are read from";
+  const std::string lossless_advice =
+      "PNG frames or a lossless video (ffmpeg -c:v ffv1) keep the camera's frames as they were";
+  if (info.chroma_subsampled && info.lossless_codec) {  // as the camera sent it
+    return subsampled + ", as the camera sent it (a webcam's YUYV); a camera mode in RGB, if "
+                        "the camera has one, keeps them";
+  }
+  if (info.palette) {
+    return "holds at most 256 colours (a palette): the gel's shading is quantised to them; " +
+           lossless_advice;
+  }
+  if (info.chroma_subsampled) {
+    return subsampled +
+           " (measured on renders, H.264 at CRF 23: the default model's contact angle 10% worse "
+           "than on PNG frames); a lossless RGB video (ffmpeg -c:v ffv1 -pix_fmt bgr0, or -c:v "
+           "libx264rgb -qp 0), PNG frames, or at least -pix_fmt yuv444p keep the colour at full "
+           "resolution";
+  }
+  if (!info.lossless_codec) {
+    return std::string(info.lossy_codec ? "is compressed with loss"
+                                        : "is compressed with loss unless it was made lossless "
+                                          "(H.264 at -qp 0)") +
+           ", which changes pixels of its own that the contact mask and the normals read as the "
+           "gel's; " +
+           lossless_advice;
+  }
+  return "";
+}
+
 VideoScan scan_video(const std::string& path, const FrameReading& reading, const FrameRange& keep) {
   VideoReader reader(path);
   VideoScan scan;
@@ -442,38 +476,10 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   }
   // What the codec does to the frames: the network reads the gel's shading from colour edges
   // a pixel wide.
-  const std::string codec = info.codec + ", " + info.pixel_format;
-  if (info.chroma_subsampled && info.lossless_codec) {
-    std::fprintf(stderr,
-                 "note: %s (%s) holds the colour at a lower resolution than the brightness, as "
-                 "the camera sent it (a webcam's YUYV): each colour sample spans 2 or 4 pixels, "
-                 "which blurs the press's colour edges that the normals are read from; a camera "
-                 "mode in RGB, if the camera has one, keeps them\n",
-                 path.c_str(), codec.c_str());
-  } else if (info.palette) {
-    std::fprintf(stderr,
-                 "note: %s (%s) holds at most 256 colours (a palette): the gel's shading is "
-                 "quantised to them; PNG frames or a lossless video (ffmpeg -c:v ffv1) keep the "
-                 "camera's frames as they were\n",
-                 path.c_str(), codec.c_str());
-  } else if (info.chroma_subsampled) {
-    std::fprintf(stderr,
-                 "note: %s (%s) stores the colour at a lower resolution than the brightness: "
-                 "each colour sample spans 2 or 4 pixels, which blurs the press's colour edges "
-                 "that the normals are read from (measured on renders, H.264 at CRF 23: the "
-                 "default model's contact angle 10%% worse than on PNG frames); a lossless RGB "
-                 "video (ffmpeg -c:v ffv1 -pix_fmt bgr0, or -c:v libx264rgb -qp 0), PNG frames, "
-                 "or at least -pix_fmt yuv444p keep the colour at full resolution\n",
-                 path.c_str(), codec.c_str());
-  } else if (!info.lossless_codec) {
-    std::fprintf(stderr,
-                 "note: %s (%s) is %s, which changes pixels of its own that the contact mask "
-                 "and the normals read as the gel's; a lossless video (ffmpeg -c:v ffv1) or PNG "
-                 "frames keep the camera's frames as they were\n",
-                 path.c_str(), codec.c_str(),
-                 info.lossy_codec ? "compressed with loss"
-                                  : "compressed with loss unless it was made lossless (H.264 at "
-                                    "-qp 0)");
+  const std::string note = codec_note(info);
+  if (!note.empty()) {
+    std::fprintf(stderr, "note: %s (%s, %s) %s\n", path.c_str(), info.codec.c_str(),
+                 info.pixel_format.c_str(), note.c_str());
   }
   return scan;
 }
