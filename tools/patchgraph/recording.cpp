@@ -371,8 +371,9 @@ std::string codec_note(const VideoInfo& info) {
   const std::string lossless_advice =
       "PNG frames or a lossless video (ffmpeg -c:v ffv1) keep the camera's frames as they were";
   if (info.chroma_subsampled && info.lossless_codec) {  // as the camera sent it
-    return subsampled + ", as the camera sent it (a webcam's YUYV); a camera mode in RGB, if "
-                        "the camera has one, keeps them";
+    return subsampled +
+           ", as the camera sent it (a webcam's YUYV); a camera mode in RGB, if "
+           "the camera has one, keeps them";
   }
   if (info.palette) {
     return "holds at most 256 colours (a palette): the gel's shading is quantised to them; " +
