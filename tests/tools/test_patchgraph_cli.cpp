@@ -2146,6 +2146,12 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
     EXPECT_NE(b.out.find(message), std::string::npos) << b.out;
     EXPECT_FALSE(fs::exists(out("vid_bad2")));
   }
+  const CliRun grey_background =
+      patchgraph("recording --video " + lossless + " --background " + out("vid_grey.mkv") +
+                 " --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(grey_background.code, 1) << grey_background.out;
+  EXPECT_NE(grey_background.out.find(out("vid_grey.mkv") + ": grey frames"), std::string::npos)
+      << grey_background.out;
   const CliRun big =
       patchgraph("recording --video " + lossless + " --background " + still +
                  " --sensor digit_240x320 --static-sensor -q --out " + out("vid_bad2"));

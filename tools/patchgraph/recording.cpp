@@ -397,6 +397,15 @@ std::string codec_note(const VideoInfo& info) {
   return "";
 }
 
+// Throws InputError naming the video unless its frames have colour (the decoder would make RGB
+// of grey frames, which the size check then passes).
+void refuse_grey(const VideoInfo& info, const std::string& path) {
+  if (info.grey) {
+    throw InputError(path + ": grey frames (pixel format " + info.pixel_format +
+                     "); a tactile sensor's frame is RGB");
+  }
+}
+
 VideoScan scan_video(const std::string& path, const FrameReading& reading, const FrameRange& keep) {
   VideoReader reader(path);
   VideoScan scan;
@@ -418,10 +427,7 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
                  path.c_str(), info.video_streams, info.stream_index, info.width, info.height,
                  info.codec.c_str());
   }
-  if (info.grey) {
-    throw InputError(path + ": grey frames (pixel format " + info.pixel_format +
-                     "); a tactile sensor's frame is RGB");
-  }
+  refuse_grey(info, path);
   check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
   ImageU8 raw;
   double time_s = 0.0;
@@ -494,6 +500,7 @@ ImageShape video_frame_shape(const std::string& path) {
 // Every frame of a video as the sensor's image.
 std::vector<ImageU8> video_frames(const std::string& path, const FrameReading& reading) {
   VideoReader reader(path);
+  refuse_grey(reader.info(), path);
   std::vector<ImageU8> frames;
   ImageU8 raw;
   double time_s = 0.0;
