@@ -1864,11 +1864,9 @@ TEST_F(PatchgraphCli, ARecordingOfFramesBecomesADataset) {
 // Runs the ffmpeg command (installed by scripts/install_deps.sh beside FFmpeg's libraries) with
 // `args`; its exit code (127: not found).
 int ffmpeg(const std::string& args) {
-  return std::system(("ffmpeg -nostdin -loglevel error -y " + args + " >/dev/null 2>&1").c_str()) ==
-                 0
-             ? 0
-         : std::system("command -v ffmpeg >/dev/null 2>&1") == 0 ? 1
-                                                                 : 127;
+  const std::string command = "ffmpeg -nostdin -loglevel error -y " + args + " >/dev/null 2>&1";
+  if (std::system(command.c_str()) == 0) return 0;
+  return std::system("command -v ffmpeg >/dev/null 2>&1") == 0 ? 1 : 127;
 }
 
 // The mean of |a - b| over every value of two images of one shape.
