@@ -351,6 +351,12 @@ inline void check_values(const CLI::App& app) {
   for (const CLI::App* sub : app.get_subcommands()) check_values(*sub);
 }
 
+// Says a usage error (CLI11's parse errors and UsageError alike) and gives its exit code.
+inline int usage_error(const char* what) {
+  std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", what);
+  return kExitUsage;
+}
+
 inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int()>& body) {
   // A first word that names no subcommand (a typo, a subcommand of the other tool): said so, where
   // CLI11 says only that a subcommand is required.
@@ -378,9 +384,8 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
-  } catch (const CLI::ParseError& e) {  // said as the tools' own errors are
-    std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
-    return kExitUsage;
+  } catch (const CLI::ParseError& e) {  // said as the tools' own usage errors are
+    return usage_error(e.what());
   }
   try {
     return body();
@@ -389,8 +394,7 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     std::fprintf(stderr, "%serror: %s\n", isatty(fileno(stderr)) ? "\n" : "", e.what());
     return e.exit_code();
   } catch (const UsageError& e) {
-    std::fprintf(stderr, "error: %s\nRun with --help for more information.\n", e.what());
-    return kExitUsage;
+    return usage_error(e.what());
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
   } catch (const std::bad_alloc&) {

@@ -301,7 +301,7 @@ std::vector<fs::path> frame_files(const std::string& dir, const std::vector<fs::
 struct VideoScan {
   VideoInfo info;
   std::vector<double> times_s;
-  double fps = 0.0;           // the camera's rate: one over the median step between frames
+  double fps = 0.0;           // the camera's rate: the container's, or one over the median step
   std::vector<ImageU8> kept;  // the frames of the range asked for, as the sensor's images
 };
 
@@ -491,24 +491,6 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   return scan;
 }
 
-// A video's frame size, for the checks that compare it with the frames'.
-ImageShape video_frame_shape(const std::string& path) {
-  const VideoReader reader(path);
-  return {reader.info().width, reader.info().height, 3};
-}
-
-// Every frame of a video as the sensor's image.
-std::vector<ImageU8> video_frames(const std::string& path, const FrameReading& reading) {
-  VideoReader reader(path);
-  refuse_grey(reader.info(), path);
-  std::vector<ImageU8> frames;
-  ImageU8 raw;
-  double time_s = 0.0;
-  while (reader.next(raw, time_s)) frames.push_back(sensor_image(raw, path, reading));
-  if (frames.empty()) throw InputError(path + ": holds no frame (--background)");
-  return frames;
-}
-
 // Frame numbers as ranges: "frame 5", "frames 5-6, 9"; "" for none.
 std::string frame_list(const std::vector<int>& numbers) {
   std::string list;
@@ -524,12 +506,10 @@ std::string frame_list(const std::vector<int>& numbers) {
 
 // The numbers (from `first`) of the images in [begin, end) that differ from `reference` as a
 // contact would, as the tracker's no-change test tells one (changed regions of the smallest
-// contact's size, ContactCloudOptions' mask.min_area_m2 on this sensor).
+// contact's size, `min_contact` pixels).
 std::vector<int> frames_that_show_contact(std::vector<ImageU8>::const_iterator begin,
                                           std::vector<ImageU8>::const_iterator end, int first,
-                                          const ImageU8& reference, const SensorModel& sensor) {
-  const int min_contact =
-      min_contact_pixels(make_gel_rays(sensor.camera, sensor.gel), ContactCloudOptions().mask);
+                                          const ImageU8& reference, int min_contact) {
   std::vector<int> touched;
   for (auto image = begin; image != end; ++image) {
     if (pixels_beyond_specks(changed_regions(*image, reference), min_contact) >= min_contact) {
@@ -633,26 +613,34 @@ NoContactImages background_images(const std::vector<fs::path>& references,
                                   const ImageShape& frame_shape, const FrameReading& reading) {
   NoContactImages given;
   for (const fs::path& file : references) {
-    const bool is_video = has_video_extension(file.string());
-    const ImageShape shape =
-        is_video ? video_frame_shape(file.string()) : read_image_shape(file.string());
+    const std::string path = file.string();
     // Of another size than the frames (which fit): said so, rather than hints for the frames
     // that they do not need.
-    if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
-      throw InputError("--background " + file.string() + ": " + std::to_string(shape.width) + "x" +
-                       std::to_string(shape.height) + " px, the frames " +
-                       std::to_string(frame_shape.width) + "x" +
-                       std::to_string(frame_shape.height) +
-                       " px: the no-contact image must come from the same camera at the same "
-                       "settings as the frames");
-    }
-    given.slices.push_back({file.string(), is_video, given.images.size(), 0});
-    if (is_video) {
-      for (ImageU8& frame : video_frames(file.string(), reading)) {
-        given.images.push_back(std::move(frame));
+    const auto check_size = [&](const ImageShape& shape) {
+      if (shape.width != frame_shape.width || shape.height != frame_shape.height) {
+        throw InputError("--background " + path + ": " + std::to_string(shape.width) + "x" +
+                         std::to_string(shape.height) + " px, the frames " +
+                         std::to_string(frame_shape.width) + "x" +
+                         std::to_string(frame_shape.height) +
+                         " px: the no-contact image must come from the same camera at the same "
+                         "settings as the frames");
+      }
+    };
+    const bool is_video = has_video_extension(path);
+    given.slices.push_back({path, is_video, given.images.size(), 0});
+    if (is_video) {  // every frame
+      VideoReader reader(path);
+      check_size({reader.info().width, reader.info().height, 3});
+      refuse_grey(reader.info(), path);
+      ImageU8 raw;
+      double time_s = 0.0;
+      while (reader.next(raw, time_s)) given.images.push_back(sensor_image(raw, path, reading));
+      if (given.images.size() == given.slices.back().begin) {
+        throw InputError(path + ": holds no frame (--background)");
       }
     } else {
-      given.images.push_back(sensor_image(file.string(), reading));
+      check_size(read_image_shape(path));
+      given.images.push_back(sensor_image(path, reading));
     }
     given.slices.back().count = given.images.size() - given.slices.back().begin;
   }
@@ -679,11 +667,14 @@ std::vector<std::string> press_warnings(const NoContactImages& given,
            " from the reference as a press would (a changed region of a contact's size)";
   };
   const std::string range_option = "--background-frames " + a.background_frames;
+  // The smallest contact, ContactCloudOptions' mask.min_area_m2, on this sensor.
+  const int min_contact =
+      min_contact_pixels(make_gel_rays(sensor.camera, sensor.gel), ContactCloudOptions().mask);
   if (given.images.size() + own.size() > 1) {
     for (const NoContactImages::Slice& slice : given.slices) {
       const auto first = given.images.begin() + std::ptrdiff_t(slice.begin);
       const std::vector<int> touched = frames_that_show_contact(
-          first, first + std::ptrdiff_t(slice.count), 0, background, sensor);
+          first, first + std::ptrdiff_t(slice.count), 0, background, min_contact);
       if (touched.empty()) continue;
       pressed("--background " + slice.name,
               slice.video ? differ(touched)
@@ -691,7 +682,7 @@ std::vector<std::string> press_warnings(const NoContactImages& given,
                             "of a contact's size)");
     }
     const std::vector<int> touched =
-        frames_that_show_contact(own.begin(), own.end(), keep.first, background, sensor);
+        frames_that_show_contact(own.begin(), own.end(), keep.first, background, min_contact);
     if (!touched.empty()) pressed(range_option, differ(touched));
   }
   std::vector<int> in_contact;
