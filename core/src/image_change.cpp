@@ -102,8 +102,9 @@ std::string noisy_reference_warning(const ImageU8& reference, const std::string&
          "which the normals network reads as dents in every contact (frames without contact "
          "are still told apart: noise changes no region as large as a press's). The per-pixel "
          "median of several frames without contact is quieter (about 1.25 x noise / sqrt(n): a "
-         "dozen or more at sigma 7): patchgraph recording --background A.png B.png ... (or a "
-         "folder of them)";
+         "dozen or more at sigma 7): patchgraph recording --background A.png B.png ... (files, "
+         "videos or folders of them), or --background-frames FIRST-LAST for a recording's own "
+         "frames before the touch";
 }
 
 double saturated_fraction(const ImageU8& image) {

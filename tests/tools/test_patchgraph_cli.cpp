@@ -2150,6 +2150,36 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   EXPECT_EQ(grey_background.code, 1) << grey_background.out;
   EXPECT_NE(grey_background.out.find(out("vid_grey.mkv") + ": grey frames"), std::string::npos)
       << grey_background.out;
+  // A folder of --background files takes its videos too; a folder of --images holding a video
+  // only says to give it as --video.
+  const fs::path still_dir = dir_ / "vid_still_dir";
+  fs::create_directories(still_dir);
+  fs::copy_file(still, still_dir / "still.mkv", fs::copy_options::overwrite_existing);
+  const CliRun folder = patchgraph("recording --video " + lossless + " --background " +
+                                   still_dir.string() + " --static-sensor -q --out " +
+                                   out("vid_folder"));
+  ASSERT_EQ(folder.code, 0) << folder.out;
+  EXPECT_NE(folder.out.find("the median of 5 images"), std::string::npos) << folder.out;
+  EXPECT_EQ(Dataset::open(out("vid_folder")).background().data, rendered.background().data);
+  const CliRun video_folder =
+      patchgraph("recording --images " + still_dir.string() + " --background " +
+                 out("vid_background.png") + " --static-sensor -q --out " + out("vid_bad2"));
+  EXPECT_EQ(video_folder.code, 1) << video_folder.out;
+  EXPECT_NE(video_folder.out.find("holds no image (png, jpg, bmp or tif) (--images); it holds a "
+                                  "video, " +
+                                  (still_dir / "still.mkv").string() + ": give it as --video FILE"),
+            std::string::npos)
+      << video_folder.out;
+  // Where an image is expected (a scene's background, a dataset's frame), a video is refused
+  // before OpenImageIO's movie reader decodes it (which overran its buffer on 4:2:0 frames).
+  try {
+    read_image_u8(lossy);
+    ADD_FAILURE() << "a video was read as an image";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(lossy + ": is a video, not an image file"),
+              std::string::npos)
+        << e.what();
+  }
   const CliRun big =
       patchgraph("recording --video " + lossless + " --background " + still +
                  " --sensor digit_240x320 --static-sensor -q --out " + out("vid_bad2"));

@@ -53,19 +53,25 @@ std::string numbers_padded(const std::string& name) {
 // The frame files of DIR in name order; hidden files (a copy tool's "._frame.png") are not
 // frames. Warns when the names' numbers are not zero-padded, so that name order is not their
 // numbers' order ("frame10" before "frame2"), where the order matters (`in_order`). `option`
-// names the folder's option in messages.
+// names the folder's option in messages. `videos`: video files count as well as images.
 std::vector<fs::path> image_files(const std::string& dir, const std::string& option,
-                                  bool in_order = true) {
+                                  bool in_order = true, bool videos = false) {
   if (!fs::is_directory(dir)) throw InputError(dir + ": not a folder (" + option + ")");
   std::vector<fs::path> files;
+  std::string video_seen;
   for (const auto& entry : fs::directory_iterator(dir)) {
     const bool hidden = entry.path().filename().string().rfind('.', 0) == 0;
-    if (!hidden && entry.is_regular_file() && is_image_file(entry.path())) {
-      files.push_back(entry.path());
-    }
+    if (hidden || !entry.is_regular_file()) continue;
+    const bool video = has_video_extension(entry.path().string());
+    if (is_image_file(entry.path()) || (videos && video)) files.push_back(entry.path());
+    if (video) video_seen = entry.path().string();
   }
   if (files.empty()) {
-    throw InputError(dir + ": holds no image (png, jpg, bmp or tif) (" + option + ")");
+    throw InputError(dir + ": holds no image (png, jpg, bmp or tif" +
+                     (videos ? ") or video (" : ") (") + option + ")" +
+                     (video_seen.empty() ? ""
+                                         : "; it holds a video, " + video_seen +
+                                               ": give it as --video FILE"));
   }
   std::sort(files.begin(), files.end());
   for (std::size_t i = 1; in_order && i < files.size(); ++i) {
@@ -231,7 +237,7 @@ ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
   return sensor_image(read_image_u8(path), path, reading);
 }
 
-// The no-contact images --background names: each file, and the image files of each folder;
+// The no-contact images --background names: each file, and the image and video files of each folder;
 // each once (a folder given twice, or a file also in a folder given, would weigh double).
 std::vector<fs::path> background_files(const std::vector<std::string>& given) {
   std::vector<fs::path> files;
@@ -244,7 +250,7 @@ std::vector<fs::path> background_files(const std::vector<std::string>& given) {
   };
   for (const std::string& path : given) {
     if (fs::is_directory(path)) {
-      for (const fs::path& file : image_files(path, "--background", false)) add(file);
+      for (const fs::path& file : image_files(path, "--background", false, true)) add(file);
     } else {
       add(path);
     }
@@ -709,7 +715,7 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
       ->excludes(images);
   cmd->add_option("--background", a.backgrounds,
                   "The sensor's image with nothing touching; or several such frames (image "
-                  "files, a folder of them, or videos): their per-pixel median is the reference, "
+                  "files, videos, or folders of them): their per-pixel median is the reference, "
                   "with less camera noise");
   cmd->add_option("--background-frames", a.background_frames,
                   "FIRST-LAST: frames of --images or --video with nothing touching (a recording "
