@@ -2155,9 +2155,9 @@ TEST_F(PatchgraphCli, ARecordingOfAVideoBecomesADataset) {
   const fs::path still_dir = dir_ / "vid_still_dir";
   fs::create_directories(still_dir);
   fs::copy_file(still, still_dir / "still.mkv", fs::copy_options::overwrite_existing);
-  const CliRun folder = patchgraph("recording --video " + lossless + " --background " +
-                                   still_dir.string() + " --static-sensor -q --out " +
-                                   out("vid_folder"));
+  const CliRun folder =
+      patchgraph("recording --video " + lossless + " --background " + still_dir.string() +
+                 " --static-sensor -q --out " + out("vid_folder"));
   ASSERT_EQ(folder.code, 0) << folder.out;
   EXPECT_NE(folder.out.find("the median of 5 images"), std::string::npos) << folder.out;
   EXPECT_EQ(Dataset::open(out("vid_folder")).background().data, rendered.background().data);

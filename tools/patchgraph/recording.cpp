@@ -69,9 +69,9 @@ std::vector<fs::path> image_files(const std::string& dir, const std::string& opt
   if (files.empty()) {
     throw InputError(dir + ": holds no image (png, jpg, bmp or tif" +
                      (videos ? ") or video (" : ") (") + option + ")" +
-                     (video_seen.empty() ? ""
-                                         : "; it holds a video, " + video_seen +
-                                               ": give it as --video FILE"));
+                     (video_seen.empty()
+                          ? ""
+                          : "; it holds a video, " + video_seen + ": give it as --video FILE"));
   }
   std::sort(files.begin(), files.end());
   for (std::size_t i = 1; in_order && i < files.size(); ++i) {
@@ -237,8 +237,8 @@ ImageU8 sensor_image(const std::string& path, const FrameReading& reading) {
   return sensor_image(read_image_u8(path), path, reading);
 }
 
-// The no-contact images --background names: each file, and the image and video files of each folder;
-// each once (a folder given twice, or a file also in a folder given, would weigh double).
+// The no-contact images --background names: each file, and the image and video files of each
+// folder; each once (a folder given twice, or a file also in a folder given, would weigh double).
 std::vector<fs::path> background_files(const std::vector<std::string>& given) {
   std::vector<fs::path> files;
   const auto add = [&](const fs::path& file) {
