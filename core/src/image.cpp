@@ -24,10 +24,10 @@ std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) throw InputError(path + ": image file not found");
   auto in = OIIO::ImageInput::open(path);
   if (!in) throw InputError(path + ": cannot read image: " + first_line(OIIO::geterror()));
-  // OpenImageIO 2.4 reads movies through FFmpeg, and its reader writes past its frame buffer on
-  // 4:2:0 video (the process aborts, or worse). Only `patchgraph recording --video` decodes
-  // video, with FFmpeg's own libraries.
-  if (std::string(in->format_name()) == "FFmpeg movie") {
+  // OpenImageIO 2.4 reads movies through FFmpeg (its reader's format: "FFmpeg movie"), and that
+  // reader writes past its frame buffer on 4:2:0 video (the process aborts, or worse). Only
+  // `patchgraph recording --video` decodes video, with FFmpeg's own libraries.
+  if (std::string(in->format_name()).find("FFmpeg") != std::string::npos) {
     throw InputError(path + ": is a video, not an image file (PNG, JPEG, TIFF, EXR); " +
                      "`patchgraph recording --video` makes frames of a sensor's video");
   }
