@@ -11,12 +11,28 @@ void clean_csv_line(std::string& line, bool header) {
 
 std::vector<std::string> csv_cells(const std::string& line) {
   std::vector<std::string> cells(1);
-  for (const char ch : line) {
-    if (ch == ',') {
+  bool quoted = false, cell_start = true;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char ch = line[i];
+    if (quoted) {
+      if (ch != '"') {
+        cells.back() += ch;
+      } else if (i + 1 < line.size() && line[i + 1] == '"') {
+        cells.back() += '"';
+        ++i;
+      } else {
+        quoted = false;
+      }
+    } else if (ch == ',') {
       cells.emplace_back();
+      cell_start = true;
+      continue;
+    } else if (ch == '"' && cell_start) {
+      quoted = true;
     } else if (ch != '\r') {
       cells.back() += ch;
     }
+    cell_start = false;
   }
   return cells;
 }

@@ -478,7 +478,12 @@ std::vector<std::string> sensor_dataset_dirs(const std::string& dir) {
 }
 
 Dataset Dataset::open(const std::string& dir) {
-  if (!fs::is_directory(dir)) throw InputError(dir + ": dataset folder not found");
+  if (!fs::is_directory(dir)) {
+    // A file where the folder goes: a frame or the dataset.json, given instead of its folder.
+    throw InputError(dir + (fs::exists(dir) ? ": is a file, not a dataset folder (give the folder "
+                                              "that holds dataset.json)"
+                                            : ": dataset folder not found"));
+  }
   Dataset d;
   d.dir_ = dir;
   const std::string info_path = (fs::path(dir) / "dataset.json").string();

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "../common/test_support.h"
+#include "pg/core/csv.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
@@ -85,6 +86,22 @@ std::vector<FramePose> write_small(const std::string& dir, int frames) {
   return poses;
 }
 
+// A CSV line's cells: split on commas, but a quoted cell (RFC 4180, as label-ball writes its
+// reasons) keeps its commas and its doubled quotes.
+TEST(Csv, QuotedCellsKeepTheirCommasAndQuotes) {
+  using Cells = std::vector<std::string>;
+  EXPECT_EQ(csv_cells("1,2.5,,x"), (Cells{"1", "2.5", "", "x"}));
+  EXPECT_EQ(csv_cells("3,,no_press,\"0 px differ, fewer than a press\""),
+            (Cells{"3", "", "no_press", "0 px differ, fewer than a press"}));
+  EXPECT_EQ(csv_cells("\"a \"\"b\"\", c\",d"), (Cells{"a \"b\", c", "d"}));
+  EXPECT_EQ(csv_cells("\"\",1"), (Cells{"", "1"}));
+  // A decimal comma stays two cells (the readers then refuse the row's extra cell).
+  EXPECT_EQ(csv_cells("17,589"), (Cells{"17", "589"}));
+  // A quote inside an unquoted cell is text; a line ending inside a quote ends the cell.
+  EXPECT_EQ(csv_cells("5 \"in\",x"), (Cells{"5 \"in\"", "x"}));
+  EXPECT_EQ(csv_cells("1,\"open, cell"), (Cells{"1", "open, cell"}));
+}
+
 TEST(Dataset, RoundTrip) {
   TempDir tmp;
   const auto poses = write_small(tmp.str("d"), 3);
@@ -138,7 +155,11 @@ TEST(Dataset, ReaderRejectsMissingFiles) {
   write_small(tmp.str("d"), 3);
   fs::remove(tmp.str("d/normal/000001.exr"));
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "normal/000001.exr");
-  expect_input_error([&] { Dataset::open(tmp.str("nothing")); }, "nothing");
+  expect_input_error([&] { Dataset::open(tmp.str("nothing")); },
+                     "nothing: dataset folder not found");
+  // A file of the dataset given for its folder is named as a file.
+  expect_input_error([&] { Dataset::open(tmp.str("d/dataset.json")); },
+                     "d/dataset.json: is a file, not a dataset folder");
   fs::remove(tmp.str("d/poses.csv"));
   expect_input_error([&] { Dataset::open(tmp.str("d")); }, "poses.csv");
 }

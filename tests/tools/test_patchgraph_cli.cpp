@@ -2464,6 +2464,24 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     EXPECT_EQ(cells.at(2), "given") << line;
     EXPECT_EQ(cells.at(10), "") << line;
   }
+  // The circles.csv a run writes is given back as it is, its reasons quoted where they hold a
+  // comma (they had been read as extra cells, and the file refused).
+  {
+    std::ifstream in(out("balls_by_hand") + "/circles.csv");
+    std::ofstream back(out("circles_back.csv"));
+    std::string line;
+    for (int row = 0; std::getline(in, line); ++row) {
+      back << (row == 1 ? line.substr(0, line.rfind(',')) + ",\"given, by hand: no press\""
+                        : line)
+           << "\n";
+    }
+  }
+  const CliRun given_back =
+      patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
+                 out("balls_given_back") + " --circles " + out("circles_back.csv"));
+  ASSERT_EQ(given_back.code, 0) << given_back.out;
+  EXPECT_NE(given_back.out.find("19 presses labelled"), std::string::npos) << given_back.out;
+  EXPECT_NE(given_back.out.find("1 without contact"), std::string::npos) << given_back.out;
 
   const auto refused = [&](const std::string& args, int code, const std::string& text) {
     fs::remove_all(out("balls_bad"));
