@@ -2471,8 +2471,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     std::ofstream back(out("circles_back.csv"));
     std::string line;
     for (int row = 0; std::getline(in, line); ++row) {
-      back << (row == 1 ? line.substr(0, line.rfind(',')) + ",\"given, by hand: no press\""
-                        : line)
+      back << (row == 1 ? line.substr(0, line.rfind(',')) + ",\"given, by hand: no press\"" : line)
            << "\n";
     }
   }
