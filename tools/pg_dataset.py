@@ -17,7 +17,8 @@ small PNG reader below.
     d.mask(7), d.points(7)         # (H, W) bool; (N, 3) float32, object frame [m]
 
 From the shell, `python3 tools/pg_dataset.py DIR [FRAME]` describes a dataset and checks one
-frame's files (unit normals, depth, mask and points that agree): exit 1 naming the file if not.
+frame's files (a colour image that decodes whole, unit normals, depth, mask and points that
+agree): exit 1 naming the file if not.
 The format: README.md, "Dataset format".
 """
 import csv
@@ -234,11 +235,30 @@ def read_ply(path):
     return np.frombuffer(data, dtype="<f4", count=count * fields, offset=end).reshape(count, fields)
 
 
+def _read_8bit(path, mode):
+    """An 8-bit PNG through Pillow (converted to `mode` unless None), its errors naming the file
+    (Pillow's own name none: "image file is truncated")."""
+    from PIL import Image
+    try:
+        with Image.open(path) as image:
+            return np.asarray(image.convert(mode) if mode else image.copy())
+    except OSError as e:
+        if isinstance(e, FileNotFoundError):
+            raise
+        raise ValueError(f"{path}: damaged or cut short ({e})") from None
+
+
 class Dataset:
     """A dataset folder: dataset.json as `info`, poses.csv as `poses`, and its frames."""
 
     def __init__(self, folder):
         self.dir = folder
+        index = os.path.join(folder, "sensors.json")
+        if not os.path.exists(os.path.join(folder, "dataset.json")) and os.path.exists(index):
+            with open(index) as f:
+                names = [str(name) for name in json.load(f).get("sensors", [])]
+            raise ValueError(f"{folder}: not a dataset, but a render of several sensors, one "
+                             f"dataset each: {', '.join(os.path.join(folder, n) for n in names)}")
         with open(os.path.join(folder, "dataset.json")) as f:
             self.info = json.load(f)
         self.frames = self.info["frames"]
@@ -251,16 +271,17 @@ class Dataset:
         self.poses = np.array(values, dtype=types)
 
     def path(self, output, frame):
+        if output not in self.info["outputs"]:
+            raise ValueError(f"{self.dir}: has no {output} output (it has "
+                             f"{', '.join(self.info['outputs'])})")
         extension = {"normal": ".exr", "depth": ".exr", "points": ".ply"}.get(output, ".png")
         return os.path.join(self.dir, output, f"{frame:06d}{extension}")
 
     def color(self, frame):
-        from PIL import Image
-        return np.asarray(Image.open(self.path("color", frame)).convert("RGB"))
+        return _read_8bit(self.path("color", frame), "RGB")
 
     def background(self):
-        from PIL import Image
-        return np.asarray(Image.open(os.path.join(self.dir, "background.png")).convert("RGB"))
+        return _read_8bit(os.path.join(self.dir, "background.png"), "RGB")
 
     def normal(self, frame):
         if "normal" not in self.info["outputs"] and "normal_png" in self.info["outputs"]:
@@ -282,8 +303,7 @@ class Dataset:
         return read_exr(self.path("depth", frame))[:, :, 0]
 
     def mask(self, frame):
-        from PIL import Image
-        return np.asarray(Image.open(self.path("mask", frame))) > 0
+        return _read_8bit(self.path("mask", frame), None) > 0
 
     def points(self, frame):
         return read_ply(self.path("points", frame))[:, :3]
@@ -297,6 +317,10 @@ def check(folder, frame):
     outputs = d.info["outputs"]
     width, height = d.info["width"], d.info["height"]
     print(f"dataset   {folder}: {d.frames} frames at {width}x{height}, outputs {', '.join(outputs)}")
+    if "color" in outputs:
+        c = d.color(frame)
+        assert c.shape == (height, width, 3), f"{d.path('color', frame)}: shape {c.shape}"
+        print(f"color     frame {frame}: mean level {c.mean():.1f}")
     if "normal" in outputs:
         n = d.normal(frame)
         length = np.linalg.norm(n, axis=2)

@@ -297,8 +297,8 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
 
 // tools/pg_dataset.py, the Python reader of the format (numpy and Pillow), reads a render's
 // files as the C++ reader does: the same deepest indentation and count of contact points, unit
-// normals and 16-bit PNG normals within 1e-4 of them (its own checks); a damaged normal file is
-// named with exit 1.
+// normals and 16-bit PNG normals within 1e-4 of them (its own checks); a damaged normal, points
+// or colour file is named with exit 1.
 TEST(TacsimCli, ThePythonReaderReadsARender) {
   const std::string python = "/usr/bin/python3";
   if (run_command(python, "-c 'import numpy, PIL'").code != 0) {
@@ -335,6 +335,14 @@ TEST(TacsimCli, ThePythonReaderReadsARender) {
   const CliRun cut = run_command(python, reader + tmp.str("d") + " 4");
   EXPECT_EQ(cut.code, 1) << cut.out;
   EXPECT_NE(cut.out.find(points + ": cut short: "), std::string::npos) << cut.out;
+  // And a cut colour frame (it had not been read at all).
+  EXPECT_NE(r.out.find("color     frame 5: mean level"), std::string::npos) << r.out;
+  const std::string color = dataset_frame_path(tmp.str("d"), "color", 3);
+  fs::resize_file(color, fs::file_size(color) / 2);
+  const CliRun cut_color = run_command(python, reader + tmp.str("d") + " 3");
+  EXPECT_EQ(cut_color.code, 1) << cut_color.out;
+  EXPECT_NE(cut_color.out.find(color + ": damaged or cut short"), std::string::npos)
+      << cut_color.out;
 }
 
 // `info --check` reads every frame file: a truncated one, which `info` alone (and opening the
