@@ -899,9 +899,19 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
                           "contact, 1 episode(s)"),
             std::string::npos)
       << both.out;
-  ASSERT_EQ(patchgraph("track " + below + " -q --out " + out("below")).code, 0);
+  const CliRun below_alone = patchgraph("track " + below + " -q --out " + out("below"));
+  ASSERT_EQ(below_alone.code, 0) << below_alone.out;
   const auto summary = parse_json_file(out("both") + "/summary.json");
   const auto alone = parse_json_file(out("below") + "/summary.json");
+  // One face alone leaves its two slides and its turn free (3): the note counts the frames by
+  // how many directions each left free, as summary.json does.
+  const int three_free = alone["unconstrained_direction_frames"][3].get<int>();
+  EXPECT_GT(three_free, 50);
+  EXPECT_NE(below_alone.out.find("did not constrain every direction of the pose (3 free directions "
+                                 "in " +
+                                 std::to_string(three_free) + " frames"),
+            std::string::npos)
+      << below_alone.out;
   EXPECT_EQ(summary["sensors"], 2);
   EXPECT_EQ(summary["datasets"], nlohmann::json({below, side}));
   EXPECT_EQ(alone["sensors"], 1);

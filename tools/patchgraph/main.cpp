@@ -237,12 +237,23 @@ int run_track(const TrackArgs& a) {
                  unpaired_frames > 0 ? ", or a sensor without a frame at that time (above)" : "");
   }
   if (s.degenerate_frames > 0) {
+    // How many directions were free, frame by frame: an edge's slide alone (1) tracks, its turn
+    // free as well (2) in many frames is how a shallow cube edge drifts off (docs/tracker.md).
+    std::string counts;
+    for (int n = 1; n <= 6; ++n) {
+      const int frames = s.unconstrained_direction_frames[std::size_t(n)];
+      if (frames == 0) continue;
+      counts += counts.empty() ? std::to_string(n) +
+                                     (n == 1 ? " free direction in " : " free directions in ") +
+                                     std::to_string(frames) + " frames"
+                               : ", " + std::to_string(n) + " in " + std::to_string(frames);
+    }
     std::fprintf(stderr,
                  "note: in %d of %d contact frames the contact did not constrain every direction "
-                 "of the pose (a flat, cylindrical or spherical patch, or a contact too small to "
-                 "register: all 6); the estimate follows the "
-                 "motion prior along those (errors.csv: unconstrained_directions)\n",
-                 s.degenerate_frames, s.contact_frames);
+                 "of the pose (%s; a flat, cylindrical or spherical patch, or a contact too small "
+                 "to register: all 6); the estimate follows the motion prior along those "
+                 "(errors.csv: unconstrained_directions)\n",
+                 s.degenerate_frames, s.contact_frames, counts.c_str());
   }
   if (s.object_frame != "dataset") {
     std::fprintf(
