@@ -257,9 +257,12 @@ std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
     const nlohmann::json& v, const std::string& key) const {
   if (!v.is_array()) type_error(key, "an array of strings", v);
   std::vector<std::string> out;
-  for (const auto& s : v) {
-    if (!s.is_string()) type_error(key, "an array of strings", v);
-    out.push_back(s.get<std::string>());
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    if (!v[i].is_string()) {
+      throw InputError(field(key) + ": expected an array of strings, element " +
+                       std::to_string(i) + " is " + json_type_name(v[i]));
+    }
+    out.push_back(v[i].get<std::string>());
   }
   return out;
 }

@@ -265,6 +265,11 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
          j["render"] = {{"outputs", {"color", "rgb"}}};
        },
        {"render.outputs", "unknown output 'rgb'"}},
+      {"an output that is not a string",
+       [](json& j) {
+         j["render"] = {{"outputs", {"color", {"mask"}}}};
+       },
+       {"render.outputs", "expected an array of strings, element 1 is an array"}},
       {"no output",
        [](json& j) {
          j["render"] = {{"outputs", json::array()}};
