@@ -462,14 +462,16 @@ TEST(IcpDegeneracy, RoundedEdgeTurnIsMeasuredAndItsSlideStaysAtTheGuess) {
 }
 
 TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
-  // A cube-corner-like patch of three planes: well constrained.
+  // A cube-corner-like patch of three planes: well constrained. The planes' shared edges are
+  // held by one plane each: coincident points of different normals would make each nearest
+  // neighbour below a tie that float rounding breaks, differently in differently optimised builds.
   PointCloud target;
   for (int a = 0; a < 30; ++a) {
     for (int b = 0; b < 30; ++b) {
       const float u = 0.0001f * a, v = 0.0001f * b;
       target.push_back({u, v, 0}, {0, 0, -1});
-      target.push_back({u, 0, v}, {0, -1, 0});
-      target.push_back({0, u, v}, {-1, 0, 0});
+      if (b > 0) target.push_back({u, 0, v}, {0, -1, 0});
+      if (a > 0 && b > 0) target.push_back({0, u, v}, {-1, 0, 0});
     }
   }
   const PointCloudTree tree(target);
@@ -478,8 +480,7 @@ TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
   const PointCloud source = transform_cloud(truth.inverse(), target);
   IcpOptions options;
   options.kernel = RobustKernel::kNone;
-  // Target normals alone: the planes' shared edges hold coincident points of different normals,
-  // which the symmetric objective would pair by float rounding (its sum is checked below).
+  // Target normals alone, as the sum below (the symmetric objective's is checked below).
   options.symmetric = false;
   const IcpResult r = PointToPlaneIcp(options).align(source, tree, SE3::Identity());
   ASSERT_TRUE(r.converged);
