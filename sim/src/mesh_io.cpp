@@ -19,6 +19,7 @@
 #include "mesh_topology.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/json_fields.h"
 #include "pg/sim/mesh.h"
 
 namespace pg {
@@ -434,14 +435,22 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
   TriangleMesh mesh;
   mesh.vertices.reserve(raw.vertices.size());
   for (size_t v = 0; v < raw.vertices.size(); ++v) {
-    const Eigen::Vector3f p = (scale * raw.vertices[v]).cast<float>();
-    if (!p.allFinite()) {
-      const std::string reason =
-          raw.vertices[v].allFinite() ? "exceeds the float range after scaling" : "is not finite";
-      throw InputError(path + ": vertex " + std::to_string(v + raw.index_base) + " (" +
-                       counted_from(raw) + ") " + reason + ": " + format_point(raw.vertices[v]));
+    const Eigen::Vector3d p = scale * raw.vertices[v];
+    // Beyond a kilometre (as for a scene's positions) the mesh is mis-scaled or damaged, and the
+    // renderer's sums over its bounding box would leave the float range.
+    const bool finite = raw.vertices[v].allFinite();
+    if (!finite || !(p.cwiseAbs().maxCoeff() <= kMaxPositionM)) {
+      std::ostringstream msg;
+      msg << path << ": vertex " << v + raw.index_base << " (" << counted_from(raw) << ") ";
+      if (!finite) {
+        msg << "is not finite";
+      } else {
+        msg << "lies beyond +-" << kMaxPositionM << " m at scale " << scale
+            << " (meshes are in metres: is the scale right?)";
+      }
+      throw InputError(msg.str() + ": " + format_point(raw.vertices[v]));
     }
-    mesh.vertices.push_back(p);
+    mesh.vertices.push_back(p.cast<float>());
   }
 
   mesh.triangles.reserve(raw.triangles.size());

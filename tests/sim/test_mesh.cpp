@@ -463,8 +463,13 @@ TEST_F(MeshIoTest, NonFiniteVerticesAreErrorsInEveryFormat) {
                        "vertex 3 (counted from 1"));
   EXPECT_TRUE(
       Contains(load_error(write("big.obj", "v 0 0 0\nv 1e400 0 0\nv 0 1 0" + tri)), "not finite"));
+  // Beyond a kilometre after scaling: a damaged or mis-scaled mesh (a glTF's float vertices of
+  // 1e38 m had overflowed the renderer's image bounds, found by tests/fuzz/fuzz_inputs.py).
   EXPECT_TRUE(Contains(load_error(write("huge.obj", "v 0 0 0\nv 1e300 0 0\nv 0 1 0" + tri)),
-                       "float range"));
+                       "lies beyond +-1000 m at scale 1 (meshes are in metres"));
+  const std::string km = write("km.obj", "v 0 0 0\nv 2000 0 0\nv 0 1 0" + tri);
+  EXPECT_TRUE(Contains(load_error(km), "lies beyond +-1000 m"));
+  EXPECT_EQ(load_mesh(km, 1e-3).vertices.size(), 3u) << "2 m at scale 0.001";
   EXPECT_TRUE(Contains(
       load_error(write("nan.ply", ply_header("ascii") + "0 0 0 1\nnan 0 0 1\n1 1 0 1\n0 1 0 1\n"
                                                         "3 0 1 2 0\n2 0 1\n")),
