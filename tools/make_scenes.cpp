@@ -292,7 +292,7 @@ ordered_json sequence_json(const SceneSpec& spec, const fs::path& root) {
 // ------------------------------------------------------------------------- the benchmark set
 
 SceneSpec benchmark_spec(const std::string& object, int index, const fs::path& root) {
-  char nn[8];
+  char nn[16];  // any int fits
   std::snprintf(nn, sizeof nn, "%02d", index);
   SceneSpec spec;
   spec.object = object;
