@@ -1,0 +1,505 @@
+#!/usr/bin/python3
+"""Feeds damaged inputs to tacsim and patchgraph and checks that each is either used or refused
+with a clear error: never a crash, a hang, a sanitizer report, an error that names no file, or a
+non-finite result. docs/stress.md, "Damaged inputs".
+
+Four kinds of input, each mutated from a good one by a seeded random generator:
+  scene    a scene file (JSON values replaced, scaled, removed, duplicated; the text cut or
+           garbled), rendered with tacsim render
+  mesh     a mesh file (glTF binary: its JSON's fields and its data; OBJ, STL and PLY, text and
+           binary: bytes replaced, the file cut), rendered in a scene
+  dataset  a rendered dataset (dataset.json, poses.csv, a frame's image), tracked
+  config   patchgraph track's --config and --normals MODEL files, tracked
+
+Usage: fuzz_inputs.py --tacsim PATH --patchgraph PATH --work DIR [--cases N] [--seed S]
+                      [--kinds scene,mesh,...] [--timeout SECONDS]
+Exit 0 when every case passed; 1 with the failing cases (their inputs kept under DIR/failed).
+"""
+import argparse
+import copy
+import json
+import math
+import os
+import random
+import shutil
+import struct
+import subprocess
+import sys
+
+REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+# Values that a parser must refuse or survive wherever they land.
+ODD_VALUES = [0, -1, 1, 3, 0.5, -0.5, 1e-9, 1e-30, 1e30, 1e308, -1e308, 5e-324, 2**31, 2**63,
+              -2**63 - 1, "", "abc", "a" * 2000, None, True, False, [], {}, [0], [0, 0, 0, 0],
+              [[[[1]]]]]
+# Odd file paths for string fields.
+ODD_PATHS = ["", "/nonexistent/x.glb", "/tmp", "/dev/null", "../x", "/proc/self/status"]
+# Words in an error that come from a library or the language, not from the tools' own checks.
+VAGUE = ["basic_string", "bad_alloc", "json.exception", "std::", "vector::", "stoi", "stod",
+         "what()", "c10::", "terminate called"]
+
+
+# ----------------------------------------------------------------------------- JSON mutation
+
+def json_nodes(x, path=()):
+    yield path, x
+    if isinstance(x, dict):
+        for k, v in x.items():
+            yield from json_nodes(v, path + (k,))
+    elif isinstance(x, list):
+        for i, v in enumerate(x):
+            yield from json_nodes(v, path + (i,))
+
+
+def json_get(x, path):
+    for p in path:
+        x = x[p]
+    return x
+
+
+def mutate_json(doc, rng, extra_values=()):
+    """1-3 edits at random nodes: a value replaced or scaled, a key removed or added, an array
+    emptied or repeated, a node copied over another."""
+    doc = copy.deepcopy(doc)
+    for _ in range(rng.choice([1, 1, 1, 2, 3])):
+        nodes = [n for n in json_nodes(doc) if n[0]]
+        if not nodes:
+            break
+        path, value = rng.choice(nodes)
+        parent, key = json_get(doc, path[:-1]), path[-1]
+        r = rng.random()
+        if r < 0.4:
+            parent[key] = copy.deepcopy(rng.choice(ODD_VALUES + list(extra_values)))
+        elif r < 0.6 and isinstance(value, (int, float)) and not isinstance(value, bool):
+            parent[key] = value * rng.choice([0, -1, 1e-6, 1e-3, 1e3, 1e6, 1e12])
+        elif r < 0.7:
+            del parent[key]
+        elif r < 0.77 and isinstance(value, list):
+            parent[key] = value * rng.choice([0, 2, 30])
+        elif r < 0.83 and isinstance(value, dict):
+            value["unknown_key"] = 1
+        elif r < 0.9 and isinstance(value, str):
+            parent[key] = rng.choice(ODD_PATHS + [value + "x", value[:-1]])
+        else:
+            parent[key] = copy.deepcopy(json_get(doc, rng.choice(nodes)[0]))
+    return doc
+
+
+def mutate_bytes(data, rng, alphabet=None):
+    """The file cut short, or 1-20 bytes replaced (from `alphabet` for text formats)."""
+    if not data or rng.random() < 0.3:
+        return data[: rng.randrange(len(data))] if data else data
+    b = bytearray(data)
+    for _ in range(rng.randint(1, 20 if alphabet is None else 6)):
+        i = rng.randrange(len(b))
+        b[i] = rng.choice(alphabet) if alphabet else rng.randrange(256)
+    if alphabet and rng.random() < 0.3:
+        i = rng.randrange(len(b))
+        b[i:i] = rng.choice([b"-1", b"99999999999999999999", b"nan", b"inf", b"1e400", b"0"])
+    return bytes(b)
+
+
+TEXT_ALPHABET = b"0123456789-+.eE \n/#vfnaxyz{}[],:\"\x00\xff"
+
+
+# ----------------------------------------------------------------------------- the good inputs
+
+def small_box():
+    """A 10 mm box as vertices and 0-based triangles."""
+    v = [(x, y, z) for x in (-0.005, 0.005) for y in (-0.005, 0.005) for z in (-0.005, 0.005)]
+    f = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1), (2, 3, 7), (2, 7, 6),
+         (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    return v, f
+
+
+def box_files():
+    """The box in each text and binary format: {name: (extension, bytes, is_text)}."""
+    v, f = small_box()
+    obj = "".join(f"v {x} {y} {z}\n" for x, y, z in v) + "".join(
+        f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f)
+    stl = "solid box\n"
+    for t in f:
+        stl += " facet normal 0 0 0\n  outer loop\n"
+        stl += "".join("   vertex %g %g %g\n" % v[i] for i in t)
+        stl += "  endloop\n endfacet\n"
+    stl += "endsolid box\n"
+    stl_bin = b"\0" * 80 + struct.pack("<I", len(f))
+    for t in f:
+        stl_bin += struct.pack("<3f", 0, 0, 0)
+        for i in t:
+            stl_bin += struct.pack("<3f", *v[i])
+        stl_bin += b"\0\0"
+    header = ("ply\nformat {}\nelement vertex {}\nproperty float x\nproperty float y\n"
+              "property float z\nelement face {}\nproperty list uchar int vertex_indices\n"
+              "end_header\n")
+    ply = header.format("ascii 1.0", len(v), len(f)) + "".join(
+        f"{x} {y} {z}\n" for x, y, z in v) + "".join(f"3 {a} {b} {c}\n" for a, b, c in f)
+    ply_bin = header.format("binary_little_endian 1.0", len(v), len(f)).encode()
+    ply_bin += b"".join(struct.pack("<3f", *p) for p in v)
+    ply_bin += b"".join(struct.pack("<B3i", 3, *t) for t in f)
+    return {"obj": ("obj", obj.encode(), True), "stl_text": ("stl", stl.encode(), True),
+            "stl_binary": ("stl", stl_bin, False), "ply_text": ("ply", ply.encode(), True),
+            "ply_binary": ("ply", ply_bin, False)}
+
+
+def split_glb(data):
+    json_length = struct.unpack("<I", data[12:16])[0]
+    return json.loads(data[20:20 + json_length]), data[20 + json_length:]
+
+
+def join_glb(doc, binary_chunk):
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    body = struct.pack("<II", len(text), 0x4E4F534A) + text + binary_chunk
+    return struct.pack("<III", 0x46546C67, 2, 12 + len(body)) + body
+
+
+GLB_VALUES = [2, 4, 5, 7, 5120, 5121, 5123, 5125, 5126, 2**31 - 1, 2**32, -2**31, "VEC3",
+              "SCALAR", "MAT4", 83256, 166464, 249720, 249721, 12]
+
+
+def mutate_glb(doc, binary_chunk, rng):
+    doc = copy.deepcopy(doc)
+    r = rng.random()
+    if r < 0.6:
+        doc = mutate_json(doc, rng, GLB_VALUES)
+    elif r < 0.8:  # a field the good file leaves out
+        part = rng.choice(["bufferViews", "accessors", "nodes"])
+        fields = {"bufferViews": ["byteStride", "byteOffset"],
+                  "accessors": ["byteOffset", "normalized", "sparse"],
+                  "nodes": ["matrix", "scale", "rotation", "translation", "children"]}[part]
+        item = rng.choice(doc[part])
+        item[rng.choice(fields)] = copy.deepcopy(rng.choice(
+            GLB_VALUES + [[0] * 16, [1e300] * 16, [0, 0, 0], [0, 0, 0, 0], [0], {"count": 3}]))
+    else:
+        binary_chunk = mutate_bytes(binary_chunk, rng)
+    data = join_glb(doc, binary_chunk)
+    return data[: rng.randrange(len(data))] if rng.random() < 0.1 else data
+
+
+# ----------------------------------------------------------------------------- running
+
+class Fuzzer:
+    def __init__(self, args):
+        self.args = args
+        self.work = os.path.abspath(args.work)
+        self.failed_dir = os.path.join(self.work, "failed")
+        shutil.rmtree(self.work, ignore_errors=True)
+        os.makedirs(self.failed_dir)
+        self.failures = []
+        self.counts = {}  # kind -> {"used": n, "refused": n}
+
+    def run(self, command, timeout=None):
+        """(exit code or 'timeout', stderr lines)."""
+        env = dict(os.environ)
+        # A sanitizer build reports through its own exit code; leaks are not this test's subject.
+        env.setdefault("ASAN_OPTIONS", "detect_leaks=0")
+        try:
+            p = subprocess.run(command, capture_output=True, timeout=timeout or self.args.timeout,
+                               env=env)
+            return p.returncode, p.stderr.decode("utf-8", "replace").strip().splitlines()
+        except subprocess.TimeoutExpired:
+            return "timeout", []
+
+    def judge(self, kind, case, rc, err, names, keep, result_dir=None):
+        """Records the case; `names` are the paths one of which an error must name; `keep` the
+        files to copy under failed/ when the case fails."""
+        text = "\n".join(err)
+        last = err[-1] if err else ""
+        problem = None
+        if rc == "timeout":
+            problem = f"no answer in {self.args.timeout} s"
+        elif "Sanitizer" in text or "runtime error:" in text:
+            problem = "sanitizer report: " + next(l for l in err if "Sanitizer" in l or
+                                                  "runtime error:" in l)
+        elif rc not in (0, 1, 2, 3):
+            problem = f"exit code {rc}"
+        elif rc != 0 and not last.startswith("error:"):
+            problem = "an exit without an 'error:' line"
+        elif rc != 0 and any(w in last for w in VAGUE):
+            problem = "an error in a library's words"
+        elif rc != 0 and not any(n in last for n in names):
+            problem = "an error that names none of " + ", ".join(names)
+        elif rc == 0 and result_dir is not None:
+            problem = self.non_finite(result_dir)
+        if self.args.verbose:
+            print(f"{kind} {case}: exit {rc}: {last[:200]}")
+        counts = self.counts.setdefault(kind, {"used": 0, "refused": 0})
+        counts["used" if rc == 0 else "refused"] += 1
+        if problem:
+            target = os.path.join(self.failed_dir, f"{kind}_{case}")
+            os.makedirs(target, exist_ok=True)
+            for path in keep:
+                if os.path.isdir(path):
+                    shutil.copytree(path, os.path.join(target, os.path.basename(path)))
+                elif os.path.exists(path):
+                    shutil.copy(path, target)
+            self.failures.append(f"{kind} case {case}: {problem} (inputs in {target}; last "
+                                 f"line: {last[:300]!r})")
+
+    @staticmethod
+    def non_finite(result_dir):
+        summary = os.path.join(result_dir, "summary.json")
+        if not os.path.exists(summary):
+            return "exit 0 without summary.json"
+        with open(summary) as f:
+            doc = json.load(f, parse_constant=lambda c: float("nan"))
+        for path, value in json_nodes(doc):
+            if isinstance(value, float) and not math.isfinite(value):
+                return f"summary.json: {'.'.join(map(str, path))} is {value}"
+        with open(os.path.join(result_dir, "poses.csv")) as f:
+            for number, line in enumerate(f, 1):
+                if number > 1 and any(c.strip().lower() in ("nan", "inf", "-inf")
+                                      for c in line.split(",")):
+                    return f"poses.csv line {number} is not finite"
+        return None
+
+    # --------------------------------------------------------------------------- the kinds
+
+    def scene_seeds(self):
+        seeds = []
+        for name in ["default.json", "examples/two_digits_pinch.json",
+                     "examples/held_in_hand.json", "examples/long_cube_rock.json",
+                     "examples/sphere_press.json"]:
+            path = os.path.join(REPO, "scenes", name)
+            with open(path) as f:
+                scene = json.load(f)
+            for obj in scene.get("objects", []):
+                if "mesh" in obj and not os.path.isabs(obj["mesh"]):
+                    obj["mesh"] = os.path.normpath(os.path.join(os.path.dirname(path),
+                                                                obj["mesh"]))
+            seeds.append(scene)
+        # The default scene with every sensor field written out, the elastic gel and shadows.
+        with open(os.path.join(self.base_dataset(), "dataset.json")) as f:
+            sensor = json.load(f)["sensor"]
+        full = copy.deepcopy(seeds[0])
+        sensor["gel"]["elastic"]["enabled"] = True
+        full["sensors"][0]["sensor"] = sensor
+        full["render"]["shadows"] = True
+        return seeds + [full]
+
+    def base_dataset(self):
+        path = os.path.join(self.work, "base")
+        if not os.path.exists(path):
+            rc, err = self.run([self.args.tacsim, "render", os.path.join(REPO, "scenes",
+                                "default.json"), "--out", path, "--frames", "12", "-q"],
+                               timeout=300)
+            if rc != 0:
+                sys.exit("fuzz_inputs: could not render the base dataset: " + "\n".join(err))
+        return path
+
+    def fuzz_scene(self, case, rng, seeds):
+        base = rng.choice(seeds)
+        if rng.random() < 0.85:
+            text = json.dumps(mutate_json(base, rng, ODD_PATHS))
+        else:
+            text = mutate_bytes(json.dumps(base, indent=1).encode(), rng, TEXT_ALPHABET)
+            text = text.decode("latin-1")
+        scene = os.path.join(self.work, f"scene_{case}.json")
+        with open(scene, "w", encoding="latin-1") as f:
+            f.write(text)
+        out = os.path.join(self.work, "out")
+        shutil.rmtree(out, ignore_errors=True)
+        rc, err = self.run([self.args.tacsim, "render", scene, "--out", out, "--frames", "2",
+                            "-q", "--threads", "1"])
+        self.judge("scene", case, rc, err, [scene], [scene])
+        os.remove(scene)
+
+    def fuzz_mesh(self, case, rng, boxes, glb):
+        kind = rng.choice(list(boxes) + ["glb"] * 3)
+        if kind == "glb":
+            ext, data, depth = "glb", mutate_glb(glb[0], glb[1], rng), 0.0095
+        else:
+            ext, good, is_text = boxes[kind]
+            data = mutate_bytes(good, rng, TEXT_ALPHABET if is_text else None)
+            depth = 0.0045  # the box's centre: 0.5 mm into the gel
+        mesh = os.path.join(self.work, f"mesh_{case}.{ext}")
+        with open(mesh, "wb") as f:
+            f.write(data)
+        scene = os.path.join(self.work, f"mesh_{case}.json")
+        with open(scene, "w") as f:
+            json.dump({"frames": 1, "sensors": [{"name": "digit", "sensor": {"preset": "digit"}}],
+                       "objects": [{"name": "part", "mesh": mesh, "pose": {
+                           "position": [0, 0, depth], "rpy": [0.02, 0.01, 0.3]}}],
+                       "render": {"outputs": ["color", "normal", "depth", "mask"], "seed": 1}},
+                      f)
+        out = os.path.join(self.work, "out")
+        shutil.rmtree(out, ignore_errors=True)
+        rc, err = self.run([self.args.tacsim, "render", scene, "--out", out, "-q", "--threads",
+                            "1"])
+        self.judge("mesh", case, rc, err, [mesh], [mesh, scene])
+        os.remove(mesh)
+        os.remove(scene)
+
+    def track(self, kind, case, dataset, extra, names, keep):
+        out = os.path.join(self.work, "out")
+        shutil.rmtree(out, ignore_errors=True)
+        method = ["patchgraph", "patchgraph", "gtpatch", "imagetoimage", "constvel"][case % 5]
+        rc, err = self.run([self.args.patchgraph, "track", dataset, "--method", method, "--out",
+                            out, "-q"] + extra)
+        self.judge(kind, case, rc, err, names, keep, result_dir=out)
+
+    def fuzz_dataset(self, case, rng):
+        base = self.base_dataset()
+        dataset = os.path.join(self.work, f"dataset_{case}")
+        shutil.copytree(base, dataset)
+        extra = []
+        what = rng.choice(["dataset.json", "poses.csv", "frame", "frame", "frame"])
+        if what == "dataset.json":
+            path = os.path.join(dataset, "dataset.json")
+            with open(path) as f:
+                doc = json.load(f)
+            with open(path, "w") as f:
+                json.dump(mutate_json(doc, rng), f)
+        elif what == "poses.csv":
+            path = os.path.join(dataset, "poses.csv")
+            with open(path) as f:
+                text = f.read()
+            with open(path, "w") as f:
+                f.write(mutate_csv(text, rng))
+        else:
+            folder = rng.choice(["color", "normal", "normal"])
+            name = rng.choice(sorted(os.listdir(os.path.join(dataset, folder))))
+            mutate_image(os.path.join(dataset, folder, name), rng, base)
+            if folder == "color":
+                extra = ["--normals", os.path.join(REPO, "models", "normals_unet.pt")]
+        self.track("dataset", case, dataset, extra, [dataset], [dataset])
+        shutil.rmtree(dataset)
+
+    def fuzz_config(self, case, rng, config):
+        base = self.base_dataset()
+        if rng.random() < 0.7:
+            path = os.path.join(self.work, f"config_{case}.json")
+            doc = mutate_json(config, rng) if rng.random() < 0.5 else rescale_json(config, rng)
+            with open(path, "w") as f:
+                json.dump({k: v for k, v in doc.items() if rng.random() < 0.7}, f)
+            extra = ["--config", path]
+        else:
+            path = os.path.join(self.work, f"model_{case}.pt")
+            with open(os.path.join(REPO, "models", rng.choice(["normals_unet.pt",
+                                                                "normals_mlp.pt"])), "rb") as f:
+                data = f.read()
+            with open(path, "wb") as f:
+                f.write(mutate_bytes(data, rng) if rng.random() < 0.9 else b"")
+            extra = ["--normals", path]
+        self.track("config", case, base, extra, [path], [path])
+        os.remove(path)
+
+
+def rescale_json(doc, rng):
+    """Numbers scaled and booleans flipped: mostly valid settings, at their ranges' ends."""
+    doc = copy.deepcopy(doc)
+    for path, value in list(json_nodes(doc)):
+        if not path or rng.random() > 0.3:
+            continue
+        parent, key = json_get(doc, path[:-1]), path[-1]
+        if isinstance(value, bool):
+            parent[key] = not value
+        elif isinstance(value, int):
+            parent[key] = int(value * rng.choice([0, 0.5, 2, 10, 1000]))
+        elif isinstance(value, float):
+            parent[key] = value * rng.choice([0, 0.01, 0.1, 0.5, 2, 10, 100])
+    return doc
+
+
+def mutate_csv(text, rng):
+    lines = text.splitlines()
+    r = rng.random()
+    if r < 0.15:
+        lines = lines[: rng.randrange(len(lines))]
+    elif r < 0.25:
+        del lines[rng.randrange(1, len(lines))]
+    else:
+        for _ in range(rng.randint(1, 3)):
+            i = rng.randrange(len(lines))
+            cells = lines[i].split(",")
+            cells[rng.randrange(len(cells))] = rng.choice(
+                ["nan", "inf", "-inf", "", "1e308", "0", "-1", "x", "1,2", "\"3\"", "0.5",
+                 "99999999999"])
+            lines[i] = ",".join(cells)
+    return "\n".join(lines) + "\n"
+
+
+def mutate_image(path, rng, base):
+    r = rng.random()
+    if r < 0.15:
+        os.remove(path)
+        return
+    if r < 0.3:  # another output's file, or a real image of another size, in its place
+        source = rng.choice([os.path.join(base, "color", "000000.png"),
+                             os.path.join(base, "normal", "000000.exr"),
+                             os.path.join(base, "background.png"),
+                             os.path.join(REPO, "..", "shared", "data", "digit",
+                                          "bg_digit_240_320.jpg")])
+        if os.path.exists(source):
+            shutil.copy(source, path)
+            return
+    with open(path, "rb") as f:
+        data = f.read()
+    with open(path, "wb") as f:
+        f.write(mutate_bytes(data, rng) if r < 0.95 else b"")
+
+
+TRACK_CONFIG = {
+    "depth": {"min_normal_dot_ray": 0.2, "disturbed_angle_rad": 0.005, "crop": True,
+              "crop_margin_px": 4, "dst_backend": "real_fft", "integration": "parity"},
+    "mask": {"min_depth_m": 1e-4, "relative_depth": 0, "core_relative_depth": 0.2},
+    "icp": {"max_iterations": 30, "max_correspondence_m": 1e-3, "kernel": "huber",
+            "kernel_scale_m": 1e-4, "symmetric": True, "convergence_translation_m": 1e-7,
+            "convergence_rotation_rad": 1e-6, "min_points": 20, "voxel_size_m": 0,
+            "coarse_points": 128, "coarse_step_m": 2e-6, "min_eigenvalue_ratio": 5e-3,
+            "flat_radius_m": 0, "min_residual_sigma_m": 1e-5}}
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--tacsim", required=True)
+    parser.add_argument("--patchgraph", required=True)
+    parser.add_argument("--work", required=True, help="scratch folder (emptied first)")
+    parser.add_argument("--cases", type=int, default=40, help="cases per kind (default 40)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--kinds", default="scene,mesh,dataset,config")
+    parser.add_argument("--timeout", type=float, default=60, help="seconds per run")
+    parser.add_argument("--verbose", action="store_true", help="one line per case")
+    args = parser.parse_args()
+    kinds = args.kinds.split(",")
+    unknown = set(kinds) - {"scene", "mesh", "dataset", "config"}
+    if unknown:
+        parser.error("unknown kinds: " + ", ".join(sorted(unknown)))
+
+    fuzzer = Fuzzer(args)
+    seeds = fuzzer.scene_seeds() if "scene" in kinds else None
+    boxes = box_files()
+    with open(os.path.join(REPO, "meshes", "cube.glb"), "rb") as f:
+        glb = split_glb(f.read())
+    for case in range(args.cases):
+        for kind in kinds:
+            rng = random.Random(f"{args.seed}:{kind}:{case}")
+            if kind == "scene":
+                fuzzer.fuzz_scene(case, rng, seeds)
+            elif kind == "mesh":
+                fuzzer.fuzz_mesh(case, rng, boxes, glb)
+            elif kind == "dataset":
+                fuzzer.fuzz_dataset(case, rng)
+            else:
+                fuzzer.fuzz_config(case, rng, TRACK_CONFIG)
+        done = case + 1
+        if done % 10 == 0 or done == args.cases:
+            print(f"{done}/{args.cases} cases per kind, {len(fuzzer.failures)} failing",
+                  flush=True)
+
+    for kind in kinds:
+        c = fuzzer.counts.get(kind, {"used": 0, "refused": 0})
+        print(f"{kind}: {c['used']} used, {c['refused']} refused")
+        # Mutations that no longer reach the readers (every case refused at the same gate, or
+        # none) would make this test pass on nothing: both outcomes must occur.
+        if args.cases >= 20 and (c["used"] == 0 or c["refused"] < args.cases // 4):
+            fuzzer.failures.append(f"{kind}: {c['used']} used and {c['refused']} refused of "
+                                   f"{args.cases}: the mutations no longer exercise the reader")
+    for failure in fuzzer.failures:
+        print("FAIL", failure)
+    return 1 if fuzzer.failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
