@@ -259,8 +259,8 @@ std::vector<std::string> JsonFields::convert<std::vector<std::string>>(
   std::vector<std::string> out;
   for (std::size_t i = 0; i < v.size(); ++i) {
     if (!v[i].is_string()) {
-      throw InputError(field(key) + ": expected an array of strings, element " +
-                       std::to_string(i) + " is " + json_type_name(v[i]));
+      throw InputError(field(key) + ": expected an array of strings, element " + std::to_string(i) +
+                       " is " + json_type_name(v[i]));
     }
     out.push_back(v[i].get<std::string>());
   }
