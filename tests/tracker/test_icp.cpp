@@ -480,7 +480,7 @@ TEST(IcpInformation, HessianIsInTheSourceFrameTangentAndMatchesTheJacobians) {
   const PointCloud source = transform_cloud(truth.inverse(), target);
   IcpOptions options;
   options.kernel = RobustKernel::kNone;
-  // Target normals alone, as the sum below (the symmetric objective's is checked below).
+  // Target normals alone, as the sum below uses (the next test checks the symmetric objective).
   options.symmetric = false;
   const IcpResult r = PointToPlaneIcp(options).align(source, tree, SE3::Identity());
   ASSERT_TRUE(r.converged);
