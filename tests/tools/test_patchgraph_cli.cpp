@@ -2455,12 +2455,15 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     given << "frame,u_px,v_px,radius_px\n0,,,\n1," << rows[2][3] << "," << rows[2][4] << ","
           << std::stod(rows[2][5]) + 2 << "\n";
   }
-  const CliRun by_hand =
-      patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
-                 out("balls_by_hand") + " --circles " + out("circles_given.csv"));
-  ASSERT_EQ(by_hand.code, 0) << by_hand.out;
-  EXPECT_NE(by_hand.out.find("19 presses labelled"), std::string::npos) << by_hand.out;
-  EXPECT_NE(by_hand.out.find("1 without contact"), std::string::npos) << by_hand.out;
+  // label-ball with the circles of `csv` into `name`: frame 0 without a press, 19 pressed.
+  const auto label_with_circles = [&](const std::string& csv, const std::string& name) {
+    const CliRun run = patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
+                                  out(name) + " --circles " + csv);
+    ASSERT_EQ(run.code, 0) << run.out;
+    EXPECT_NE(run.out.find("19 presses labelled"), std::string::npos) << run.out;
+    EXPECT_NE(run.out.find("1 without contact"), std::string::npos) << run.out;
+  };
+  ASSERT_NO_FATAL_FAILURE(label_with_circles(out("circles_given.csv"), "balls_by_hand"));
   const Dataset hand = Dataset::open(out("balls_by_hand"));
   EXPECT_EQ(contact_pixels(hand.mask(0)), 0);
   EXPECT_GT(contact_pixels(hand.mask(1)), contact_pixels(labelled.mask(1)));
@@ -2485,12 +2488,7 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
            << "\n";
     }
   }
-  const CliRun given_back =
-      patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
-                 out("balls_given_back") + " --circles " + out("circles_back.csv"));
-  ASSERT_EQ(given_back.code, 0) << given_back.out;
-  EXPECT_NE(given_back.out.find("19 presses labelled"), std::string::npos) << given_back.out;
-  EXPECT_NE(given_back.out.find("1 without contact"), std::string::npos) << given_back.out;
+  ASSERT_NO_FATAL_FAILURE(label_with_circles(out("circles_back.csv"), "balls_given_back"));
 
   const auto refused = [&](const std::string& args, int code, const std::string& text) {
     fs::remove_all(out("balls_bad"));
