@@ -177,6 +177,27 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
 // gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
 // 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
 // (it had sampled gigabytes, and the per-triangle count overflowed further up).
+// A whole-number option given a fraction, an exponent, a number past its type or a word is
+// refused naming the option and what it takes (CLI11 had said "Could not convert: --epochs =
+// 1.5", its range checks having read the value as a floating-point number).
+TEST(PatchgraphOptions, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
+  for (const auto& [sub, options] : std::vector<std::pair<std::string, std::size_t>>{
+           {"track", 5},
+           {"eval", 5},
+           {"bench", 2},
+           {"train-normals", 10},
+           {"eval-normals", 2},
+           {"recording", 2}}) {
+    for (const std::string& problem :
+         testing_support::whole_number_options_refused(PATCHGRAPH_PATH, sub, options, 1)) {
+      ADD_FAILURE() << problem;
+    }
+  }
+  const CliRun r = patchgraph("train-normals --epochs 1.5");
+  EXPECT_EQ(r.out.rfind("error: --epochs: must be a whole number of at least 1, got 1.5\n", 0), 0u)
+      << r.out;
+}
+
 TEST_F(PatchgraphCli, GtpatchRefusesAnObjectTooLargeToModel) {
   const std::string copy = data_copy("huge_object");
   nlohmann::json info = parse_json_file(copy + "/dataset.json");

@@ -174,10 +174,31 @@ TEST(TacsimCli, WholeNumbersAreDecimal) {
   CliRun r = tacsim("presses " + kScenes + "../meshes/sphere_r6mm.glb --seed -1 --out " +
                     tmp.str("p.json"));
   EXPECT_EQ(r.code, 2);
-  EXPECT_NE(r.out.find("--seed: '-1' is negative"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("--seed: must be a whole number from 0 to 18446744073709551615, got -1"),
+            std::string::npos)
+      << r.out;
   r = tacsim("render " + scene + " -q --frames 4 --out " + tmp.str("o"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(Dataset::open(tmp.str("o")).frames(), 4);
+}
+
+// A whole-number option given a fraction, an exponent, a number past its type or a word is
+// refused naming the option and what it takes. CLI11 had said "Value 1.5 not in range 1 to
+// 10000000" of --frames, and "Could not convert: --repeats = 1e300" where its range check had
+// passed the value as a floating-point number.
+TEST(TacsimCli, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
+  for (const auto& [sub, options] : std::vector<std::pair<std::string, std::size_t>>{
+           {"render", 4}, {"bench", 3}, {"sheet", 3}, {"presses", 2}}) {
+    for (const std::string& problem :
+         testing_support::whole_number_options_refused(TACSIM_PATH, sub, options)) {
+      ADD_FAILURE() << problem;
+    }
+  }
+  const CliRun r = tacsim("render " + kScenes + "default.json --frames 1e300 --out x");
+  EXPECT_EQ(r.out.rfind("error: --frames: must be a whole number from 1 to 10000000, got 1e300\n",
+                        0),
+            0u)
+      << r.out;
 }
 
 // A pose list longer than the scene's frames is said to be cut short (a frames not updated after

@@ -47,8 +47,15 @@ inline const CLI::Validator kPositive = number_check(false);
 // A number from `low` to `high` (or exactly 0 when `allow_zero`): "--vision-sigma: must be from
 // 1e-12 to 1000, got 1e-300"; the help shows "FLOAT:1e-12 to 1000".
 inline CLI::Validator range_check(double low, double high, bool allow_zero = false) {
-  char range[96];
-  std::snprintf(range, sizeof range, "%g to %g%s", low, high, allow_zero ? " (or 0)" : "");
+  // Whole bounds written out ("1 to 10000000", not "1 to 1e+07"), others as %g ("1e-12 to 1000").
+  const auto whole = [](double v) { return v == std::floor(v) && std::fabs(v) < 1e15; };
+  const char* format = whole(low) && whole(high) ? "%.0f" : "%g";
+  const auto bound = [format](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, format, v);
+    return std::string(text);
+  };
+  const std::string range = bound(low) + " to " + bound(high) + (allow_zero ? " (or 0)" : "");
   return CLI::Validator(
       [=](std::string& text) -> std::string {
         double value = 0;
@@ -125,16 +132,9 @@ inline std::string format_number(double value, const char* format = "%g") {
   return text;
 }
 
-// A seed: a whole number from 0 to 2^64 - 1, written in decimal digits (CLI11 alone would take
-// "-1" or a number past the range as the largest seed).
-inline const CLI::Validator kSeed(
-    [](std::string& text) -> std::string {
-      const bool digits = !text.empty() && text.size() <= 20 &&
-                          text.find_first_not_of("0123456789") == std::string::npos;
-      if (digits && (text.size() < 20 || text <= "18446744073709551615")) return {};
-      return "must be a whole number from 0 to 18446744073709551615, got " + text;
-    },
-    "SEED");
+// A seed: a whole number from 0 to 2^64 - 1 (the help's "UINT:SEED"). The check itself is
+// whole_number_problem's, which run_cli puts in front of every whole-number option.
+inline const CLI::Validator kSeed("SEED");
 
 // Throws InputError when the output `out` (the option `out_what`: a folder or a file) is the
 // input `input` (`input_what`) or lies inside it: writing there would overwrite or mix into what
@@ -306,19 +306,72 @@ void as_usage_error(F&& check) {
   }
 }
 
-// Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
-// matching exit code.
+// What is wrong with `text` as the value of a whole-number option (empty if nothing): an empty
+// value, one not in plain decimal digits (CLI11 reads integers as C's strtoll does, so "010" was 8,
+// octal, and "0x10" 16), a negative one for an unsigned option (CLI11 wrapped "-1" of a seed to
+// 2^64 - 1), or one beyond the option's type (an `int`, or a 64-bit seed; CLI11 said "Could not
+// convert"). `range` is what the
+// option's help says of it ("1 to 256 (or 0)", "POSITIVE"), for the message.
+inline std::string whole_number_problem(const std::string& text, bool is_unsigned,
+                                        const std::string& range) {
+  if (text.empty()) return "an empty value";
+  const std::size_t sign = text[0] == '-' || text[0] == '+' ? 1 : 0;
+  const std::string digits = text.substr(sign);
+  const bool decimal =
+      !digits.empty() && digits.find_first_not_of("0123456789") == std::string::npos;
+  if (decimal && digits.size() > 1 && digits[0] == '0') {
+    return "'" + text +
+           "' is not a whole number in decimal digits (no leading zeros: 010 would read as "
+           "octal 8)";
+  }
+  const std::string largest = is_unsigned ? "18446744073709551615" : "2147483647";
+  const std::string smallest = is_unsigned ? "0" : "2147483648";  // without its sign
+  const bool negative = text[0] == '-';
+  const std::string& limit = negative ? smallest : largest;
+  const bool fits = decimal && (digits.size() < limit.size() ||
+                                (digits.size() == limit.size() && digits <= limit));
+  if (fits) return {};
+  // The range in words: "from 1 to 8", "in {1,2,4}", "of at least 1"; the type's own without one.
+  const bool bounded = range.find(" to ") != std::string::npos || range.find('{') == 0;
+  const std::string type_range =
+      "from " + std::string(is_unsigned ? "" : "-") + smallest + " to " + largest;
+  std::string words = range == "POSITIVE"          ? "of at least 1"
+                      : range == "NONNEGATIVE"     ? "of at least 0"
+                      : range.find("at least") == 0 ? "of " + range
+                      : range.find('{') == 0       ? "in " + range
+                      : bounded                    ? "from " + range
+                                                   : type_range;  // "", "SEED"
+  // A whole number past what the option's type holds, under a range with no upper bound.
+  if (decimal && !negative && !bounded && words != type_range) words += " and at most " + largest;
+  return "must be a whole number " + words + ", got " + text;
+}
+
+// Puts whole_number_problem's check in front of every whole-number option's own checks, in `app`
+// and its subcommands. CLI11 runs an option's checks before it converts the value, and theirs
+// read it as a floating-point number, so "1.5" or "1e300" passed a range check and failed the
+// conversion with CLI11's "Could not convert: --epochs = 1.5".
+inline void check_whole_numbers_first(CLI::App& app) {
+  for (CLI::Option* option : app.get_options()) {
+    const std::string full_type = option->get_type_name();  // "INT:1 to 256 (or 0)"
+    const std::size_t colon = full_type.find(':');
+    const std::string type = full_type.substr(0, colon);
+    if (type != "INT" && type != "UINT") continue;
+    const std::string range = colon == std::string::npos ? "" : full_type.substr(colon + 1);
+    option->transform(CLI::Validator(
+        [is_unsigned = type == "UINT", range](std::string& text) {
+          return whole_number_problem(text, is_unsigned, range);
+        },
+        ""));
+  }
+  for (CLI::App* sub : app.get_subcommands({})) check_whole_numbers_first(*sub);
+}
+
 // Throws CLI::ValidationError for an option or argument given as an empty string (`--out ""`,
 // a shell variable that was never set): no option of these tools means anything by it, and a
-// file named "" fails later with a message that names nothing. And for a whole number that is
-// not plain decimal: CLI11 reads integers as C's strtoll does, so "010" was 8 (octal), "0x10"
-// 16, and "-1" of an unsigned option (a seed) 18446744073709551615, each without a word.
+// file named "" fails later with a message that names nothing. (Whole numbers were checked
+// before their conversion: check_whole_numbers_first.)
 inline void check_values(const CLI::App& app) {
   for (const CLI::Option* option : app.get_options()) {
-    const std::string full_type = option->get_type_name();  // "INT:range..." with a check
-    const std::string type = full_type.substr(0, full_type.find(':'));
-    const bool is_unsigned = type == "UINT";
-    const bool is_integer = is_unsigned || type == "INT";
     for (const std::string& value : option->results()) {
       if (value.empty() && option->get_expected_min() > 0) {
         throw CLI::ValidationError(option->get_name(), "an empty value");
@@ -331,21 +384,6 @@ inline void check_values(const CLI::App& app) {
             option->get_name(),
             "'" + value + "' is an option, not a value: give " + option->get_name() + " its value");
       }
-      if (!is_integer || value.empty()) continue;
-      const std::size_t digits = value[0] == '-' || value[0] == '+' ? 1 : 0;
-      const bool decimal = digits < value.size() &&
-                           std::all_of(value.begin() + long(digits), value.end(),
-                                       [](char c) { return c >= '0' && c <= '9'; }) &&
-                           (value[digits] != '0' || value.size() == digits + 1);
-      if (!decimal) {
-        throw CLI::ValidationError(option->get_name(),
-                                   "'" + value +
-                                       "' is not a whole number in decimal digits "
-                                       "(no leading zeros: 010 would read as octal 8)");
-      }
-      if (is_unsigned && value[0] == '-') {
-        throw CLI::ValidationError(option->get_name(), "'" + value + "' is negative");
-      }
     }
   }
   for (const CLI::App* sub : app.get_subcommands()) check_values(*sub);
@@ -357,6 +395,8 @@ inline int usage_error(const char* what) {
   return kExitUsage;
 }
 
+// Parses argv into `app` and runs `body`; turns every error into a message on stderr and the
+// matching exit code.
 inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int()>& body) {
   // A first word that names no subcommand (a typo, a subcommand of the other tool): said so, where
   // CLI11 says only that a subcommand is required.
@@ -375,6 +415,7 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
   // --version: the project's version (tools/CMakeLists.txt gives it).
   app.set_version_flag("--version",
                        std::filesystem::path(argv[0]).filename().string() + " " + PG_VERSION);
+  check_whole_numbers_first(app);
   try {
     app.parse(argc, argv);
     check_values(app);

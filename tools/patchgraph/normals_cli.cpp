@@ -43,13 +43,13 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
   CLI::Option* depth =
       cmd->add_option("--depth", o.spec.depth,
                       "unet: down-sampling levels (default 5); resnet: residual blocks")
-          ->check(CLI::Range(1, kMaxNetworkDepth));
+          ->check(range_check(1, kMaxNetworkDepth));
   CLI::Option* width = cmd->add_option("--width", o.spec.base_width,
                                        "unet, resnet: channels of the first layer (default 16)")
-                           ->check(CLI::Range(1, kMaxBaseWidth));
+                           ->check(range_check(1, kMaxBaseWidth));
   CLI::Option* hidden =
       cmd->add_option("--hidden", o.spec.mlp_hidden, "mlp: hidden layer width (default 32)")
-          ->check(CLI::Range(1, kMaxMlpHidden));
+          ->check(range_check(1, kMaxMlpHidden));
   cmd->add_option("--init", o.init_model,
                   "Fine-tune: start from this model's weights, network and input normalisation "
                   "(e.g. the default model, on a real sensor's ball-press labels)")

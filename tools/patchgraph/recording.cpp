@@ -737,7 +737,7 @@ CLI::App* add_recording_command(CLI::App& app, RecordingArgs& a) {
                   "it is the time column's and --fps, if given, must agree")
       ->check(range_check(1e-6, 1e6));  // the range dataset.json's fps is read in
   cmd->add_option("--downsample", a.downsample, "Average N x N pixel blocks (default 1)")
-      ->check(CLI::Range(1, 16));
+      ->check(range_check(1, 16));
   cmd->add_option("--rotate", a.rotate,
                   "Turn each image clockwise by 90, 180 or 270 degrees first (a camera driver's "
                   "landscape frames of a portrait sensor; default 0)")

@@ -332,9 +332,9 @@ int run_info(const std::string& dir, bool check) {
 // would stretch the pixels.
 void add_image_size_options(CLI::App& cmd, int& width, int& height, const std::string& what) {
   CLI::Option* w = cmd.add_option("--width", width, "Override " + what + " width [px]")
-                       ->check(CLI::Range(kMinImageSide, kMaxImageSide));
+                       ->check(range_check(kMinImageSide, kMaxImageSide));
   CLI::Option* h = cmd.add_option("--height", height, "Override " + what + " height [px]")
-                       ->check(CLI::Range(kMinImageSide, kMaxImageSide));
+                       ->check(range_check(kMinImageSide, kMaxImageSide));
   w->needs(h);
   h->needs(w);
 }
@@ -373,7 +373,7 @@ int main(int argc, char** argv) {
   cmd_render
       ->add_option("--frames", render.frames,
                    "Render only the scene's first N frames (a quick run of a long scene)")
-      ->check(CLI::Range(1, 10000000));
+      ->check(range_check(1, 10000000));
   cmd_render->add_flag("--quiet,-q", render.quiet, "No progress line");
 
   std::string info_dir;
@@ -426,7 +426,7 @@ int main(int argc, char** argv) {
       ->required();
   cmd_presses->add_option("--out,-o", presses.out, "The scene file to write (JSON)")->required();
   cmd_presses->add_option("--frames", presses.frames, "Presses, one per frame (default 50)")
-      ->check(CLI::Range(1, 1000000));
+      ->check(range_check(1, 1000000));
   cmd_presses
       ->add_option("--min-depth", presses.min_depth_m,
                    "Shallowest press [m] (default a fifth of --max-depth: 0.0003 on a DIGIT)")
@@ -444,7 +444,8 @@ int main(int argc, char** argv) {
       ->excludes(preset);
   cmd_presses->add_option("--name", presses.name, "The object's name (default: the mesh's stem)");
   cmd_presses->add_option("--seed", presses.seed,
-                          "Seeds the presses and the scene's noise (default 1)");
+                          "Seeds the presses and the scene's noise (default 1)")
+      ->check(kSeed);
 
   return run_cli(app, argc, argv, [&]() -> int {
     if (cmd_presses->parsed()) return run_presses(presses);
