@@ -81,8 +81,8 @@ inline std::vector<std::string> whole_number_options_refused(const std::string& 
                        " whole-number options in its --help, expected at least " +
                        std::to_string(at_least) + ":\n" + help.out);
   }
-  const std::vector<std::string> values = {"1.5", "1e300", "18446744073709551616", "abc",
-                                           "-99999999999", "0x10", "1e-12"};
+  const std::vector<std::string> values = {
+      "1.5", "1e300", "18446744073709551616", "abc", "-99999999999", "0x10", "1e-12"};
   std::size_t next = 0;
   for (const std::string& option : options) {
     for (std::size_t k = 0; k < per_option; ++k) {

@@ -181,13 +181,13 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
 // refused naming the option and what it takes (CLI11 had said "Could not convert: --epochs =
 // 1.5", its range checks having read the value as a floating-point number).
 TEST(PatchgraphOptions, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
-  for (const auto& [sub, options] : std::vector<std::pair<std::string, std::size_t>>{
-           {"track", 5},
-           {"eval", 5},
-           {"bench", 2},
-           {"train-normals", 10},
-           {"eval-normals", 2},
-           {"recording", 2}}) {
+  for (const auto& [sub, options] :
+       std::vector<std::pair<std::string, std::size_t>>{{"track", 5},
+                                                        {"eval", 5},
+                                                        {"bench", 2},
+                                                        {"train-normals", 10},
+                                                        {"eval-normals", 2},
+                                                        {"recording", 2}}) {
     for (const std::string& problem :
          testing_support::whole_number_options_refused(PATCHGRAPH_PATH, sub, options, 1)) {
       ADD_FAILURE() << problem;

@@ -195,9 +195,8 @@ TEST(TacsimCli, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
     }
   }
   const CliRun r = tacsim("render " + kScenes + "default.json --frames 1e300 --out x");
-  EXPECT_EQ(r.out.rfind("error: --frames: must be a whole number from 1 to 10000000, got 1e300\n",
-                        0),
-            0u)
+  EXPECT_EQ(
+      r.out.rfind("error: --frames: must be a whole number from 1 to 10000000, got 1e300\n", 0), 0u)
       << r.out;
 }
 

@@ -335,12 +335,12 @@ inline std::string whole_number_problem(const std::string& text, bool is_unsigne
   const bool bounded = range.find(" to ") != std::string::npos || range.find('{') == 0;
   const std::string type_range =
       "from " + std::string(is_unsigned ? "" : "-") + smallest + " to " + largest;
-  std::string words = range == "POSITIVE"          ? "of at least 1"
-                      : range == "NONNEGATIVE"     ? "of at least 0"
+  std::string words = range == "POSITIVE"           ? "of at least 1"
+                      : range == "NONNEGATIVE"      ? "of at least 0"
                       : range.find("at least") == 0 ? "of " + range
-                      : range.find('{') == 0       ? "in " + range
-                      : bounded                    ? "from " + range
-                                                   : type_range;  // "", "SEED"
+                      : range.find('{') == 0        ? "in " + range
+                      : bounded                     ? "from " + range
+                                                    : type_range;  // "", "SEED"
   // A whole number past what the option's type holds, under a range with no upper bound.
   if (decimal && !negative && !bounded && words != type_range) words += " and at most " + largest;
   return "must be a whole number " + words + ", got " + text;

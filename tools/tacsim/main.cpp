@@ -443,8 +443,8 @@ int main(int argc, char** argv) {
   cmd_presses->add_option("--sensor-file", presses.sensor_file, "Sensor configuration file (JSON)")
       ->excludes(preset);
   cmd_presses->add_option("--name", presses.name, "The object's name (default: the mesh's stem)");
-  cmd_presses->add_option("--seed", presses.seed,
-                          "Seeds the presses and the scene's noise (default 1)")
+  cmd_presses
+      ->add_option("--seed", presses.seed, "Seeds the presses and the scene's noise (default 1)")
       ->check(kSeed);
 
   return run_cli(app, argc, argv, [&]() -> int {
