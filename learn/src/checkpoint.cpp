@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "pg/core/error.h"
+#include "pg/core/json_fields.h"
 #include "zip_check.h"
 
 namespace pg::learn {
@@ -82,7 +83,8 @@ void open_checkpoint(const std::string& checkpoint, Opened& c) {
   try {
     c.info = nlohmann::json::parse(text.toStringRef());
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
+    throw InputError(checkpoint + ": malformed checkpoint description: " +
+                     without_json_tag(e.what()));
   }
 }
 
@@ -228,10 +230,21 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
       c.archive.read("opt_d", sub);
       s.discriminator_optimizer->load(sub);
     }
+    // The archive's checksums hold, yet its weights may not fit the network or be numbers (a
+    // file written so by other means): training on would fail in Torch's words, or "diverge"
+    // at once and blame the learning rate.
+    std::string problem = weights_problem(*s.generator, *Generator(o.spec));
+    if (problem.empty() && gan) {
+      problem = weights_problem(**s.discriminator, *PatchDiscriminator(o.spec.base_width));
+    }
+    if (problem.empty()) problem = optimizer_state_problem(s.generator_optimizer);
+    if (problem.empty() && gan) problem = optimizer_state_problem(*s.discriminator_optimizer);
+    if (!problem.empty()) throw InputError(checkpoint + ": corrupt checkpoint: " + problem);
   } catch (const InputError&) {
     throw;
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(checkpoint + ": malformed checkpoint description: " + e.what());
+    throw InputError(checkpoint + ": malformed checkpoint description: " +
+                     without_json_tag(e.what()));
   } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
     throw InputError(checkpoint + ": corrupt checkpoint");
   }

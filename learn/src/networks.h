@@ -71,6 +71,15 @@ torch::Tensor as_predicted(const torch::Tensor& raw);
 void save_archive(torch::serialize::OutputArchive& archive, const std::string& path,
                   const std::string& what);
 
+// What is wrong with the weights `loaded` read from a file, against `described`, a fresh module of
+// the network the file says it holds: a parameter or buffer missing or of another shape (Torch's
+// load takes each stored tensor as it is, whatever its shape), or values that are not finite
+// numbers. Empty when nothing. For the loaders' errors ("PATH: corrupt model file: " + it).
+std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Module& described);
+// The same for an Adam optimizer's state read from a file: each moment of the shape of its
+// parameter, and finite.
+std::string optimizer_state_problem(torch::optim::Adam& optimizer);
+
 // Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
 void save_model(const std::string& path, Generator& generator, const NormalModelInfo& info);
 // Throws InputError naming the path.

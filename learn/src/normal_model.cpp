@@ -12,6 +12,7 @@
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/gel_rays.h"
+#include "pg/core/json_fields.h"
 #include "pg/core/statistics.h"
 #include "zip_check.h"
 
@@ -54,7 +55,7 @@ nlohmann::json info_to_json(const NormalModelInfo& info) {
   return j;
 }
 
-NormalModelInfo info_from_json(const nlohmann::json& j) {
+NormalModelInfo info_from_json(const nlohmann::json& j, const std::string& path) {
   NormalModelInfo info;
   info.spec.arch = j.at("arch").get<std::string>();
   info.spec.depth = j.at("depth").get<int>();
@@ -88,7 +89,7 @@ NormalModelInfo info_from_json(const nlohmann::json& j) {
   info.gel_relative = labels == "gel";
   info.sensor_known = j.contains("sensor");
   if (info.sensor_known || info.gel_relative) {
-    info.sensor = sensor_from_json(j.at("sensor"), "model sensor");
+    info.sensor = sensor_from_json(j.at("sensor"), path + ": sensor");
   }
   if (j.contains("backgrounds")) {
     info.backgrounds = j.at("backgrounds").get<std::vector<std::string>>();
@@ -209,6 +210,39 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
   write_text_atomically(path, bytes.str(), what);
 }
 
+std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Module& described) {
+  for (const bool buffers : {false, true}) {
+    const auto want = buffers ? described.named_buffers() : described.named_parameters();
+    const auto got = buffers ? loaded.named_buffers() : loaded.named_parameters();
+    for (const auto& item : want) {
+      const torch::Tensor* t = got.find(item.key());
+      if (!t) return item.key() + " is missing";
+      if (t->sizes() != item.value().sizes()) return item.key() + " has another shape";
+      if (t->is_floating_point() && !torch::isfinite(*t).all().item<bool>()) {
+        return item.key() + " holds numbers that are not finite";
+      }
+    }
+  }
+  return {};
+}
+
+std::string optimizer_state_problem(torch::optim::Adam& optimizer) {
+  for (const auto& group : optimizer.param_groups()) {
+    for (const torch::Tensor& p : group.params()) {
+      const auto it = optimizer.state().find(c10::guts::to_string(p.unsafeGetTensorImpl()));
+      if (it == optimizer.state().end()) continue;  // no step taken for it yet
+      const auto& state = static_cast<const torch::optim::AdamParamState&>(*it->second);
+      for (const torch::Tensor* moment : {&state.exp_avg(), &state.exp_avg_sq()}) {
+        if (moment->sizes() != p.sizes()) return "an optimizer moment has another shape";
+        if (!torch::isfinite(*moment).all().item<bool>()) {
+          return "an optimizer moment holds numbers that are not finite";
+        }
+      }
+    }
+  }
+  return {};
+}
+
 namespace {
 
 // The description's numbers within what train-normals makes (a depth of 0 had crashed the
@@ -268,9 +302,9 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
                      std::string(kFormat) + "')");
   }
   try {
-    info = info_from_json(nlohmann::json::parse(text.toStringRef()));
+    info = info_from_json(nlohmann::json::parse(text.toStringRef()), path);
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(path + ": malformed model description: " + e.what());
+    throw InputError(path + ": malformed model description: " + without_json_tag(e.what()));
   }
   check_description(info, path);
   Generator generator(nullptr);
@@ -287,29 +321,16 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
   }
-  // Torch's load takes each stored tensor as it is, whatever its shape: weights of another
-  // width under a description that says this one ran as that network, described wrongly.
-  const Generator described(info.spec);
-  for (const bool buffers : {false, true}) {
-    const auto want = buffers ? described->named_buffers() : described->named_parameters();
-    const auto got = buffers ? generator->named_buffers() : generator->named_parameters();
-    for (const auto& item : want) {
-      const torch::Tensor* t = got.find(item.key());
-      if (t && t->sizes() == item.value().sizes()) continue;
-      throw InputError(path + ": the weights do not match the network it describes (" +
-                       info.spec.arch + ", depth " + std::to_string(info.spec.depth) + ", width " +
-                       std::to_string(info.spec.base_width) + "): " + item.key() +
-                       " has another shape");
-    }
-  }
-  // Checked again after the checksums: weights that are not finite (a file written so by a
-  // diverged run of some other tool) would turn every prediction into noise.
-  for (const auto& list : {generator->parameters(), generator->buffers()}) {
-    for (const torch::Tensor& t : list) {
-      if (!torch::isfinite(t).all().item<bool>()) {
-        throw InputError(path + ": corrupt model file: weights that are not finite numbers");
-      }
-    }
+  // A description that says this one ran as that network, described wrongly; or weights written
+  // so by a diverged run of some other tool, that would turn every prediction into noise.
+  if (const std::string problem = weights_problem(*generator, *Generator(info.spec));
+      !problem.empty()) {
+    const bool numbers = problem.find("not finite") != std::string::npos;
+    throw InputError(path + (numbers ? ": corrupt model file: " + problem
+                                     : ": the weights do not match the network it describes (" +
+                                           info.spec.arch + ", depth " +
+                                           std::to_string(info.spec.depth) + ", width " +
+                                           std::to_string(info.spec.base_width) + "): " + problem));
   }
   generator->eval();
   return generator;

@@ -377,10 +377,16 @@ void train_normals(const TrainOptions& options,
   const std::string checkpoint = o.out + ".ckpt";
   // Diverged (a learning rate too high for the data, or data out of range): stopped before a
   // NaN network is written as a model.
+  int first_epoch = 0;
   const auto diverged = [&](int epoch, const std::string& what) {
+    // In the first epoch after a resume, the checkpoint's own numbers are as likely a cause (a
+    // file damaged under mended checksums, weights of 1e30) as the settings it was trained with.
+    const bool at_resume = o.resume && epoch == first_epoch;
     throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) + ", " + what +
-                             (mlp ? " (try a lower --lr or --contact-weight); "
-                                  : " (try a lower --lr or lower loss weights); ") +
+                             (at_resume ? " (the first epoch after resuming " + checkpoint +
+                                              ": is it damaged? or try a lower --lr); "
+                              : mlp     ? " (try a lower --lr or --contact-weight); "
+                                        : " (try a lower --lr or lower loss weights); ") +
                              o.out + " not written" +
                              (fs::exists(checkpoint)
                                   ? "; " + checkpoint +
@@ -392,7 +398,7 @@ void train_normals(const TrainOptions& options,
   const std::string labels = labels_hash(train);
   learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
                              history, info.input_mean, info.input_std,     labels};
-  const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
+  first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =
       torch::tensor(std::vector<float>(info.input_mean.begin(), info.input_mean.end()))

@@ -3,13 +3,18 @@
 with a clear error: never a crash, a hang, a sanitizer report, an error that names no file, or a
 non-finite result. docs/stress.md, "Damaged inputs".
 
-Four kinds of input, each mutated from a good one by a seeded random generator:
+Six kinds of input, each mutated from a good one by a seeded random generator:
   scene    a scene file (JSON values replaced, scaled, removed, duplicated; the text cut or
            garbled), rendered with tacsim render
   mesh     a mesh file (glTF binary: its JSON's fields and its data; OBJ, STL and PLY, text and
            binary: bytes replaced, the file cut), rendered in a scene
   dataset  a rendered dataset (dataset.json, poses.csv, a frame's image), tracked
-  config   patchgraph track's --config and --normals MODEL files, tracked
+  config   patchgraph track's --config and --normals MODEL files (as a checkpoint below),
+           tracked
+  circles  label-ball's --circles file, the circles.csv a run writes and a user corrects by
+           hand (cells replaced, rows removed, the text cut or garbled), labelling six presses
+  checkpoint  train-normals' OUT.ckpt (bytes replaced, the file cut or emptied; or a tensor's
+           values or the pickled structure, the archive's checksums mended), resumed
 
 Usage: fuzz_inputs.py --tacsim PATH --patchgraph PATH --work DIR [--cases N] [--seed S]
                       [--kinds scene,mesh,...] [--timeout SECONDS]
@@ -36,7 +41,10 @@ ODD_VALUES = [0, -1, 1, 3, 0.5, -0.5, 1e-9, 1e-30, 1e30, 1e308, -1e308, 5e-324, 
 ODD_PATHS = ["", "/nonexistent/x.glb", "/tmp", "/dev/null", "../x", "/proc/self/status"]
 # Words in an error that come from a library or the language, not from the tools' own checks.
 VAGUE = ["basic_string", "bad_alloc", "json.exception", "std::", "vector::", "stoi", "stod",
-         "what()", "c10::", "terminate called"]
+         "what()", "c10::", "terminate called", "Could not convert"]
+# Cells of a circles file: statuses, and numbers a hand might type.
+CIRCLE_VALUES = ["found", "given", "no_press", "skipped", "none", "1000", "-5", "1e-9", "60.5",
+                 "0.0127", "1e3", "12,5"]
 
 
 # ----------------------------------------------------------------------------- JSON mutation
@@ -201,9 +209,11 @@ class Fuzzer:
         except subprocess.TimeoutExpired:
             return "timeout", []
 
-    def judge(self, kind, case, rc, err, names, keep, result_dir=None):
+    def judge(self, kind, case, rc, err, names, keep, result_check=None, refusal_check=None):
         """Records the case; `names` are the paths one of which an error must name; `keep` the
-        files to copy under failed/ when the case fails."""
+        files to copy under failed/ when the case fails; `result_check` says what is wrong with
+        the outputs of a run that exited 0, `refusal_check` with what a refusal left (each None
+        if nothing)."""
         text = "\n".join(err)
         last = err[-1] if err else ""
         problem = None
@@ -220,8 +230,10 @@ class Fuzzer:
             problem = "an error in a library's words"
         elif rc != 0 and not any(n in last for n in names):
             problem = "an error that names none of " + ", ".join(names)
-        elif rc == 0 and result_dir is not None:
-            problem = self.non_finite(result_dir)
+        elif rc == 0 and result_check is not None:
+            problem = result_check()
+        elif rc != 0 and refusal_check is not None:
+            problem = refusal_check()
         if self.args.verbose:
             print(f"{kind} {case}: exit {rc}: {last[:200]}")
         counts = self.counts.setdefault(kind, {"used": 0, "refused": 0})
@@ -252,6 +264,21 @@ class Fuzzer:
                 if number > 1 and any(c.strip().lower() in ("nan", "inf", "-inf")
                                       for c in line.split(",")):
                     return f"poses.csv line {number} is not finite"
+        return None
+
+    @staticmethod
+    def labels_not_finite(out):
+        """What is wrong with label-ball's outputs: its circles.csv and poses.csv must hold only
+        finite numbers."""
+        for name in ("circles.csv", "poses.csv"):
+            path = os.path.join(out, name)
+            if not os.path.exists(path):
+                return f"exit 0 without {name}"
+            with open(path) as f:
+                for number, line in enumerate(f, 1):
+                    if any(c.strip().lower() in ("nan", "-nan", "inf", "-inf")
+                           for c in line.split(",")):
+                        return f"{name} line {number} is not finite"
         return None
 
     # --------------------------------------------------------------------------- the kinds
@@ -337,7 +364,7 @@ class Fuzzer:
         method = ["patchgraph", "patchgraph", "gtpatch", "imagetoimage", "constvel"][case % 5]
         rc, err = self.run([self.args.patchgraph, "track", dataset, "--method", method, "--out",
                             out, "-q"] + extra)
-        self.judge(kind, case, rc, err, names, keep, result_dir=out)
+        self.judge(kind, case, rc, err, names, keep, result_check=lambda: self.non_finite(out))
 
     def fuzz_dataset(self, case, rng):
         base = self.base_dataset()
@@ -380,11 +407,146 @@ class Fuzzer:
                                                                 "normals_mlp.pt"])), "rb") as f:
                 data = f.read()
             with open(path, "wb") as f:
-                f.write(mutate_bytes(data, rng) if rng.random() < 0.9 else b"")
+                f.write(mutate_checkpoint(data, rng))
             extra = ["--normals", path]
         self.track("config", case, base, extra, [path], [path])
         os.remove(path)
 
+    def base_circles(self):
+        """A render of six ball presses (colour only, as a real sensor records them) and the
+        circles.csv label-ball finds in it."""
+        balls = os.path.join(self.work, "balls")
+        if not os.path.exists(balls):
+            labelled = os.path.join(self.work, "balls_labelled")
+            for command in ([self.args.tacsim, "render", os.path.join(REPO, "scenes", "normals",
+                             "ball_val.json"), "--outputs", "color", "--frames", "6", "--out",
+                             balls, "-q"],
+                            [self.args.patchgraph, "label-ball", balls, "--diameter", "0.0127",
+                             "--out", labelled, "-q"]):
+                rc, err = self.run(command, timeout=300)
+                if rc != 0:
+                    sys.exit("fuzz_inputs: could not make the ball presses: " + "\n".join(err))
+            with open(os.path.join(labelled, "circles.csv")) as f:
+                self.circles_text = f.read()
+            shutil.rmtree(labelled)
+        return balls, self.circles_text
+
+    def fuzz_circles(self, case, rng):
+        balls, text = self.base_circles()
+        path = os.path.join(self.work, f"circles_{case}.csv")
+        if rng.random() < 0.85:
+            damaged = mutate_csv(text, rng, CIRCLE_VALUES)
+        else:
+            damaged = mutate_bytes(text.encode(), rng, TEXT_ALPHABET).decode("latin-1")
+        with open(path, "w", encoding="latin-1") as f:
+            f.write(damaged)
+        out = os.path.join(self.work, "out")
+        shutil.rmtree(out, ignore_errors=True)
+        rc, err = self.run([self.args.patchgraph, "label-ball", balls, "--diameter", "0.0127",
+                            "--circles", path, "--out", out, "-q"])
+        self.judge("circles", case, rc, err, [path], [path],
+                   result_check=lambda: self.labels_not_finite(out))
+        os.remove(path)
+
+    def base_checkpoint(self):
+        """The bytes of train-normals' checkpoint after one epoch of a small U-Net on the ball
+        presses, and the labelled presses it trained on."""
+        labelled = os.path.join(self.work, "balls_labels")
+        if not os.path.exists(labelled):
+            balls, _ = self.base_circles()
+            model = os.path.join(self.work, "ckpt_base", "m.pt")
+            for command in ([self.args.patchgraph, "label-ball", balls, "--diameter", "0.0127",
+                             "--out", labelled, "-q"],
+                            [self.args.patchgraph, "train-normals", "--data", labelled,
+                             "--epochs", "1", "--depth", "3", "--width", "4", "--threads", "1",
+                             "--out", model, "-q"]):
+                rc, err = self.run(command, timeout=300)
+                if rc != 0:
+                    sys.exit("fuzz_inputs: could not make the checkpoint: " + "\n".join(err))
+            with open(model + ".ckpt", "rb") as f:
+                self.checkpoint_bytes = f.read()
+            shutil.rmtree(os.path.dirname(model))
+        return labelled, self.checkpoint_bytes
+
+    def fuzz_checkpoint(self, case, rng):
+        labelled, good = self.base_checkpoint()
+        folder = os.path.join(self.work, f"checkpoint_{case}")
+        os.makedirs(folder)
+        model = os.path.join(folder, "m.pt")
+        damaged = mutate_checkpoint(good, rng)
+        with open(model + ".ckpt", "wb") as f:
+            f.write(damaged)
+
+        def kept():  # a refused checkpoint stays as it was, for the user to look at
+            if not os.path.exists(model + ".ckpt"):
+                return "the refused checkpoint was removed"
+            with open(model + ".ckpt", "rb") as f:
+                return None if f.read() == damaged else "the refused checkpoint was changed"
+
+        rc, err = self.run([self.args.patchgraph, "train-normals", "--data", labelled,
+                            "--epochs", "2", "--depth", "3", "--width", "4", "--threads", "1",
+                            "--resume", "--out", model, "-q"])
+        self.judge("checkpoint", case, rc, err, [model + ".ckpt"], [folder], refusal_check=kept)
+        shutil.rmtree(folder)
+
+
+def zip_entry_replaced(data, name, new):
+    """The zip file `data` with the stored (uncompressed) entry `name` replaced by `new`, of the
+    same length, and its CRC-32 mended in the local header and the central directory: damage
+    the archive's checksums do not show, for the reader behind them to meet."""
+    import zipfile, io, zlib
+    info = zipfile.ZipFile(io.BytesIO(data)).getinfo(name)
+    assert info.compress_type == zipfile.ZIP_STORED and len(new) == info.file_size
+    b = bytearray(data)
+    local = info.header_offset
+    name_len, extra_len = struct.unpack_from("<HH", b, local + 26)
+    start = local + 30 + name_len + extra_len
+    b[start:start + len(new)] = new
+    crc = zlib.crc32(new) & 0xFFFFFFFF
+    struct.pack_into("<I", b, local + 14, crc)
+    central = b.find(b"PK\x01\x02", start + len(new))
+    while central >= 0:
+        entry_name_len = struct.unpack_from("<H", b, central + 28)[0]
+        if bytes(b[central + 46:central + 46 + entry_name_len]) == name.encode():
+            struct.pack_into("<I", b, central + 16, crc)
+            break
+        central = b.find(b"PK\x01\x02", central + 46)
+    return bytes(b)
+
+
+def mutate_checkpoint(data, rng):
+    """A checkpoint's or a model file's bytes damaged: anywhere (the archive's checksums refuse it), or one
+    tensor's values or the pickled structure with the checksums mended."""
+    import zipfile, io
+    r = rng.random()
+    if r < 0.4:
+        return mutate_bytes(data, rng) if rng.random() < 0.9 else b""
+    names = zipfile.ZipFile(io.BytesIO(data)).namelist()
+    if r < 0.75:
+        name = rng.choice([n for n in names if "/data/" in n])
+        old = zipfile.ZipFile(io.BytesIO(data)).read(name)
+        values = [struct.pack("<f", v) for v in (float("nan"), float("inf"), -float("inf"),
+                                                 1e30, -1e30, 0.0)]
+        new = bytearray(old)
+        for _ in range(rng.randint(1, max(1, len(old) // 4))):
+            i = 4 * rng.randrange(max(1, len(old) // 4))
+            new[i:i + 4] = rng.choice(values)[: len(old) - i]
+        r = rng.random()
+        if r < 0.3:  # small finite values instead: weights a reader must take as they are
+            new = b"".join(struct.pack("<f", rng.uniform(-0.1, 0.1)) for _ in range(len(old) // 4))
+            new += old[len(new):]
+        elif r < 0.85:
+            new = bytes(new)
+        else:
+            new = bytes(rng.randrange(256) for _ in old)
+    else:
+        name = next(n for n in names if n.endswith("data.pkl"))
+        old = zipfile.ZipFile(io.BytesIO(data)).read(name)
+        new = bytearray(old)
+        for _ in range(rng.randint(1, 6)):
+            new[rng.randrange(len(new))] = rng.randrange(256)
+        new = bytes(new)
+    return zip_entry_replaced(data, name, new)
 
 def rescale_json(doc, rng):
     """Numbers scaled and booleans flipped: mostly valid settings, at their ranges' ends."""
@@ -402,7 +564,7 @@ def rescale_json(doc, rng):
     return doc
 
 
-def mutate_csv(text, rng):
+def mutate_csv(text, rng, extra_values=()):
     lines = text.splitlines()
     r = rng.random()
     if r < 0.15:
@@ -415,7 +577,7 @@ def mutate_csv(text, rng):
             cells = lines[i].split(",")
             cells[rng.randrange(len(cells))] = rng.choice(
                 ["nan", "inf", "-inf", "", "1e308", "0", "-1", "x", "1,2", "\"3\"", "0.5",
-                 "99999999999"])
+                 "99999999999"] + list(extra_values))
             lines[i] = ",".join(cells)
     return "\n".join(lines) + "\n"
 
@@ -458,12 +620,12 @@ def main():
     parser.add_argument("--work", required=True, help="scratch folder (emptied first)")
     parser.add_argument("--cases", type=int, default=40, help="cases per kind (default 40)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kinds", default="scene,mesh,dataset,config")
+    parser.add_argument("--kinds", default="scene,mesh,dataset,config,circles,checkpoint")
     parser.add_argument("--timeout", type=float, default=60, help="seconds per run")
     parser.add_argument("--verbose", action="store_true", help="one line per case")
     args = parser.parse_args()
     kinds = args.kinds.split(",")
-    unknown = set(kinds) - {"scene", "mesh", "dataset", "config"}
+    unknown = set(kinds) - {"scene", "mesh", "dataset", "config", "circles", "checkpoint"}
     if unknown:
         parser.error("unknown kinds: " + ", ".join(sorted(unknown)))
 
@@ -481,6 +643,10 @@ def main():
                 fuzzer.fuzz_mesh(case, rng, boxes, glb)
             elif kind == "dataset":
                 fuzzer.fuzz_dataset(case, rng)
+            elif kind == "circles":
+                fuzzer.fuzz_circles(case, rng)
+            elif kind == "checkpoint":
+                fuzzer.fuzz_checkpoint(case, rng)
             else:
                 fuzzer.fuzz_config(case, rng, TRACK_CONFIG)
         done = case + 1

@@ -80,6 +80,39 @@ std::string input_error_message(F&& f) {
   return "";
 }
 
+// The file at `path` (a Torch archive: a zip of stored entries) with NaNs (0xffffffff) over the
+// middle of its largest tensor entry and that entry's CRC-32 in the central directory mended, as
+// any zip tool writes them: damage the archive's checksums do not show.
+std::string with_nans_in_largest_tensor(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto u16 = [&](std::size_t at) {
+    return std::size_t(std::uint8_t(bytes[at])) | std::size_t(std::uint8_t(bytes[at + 1])) << 8;
+  };
+  const auto u32 = [&](std::size_t at) { return u16(at) | u16(at + 2) << 16; };
+  std::size_t best_entry = 0, best_at = 0, best_size = 0;
+  for (std::size_t at = bytes.find("PK\x01\x02"); at != std::string::npos && at + 46 < bytes.size();
+       at = bytes.find("PK\x01\x02", at + 46)) {
+    const std::size_t size = u32(at + 24), name = u16(at + 28), local = u32(at + 42);
+    if (local + 30 > bytes.size()) continue;
+    if (bytes.substr(at + 46, name).find("/data/") != std::string::npos && size > best_size) {
+      best_entry = at;
+      best_size = size;
+      best_at = local + 30 + u16(local + 26) + u16(local + 28);
+    }
+  }
+  if (best_size < 64) return "";
+  std::fill_n(bytes.begin() + std::ptrdiff_t(best_at + best_size / 4), best_size / 2, '\xff');
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (std::size_t i = 0; i < best_size; ++i) {
+    crc ^= std::uint8_t(bytes[best_at + i]);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  crc = ~crc;
+  for (int k = 0; k < 4; ++k) bytes[best_entry + 16 + std::size_t(k)] = char((crc >> (8 * k)) & 0xFF);
+  return bytes;
+}
+
 // The gel frame's rotation itself (gel-relative labels): at each pixel it takes the undeformed
 // gel's normal g to +z and back, keeps any normal's length, and the two directions undo each
 // other. (The trained round trip below cannot tell a rotation that is wrong the same way in
@@ -446,6 +479,19 @@ TEST_F(NormalsTraining, ResumingFromTheCheckpointContinuesExactly) {
     EXPECT_NE(relabelled.find("copy.pt.ckpt: was trained on other labels than --data holds now"),
               std::string::npos)
         << relabelled;
+    // NaNs in its tensors under mended checksums (a file written so by other means): refused as
+    // corrupt, and left as it was. It had resumed and "diverged" at once, blaming the learning
+    // rate.
+    fs::remove_all(copy);
+    fs::copy(train_, copy, fs::copy_options::recursive);
+    train_normals(first);
+    const std::string nans = with_nans_in_largest_tensor(first.out + ".ckpt");
+    ASSERT_FALSE(nans.empty());
+    std::ofstream(first.out + ".ckpt", std::ios::binary | std::ios::trunc) << nans;
+    const std::string corrupt = input_error_message([&] { train_normals(again); });
+    EXPECT_NE(corrupt.find("copy.pt.ckpt: corrupt checkpoint: "), std::string::npos) << corrupt;
+    EXPECT_NE(corrupt.find("not finite"), std::string::npos) << corrupt;
+    EXPECT_EQ(testing_support::file_text(first.out + ".ckpt"), nans);
   }
   std::vector<int> resumed;
   train_normals(part, [&](const EpochReport& r) { resumed.push_back(r.epoch); });
@@ -684,6 +730,13 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
     std::ofstream(damaged, std::ios::binary) << bytes;
     msg = input_error_message([&] { NormalEstimator::load(damaged); });
     EXPECT_NE(msg.find("damaged.pt: corrupt model file"), std::string::npos) << msg;
+    // The same with the checksum mended: the weights themselves are checked.
+    const std::string nans = with_nans_in_largest_tensor(o.out);
+    ASSERT_FALSE(nans.empty());
+    std::ofstream(damaged, std::ios::binary | std::ios::trunc) << nans;
+    msg = input_error_message([&] { NormalEstimator::load(damaged); });
+    EXPECT_NE(msg.find("damaged.pt: corrupt model file: "), std::string::npos) << msg;
+    EXPECT_NE(msg.find(" holds numbers that are not finite"), std::string::npos) << msg;
   }
 
   // A description that disagrees with its weights, its checksum made to match (any zip tool
