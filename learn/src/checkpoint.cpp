@@ -83,8 +83,8 @@ void open_checkpoint(const std::string& checkpoint, Opened& c) {
   try {
     c.info = nlohmann::json::parse(text.toStringRef());
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(checkpoint + ": malformed checkpoint description: " +
-                     without_json_tag(e.what()));
+    throw InputError(checkpoint +
+                     ": malformed checkpoint description: " + without_json_tag(e.what()));
   }
 }
 
@@ -243,8 +243,8 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
   } catch (const InputError&) {
     throw;
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(checkpoint + ": malformed checkpoint description: " +
-                     without_json_tag(e.what()));
+    throw InputError(checkpoint +
+                     ": malformed checkpoint description: " + without_json_tag(e.what()));
   } catch (const std::exception&) {  // c10::Error, or TorchScript's on a damaged entry name
     throw InputError(checkpoint + ": corrupt checkpoint");
   }

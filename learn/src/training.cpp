@@ -385,8 +385,8 @@ void train_normals(const TrainOptions& options,
     throw std::runtime_error("training diverged: epoch " + std::to_string(epoch + 1) + ", " + what +
                              (at_resume ? " (the first epoch after resuming " + checkpoint +
                                               ": is it damaged? or try a lower --lr); "
-                              : mlp     ? " (try a lower --lr or --contact-weight); "
-                                        : " (try a lower --lr or lower loss weights); ") +
+                              : mlp ? " (try a lower --lr or --contact-weight); "
+                                    : " (try a lower --lr or lower loss weights); ") +
                              o.out + " not written" +
                              (fs::exists(checkpoint)
                                   ? "; " + checkpoint +

@@ -109,7 +109,8 @@ std::string with_nans_in_largest_tensor(const std::string& path) {
     for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
   }
   crc = ~crc;
-  for (int k = 0; k < 4; ++k) bytes[best_entry + 16 + std::size_t(k)] = char((crc >> (8 * k)) & 0xFF);
+  for (int k = 0; k < 4; ++k)
+    bytes[best_entry + 16 + std::size_t(k)] = char((crc >> (8 * k)) & 0xFF);
   return bytes;
 }
 
