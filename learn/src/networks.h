@@ -74,7 +74,7 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
 // What is wrong with the weights `loaded` read from a file, against `described`, a fresh module of
 // the network the file says it holds: a parameter or buffer missing or of another shape (Torch's
 // load takes each stored tensor as it is, whatever its shape), or values that are not finite
-// numbers. Empty when nothing. For the loaders' errors ("PATH: corrupt model file: " + it).
+// numbers. Empty when nothing; else "KEY has another shape", for the loaders' errors.
 std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Module& described);
 // The same for an Adam optimizer's state read from a file: each moment of the shape of its
 // parameter, and finite.

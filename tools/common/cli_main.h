@@ -310,8 +310,8 @@ void as_usage_error(F&& check) {
 // value, one not in plain decimal digits (CLI11 reads integers as C's strtoll does, so "010" was 8,
 // octal, and "0x10" 16), a negative one for an unsigned option (CLI11 wrapped "-1" of a seed to
 // 2^64 - 1), or one beyond the option's type (an `int`, or a 64-bit seed; CLI11 said "Could not
-// convert"). `range` is what the
-// option's help says of it ("1 to 256 (or 0)", "POSITIVE"), for the message.
+// convert"). `range` is what the option's help says of it ("1 to 256 (or 0)", "POSITIVE"), for
+// the message.
 inline std::string whole_number_problem(const std::string& text, bool is_unsigned,
                                         const std::string& range) {
   if (text.empty()) return "an empty value";
