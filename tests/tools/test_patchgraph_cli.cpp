@@ -2510,6 +2510,17 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
     }
   }
   ASSERT_NO_FATAL_FAILURE(label_with_circles(out("circles_back.csv"), "balls_given_back"));
+  // A given circle that cannot place the ball (almost all of it outside the image) skips its
+  // frame, the warning naming the circles file's line.
+  {
+    std::ofstream(out("circles_far.csv")) << "frame,u_px,v_px,radius_px\n\n3,80,60,1000\n";
+    const CliRun far = patchgraph("label-ball " + out("balls") + " --diameter 0.0127 -q --out " +
+                                  out("balls_far") + " --circles " + out("circles_far.csv"));
+    EXPECT_EQ(far.code, 0) << far.out;
+    EXPECT_NE(far.out.find("warning: frame 3 skipped: --circles line 3: the circle"),
+              std::string::npos)
+        << far.out;
+  }
 
   const auto refused = [&](const std::string& args, int code, const std::string& text) {
     fs::remove_all(out("balls_bad"));

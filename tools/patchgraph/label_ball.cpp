@@ -30,8 +30,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A circle given by hand for one frame; none: the frame shows no press.
-using GivenCircle = std::optional<Eigen::Vector3d>;  // u, v, radius [px]
+// A circle given by hand for one frame (none: the frame shows no press), and the line of the
+// circles file that gave it, for the warning when the circle cannot place the ball.
+struct GivenCircle {
+  std::optional<Eigen::Vector3d> circle;  // u, v, radius [px]
+  int line = 0;
+};
 
 // --circles: a CSV with a header naming at least frame, u_px, v_px and radius_px (the columns of
 // the circles.csv label-ball writes; others are ignored). A row's three circle cells are all
@@ -111,7 +115,7 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
                          "set the status to no_press (no press in the frame) or skipped (search "
                          "it again)");
       }
-      circles[frame] = std::nullopt;
+      circles[frame] = GivenCircle{std::nullopt, number};
       continue;
     }
     for (int k = 1; k < 4; ++k) {
@@ -134,7 +138,7 @@ std::map<int, GivenCircle> read_circles(const std::string& path, const GelRays& 
       throw InputError(at + "the circle lies outside the " + std::to_string(rays.width) + "x" +
                        std::to_string(rays.height) + " image");
     }
-    circles[frame] = Eigen::Vector3d(v[1], v[2], v[3]);
+    circles[frame] = GivenCircle{Eigen::Vector3d(v[1], v[2], v[3]), number};
   }
   return circles;
 }
@@ -351,13 +355,16 @@ int run_label_ball(const LabelBallArgs& a) {
       FrameLabel& l = labels[std::size_t(f)];
       const auto it = given.find(f);
       l.given = it != given.end();
-      if (l.given && !it->second) {
+      if (l.given && !it->second.circle) {
         l.kind = FrameLabel::kNoPress;
         l.press.reason = "no press (--circles)";
       } else if (l.given) {
-        const Eigen::Vector3d& c = *it->second;
+        const Eigen::Vector3d& c = *it->second.circle;
         l.press = ball_press_from_circle(color, reference, rays, c.head<2>(), c.z(), radius, gel);
-        if (!l.press.found) l.press.reason = "--circles: " + l.press.reason;
+        if (!l.press.found) {
+          l.press.reason = "--circles line " + std::to_string(it->second.line) + ": " +
+                           l.press.reason;
+        }
         l.kind = l.press.found ? FrameLabel::kPress : FrameLabel::kSkipped;
       } else {
         l.press = find_ball_press(color, reference, rays, radius, gel);
