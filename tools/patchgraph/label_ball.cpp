@@ -362,8 +362,8 @@ int run_label_ball(const LabelBallArgs& a) {
         const Eigen::Vector3d& c = *it->second.circle;
         l.press = ball_press_from_circle(color, reference, rays, c.head<2>(), c.z(), radius, gel);
         if (!l.press.found) {
-          l.press.reason = "--circles line " + std::to_string(it->second.line) + ": " +
-                           l.press.reason;
+          l.press.reason =
+              "--circles line " + std::to_string(it->second.line) + ": " + l.press.reason;
         }
         l.kind = l.press.found ? FrameLabel::kPress : FrameLabel::kSkipped;
       } else {
