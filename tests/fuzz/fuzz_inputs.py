@@ -22,6 +22,7 @@ Exit 0 when every case passed; 1 with the failing cases (their inputs kept under
 """
 import argparse
 import copy
+import io
 import json
 import math
 import os
@@ -30,6 +31,8 @@ import shutil
 import struct
 import subprocess
 import sys
+import zipfile
+import zlib
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -414,7 +417,7 @@ class Fuzzer:
 
     def base_circles(self):
         """A render of six ball presses (colour only, as a real sensor records them) and the
-        circles.csv label-ball finds in it."""
+        circles.csv label-ball finds in it (its labelled dataset kept in WORK/balls_labelled)."""
         balls = os.path.join(self.work, "balls")
         if not os.path.exists(balls):
             labelled = os.path.join(self.work, "balls_labelled")
@@ -428,7 +431,6 @@ class Fuzzer:
                     sys.exit("fuzz_inputs: could not make the ball presses: " + "\n".join(err))
             with open(os.path.join(labelled, "circles.csv")) as f:
                 self.circles_text = f.read()
-            shutil.rmtree(labelled)
         return balls, self.circles_text
 
     def fuzz_circles(self, case, rng):
@@ -451,18 +453,15 @@ class Fuzzer:
     def base_checkpoint(self):
         """The bytes of train-normals' checkpoint after one epoch of a small U-Net on the ball
         presses, and the labelled presses it trained on."""
-        labelled = os.path.join(self.work, "balls_labels")
-        if not os.path.exists(labelled):
-            balls, _ = self.base_circles()
-            model = os.path.join(self.work, "ckpt_base", "m.pt")
-            for command in ([self.args.patchgraph, "label-ball", balls, "--diameter", "0.0127",
-                             "--out", labelled, "-q"],
-                            [self.args.patchgraph, "train-normals", "--data", labelled,
-                             "--epochs", "1", "--depth", "3", "--width", "4", "--threads", "1",
-                             "--out", model, "-q"]):
-                rc, err = self.run(command, timeout=300)
-                if rc != 0:
-                    sys.exit("fuzz_inputs: could not make the checkpoint: " + "\n".join(err))
+        self.base_circles()
+        labelled = os.path.join(self.work, "balls_labelled")
+        model = os.path.join(self.work, "ckpt_base", "m.pt")
+        if not hasattr(self, "checkpoint_bytes"):
+            rc, err = self.run([self.args.patchgraph, "train-normals", "--data", labelled,
+                                "--epochs", "1", "--depth", "3", "--width", "4", "--threads",
+                                "1", "--out", model, "-q"], timeout=300)
+            if rc != 0:
+                sys.exit("fuzz_inputs: could not make the checkpoint: " + "\n".join(err))
             with open(model + ".ckpt", "rb") as f:
                 self.checkpoint_bytes = f.read()
             shutil.rmtree(os.path.dirname(model))
@@ -494,7 +493,6 @@ def zip_entry_replaced(data, name, new):
     """The zip file `data` with the stored (uncompressed) entry `name` replaced by `new`, of the
     same length, and its CRC-32 mended in the local header and the central directory: damage
     the archive's checksums do not show, for the reader behind them to meet."""
-    import zipfile, io, zlib
     info = zipfile.ZipFile(io.BytesIO(data)).getinfo(name)
     assert info.compress_type == zipfile.ZIP_STORED and len(new) == info.file_size
     b = bytearray(data)
@@ -517,12 +515,11 @@ def zip_entry_replaced(data, name, new):
 def mutate_checkpoint(data, rng):
     """A checkpoint's or a model file's bytes damaged: anywhere (the archive's checksums refuse it), or one
     tensor's values or the pickled structure with the checksums mended."""
-    import zipfile, io
     r = rng.random()
-    if r < 0.4:
+    if r < 0.3:
         return mutate_bytes(data, rng) if rng.random() < 0.9 else b""
     names = zipfile.ZipFile(io.BytesIO(data)).namelist()
-    if r < 0.75:
+    if r < 0.8:
         name = rng.choice([n for n in names if "/data/" in n])
         old = zipfile.ZipFile(io.BytesIO(data)).read(name)
         values = [struct.pack("<f", v) for v in (float("nan"), float("inf"), -float("inf"),
@@ -532,10 +529,10 @@ def mutate_checkpoint(data, rng):
             i = 4 * rng.randrange(max(1, len(old) // 4))
             new[i:i + 4] = rng.choice(values)[: len(old) - i]
         r = rng.random()
-        if r < 0.3:  # small finite values instead: weights a reader must take as they are
-            new = b"".join(struct.pack("<f", rng.uniform(-0.1, 0.1)) for _ in range(len(old) // 4))
+        if r < 0.4:  # small finite values instead: weights a reader must take as they are
+            new = b"".join(struct.pack("<f", rng.uniform(0.01, 0.1)) for _ in range(len(old) // 4))
             new += old[len(new):]
-        elif r < 0.85:
+        elif r < 0.9:
             new = bytes(new)
         else:
             new = bytes(rng.randrange(256) for _ in old)
