@@ -448,7 +448,10 @@ TriangleMesh validate(const std::string& path, const RawMesh& raw, double scale,
         msg << "lies beyond +-" << kMaxPositionM << " m at scale " << scale
             << " (meshes are in metres: is the scale right?)";
       }
-      throw InputError(msg.str() + ": " + format_point(raw.vertices[v]));
+      std::string where = format_point(raw.vertices[v]);
+      // At another scale the file's coordinates are not where the bound applies: both are said.
+      if (finite && scale != 1) where += " in the file, " + format_point(p) + " m scaled";
+      throw InputError(msg.str() + ": " + where);
     }
     mesh.vertices.push_back(p.cast<float>());
   }

@@ -470,6 +470,11 @@ TEST_F(MeshIoTest, NonFiniteVerticesAreErrorsInEveryFormat) {
   const std::string km = write("km.obj", "v 0 0 0\nv 2000 0 0\nv 0 1 0" + tri);
   EXPECT_TRUE(Contains(load_error(km), "lies beyond +-1000 m"));
   EXPECT_EQ(load_mesh(km, 1e-3).vertices.size(), 3u) << "2 m at scale 0.001";
+  // At a scale that puts it there, both the file's coordinates and the scaled ones are said.
+  message = load_error(write("mm.obj", "v 0 0 0\nv 2 0 0\nv 0 1 0" + tri), 1e6);
+  EXPECT_TRUE(Contains(message, "vertex 2 (counted from 1, as in the file) lies beyond +-1000 m at scale 1e+06"))
+      << message;
+  EXPECT_TRUE(Contains(message, "(2, 0, 0) in the file, (2e+06, 0, 0) m scaled")) << message;
   EXPECT_TRUE(Contains(
       load_error(write("nan.ply", ply_header("ascii") + "0 0 0 1\nnan 0 0 1\n1 1 0 1\n0 1 0 1\n"
                                                         "3 0 1 2 0\n2 0 1\n")),
