@@ -472,7 +472,8 @@ TEST_F(MeshIoTest, NonFiniteVerticesAreErrorsInEveryFormat) {
   EXPECT_EQ(load_mesh(km, 1e-3).vertices.size(), 3u) << "2 m at scale 0.001";
   // At a scale that puts it there, both the file's coordinates and the scaled ones are said.
   message = load_error(write("mm.obj", "v 0 0 0\nv 2 0 0\nv 0 1 0" + tri), 1e6);
-  EXPECT_TRUE(Contains(message, "vertex 2 (counted from 1, as in the file) lies beyond +-1000 m at scale 1e+06"))
+  EXPECT_TRUE(Contains(
+      message, "vertex 2 (counted from 1, as in the file) lies beyond +-1000 m at scale 1e+06"))
       << message;
   EXPECT_TRUE(Contains(message, "(2, 0, 0) in the file, (2e+06, 0, 0) m scaled")) << message;
   EXPECT_TRUE(Contains(
