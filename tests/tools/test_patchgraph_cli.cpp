@@ -131,6 +131,12 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused(track + "--seed -1 --out " + out("x"), 2, "--seed: must be a whole number");
   refused(track + "--seed 18446744073709551616 --out " + out("x"), 2, "--seed");
   refused("train-normals --data " + data() + " --seed 1e3 --out " + out("m.pt"), 2, "--seed");
+  // A learning rate or loss weight past float's range (1e300 had failed in LibTorch's words,
+  // naming no option) or of no use is refused by name.
+  refused("train-normals --data " + data() + " --lr 1e300 --out " + out("m.pt"), 2,
+          "--lr: must be from 1e-12 to 1, got 1e300");
+  refused("train-normals --data " + data() + " --contact-weight 1e300 --out " + out("m.pt"), 2,
+          "--contact-weight: must be from 0 to 1000000, got 1e300");
   // A dataset given twice would count twice; a JSON file that cannot be written fails before
   // the evaluation, not after it.
   const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";

@@ -21,6 +21,12 @@
 namespace pg {
 namespace {
 
+// train-normals' bounds on the learning rate and the loss weights (their defaults: 2e-4; L1 100,
+// GAN 1, contact 0).
+constexpr double kMinLearningRate = 1e-12;
+constexpr double kMaxLearningRate = 1;
+constexpr double kMaxLossWeight = 1e6;
+
 // A metric as printf's `format` gives it, or "n/a" when it is NaN (no contact pixel to measure).
 std::string metric(double value, const char* format) {
   return std::isnan(value) ? "n/a" : format_number(value, format);
@@ -59,20 +65,24 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
       ->excludes(hidden);
   cmd->add_option("--epochs", o.epochs, "Epochs (default 150)")->check(kPositive);
   cmd->add_option("--batch", o.batch, "Batch size (default 4)")->check(kPositive);
-  cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")->check(kPositive);
+  // Bounded where Torch's float arithmetic holds (a rate of 1e300 failed in LibTorch's words,
+  // naming no option; one of 1e-300 was 0 in float, a run that learns nothing) and beyond what
+  // any training here uses.
+  cmd->add_option("--lr", o.learning_rate, "Adam learning rate (default 2e-4)")
+      ->check(range_check(kMinLearningRate, kMaxLearningRate));
   cmd->add_option("--decay-epochs", o.decay_epochs,
                   "Lower the learning rate linearly towards 0 over the last this many epochs "
                   "(pix2pix's schedule; default 0: constant)")
       ->check(kNonNegative);
   cmd->add_option("--l1-weight", o.l1_weight,
                   "Weight of the L1 loss (default 100; the MLP's L2 loss has none)")
-      ->check(kNonNegative);
+      ->check(range_check(0, kMaxLossWeight));
   cmd->add_option("--gan-weight", o.gan_weight,
                   "Weight of the GAN loss (default 1); 0 = no discriminator")
-      ->check(kNonNegative);
+      ->check(range_check(0, kMaxLossWeight));
   cmd->add_option("--contact-weight", o.contact_weight,
                   "Contact pixels' loss counts 1 + this times a background pixel's (default 0)")
-      ->check(kNonNegative);
+      ->check(range_check(0, kMaxLossWeight));
   cmd->add_option("--labels", a.labels,
                   "Frame of the network's normals: sensor (default) or gel (relative to each "
                   "pixel's undeformed gel; the datasets must share one gel shape and camera)")
