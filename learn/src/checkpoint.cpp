@@ -233,9 +233,14 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
     // The archive's checksums hold, yet its weights may not fit the network or be numbers (a
     // file written so by other means): training on would fail in Torch's words, or "diverge"
     // at once and blame the learning rate.
-    std::string problem = weights_problem(*s.generator, *Generator(o.spec));
+    const auto module_problem = [](const torch::nn::Module& loaded,
+                                   const torch::nn::Module& described) {
+      const std::string shape = weights_shape_problem(loaded, described);
+      return shape.empty() ? weights_number_problem(loaded) : shape;
+    };
+    std::string problem = module_problem(*s.generator, *Generator(o.spec));
     if (problem.empty() && gan) {
-      problem = weights_problem(**s.discriminator, *PatchDiscriminator(o.spec.base_width));
+      problem = module_problem(**s.discriminator, *PatchDiscriminator(o.spec.base_width));
     }
     if (problem.empty()) problem = optimizer_state_problem(s.generator_optimizer);
     if (problem.empty() && gan) problem = optimizer_state_problem(*s.discriminator_optimizer);

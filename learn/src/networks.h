@@ -73,10 +73,14 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
 
 // What is wrong with the weights `loaded` read from a file, against `described`, a fresh module of
 // the network the file says it holds: a parameter or buffer missing or of another shape (Torch's
-// load takes each stored tensor as it is, whatever its shape), or values that are not finite
-// numbers. Empty when nothing; else "KEY has another shape", for the loaders' errors.
-std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Module& described);
-// The same for an Adam optimizer's state read from a file: each moment of the shape of its
+// load takes each stored tensor as it is, whatever its shape). Empty when nothing; else "KEY has
+// another shape", for the loaders' errors.
+std::string weights_shape_problem(const torch::nn::Module& loaded,
+                                  const torch::nn::Module& described);
+// A parameter or buffer of `module` that holds numbers that are not finite (a file written so, its
+// checksums intact): "KEY holds numbers that are not finite"; empty when none.
+std::string weights_number_problem(const torch::nn::Module& module);
+// Shapes and numbers as above, for an Adam optimizer's state read from a file: each moment of the shape of its
 // parameter, and finite.
 std::string optimizer_state_problem(torch::optim::Adam& optimizer);
 

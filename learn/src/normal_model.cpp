@@ -210,7 +210,8 @@ void save_archive(torch::serialize::OutputArchive& archive, const std::string& p
   write_text_atomically(path, bytes.str(), what);
 }
 
-std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Module& described) {
+std::string weights_shape_problem(const torch::nn::Module& loaded,
+                                  const torch::nn::Module& described) {
   for (const bool buffers : {false, true}) {
     const auto want = buffers ? described.named_buffers() : described.named_parameters();
     const auto got = buffers ? loaded.named_buffers() : loaded.named_parameters();
@@ -218,7 +219,16 @@ std::string weights_problem(const torch::nn::Module& loaded, const torch::nn::Mo
       const torch::Tensor* t = got.find(item.key());
       if (!t) return item.key() + " is missing";
       if (t->sizes() != item.value().sizes()) return item.key() + " has another shape";
-      if (t->is_floating_point() && !torch::isfinite(*t).all().item<bool>()) {
+    }
+  }
+  return {};
+}
+
+std::string weights_number_problem(const torch::nn::Module& module) {
+  for (const bool buffers : {false, true}) {
+    for (const auto& item : buffers ? module.named_buffers() : module.named_parameters()) {
+      const torch::Tensor& t = item.value();
+      if (t.is_floating_point() && !torch::isfinite(t).all().item<bool>()) {
         return item.key() + " holds numbers that are not finite";
       }
     }
@@ -321,16 +331,16 @@ Generator load_model(const std::string& path, NormalModelInfo& info) {
     throw InputError(path + ": the weights do not match the network it describes (" +
                      info.spec.arch + ")");
   }
-  // A description that says this one ran as that network, described wrongly; or weights written
-  // so by a diverged run of some other tool, that would turn every prediction into noise.
-  if (const std::string problem = weights_problem(*generator, *Generator(info.spec));
+  // A description that says this one ran as that network, described wrongly.
+  if (const std::string problem = weights_shape_problem(*generator, *Generator(info.spec));
       !problem.empty()) {
-    const bool numbers = problem.find("not finite") != std::string::npos;
-    throw InputError(path + (numbers ? ": corrupt model file: " + problem
-                                     : ": the weights do not match the network it describes (" +
-                                           info.spec.arch + ", depth " +
-                                           std::to_string(info.spec.depth) + ", width " +
-                                           std::to_string(info.spec.base_width) + "): " + problem));
+    throw InputError(path + ": the weights do not match the network it describes (" +
+                     info.spec.arch + ", depth " + std::to_string(info.spec.depth) + ", width " +
+                     std::to_string(info.spec.base_width) + "): " + problem);
+  }
+  // Weights written so by a diverged run of some other tool: every prediction would be noise.
+  if (const std::string problem = weights_number_problem(*generator); !problem.empty()) {
+    throw InputError(path + ": corrupt model file: " + problem);
   }
   generator->eval();
   return generator;

@@ -375,9 +375,13 @@ void train_normals(const TrainOptions& options,
   if (gan) opt_d = std::make_unique<torch::optim::Adam>(d->parameters(), adam);
 
   const std::string checkpoint = o.out + ".ckpt";
+  nlohmann::json history = nlohmann::json::array();
+  const std::string labels = labels_hash(train);
+  learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
+                             history, info.input_mean, info.input_std,     labels};
+  const int first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
   // Diverged (a learning rate too high for the data, or data out of range): stopped before a
   // NaN network is written as a model.
-  int first_epoch = 0;
   const auto diverged = [&](int epoch, const std::string& what) {
     // In the first epoch after a resume, the checkpoint's own numbers are as likely a cause (a
     // file damaged under mended checksums, weights of 1e30) as the settings it was trained with.
@@ -394,11 +398,6 @@ void train_normals(const TrainOptions& options,
                                         "over with other settings"
                                   : std::string()));
   };
-  nlohmann::json history = nlohmann::json::array();
-  const std::string labels = labels_hash(train);
-  learn::TrainingState state{g,       opt_g,           gan ? &d : nullptr, opt_d.get(),
-                             history, info.input_mean, info.input_std,     labels};
-  first_epoch = o.resume ? learn::load_checkpoint(o, state) : 0;
 
   const torch::Tensor mean =
       torch::tensor(std::vector<float>(info.input_mean.begin(), info.input_mean.end()))

@@ -80,37 +80,60 @@ std::string input_error_message(F&& f) {
   return "";
 }
 
-// The file at `path` (a Torch archive: a zip of stored entries) with NaNs (0xffffffff) over the
-// middle of its largest tensor entry and that entry's CRC-32 in the central directory mended, as
-// any zip tool writes them: damage the archive's checksums do not show.
-std::string with_nans_in_largest_tensor(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+// A stored entry of a zip file (a Torch archive stores its entries uncompressed) as its central
+// directory lists it (the local headers leave the sizes to a trailer).
+struct ZipEntry {
+  std::size_t record = 0;  // its central-directory record
+  std::size_t data = 0;    // where its bytes start
+  std::size_t size = 0;
+  std::string name;
+};
+
+std::vector<ZipEntry> zip_entries(const std::string& bytes) {
   const auto u16 = [&](std::size_t at) {
     return std::size_t(std::uint8_t(bytes[at])) | std::size_t(std::uint8_t(bytes[at + 1])) << 8;
   };
   const auto u32 = [&](std::size_t at) { return u16(at) | u16(at + 2) << 16; };
-  std::size_t best_entry = 0, best_at = 0, best_size = 0;
+  std::vector<ZipEntry> entries;
   for (std::size_t at = bytes.find("PK\x01\x02"); at != std::string::npos && at + 46 < bytes.size();
        at = bytes.find("PK\x01\x02", at + 46)) {
-    const std::size_t size = u32(at + 24), name = u16(at + 28), local = u32(at + 42);
+    const std::size_t local = u32(at + 42);
     if (local + 30 > bytes.size()) continue;
-    if (bytes.substr(at + 46, name).find("/data/") != std::string::npos && size > best_size) {
-      best_entry = at;
-      best_size = size;
-      best_at = local + 30 + u16(local + 26) + u16(local + 28);
-    }
+    entries.push_back({at, local + 30 + u16(local + 26) + u16(local + 28), u32(at + 24),
+                       bytes.substr(at + 46, u16(at + 28))});
   }
-  if (best_size < 64) return "";
-  std::fill_n(bytes.begin() + std::ptrdiff_t(best_at + best_size / 4), best_size / 2, '\xff');
+  return entries;
+}
+
+// The largest tensor entry ("/data/" in its name) of a Torch archive; size 0 if none.
+ZipEntry largest_tensor(const std::string& bytes) {
+  ZipEntry best;
+  for (const ZipEntry& e : zip_entries(bytes)) {
+    if (e.name.find("/data/") != std::string::npos && e.size > best.size) best = e;
+  }
+  return best;
+}
+
+// The entry's CRC-32 in its central-directory record set to what its bytes now give, as any zip
+// tool writes it: damage the archive's checksums do not show.
+void mend_crc(std::string& bytes, const ZipEntry& e) {
   std::uint32_t crc = 0xFFFFFFFFu;
-  for (std::size_t i = 0; i < best_size; ++i) {
-    crc ^= std::uint8_t(bytes[best_at + i]);
+  for (std::size_t i = 0; i < e.size; ++i) {
+    crc ^= std::uint8_t(bytes[e.data + i]);
     for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
   }
   crc = ~crc;
-  for (int k = 0; k < 4; ++k)
-    bytes[best_entry + 16 + std::size_t(k)] = char((crc >> (8 * k)) & 0xFF);
+  for (int k = 0; k < 4; ++k) bytes[e.record + 16 + std::size_t(k)] = char((crc >> (8 * k)) & 0xFF);
+}
+
+// The file at `path` (a Torch archive) with NaNs (0xffffffff) over the middle of its largest
+// tensor entry, that entry's checksum mended; "" if it has no tensor of 64 bytes or more.
+std::string with_nans_in_largest_tensor(const std::string& path) {
+  std::string bytes = testing_support::file_text(path);
+  const ZipEntry e = largest_tensor(bytes);
+  if (e.size < 64) return "";
+  std::fill_n(bytes.begin() + std::ptrdiff_t(e.data + e.size / 4), e.size / 2, '\xff');
+  mend_crc(bytes, e);
   return bytes;
 }
 
@@ -699,24 +722,9 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   // verify the checksums), so they are checked before it reads. The file is a zip of stored
   // entries; 0xffffffff in the middle of the largest data entry is a NaN there.
   {
-    std::ifstream in(o.out, std::ios::binary);
-    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const auto u16 = [&](std::size_t at) {
-      return std::size_t(std::uint8_t(bytes[at])) | std::size_t(std::uint8_t(bytes[at + 1])) << 8;
-    };
-    const auto u32 = [&](std::size_t at) { return u16(at) | u16(at + 2) << 16; };
-    std::size_t best_at = 0, best_size = 0;
-    // The central directory's entries (the local headers leave the sizes to a trailer).
-    for (std::size_t at = bytes.find("PK\x01\x02");
-         at != std::string::npos && at + 46 < bytes.size();
-         at = bytes.find("PK\x01\x02", at + 46)) {
-      const std::size_t size = u32(at + 24), name = u16(at + 28), local = u32(at + 42);
-      if (bytes.compare(at + 46, name, "") == 0 || local + 30 > bytes.size()) continue;
-      if (bytes.substr(at + 46, name).find("/data/") != std::string::npos && size > best_size) {
-        best_size = size;
-        best_at = local + 30 + u16(local + 26) + u16(local + 28);
-      }
-    }
+    std::string bytes = testing_support::file_text(o.out);
+    const ZipEntry weights = largest_tensor(bytes);
+    const std::size_t best_at = weights.data, best_size = weights.size;
     ASSERT_GT(best_size, 64u) << "no weight data found in " << o.out;
     // One bit of a float's lowest mantissa byte: a finite weight, a little off, that only the
     // archive's checksum tells from the written one.
@@ -747,20 +755,6 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   {
     std::ifstream in(o.out, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const auto u16 = [](const std::string& b, std::size_t at) {
-      return std::size_t(std::uint8_t(b[at])) | std::size_t(std::uint8_t(b[at + 1])) << 8;
-    };
-    const auto u32 = [&](const std::string& b, std::size_t at) {
-      return u16(b, at) | u16(b, at + 2) << 16;
-    };
-    const auto crc32 = [](const char* p, std::size_t n) {
-      std::uint32_t c = 0xFFFFFFFFu;
-      for (std::size_t i = 0; i < n; ++i) {
-        c ^= std::uint8_t(p[i]);
-        for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
-      }
-      return ~c;
-    };
     const auto edited = [&](const std::string& from, const std::string& to) {
       std::string copy = bytes;
       const std::size_t at = copy.find(from);
@@ -768,15 +762,9 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
       EXPECT_EQ(from.size(), to.size());
       if (at == std::string::npos) return copy;
       copy.replace(at, from.size(), to);
-      // The central directory's entry whose (stored) data holds the edit gets its new CRC.
-      for (std::size_t cd = copy.find("PK\x01\x02");
-           cd != std::string::npos && cd + 46 < copy.size();
-           cd = copy.find("PK\x01\x02", cd + 46)) {
-        const std::size_t size = u32(copy, cd + 20), local = u32(copy, cd + 42);
-        const std::size_t data = local + 30 + u16(copy, local + 26) + u16(copy, local + 28);
-        if (at < data || at >= data + size) continue;
-        const std::uint32_t crc = crc32(copy.data() + data, size);
-        for (int k = 0; k < 4; ++k) copy[cd + 16 + k] = char((crc >> (8 * k)) & 0xFF);
+      // The entry whose (stored) data holds the edit gets its new CRC.
+      for (const ZipEntry& e : zip_entries(copy)) {
+        if (at >= e.data && at < e.data + e.size) mend_crc(copy, e);
       }
       return copy;
     };
