@@ -80,8 +80,8 @@ std::string weights_shape_problem(const torch::nn::Module& loaded,
 // A parameter or buffer of `module` that holds numbers that are not finite (a file written so, its
 // checksums intact): "KEY holds numbers that are not finite"; empty when none.
 std::string weights_number_problem(const torch::nn::Module& module);
-// Shapes and numbers as above, for an Adam optimizer's state read from a file: each moment of the shape of its
-// parameter, and finite.
+// Shapes and numbers as above, for an Adam optimizer's state read from a file: each moment of the
+// shape of its parameter, and finite.
 std::string optimizer_state_problem(torch::optim::Adam& optimizer);
 
 // Model files: a Torch archive with the generator's weights and NormalModelInfo as JSON.
