@@ -314,6 +314,38 @@ std::vector<FramePose> read_poses_csv(const std::string& path) {
   return poses;
 }
 
+SensorJumps sensor_jumps(const std::vector<FramePose>& poses) {
+  SensorJumps jumps;
+  for (std::size_t i = 1; i < poses.size(); ++i) {
+    const SE3& before = poses[i - 1].T_world_sensor;
+    const SE3& after = poses[i].T_world_sensor;
+    const double m = translation_distance(before, after), rad = rotation_distance(before, after);
+    if (m > kSensorJumpM || rad > kSensorJumpRad) {
+      if (jumps.count++ == 0) {
+        jumps.first = int(i);
+        jumps.first_m = m;
+        jumps.first_rad = rad;
+      }
+    }
+  }
+  return jumps;
+}
+
+std::string describe(const SensorJumps& jumps, int first_row_line) {
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "the sensor pose jumps by more than %.0f mm or %.1f rad from one frame to the next "
+                "%d time(s), first from frame %d to %d (",
+                kSensorJumpM * 1e3, kSensorJumpRad, jumps.count, jumps.first - 1, jumps.first);
+  std::string out = text;
+  if (first_row_line > 0) {
+    out += "lines " + std::to_string(jumps.first - 1 + first_row_line) + "-" +
+           std::to_string(jumps.first + first_row_line) + ": ";
+  }
+  std::snprintf(text, sizeof text, "%.1f mm, %.3f rad)", jumps.first_m * 1e3, jumps.first_rad);
+  return out + text;
+}
+
 void DatasetWriter::check_folder(const std::string& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;

@@ -50,7 +50,9 @@ SensorModel gelsight_mini() {
 void read_camera(const nlohmann::json& j, const std::string& where, CameraModel& cam) {
   JsonFields f(j, where);
   cam.distance_m = f.number_in("distance_m", 1e-4, 1.0, cam.distance_m);
-  cam.near_m = f.number_in("near_m", 1e-6, cam.distance_m, cam.near_m);
+  // Below distance_m: checked with the rest of the geometry (sensor_from_json), in words that name
+  // both, since a sensor file that gives both may have the wrong one in the distance.
+  cam.near_m = f.number_in("near_m", 1e-6, 1.0, cam.near_m);
   if (f.has("fov_y_rad")) {
     const double fov = f.required_number_in("fov_y_rad", 1e-3, kPi - 1e-3);
     cam = CameraModel::from_vertical_fov(cam.width, cam.height, fov, cam.distance_m, cam.near_m);

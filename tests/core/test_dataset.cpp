@@ -798,5 +798,36 @@ TEST(Dataset, ASensorIndexListsTheSensorsFolders) {
             dir + "/sensors.json: sensors: 'right': no such folder next to it (" + dir + "/right)");
 }
 
+// Sensor poses that move further between rows than a hand does are jumps: 5 cm or 0.5 rad, each
+// alone; at the bounds they are not. describe() names the first and, given the header's offset,
+// its lines.
+TEST(Dataset, SensorPoseJumpsAreFoundAtTheirBounds) {
+  std::vector<FramePose> poses(6);
+  EXPECT_EQ(sensor_jumps(poses).count, 0);
+  EXPECT_EQ(sensor_jumps({}).count, 0);
+  poses[2].T_world_sensor = SE3::Translation(Eigen::Vector3d(0, 0.0499, 0));  // 49.9 mm, and back
+  EXPECT_EQ(sensor_jumps(poses).count, 0);
+  poses[2].T_world_sensor = SE3::Translation(Eigen::Vector3d(0, 0.0501, 0));
+  SensorJumps jumps = sensor_jumps(poses);
+  EXPECT_EQ(jumps.count, 2);  // there and back
+  EXPECT_EQ(jumps.first, 2);
+  EXPECT_NEAR(jumps.first_m, 0.0501, 1e-12);
+  EXPECT_EQ(jumps.first_rad, 0.0);
+  Vector6d turn = Vector6d::Zero();
+  turn(5) = 0.51;  // a turn alone, and no translation
+  poses[2] = FramePose{};
+  poses[5].T_world_sensor = SE3::exp(turn);
+  jumps = sensor_jumps(poses);
+  EXPECT_EQ(jumps.count, 1);
+  EXPECT_EQ(jumps.first, 5);
+  EXPECT_NEAR(jumps.first_rad, 0.51, 1e-9);
+  EXPECT_EQ(describe(jumps),
+            "the sensor pose jumps by more than 50 mm or 0.5 rad from one frame to the next 1 "
+            "time(s), first from frame 4 to 5 (0.0 mm, 0.510 rad)");
+  EXPECT_EQ(describe(jumps, 2),
+            "the sensor pose jumps by more than 50 mm or 0.5 rad from one frame to the next 1 "
+            "time(s), first from frame 4 to 5 (lines 6-7: 0.0 mm, 0.510 rad)");
+}
+
 }  // namespace
 }  // namespace pg

@@ -234,6 +234,11 @@ TEST(SensorConfig, ErrorsNameTheKey) {
   // front of the gel's curved surface rendered without a word).
   expect_input_error(parse(R"({"camera": {"distance_m": 0.0005}, "gel": {"sag_m": 0}})"),
                      {"camera.near_m (1 mm) must be less than camera.distance_m (0.5 mm)"});
+  // The same with the near plane given, as a sensor file written out in full gives it (it had
+  // read "camera.near_m: value 0.001 is out of range [1e-06, 0.0005]", blaming the default).
+  expect_input_error(
+      parse(R"({"camera": {"distance_m": 0.0005, "near_m": 0.001}, "gel": {"sag_m": 0}})"),
+      {"camera.near_m (1 mm) must be less than camera.distance_m (0.5 mm)"});
   expect_input_error(parse(R"({"camera": {"distance_m": 0.005}, "gel": {"sag_m": 0,
       "max_indentation_m": 0.01}, "lights": [{"position_m": [0, 0, -0.003]}]})"),
                      {"gel.max_indentation_m (10 mm): a press that deep would reach the camera's "

@@ -3,7 +3,7 @@
 with a clear error: never a crash, a hang, a sanitizer report, an error that names no file, or a
 non-finite result. docs/stress.md, "Damaged inputs".
 
-Six kinds of input, each mutated from a good one by a seeded random generator:
+Seven kinds of input, each mutated from a good one by a seeded random generator:
   scene    a scene file (JSON values replaced, scaled, removed, duplicated; the text cut or
            garbled), rendered with tacsim render
   mesh     a mesh file (glTF binary: its JSON's fields and its data; OBJ, STL and PLY, text and
@@ -15,6 +15,12 @@ Six kinds of input, each mutated from a good one by a seeded random generator:
            hand (cells replaced, rows removed, the text cut or garbled), labelling six presses
   checkpoint  train-normals' OUT.ckpt (bytes replaced, the file cut or emptied; or a tensor's
            values or the pickled structure, the archive's checksums mended), resumed
+  recording  what patchgraph recording reads of a real sensor's session, as a user gathers and
+           writes it: the --poses file (cells replaced, rows removed, the text garbled), the
+           --sensor-file (JSON values replaced or scaled), a frame or the --background image
+           (removed, cut, bytes replaced, another image in its place), or a --video of the
+           frames (FFV1 or H.264: bytes replaced, the file cut or emptied); the dataset it makes
+           tracked with the default model, and a refusal must leave no dataset behind
 
 Usage: fuzz_inputs.py --tacsim PATH --patchgraph PATH --work DIR [--cases N] [--seed S]
                       [--kinds scene,mesh,...] [--timeout SECONDS]
@@ -488,6 +494,104 @@ class Fuzzer:
         self.judge("checkpoint", case, rc, err, [model + ".ckpt"], [folder], refusal_check=kept)
         shutil.rmtree(folder)
 
+    def base_videos(self):
+        """The base render's colour frames as videos, by file name: lossless (FFV1 in Matroska)
+        and lossy (H.264 in MP4), made with the ffmpeg command; none without it."""
+        if not hasattr(self, "videos"):
+            self.videos = {}
+            if shutil.which("ffmpeg") is None:
+                return self.videos
+            pattern = os.path.join(self.base_dataset(), "color", "%06d.png")
+            for name, codec in (("frames.mkv", ["-c:v", "ffv1", "-pix_fmt", "bgr0"]),
+                                ("frames.mp4", ["-c:v", "libx264", "-pix_fmt", "yuv420p"])):
+                path = os.path.join(self.work, name)
+                rc, _ = self.run(["ffmpeg", "-nostdin", "-loglevel", "error", "-y", "-framerate",
+                                  "60", "-i", pattern] + codec + [path], timeout=120)
+                if rc == 0:
+                    with open(path, "rb") as f:
+                        self.videos[name] = f.read()
+        return self.videos
+
+    def fuzz_recording(self, case, rng):
+        """A session of the base render's colour frames, its no-contact image, its poses and its
+        sensor, as `recording` takes a real sensor's, with one of them damaged; what recording
+        accepts is tracked with the default model, and must track to finite poses or be refused
+        naming the recording or the damaged file."""
+        base = self.base_dataset()
+        folder = os.path.join(self.work, f"recording_{case}")
+        frames = os.path.join(folder, "frames")
+        shutil.copytree(os.path.join(base, "color"), frames)
+        background = os.path.join(folder, "background.png")
+        shutil.copy(os.path.join(base, "background.png"), background)
+        poses = os.path.join(folder, "poses.csv")
+        with open(os.path.join(base, "poses.csv")) as f:
+            lines = f.read().splitlines()
+        if rng.random() < 0.5:  # the object's pose known at the start only, as a recording's
+            header = lines[0].split(",")
+            blank = [i for i, name in enumerate(header) if name.startswith("obj_") or
+                     name == "contact"]
+            for i in range(2, len(lines)):
+                cells = lines[i].split(",")
+                for j in blank:
+                    cells[j] = ""
+                lines[i] = ",".join(cells)
+        with open(poses, "w") as f:
+            f.write("\n".join(lines) + "\n")
+        sensor = os.path.join(folder, "sensor.json")
+        with open(os.path.join(base, "dataset.json")) as f:
+            sensor_doc = json.load(f)["sensor"]
+        what = rng.choice(["poses", "poses", "sensor", "sensor", "frame", "frame", "background",
+                           "video", "video"])
+        if what == "video" and not self.base_videos():
+            what = "frame"  # no ffmpeg command to make the videos with
+        if what == "poses":
+            damaged = poses
+            with open(poses) as f:
+                text = f.read()
+            if rng.random() < 0.85:
+                text = mutate_csv(text, rng)
+            else:
+                text = mutate_bytes(text.encode(), rng, TEXT_ALPHABET).decode("latin-1")
+            with open(poses, "w", encoding="latin-1") as f:
+                f.write(text)
+        elif what == "sensor":
+            damaged = sensor
+            sensor_doc = (mutate_json(sensor_doc, rng) if rng.random() < 0.6 else
+                          rescale_json(sensor_doc, rng))
+        elif what == "frame":
+            damaged = os.path.join(frames, rng.choice(sorted(os.listdir(frames))))
+            mutate_image(damaged, rng, base)
+        elif what == "video":
+            name, good = rng.choice(sorted(self.base_videos().items()))
+            damaged = os.path.join(folder, name)
+            with open(damaged, "wb") as f:
+                f.write(mutate_bytes(good, rng) if rng.random() < 0.95 else b"")
+        else:
+            damaged = background
+            mutate_image(background, rng, base)
+        with open(sensor, "w") as f:
+            json.dump(sensor_doc, f)
+        rec = os.path.join(folder, "rec")
+        motion = (["--poses", poses] if what == "poses" or rng.random() < 0.5 else
+                  ["--static-sensor"])
+        source = ["--video", damaged] if what == "video" else ["--images", frames]
+        rc, err = self.run([self.args.patchgraph, "recording"] + source + [
+                            "--background", background, "--sensor-file", sensor, "--out", rec,
+                            "-q"] + motion)
+        names = [damaged, frames] if what == "frame" else [damaged]
+        if rc != 0:  # and nothing half made in its place
+            self.judge("recording", case, rc, err, names, [folder], refusal_check=lambda: (
+                "the refused recording left " + rec if os.path.exists(rec) else None))
+        else:
+            out = os.path.join(self.work, "out")
+            shutil.rmtree(out, ignore_errors=True)
+            rc, err = self.run([self.args.patchgraph, "track", rec, "--normals",
+                                os.path.join(REPO, "models", "normals_unet.pt"), "--out", out,
+                                "-q"])
+            self.judge("recording", case, rc, err, [rec] + names, [folder],
+                       result_check=lambda: self.non_finite(out))
+        shutil.rmtree(folder)
+
 
 def zip_entry_replaced(data, name, new):
     """The zip file `data` with the stored (uncompressed) entry `name` replaced by `new`, of the
@@ -617,12 +721,14 @@ def main():
     parser.add_argument("--work", required=True, help="scratch folder (emptied first)")
     parser.add_argument("--cases", type=int, default=40, help="cases per kind (default 40)")
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--kinds", default="scene,mesh,dataset,config,circles,checkpoint")
+    parser.add_argument("--kinds",
+                        default="scene,mesh,dataset,config,circles,checkpoint,recording")
     parser.add_argument("--timeout", type=float, default=60, help="seconds per run")
     parser.add_argument("--verbose", action="store_true", help="one line per case")
     args = parser.parse_args()
     kinds = args.kinds.split(",")
-    unknown = set(kinds) - {"scene", "mesh", "dataset", "config", "circles", "checkpoint"}
+    unknown = set(kinds) - {"scene", "mesh", "dataset", "config", "circles", "checkpoint",
+                            "recording"}
     if unknown:
         parser.error("unknown kinds: " + ", ".join(sorted(unknown)))
 
@@ -644,6 +750,8 @@ def main():
                 fuzzer.fuzz_circles(case, rng)
             elif kind == "checkpoint":
                 fuzzer.fuzz_checkpoint(case, rng)
+            elif kind == "recording":
+                fuzzer.fuzz_recording(case, rng)
             else:
                 fuzzer.fuzz_config(case, rng, TRACK_CONFIG)
         done = case + 1

@@ -636,7 +636,8 @@ TEST_F(PatchgraphCli, TrackWithTheDefaultNormalsModel) {
 }
 
 // A sensor pose that jumps 1 m for one frame (a glitch in poses.csv) is warned about, naming the
-// frames; the default scene's own still sensor is not.
+// frames; the default scene's own still sensor is not. `recording` warns of it too, naming the
+// --poses file's lines.
 TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
   const CliRun still = patchgraph("track " + data() + " -q --out " + out("no_jump"));
   ASSERT_EQ(still.code, 0) << still.out;
@@ -654,6 +655,16 @@ TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
                             copy + "/poses.csv?"),
             std::string::npos)
       << glitch.out;
+  const CliRun imported =
+      patchgraph("recording --images " + data() + "/color --background " + data() +
+                 "/background.png --poses " + copy + "/poses.csv -q --out " + out("glitch_rec"));
+  ASSERT_EQ(imported.code, 0) << imported.out;
+  EXPECT_NE(imported.out.find("warning: " + copy +
+                              "/poses.csv: the sensor pose jumps by more than 50 mm or 0.5 rad "
+                              "from one frame to the next 2 time(s), first from frame 29 to 30 "
+                              "(lines 31-32: 1000.0 mm, 0.000 rad): a glitch?"),
+            std::string::npos)
+      << imported.out;
 }
 
 // summary.json records the factor sigmas and the simulated noise a run used.

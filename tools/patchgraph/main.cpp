@@ -25,32 +25,15 @@
 namespace pg {
 namespace {
 
-// A sensor pose that moves further from one frame to the next than a hand does (5 cm: 3 m/s at
-// 60 fps) is likelier a glitch in the poses. The tracker takes them as given (a held object's
-// estimate follows the sensor, --motion-frame sensor): say so.
+// The tracker takes the sensor poses as given (a held object's estimate follows the sensor,
+// --motion-frame sensor): say so where they jump as no hand moves.
 void warn_about_sensor_jumps(const Dataset& dataset) {
-  const std::vector<FramePose>& poses = dataset.poses();
-  constexpr double kJumpM = 0.05, kJumpRad = 0.5;
-  int jumps = 0, first = -1;
-  for (std::size_t i = 1; i < poses.size(); ++i) {
-    const SE3& before = poses[i - 1].T_world_sensor;
-    const SE3& after = poses[i].T_world_sensor;
-    if (translation_distance(before, after) > kJumpM ||
-        rotation_distance(before, after) > kJumpRad) {
-      if (first < 0) first = int(i);
-      ++jumps;
-    }
-  }
-  if (jumps == 0) return;
-  const SE3& before = poses[first - 1].T_world_sensor;
-  const SE3& after = poses[first].T_world_sensor;
+  const SensorJumps jumps = sensor_jumps(dataset.poses());
+  if (jumps.count == 0) return;
   std::fprintf(stderr,
-               "warning: the sensor pose jumps by more than %.0f mm or %.1f rad from one frame to "
-               "the next %d time(s), first from frame %d to %d (%.1f mm, %.3f rad): a glitch in "
-               "%s/poses.csv? The tracker takes the sensor poses as given\n",
-               kJumpM * 1e3, kJumpRad, jumps, first - 1, first,
-               translation_distance(before, after) * 1e3, rotation_distance(before, after),
-               dataset.dir().c_str());
+               "warning: %s: a glitch in %s/poses.csv? The tracker takes the sensor poses as "
+               "given\n",
+               describe(jumps).c_str(), dataset.dir().c_str());
 }
 
 int run_track(const TrackArgs& a) {

@@ -592,6 +592,12 @@ RecordingPoses recording_poses(const RecordingArgs& a, int frames, const std::st
                    format_number(video_fps).c_str());
     }
     object_frame_is_sensor(poses, a.poses);  // refused now, not when the dataset is tracked
+    // Row i is frame i (read_poses_csv holds them to it), below the header: line i + 2.
+    const SensorJumps jumps = sensor_jumps(poses);
+    if (jumps.count > 0) {
+      std::fprintf(stderr, "warning: %s: %s: a glitch? The tracker takes the sensor poses as given\n",
+                   a.poses.c_str(), describe(jumps, 2).c_str());
+    }
   } else {
     for (int i = 0; i < frames; ++i) {
       poses[i].frame = i;

@@ -154,4 +154,20 @@ std::vector<std::string> sensor_dataset_dirs(const std::string& dir);
 void write_poses_csv(const std::string& path, const std::vector<FramePose>& poses);
 std::vector<FramePose> read_poses_csv(const std::string& path);
 
+// Where the sensor pose moves further from one row to the next than a hand does (more than
+// kSensorJumpM, 3 m/s at 60 fps, or kSensorJumpRad): likelier a glitch in the poses than a
+// motion. The tracker takes them as given, so `track` and `recording` warn.
+inline constexpr double kSensorJumpM = 0.05, kSensorJumpRad = 0.5;
+struct SensorJumps {
+  int count = 0;
+  int first = -1;  // the row the first jump lands on (-1: none)
+  double first_m = 0.0, first_rad = 0.0;
+};
+SensorJumps sensor_jumps(const std::vector<FramePose>& poses);
+// "the sensor pose jumps by more than 50 mm or 0.5 rad from one frame to the next 2 time(s),
+// first from frame 10 to 11 (1000.0 mm, 0.000 rad)"; `first_row_line` > 0 names the first
+// jump's rows by their lines in the poses file too, "(lines 12-13: 1000.0 mm, ...)", row i
+// being at line i + first_row_line.
+std::string describe(const SensorJumps& jumps, int first_row_line = 0);
+
 }  // namespace pg
