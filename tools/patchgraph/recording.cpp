@@ -595,7 +595,8 @@ RecordingPoses recording_poses(const RecordingArgs& a, int frames, const std::st
     // Row i is frame i (read_poses_csv holds them to it), below the header: line i + 2.
     const SensorJumps jumps = sensor_jumps(poses);
     if (jumps.count > 0) {
-      std::fprintf(stderr, "warning: %s: %s: a glitch? The tracker takes the sensor poses as given\n",
+      std::fprintf(stderr,
+                   "warning: %s: %s: a glitch? The tracker takes the sensor poses as given\n",
                    a.poses.c_str(), describe(jumps, 2).c_str());
     }
   } else {
