@@ -180,6 +180,38 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_FALSE(fs::exists(out("rec")));
 }
 
+// `patchgraph` loads no LibTorch and runs the commands that need a network in `patchgraph-torch`
+// beside it (tools/CMakeLists.txt): the same output and exit codes through the hand-over; without
+// that program, those commands fail naming it and the others run.
+TEST_F(PatchgraphCli, ACommandThatRunsANetworkRunsInPatchgraphTorch) {
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
+  const CliRun info = patchgraph("model-info " + model);
+  EXPECT_EQ(info.code, 0) << info.out;
+  EXPECT_NE(info.out.find("checksums and weights ok"), std::string::npos) << info.out;
+  // A usage error that only the network's command finds keeps its exit code.
+  const CliRun three = patchgraph("track " + data() + " -q --normals " + model + "," + model + "," +
+                                  model + " --out " + out("three_models"));
+  EXPECT_EQ(three.code, 2) << three.out;
+  EXPECT_NE(three.out.find("--normals: 3 models for 1 sensor(s)"), std::string::npos) << three.out;
+
+  const fs::path alone = dir_ / "alone";
+  fs::create_directories(alone);
+  fs::copy_file(PATCHGRAPH_PATH, alone / "patchgraph", fs::copy_options::overwrite_existing);
+  const std::string lone = (alone / "patchgraph").string();
+  const std::string needed = (alone / "patchgraph-torch").string() + ": cannot run it";
+  const CliRun info_alone = run(lone, "model-info " + model);
+  EXPECT_EQ(info_alone.code, 1) << info_alone.out;
+  EXPECT_NE(info_alone.out.find(needed), std::string::npos) << info_alone.out;
+  const CliRun learned = run(lone, "track " + data() + " -q --normals " + model + " --out " +
+                                       out("alone_learned"));
+  EXPECT_EQ(learned.code, 1) << learned.out;
+  EXPECT_NE(learned.out.find(needed), std::string::npos) << learned.out;
+  EXPECT_FALSE(fs::exists(out("alone_learned")));
+  const CliRun tracked = run(lone, "track " + data() + " -q --out " + out("alone_gt"));
+  EXPECT_EQ(tracked.code, 0) << tracked.out;
+  EXPECT_TRUE(fs::exists(out("alone_gt") + "/summary.json"));
+}
+
 // gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
 // 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
 // (it had sampled gigabytes, and the per-triangle count overflowed further up).

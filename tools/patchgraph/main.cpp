@@ -4,9 +4,15 @@
 //   patchgraph train-normals --data DIR... --arch unet|resnet|mlp --out MODEL
 //   patchgraph eval-normals --model MODEL --data DIR...
 //   patchgraph bench [--quick] --out OUT
+// Built twice (tools/CMakeLists.txt): `patchgraph-torch`, the whole program, and `patchgraph`,
+// without LibTorch (PG_NETWORK_PROGRAM), which runs a command that needs a network in the other.
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <map>
 #include <utility>
@@ -283,6 +289,27 @@ int run_track(const TrackArgs& a) {
   return kExitOk;
 }
 
+#ifdef PG_NETWORK_PROGRAM
+// Runs this command line in PG_NETWORK_PROGRAM, the program beside this one's file that has
+// LibTorch, in this process (exec: the same process id, streams and exit code).
+int run_in_network_program(char** argv) {
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::filesystem::path folder = ec ? std::filesystem::path(argv[0]).parent_path()
+                                          : self.parent_path();
+  const std::filesystem::path program = folder / PG_NETWORK_PROGRAM;
+  std::fflush(nullptr);
+  if (folder.empty()) {
+    execvp(PG_NETWORK_PROGRAM, argv);  // found as this one was, on the PATH
+  } else {
+    execv(program.c_str(), argv);
+  }
+  throw InputError(program.string() + ": cannot run it (" + std::strerror(errno) + "); " +
+                   "patchgraph runs its networks (LibTorch) in it: build it with patchgraph " +
+                   "(cmake --build build), and keep the two programs in one folder");
+}
+#endif
+
 }  // namespace
 }  // namespace pg
 
@@ -350,6 +377,15 @@ int main(int argc, char** argv) {
   CLI::App* cmd_label_ball = add_label_ball_command(app, label_ball_args);
 
   return run_cli(app, argc, argv, [&]() -> int {
+#ifdef PG_NETWORK_PROGRAM
+    const auto model = [](const std::string& normals) { return normals != "gt"; };
+    if (cmd_train_normals->parsed() || cmd_eval_normals->parsed() || cmd_model_info->parsed() ||
+        (cmd_track->parsed() && model(track.normals)) ||
+        (cmd_eval->parsed() && model(eval.track.normals)) ||
+        (cmd_bench->parsed() && std::any_of(bench.normals.begin(), bench.normals.end(), model))) {
+      return run_in_network_program(argv);
+    }
+#endif
     if (cmd_train_normals->parsed()) {
       for (const char* option : {"--l1-weight", "--gan-weight", "--depth", "--width", "--hidden"}) {
         if (cmd_train_normals->count(option) > 0)
