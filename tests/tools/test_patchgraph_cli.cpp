@@ -202,8 +202,8 @@ TEST_F(PatchgraphCli, ACommandThatRunsANetworkRunsInPatchgraphTorch) {
   const CliRun info_alone = run(lone, "model-info " + model);
   EXPECT_EQ(info_alone.code, 1) << info_alone.out;
   EXPECT_NE(info_alone.out.find(needed), std::string::npos) << info_alone.out;
-  const CliRun learned = run(lone, "track " + data() + " -q --normals " + model + " --out " +
-                                       out("alone_learned"));
+  const CliRun learned =
+      run(lone, "track " + data() + " -q --normals " + model + " --out " + out("alone_learned"));
   EXPECT_EQ(learned.code, 1) << learned.out;
   EXPECT_NE(learned.out.find(needed), std::string::npos) << learned.out;
   EXPECT_FALSE(fs::exists(out("alone_learned")));

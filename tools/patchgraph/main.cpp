@@ -295,8 +295,8 @@ int run_track(const TrackArgs& a) {
 int run_in_network_program(char** argv) {
   std::error_code ec;
   const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  const std::filesystem::path folder = ec ? std::filesystem::path(argv[0]).parent_path()
-                                          : self.parent_path();
+  const std::filesystem::path folder =
+      ec ? std::filesystem::path(argv[0]).parent_path() : self.parent_path();
   const std::filesystem::path program = folder / PG_NETWORK_PROGRAM;
   std::fflush(nullptr);
   if (folder.empty()) {
