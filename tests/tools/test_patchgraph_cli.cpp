@@ -180,9 +180,10 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_FALSE(fs::exists(out("rec")));
 }
 
-// `patchgraph` loads no LibTorch and runs the commands that need a network in `patchgraph-torch`
-// beside it (tools/CMakeLists.txt): the same output and exit codes through the hand-over; without
-// that program, those commands fail naming it and the others run.
+// `patchgraph` runs a command in `patchgraph-torch` when it runs a network and in
+// `patchgraph-core`, without LibTorch, otherwise (tools/CMakeLists.txt): the same output and exit
+// codes through the hand-over, whichever way a model is named; without `patchgraph-torch`, only
+// the commands that need it fail, naming it.
 TEST_F(PatchgraphCli, ACommandThatRunsANetworkRunsInPatchgraphTorch) {
   const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
   const CliRun info = patchgraph("model-info " + model);
@@ -196,20 +197,38 @@ TEST_F(PatchgraphCli, ACommandThatRunsANetworkRunsInPatchgraphTorch) {
 
   const fs::path alone = dir_ / "alone";
   fs::create_directories(alone);
-  fs::copy_file(PATCHGRAPH_PATH, alone / "patchgraph", fs::copy_options::overwrite_existing);
+  const fs::path launcher = PATCHGRAPH_PATH;
+  for (const char* program : {"patchgraph", "patchgraph-core"}) {
+    fs::copy_file(launcher.parent_path() / program, alone / program,
+                  fs::copy_options::overwrite_existing);
+  }
   const std::string lone = (alone / "patchgraph").string();
   const std::string needed = (alone / "patchgraph-torch").string() + ": cannot run it";
-  const CliRun info_alone = run(lone, "model-info " + model);
-  EXPECT_EQ(info_alone.code, 1) << info_alone.out;
-  EXPECT_NE(info_alone.out.find(needed), std::string::npos) << info_alone.out;
-  const CliRun learned =
-      run(lone, "track " + data() + " -q --normals " + model + " --out " + out("alone_learned"));
-  EXPECT_EQ(learned.code, 1) << learned.out;
-  EXPECT_NE(learned.out.find(needed), std::string::npos) << learned.out;
-  EXPECT_FALSE(fs::exists(out("alone_learned")));
-  const CliRun tracked = run(lone, "track " + data() + " -q --out " + out("alone_gt"));
+  // Each way of naming a model reaches patchgraph-torch: from the launcher, or from
+  // patchgraph-core when the launcher's reading of the words misses it (--normals=MODEL given
+  // to the core program directly).
+  const std::string track = "track " + data() + " -q --out " + out("alone_learned");
+  for (const std::string& args :
+       {"model-info " + model, track + " --normals " + model, track + " --normals=gt," + model,
+        "bench -q --quick --normals gt " + model + " --out " + out("alone_learned")}) {
+    const CliRun r = run(lone, args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(needed), std::string::npos) << args << "\n" << r.out;
+    EXPECT_FALSE(fs::exists(out("alone_learned"))) << args;
+  }
+  const CliRun core = run((alone / "patchgraph-core").string(), track + " --normals=" + model);
+  EXPECT_EQ(core.code, 1) << core.out;
+  EXPECT_NE(core.out.find(needed), std::string::npos) << core.out;
+  const CliRun tracked = run(lone, "track " + data() + " -q --normals gt --out " + out("alone_gt"));
   EXPECT_EQ(tracked.code, 0) << tracked.out;
   EXPECT_TRUE(fs::exists(out("alone_gt") + "/summary.json"));
+  // Without patchgraph-core nothing runs, and the error names it.
+  fs::remove(alone / "patchgraph-core");
+  const CliRun version = run(lone, "--version");
+  EXPECT_EQ(version.code, 1) << version.out;
+  EXPECT_NE(version.out.find((alone / "patchgraph-core").string() + ": cannot run it"),
+            std::string::npos)
+      << version.out;
 }
 
 // gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale

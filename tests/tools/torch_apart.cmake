@@ -1,31 +1,40 @@
-# cmake -DLIGHT=... -DNETWORK=... -P torch_apart.cmake: fails unless LIGHT (patchgraph) has no
-# LibTorch library among the libraries it loads and NETWORK (patchgraph-torch) has: loading
-# LibTorch costs every start of patchgraph about 0.6 s (tools/CMakeLists.txt).
+# cmake -DLAUNCHER=... -DLIGHT=... -DNETWORK=... -P torch_apart.cmake: fails unless LIGHT
+# (patchgraph-core) has no LibTorch library among the libraries it loads and NETWORK
+# (patchgraph-torch) has, and LAUNCHER (patchgraph) loads neither LibTorch nor OpenImageIO:
+# LibTorch costs every start about 0.6 s, OpenImageIO's libraries about 0.4 s
+# (tools/CMakeLists.txt).
 cmake_minimum_required(VERSION 3.20)
 
-# Sets `found` to whether `binary` loads libtorch_cpu: the dynamic loader lists every library it
-# would load, with those that libraries bring in.
-function(loads_torch binary)
+# Sets `torch` and `oiio` to whether `binary` loads libtorch_cpu and OpenImageIO: the dynamic
+# loader lists every library it would load, with those that libraries bring in.
+function(loaded_by binary)
   execute_process(COMMAND ${CMAKE_COMMAND} -E env LD_TRACE_LOADED_OBJECTS=1 "${binary}"
                   OUTPUT_VARIABLE loaded RESULT_VARIABLE status)
   string(FIND "${loaded}" "libc.so" libc)
   if(NOT status EQUAL 0 OR libc EQUAL -1)
     message(FATAL_ERROR "no library list from ${binary} (${status}):\n${loaded}")
   endif()
-  string(FIND "${loaded}" "libtorch_cpu.so" torch)
-  if(torch EQUAL -1)
-    set(found FALSE PARENT_SCOPE)
-  else()
-    set(found TRUE PARENT_SCOPE)
-  endif()
+  foreach(library torch_cpu OpenImageIO)
+    string(FIND "${loaded}" "lib${library}.so" at)
+    if(at EQUAL -1)
+      set(${library} FALSE PARENT_SCOPE)
+    else()
+      set(${library} TRUE PARENT_SCOPE)
+    endif()
+  endforeach()
 endfunction()
 
-loads_torch("${LIGHT}")
-if(found)
+loaded_by("${LAUNCHER}")
+if(torch_cpu OR OpenImageIO)
+  message(FATAL_ERROR "${LAUNCHER} loads LibTorch or OpenImageIO")
+endif()
+loaded_by("${LIGHT}")
+if(torch_cpu)
   message(FATAL_ERROR "${LIGHT} loads LibTorch")
 endif()
-loads_torch("${NETWORK}")
-if(NOT found)
+loaded_by("${NETWORK}")
+if(NOT torch_cpu)
   message(FATAL_ERROR "${NETWORK} does not load LibTorch")
 endif()
-message(STATUS "${LIGHT}: no LibTorch; ${NETWORK}: LibTorch")
+message(STATUS "${LAUNCHER}: neither LibTorch nor OpenImageIO; ${LIGHT}: no LibTorch; "
+               "${NETWORK}: LibTorch")

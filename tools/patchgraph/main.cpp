@@ -4,8 +4,9 @@
 //   patchgraph train-normals --data DIR... --arch unet|resnet|mlp --out MODEL
 //   patchgraph eval-normals --model MODEL --data DIR...
 //   patchgraph bench [--quick] --out OUT
-// Built twice (tools/CMakeLists.txt): `patchgraph-torch`, the whole program, and `patchgraph`,
-// without LibTorch (PG_NETWORK_PROGRAM), which runs a command that needs a network in the other.
+// Built twice (tools/CMakeLists.txt): `patchgraph-torch`, the whole program, and
+// `patchgraph-core`, without LibTorch (PG_NETWORK_PROGRAM), which runs a command that needs a
+// network in the other. The `patchgraph` launcher (launcher.cpp) picks one of the two.
 #include <unistd.h>
 
 #include <algorithm>
