@@ -1,5 +1,5 @@
 // pg/learn/normal_model.h for a program built without LibTorch (pg_learn_absent,
-// learn/CMakeLists.txt): `patchgraph` runs every command that needs a network in
+// learn/CMakeLists.txt): `patchgraph-core` runs every command that needs a network in
 // `patchgraph-torch` instead (tools/patchgraph/main.cpp), so reaching one of these is a bug.
 #include <stdexcept>
 #include <string>

@@ -8,12 +8,11 @@
 // This program links neither, so it starts in a millisecond. It reads the words of the command
 // line only; patchgraph-core parses them and hands a network's command that this reading missed
 // to patchgraph-torch itself (tools/patchgraph/main.cpp).
-#include <unistd.h>
-
-#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <string>
+
+#include "sibling.h"
 
 namespace {
 
@@ -52,31 +51,15 @@ bool runs_a_network(int argc, char** argv) {
   return false;
 }
 
-// The folder of this program's file, with its '/'; empty when /proc is not there.
-std::string own_folder() {
-  char path[4096];
-  const ssize_t n = readlink("/proc/self/exe", path, sizeof(path) - 1);
-  if (n <= 0) return "";
-  const std::string self(path, std::size_t(n));
-  return self.substr(0, self.rfind('/') + 1);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
   const char* name = runs_a_network(argc, argv) ? PG_NETWORK_PROGRAM : PG_CORE_PROGRAM;
-  const std::string folder = own_folder();
-  const std::string program = folder + name;
-  std::fflush(nullptr);
-  if (folder.empty()) {
-    execvp(name, argv);  // found as this one was, on the PATH
-  } else {
-    execv(program.c_str(), argv);
-  }
+  const std::string failed = pg::exec_sibling(name, argv);
   std::fprintf(stderr,
-               "error: %s: cannot run it (%s); patchgraph runs its commands in it: build it "
-               "with patchgraph (cmake --build build), and keep the three programs "
-               "(patchgraph, %s, %s) in one folder\n",
-               program.c_str(), std::strerror(errno), PG_CORE_PROGRAM, PG_NETWORK_PROGRAM);
+               "error: %s; patchgraph runs its commands in it: build it with patchgraph (cmake "
+               "--build build), and keep the three programs (patchgraph, %s, %s) in one "
+               "folder\n",
+               failed.c_str(), PG_CORE_PROGRAM, PG_NETWORK_PROGRAM);
   return 1;
 }

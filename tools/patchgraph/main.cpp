@@ -7,13 +7,9 @@
 // Built twice (tools/CMakeLists.txt): `patchgraph-torch`, the whole program, and
 // `patchgraph-core`, without LibTorch (PG_NETWORK_PROGRAM), which runs a command that needs a
 // network in the other. The `patchgraph` launcher (launcher.cpp) picks one of the two.
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <map>
 #include <utility>
@@ -27,6 +23,7 @@
 #include "normals_cli.h"
 #include "pg/core/image_change.h"
 #include "recording.h"
+#include "sibling.h"
 #include "track_args.h"
 
 namespace pg {
@@ -290,26 +287,6 @@ int run_track(const TrackArgs& a) {
   return kExitOk;
 }
 
-#ifdef PG_NETWORK_PROGRAM
-// Runs this command line in PG_NETWORK_PROGRAM, the program beside this one's file that has
-// LibTorch, in this process (exec: the same process id, streams and exit code).
-int run_in_network_program(char** argv) {
-  std::error_code ec;
-  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
-  const std::filesystem::path folder =
-      ec ? std::filesystem::path(argv[0]).parent_path() : self.parent_path();
-  const std::filesystem::path program = folder / PG_NETWORK_PROGRAM;
-  std::fflush(nullptr);
-  if (folder.empty()) {
-    execvp(PG_NETWORK_PROGRAM, argv);  // found as this one was, on the PATH
-  } else {
-    execv(program.c_str(), argv);
-  }
-  throw InputError(program.string() + ": cannot run it (" + std::strerror(errno) + "); " +
-                   "patchgraph runs its networks (LibTorch) in it: build it with patchgraph " +
-                   "(cmake --build build), and keep the two programs in one folder");
-}
-#endif
 
 }  // namespace
 }  // namespace pg
@@ -384,7 +361,11 @@ int main(int argc, char** argv) {
         (cmd_track->parsed() && model(track.normals)) ||
         (cmd_eval->parsed() && model(eval.track.normals)) ||
         (cmd_bench->parsed() && std::any_of(bench.normals.begin(), bench.normals.end(), model))) {
-      return run_in_network_program(argv);
+      // The launcher's reading of the words missed it (or this program was run directly).
+      throw InputError(exec_sibling(PG_NETWORK_PROGRAM, argv) +
+                       "; patchgraph runs its networks (LibTorch) in it: build it with "
+                       "patchgraph (cmake --build build), and keep the three programs "
+                       "(patchgraph, patchgraph-core, " PG_NETWORK_PROGRAM ") in one folder");
     }
 #endif
     if (cmd_train_normals->parsed()) {
