@@ -287,7 +287,6 @@ int run_track(const TrackArgs& a) {
   return kExitOk;
 }
 
-
 }  // namespace
 }  // namespace pg
 
