@@ -18,10 +18,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Where the presses go, as fractions of the gel the camera sees (visible_gel_area, 8.3 x 10.9
-// mm on the DIGIT): the point that touches first within 0.45 of it, every penetrating point
-// within 0.85; on the DIGIT about the repository's training scenes' 4 x 5 mm and 7.2 x 9 mm
-// (make_scenes).
+// Where the presses go, as fractions of the gel the camera sees (visible_gel_area, +-8.3 x
+// +-10.9 mm about the gel's centre on the DIGIT): the point that touches first within 0.45 of
+// it, every penetrating point within 0.85; on the DIGIT about the repository's training scenes'
+// +-4 x +-5 mm and +-7.2 x +-9 mm (make_scenes).
 constexpr double kTargetFraction = 0.45, kContactFraction = 0.85;
 
 // `path` as the scene file at `scene` names it: relative to the scene's folder when the two
