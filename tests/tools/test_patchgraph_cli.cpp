@@ -231,6 +231,57 @@ TEST_F(PatchgraphCli, ACommandThatRunsANetworkRunsInPatchgraphTorch) {
       << version.out;
 }
 
+// Through the launcher a command line gets what the whole program gives it: the same exit code
+// and the same errors, warnings, notes and results (timings and the programs' names aside),
+// whichever of the two programs the launcher picks.
+TEST_F(PatchgraphCli, TheLauncherAnswersAsTheWholeProgram) {
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
+  const std::string whole = (fs::path(PATCHGRAPH_PATH).parent_path() / "patchgraph-torch").string();
+  const std::string track = "track " + data() + " -q";
+  // The lines that say what happened; "OUT" for the output folder, "PROGRAM" for the program.
+  const auto said = [](std::string text, const std::string& program, const std::string& folder) {
+    for (const auto& [from, to] :
+         std::vector<std::pair<std::string, std::string>>{{folder, "OUT"}, {program, "PROGRAM"}}) {
+      for (std::size_t at = text.find(from); at != std::string::npos;
+           at = text.find(from, at + to.size())) {
+        text.replace(at, from.size(), to);
+      }
+    }
+    std::istringstream lines(text);
+    std::string kept;
+    for (std::string line; std::getline(lines, line);) {
+      for (const char* start : {"error:", "warning:", "note:", "Usage:", "final error", "RMSE"}) {
+        if (line.rfind(start, 0) == 0) kept += line + "\n";
+      }
+    }
+    return kept;
+  };
+  for (const std::string& args : std::vector<std::string>{
+           "", track + " --out OUT",
+           track + " --normals " + model + " --out OUT", track + " --normals=" + model + " --out OUT",
+           track + " --normals gt,gt --out OUT", track + " --normals " + model + ",,x --out OUT",
+           track + " --normals missing.pt --out OUT", track + " --normals --out OUT",
+           "model-info missing.pt", "eval-normals --model " + model + " --data /no/such/data",
+           "train-normals --data " + data() + " --arch vgg --out OUT/m.pt"}) {
+    std::string results[2];
+    int codes[2];
+    const std::string programs[2] = {PATCHGRAPH_PATH, whole};
+    for (int k = 0; k < 2; ++k) {
+      const std::string folder = out(k == 0 ? "launched" : "whole");
+      fs::remove_all(folder);
+      std::string line = args;
+      for (std::size_t at = line.find("OUT"); at != std::string::npos; at = line.find("OUT", at))
+        line.replace(at, 3, folder);
+      const CliRun r = run(programs[k], line);
+      codes[k] = r.code;
+      results[k] = said(r.out, programs[k], folder);
+    }
+    EXPECT_EQ(codes[0], codes[1]) << args;
+    EXPECT_EQ(results[0], results[1]) << args;
+    EXPECT_FALSE(results[0].empty()) << args;  // something was said to compare
+  }
+}
+
 // gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
 // 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
 // (it had sampled gigabytes, and the per-triangle count overflowed further up).
