@@ -257,9 +257,9 @@ TEST_F(PatchgraphCli, TheLauncherAnswersAsTheWholeProgram) {
     return kept;
   };
   for (const std::string& args : std::vector<std::string>{
-           "", track + " --out OUT",
-           track + " --normals " + model + " --out OUT", track + " --normals=" + model + " --out OUT",
-           track + " --normals gt,gt --out OUT", track + " --normals " + model + ",,x --out OUT",
+           "", track + " --out OUT", track + " --normals " + model + " --out OUT",
+           track + " --normals=" + model + " --out OUT", track + " --normals gt,gt --out OUT",
+           track + " --normals " + model + ",,x --out OUT",
            track + " --normals missing.pt --out OUT", track + " --normals --out OUT",
            "model-info missing.pt", "eval-normals --model " + model + " --data /no/such/data",
            "train-normals --data " + data() + " --arch vgg --out OUT/m.pt"}) {
