@@ -5,7 +5,7 @@
 # (tools/CMakeLists.txt).
 cmake_minimum_required(VERSION 3.20)
 
-# Sets `torch` and `oiio` to whether `binary` loads libtorch_cpu and OpenImageIO: the dynamic
+# Sets `torch_cpu` and `OpenImageIO` to whether `binary` loads those libraries: the dynamic
 # loader lists every library it would load, with those that libraries bring in.
 function(loaded_by binary)
   execute_process(COMMAND ${CMAKE_COMMAND} -E env LD_TRACE_LOADED_OBJECTS=1 "${binary}"

@@ -16,35 +16,21 @@
 
 namespace {
 
-// Whether a --normals value ("gt", "MODEL" or "MODEL,MODEL,...") names anything but gt.
-bool names_a_model(const std::string& value) {
-  std::size_t begin = 0;
-  while (true) {
-    const std::size_t end = value.find(',', begin);
-    if (value.substr(begin, end == std::string::npos ? std::string::npos : end - begin) != "gt")
-      return true;
-    if (end == std::string::npos) return false;
-    begin = end + 1;
-  }
-}
-
 bool runs_a_network(int argc, char** argv) {
   int i = 1;
   while (i < argc && argv[i][0] == '-') ++i;  // --help, --version: they take no value
   if (i == argc) return false;
   const std::string command = argv[i];
-  if (command == "train-normals" || command == "eval-normals" || command == "model-info") {
-    return true;
-  }
-  if (command != "track" && command != "eval" && command != "bench") return false;
+  if (pg::is_network_command(command)) return true;
+  if (!pg::takes_normals_models(command)) return false;
   for (++i; i < argc; ++i) {
     const std::string word = argv[i];
     if (word.rfind("--normals=", 0) == 0) {
-      if (names_a_model(word.substr(std::strlen("--normals=")))) return true;
+      if (pg::names_a_model(word.substr(std::strlen("--normals=")))) return true;
     } else if (word == "--normals") {
       // Its values (bench takes several) up to the next option.
       for (; i + 1 < argc && argv[i + 1][0] != '-'; ++i) {
-        if (names_a_model(argv[i + 1])) return true;
+        if (pg::names_a_model(argv[i + 1])) return true;
       }
     }
   }
@@ -55,11 +41,6 @@ bool runs_a_network(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   const char* name = runs_a_network(argc, argv) ? PG_NETWORK_PROGRAM : PG_CORE_PROGRAM;
-  const std::string failed = pg::exec_sibling(name, argv);
-  std::fprintf(stderr,
-               "error: %s; patchgraph runs its commands in it: build it with patchgraph (cmake "
-               "--build build), and keep the three programs (patchgraph, %s, %s) in one "
-               "folder\n",
-               failed.c_str(), PG_CORE_PROGRAM, PG_NETWORK_PROGRAM);
+  std::fprintf(stderr, "error: %s\n", pg::exec_sibling(name, argv).c_str());
   return 1;
 }

@@ -355,16 +355,13 @@ int main(int argc, char** argv) {
 
   return run_cli(app, argc, argv, [&]() -> int {
 #ifdef PG_NETWORK_PROGRAM
-    const auto model = [](const std::string& normals) { return normals != "gt"; };
-    if (cmd_train_normals->parsed() || cmd_eval_normals->parsed() || cmd_model_info->parsed() ||
-        (cmd_track->parsed() && model(track.normals)) ||
-        (cmd_eval->parsed() && model(eval.track.normals)) ||
-        (cmd_bench->parsed() && std::any_of(bench.normals.begin(), bench.normals.end(), model))) {
+    const std::string command = app.get_subcommands().front()->get_name();
+    if (is_network_command(command) || (cmd_track->parsed() && names_a_model(track.normals)) ||
+        (cmd_eval->parsed() && names_a_model(eval.track.normals)) ||
+        (cmd_bench->parsed() &&
+         std::any_of(bench.normals.begin(), bench.normals.end(), names_a_model))) {
       // The launcher's reading of the words missed it (or this program was run directly).
-      throw InputError(exec_sibling(PG_NETWORK_PROGRAM, argv) +
-                       "; patchgraph runs its networks (LibTorch) in it: build it with "
-                       "patchgraph (cmake --build build), and keep the three programs "
-                       "(patchgraph, patchgraph-core, " PG_NETWORK_PROGRAM ") in one folder");
+      throw InputError(exec_sibling(PG_NETWORK_PROGRAM, argv));
     }
 #endif
     if (cmd_train_normals->parsed()) {
