@@ -510,11 +510,13 @@ TEST(Tracking, AnObjectHeldInAShakingHandTracksAsOnAStillSensor) {
       worst_t = std::max(worst_t, translation_distance(shaken_rel, still_rel));
       worst_r = std::max(worst_r, rotation_distance(shaken_rel, still_rel));
     }
-    // Measured: 2e-15 m / 8e-14 rad for the example; far from the origin 8e-8 m / 2.5e-6 rad,
-    // where the poses' numbers are 1e5 times larger, still far below the tracking error (0.18
-    // mm, 0.0004 rad).
-    EXPECT_LT(worst_t, far ? 1e-6 : 1e-10) << "largest difference relative to the sensor [m]";
-    EXPECT_LT(worst_r, far ? 2e-5 : 1e-10) << "largest difference relative to the sensor [rad]";
+    // Measured: 2e-15 m / 1.4e-13 rad for the example; far from the origin, where the poses'
+    // numbers are 1e5 times larger, 7e-7 m / 4.7e-5 rad, below the tracking error (0.18 mm,
+    // 0.0004 rad). There the rounding can stop a registration that ends in a cycle at another
+    // of the cycle's poses, each within a micrometre (IcpOptions::cycle_extent_m; without the
+    // cycle test 7.5e-8 m / 2.4e-6 rad).
+    EXPECT_LT(worst_t, far ? 3e-6 : 1e-10) << "largest difference relative to the sensor [m]";
+    EXPECT_LT(worst_r, far ? 1e-4 : 1e-10) << "largest difference relative to the sensor [rad]";
     if (far) continue;
     TrackOptions world;
     world.graph.motion_frame = MotionFrame::kWorld;

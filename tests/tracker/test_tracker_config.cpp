@@ -34,7 +34,7 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
                           "mask": {"min_depth_m": 5e-5},
                           "icp": {"kernel": "tukey", "kernel_scale_m": 2e-4, "voxel_size_m": 1e-4,
                                   "coarse_points": 0, "coarse_step_m": 2e-5,
-                                  "symmetric": false}})",
+                                  "symmetric": false, "cycle_extent_m": 0}})",
                                                "cfg.json"),
                                "cfg.json");
   // The overrides, read from the file and again through the writer (a field the writer left out
@@ -51,6 +51,7 @@ TEST(TrackerConfig, OverridesAndRoundTrips) {
     EXPECT_EQ(t.icp.coarse_points, 0);
     EXPECT_DOUBLE_EQ(t.icp.coarse_step_m, 2e-5);
     EXPECT_FALSE(t.icp.symmetric);
+    EXPECT_EQ(t.icp.cycle_extent_m, 0.0);
   };
   EXPECT_EQ(DepthOptions().integration, DepthIntegration::kParity);
   EXPECT_TRUE(IcpOptions().symmetric);

@@ -407,6 +407,12 @@ NormalEquations linearise(const PointCloud& source, std::size_t stride,
   return body.eq;
 }
 
+// How far apart two poses put a cloud of the given centroid and radius: the centroid's
+// displacement plus the radius times the angle between them [m].
+double pose_distance(const SE3& a, const SE3& b, const Eigen::Vector3d& centre, double radius) {
+  return (a * centre - b * centre).norm() + radius * a.rotation().angularDistance(b.rotation());
+}
+
 }  // namespace
 
 const char* to_string(IcpStatus status) {
@@ -470,6 +476,9 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   const int min_inliers = std::max(o.min_points, 6);
 
   SE3 T = T_target_source_guess;
+  // Where the last full-cloud iterations started (a ring), for the cycle test.
+  std::array<SE3, kCycleIterations> recent;
+  int fine_iterations = 0;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
     // At most the first half of the iterations are coarse: the full cloud always gets the rest
@@ -516,11 +525,13 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
                               std::max(NormalEquations::total(eq.weight) - 6.0, 1.0);
       result.residual_sigma_m = std::max(std::sqrt(sigma_sq), o.min_residual_sigma_m);
       result.information = result.hessian / (result.residual_sigma_m * result.residual_sigma_m);
+      recent[fine_iterations++ % kCycleIterations] = T;
     }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
     const Vector6d step_c = constrained_step(degeneracy, D * eq.gradient());
     const SE3 T_c = SE3::Translation(c);
+    const SE3 linearised = T;
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
     if (coarse) {
       // Fine from the next iteration once the subsample's points move less than coarse_step_m.
@@ -530,6 +541,17 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     result.T_target_source = T;
     if (step_c.head<3>().norm() < o.convergence_translation_m &&
         step_c.tail<3>().norm() < o.convergence_rotation_rad) {
+      result.converged = true;
+      result.status = IcpStatus::kConverged;
+      return result;
+    }
+    if (o.cycle_extent_m > 0.0 && fine_iterations >= kCycleIterations &&
+        std::all_of(recent.begin(), recent.end(), [&](const SE3& r) {
+          return pose_distance(r, linearised, cs.centre, L) < o.cycle_extent_m;
+        })) {
+      // The answer is then this iteration's linearisation point, which the Hessian, information
+      // and residuals above describe.
+      result.T_target_source = linearised;
       result.converged = true;
       result.status = IcpStatus::kConverged;
       return result;

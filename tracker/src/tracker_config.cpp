@@ -76,6 +76,7 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
       f.number_in("convergence_translation_m", 0.0, 1.0, o.convergence_translation_m);
   o.convergence_rotation_rad =
       f.number_in("convergence_rotation_rad", 0.0, 1.0, o.convergence_rotation_rad);
+  o.cycle_extent_m = f.number_in("cycle_extent_m", 0.0, 1.0, o.cycle_extent_m);
   o.min_points = int_in(f, "min_points", 6, 100000000, o.min_points);
   o.voxel_size_m = f.number_in("voxel_size_m", 0.0, 1.0, o.voxel_size_m);
   if (o.voxel_size_m != 0.0 && o.voxel_size_m < 1e-6) {  // a micrometre: the grid's keys overflow
@@ -141,6 +142,7 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"symmetric", c.icp.symmetric},
         {"convergence_translation_m", c.icp.convergence_translation_m},
         {"convergence_rotation_rad", c.icp.convergence_rotation_rad},
+        {"cycle_extent_m", c.icp.cycle_extent_m},
         {"min_points", c.icp.min_points},
         {"voxel_size_m", c.icp.voxel_size_m},
         {"coarse_points", c.icp.coarse_points},

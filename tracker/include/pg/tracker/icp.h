@@ -15,6 +15,9 @@ namespace pg {
 
 class CorrespondenceCache;
 
+// Full-cloud iterations that IcpOptions::cycle_extent_m compares.
+constexpr int kCycleIterations = 4;
+
 struct IcpOptions {
   int max_iterations = 30;
   double max_correspondence_m = 1e-3;  // pairs farther apart are not used [m]
@@ -31,6 +34,12 @@ struct IcpOptions {
   // less than convergence_rotation_rad [rad].
   double convergence_translation_m = 1e-7;
   double convergence_rotation_rad = 1e-6;
+  // Converged as well when the last kCycleIterations full-cloud iterations started within this of
+  // the last one: the centroid's displacement plus the cloud's radius times the angle [m]. Near
+  // its answer the iteration can fall into a cycle, nearest neighbours and float rounding
+  // handing two or more poses back and forth for ever, with every step above the thresholds
+  // (docs/tracker_geometry.md, "Cycles"); 0: off.
+  double cycle_extent_m = 1e-6;
   int min_points = 20;      // fewer source points or correspondences: not converged [-]
   double voxel_size_m = 0;  // downsample the source to this voxel edge first; 0: off [m]
   // Coarse to fine: while the steps are large, iterate on an evenly strided subsample of about
@@ -53,7 +62,7 @@ struct IcpOptions {
 
 enum class IcpStatus {
   kConverged,
-  kMaxIterations,          // the last update was still above the thresholds
+  kMaxIterations,          // the last update was still above the thresholds, and no cycle
   kTooFewPoints,           // source (after downsampling) or target below min_points, or no normals
   kTooFewCorrespondences,  // fewer than min_points pairs within max_correspondence_m
 };
