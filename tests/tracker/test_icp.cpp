@@ -787,7 +787,8 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
   for (int k = 0; k < 40; ++k) {
     const SE3 delta = random_pose(rng, 1e-4, 0.01);
     for (const RenderCase* rc : {&brick, &cube}) {
-      const TwoRenders tr = two_renders(*rc, rc == &brick ? brick_pose() : cube_corner_pose(), delta);
+      const TwoRenders tr =
+          two_renders(*rc, rc == &brick ? brick_pose() : cube_corner_pose(), delta);
       const PointCloudTree target(tr.cloud_a);
       const IcpResult off = PointToPlaneIcp(without).align(tr.cloud_b, target, SE3::Identity());
       const IcpResult on = PointToPlaneIcp().align(tr.cloud_b, target, SE3::Identity());
@@ -799,11 +800,10 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
       double sq = 0;
       for (const auto& p : tr.cloud_b.points) sq += (p.cast<double>() - centre).squaredNorm();
       const double radius = std::sqrt(sq / double(tr.cloud_b.size()));
-      const double apart =
-          (off.T_target_source * centre - on.T_target_source * centre).norm() +
-          radius * rotation_distance(off.T_target_source, on.T_target_source);
-      const std::string name = std::string(rc == &brick ? "toy brick" : "cube corner") +
-                               ", motion " + std::to_string(k);
+      const double apart = (off.T_target_source * centre - on.T_target_source * centre).norm() +
+                           radius * rotation_distance(off.T_target_source, on.T_target_source);
+      const std::string name =
+          std::string(rc == &brick ? "toy brick" : "cube corner") + ", motion " + std::to_string(k);
       if (off.converged) {
         EXPECT_TRUE(on.converged) << name;
         EXPECT_LE(on.iterations, off.iterations) << name;
@@ -811,9 +811,10 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
         continue;
       }
       ++cycles;
-      std::printf("  %-22s at the limit (%d iterations); with the cycle test %s in %d, %.3f um "
-                  "from there\n",
-                  name.c_str(), off.iterations, to_string(on.status), on.iterations, apart * 1e6);
+      std::printf(
+          "  %-22s at the limit (%d iterations); with the cycle test %s in %d, %.3f um "
+          "from there\n",
+          name.c_str(), off.iterations, to_string(on.status), on.iterations, apart * 1e6);
       if (!on.converged) continue;
       ++ended;
       EXPECT_LT(on.iterations, off.iterations) << name;
