@@ -783,7 +783,7 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
   without.cycle_extent_m = 0;
   const double extent = IcpOptions().cycle_extent_m;
   std::mt19937 rng(3);
-  int cycles = 0, ended = 0;
+  int at_limit = 0, ended = 0;
   for (int k = 0; k < 40; ++k) {
     const SE3 delta = random_pose(rng, 1e-4, 0.01);
     for (const RenderCase* rc : {&brick, &cube}) {
@@ -810,7 +810,7 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
         EXPECT_LT(apart, extent) << name;
         continue;
       }
-      ++cycles;
+      ++at_limit;
       std::printf(
           "  %-22s at the limit (%d iterations); with the cycle test %s in %d, %.3f um "
           "from there\n",
@@ -822,7 +822,7 @@ TEST(IcpCycles, ARegistrationInACycleConvergesWhereItWas) {
       EXPECT_LT(apart, 2 * extent) << name;
     }
   }
-  EXPECT_GT(cycles, 0) << "no registration reached the limit: nothing was tested";
+  EXPECT_GT(at_limit, 0) << "no registration reached the limit: nothing was tested";
   EXPECT_GT(ended, 0);
 }
 

@@ -407,11 +407,25 @@ NormalEquations linearise(const PointCloud& source, std::size_t stride,
   return body.eq;
 }
 
-// How far apart two poses put a cloud of the given centroid and radius: the centroid's
-// displacement plus the radius times the angle between them [m].
-double pose_distance(const SE3& a, const SE3& b, const Eigen::Vector3d& centre, double radius) {
-  return (a * centre - b * centre).norm() + radius * a.rotation().angularDistance(b.rotation());
-}
+// Where the last full-cloud iterations started (a ring), for IcpOptions::cycle_extent_m.
+class CycleWatch {
+ public:
+  void record(const SE3& start) { starts_[recorded_++ % kCycleIterations] = start; }
+  // Whether the last kCycleIterations starts all lie within `extent` of `last`, measured as the
+  // displacement of a cloud's centroid plus its radius times the angle [m].
+  bool closed(const SE3& last, const Eigen::Vector3d& centre, double radius, double extent) const {
+    return extent > 0.0 && recorded_ >= kCycleIterations &&
+           std::all_of(starts_.begin(), starts_.end(), [&](const SE3& s) {
+             return (s * centre - last * centre).norm() +
+                        radius * s.rotation().angularDistance(last.rotation()) <
+                    extent;
+           });
+  }
+
+ private:
+  std::array<SE3, kCycleIterations> starts_;
+  int recorded_ = 0;
+};
 
 }  // namespace
 
@@ -476,9 +490,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   const int min_inliers = std::max(o.min_points, 6);
 
   SE3 T = T_target_source_guess;
-  // Where the last full-cloud iterations started (a ring), for the cycle test.
-  std::array<SE3, kCycleIterations> recent;
-  int fine_iterations = 0;
+  CycleWatch cycle;
   for (int iteration = 1; iteration <= o.max_iterations; ++iteration) {
     const Eigen::Vector3d c = T * cs.centre;  // the source centroid in the target frame
     // At most the first half of the iterations are coarse: the full cloud always gets the rest
@@ -525,7 +537,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
                               std::max(NormalEquations::total(eq.weight) - 6.0, 1.0);
       result.residual_sigma_m = std::max(std::sqrt(sigma_sq), o.min_residual_sigma_m);
       result.information = result.hessian / (result.residual_sigma_m * result.residual_sigma_m);
-      recent[fine_iterations++ % kCycleIterations] = T;
+      cycle.record(T);
     }
 
     // Gauss-Newton step about the centroid, only along constrained directions.
@@ -545,10 +557,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
       result.status = IcpStatus::kConverged;
       return result;
     }
-    if (o.cycle_extent_m > 0.0 && fine_iterations >= kCycleIterations &&
-        std::all_of(recent.begin(), recent.end(), [&](const SE3& r) {
-          return pose_distance(r, linearised, cs.centre, L) < o.cycle_extent_m;
-        })) {
+    if (cycle.closed(linearised, cs.centre, L, o.cycle_extent_m)) {
       // The answer is then this iteration's linearisation point, which the Hessian, information
       // and residuals above describe.
       result.T_target_source = linearised;
