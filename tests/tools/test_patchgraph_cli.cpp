@@ -238,16 +238,17 @@ TEST_F(PatchgraphCli, TheLauncherAnswersAsTheWholeProgram) {
   const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
   const std::string whole = (fs::path(PATCHGRAPH_PATH).parent_path() / "patchgraph-torch").string();
   const std::string track = "track " + data() + " -q";
-  // The lines that say what happened; "OUT" for the output folder, "PROGRAM" for the program.
-  const auto said = [](std::string text, const std::string& program, const std::string& folder) {
-    for (const auto& [from, to] :
-         std::vector<std::pair<std::string, std::string>>{{folder, "OUT"}, {program, "PROGRAM"}}) {
-      for (std::size_t at = text.find(from); at != std::string::npos;
-           at = text.find(from, at + to.size())) {
-        text.replace(at, from.size(), to);
-      }
+  const auto replace_all = [](std::string text, const std::string& from, const std::string& to) {
+    for (std::size_t at = text.find(from); at != std::string::npos;
+         at = text.find(from, at + to.size())) {
+      text.replace(at, from.size(), to);
     }
-    std::istringstream lines(text);
+    return text;
+  };
+  // The lines that say what happened; "OUT" for the output folder, "PROGRAM" for the program.
+  const auto said = [&](const std::string& out, const std::string& program,
+                        const std::string& folder) {
+    std::istringstream lines(replace_all(replace_all(out, folder, "OUT"), program, "PROGRAM"));
     std::string kept;
     for (std::string line; std::getline(lines, line);) {
       for (const char* start : {"error:", "warning:", "note:", "Usage:", "final error", "RMSE"}) {
@@ -269,10 +270,7 @@ TEST_F(PatchgraphCli, TheLauncherAnswersAsTheWholeProgram) {
     for (int k = 0; k < 2; ++k) {
       const std::string folder = out(k == 0 ? "launched" : "whole");
       fs::remove_all(folder);
-      std::string line = args;
-      for (std::size_t at = line.find("OUT"); at != std::string::npos; at = line.find("OUT", at))
-        line.replace(at, 3, folder);
-      const CliRun r = run(programs[k], line);
+      const CliRun r = run(programs[k], replace_all(args, "OUT", folder));
       codes[k] = r.code;
       results[k] = said(r.out, programs[k], folder);
     }
