@@ -412,10 +412,10 @@ NormalEstimator::~NormalEstimator() = default;
 namespace {
 // A forward pass allocates and frees a few MB of tensors. By default glibc gives such blocks back
 // to the kernel when they are freed (large ones are mapped on their own, and the top of a heap is
-// trimmed past 128 kB), so every frame faulted them in again: about 540 page faults a frame at
-// 120x160, a quarter of the U-Net's inference time on a 2-core AMD EPYC
-// (docs/learned_normals.md, "Inference speed"). Kept in the heap, they are reused. The process
-// then holds on to up to kKeptFreeBytes of freed memory.
+// trimmed past 128 kB at first), so every frame faulted them in again: about 540 page faults a
+// frame at 120x160, a fifth to a quarter of the U-Net's inference time and more than half of the
+// MLP's on a 2-core AMD EPYC (docs/learned_normals.md, "Freed memory kept"). Kept in the heap,
+// they are reused. The process then holds on to up to kKeptFreeBytes of freed memory.
 constexpr int kKeptFreeBytes = 256 << 20;
 void keep_freed_memory() {
 #ifdef __GLIBC__
