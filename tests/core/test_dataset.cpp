@@ -719,6 +719,38 @@ TEST(Image, ErrorsNameThePath) {
   expect_input_error([&] { read_image_u8(tmp.str()); }, "is a directory, not an image file");
 }
 
+// OpenImageIO comes in a module loaded with the first image read or written (ctest runs this test
+// in a process of its own, so here: by four threads at once). Codec threads asked for before then
+// hold once it is loaded.
+TEST(Image, TheCodecModuleComesWithTheFirstImage) {
+  // 3: neither OpenImageIO's default (0) nor what it reports for the default on 2 cores (2).
+  set_image_codec_threads(3);
+  EXPECT_EQ(image_codec_threads(), 3);
+  TempDir tmp;
+  const std::string pixels = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+  std::ofstream(tmp.str("a.pgm"), std::ios::binary) << "P5\n4 3\n255\n" << pixels;
+  std::atomic<int> read_right{0};
+  std::vector<std::thread> readers;
+  for (int k = 0; k < 4; ++k) {
+    readers.emplace_back([&] {
+      const ImageU8 image = read_image_u8(tmp.str("a.pgm"));
+      if (image.same_shape(4, 3, 1) &&
+          image.data == std::vector<std::uint8_t>(pixels.begin(), pixels.end())) {
+        ++read_right;
+      }
+    });
+  }
+  for (auto& r : readers) r.join();
+  EXPECT_EQ(read_right, 4);
+  EXPECT_EQ(image_codec_threads(), 3);  // OpenImageIO's own setting now
+  std::ifstream maps("/proc/self/maps");
+  const std::string mapped((std::istreambuf_iterator<char>(maps)),
+                           std::istreambuf_iterator<char>());
+  EXPECT_NE(mapped.find("libpg_image_codec"), std::string::npos);
+  EXPECT_NE(mapped.find("libOpenImageIO"), std::string::npos);
+  set_image_codec_threads(0);
+}
+
 TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheMedianOfFramesWithoutContact) {
   TempDir tmp;
   // Frames 0, 2, 4 have contact: without background.png, frames 1 and 3 make the reference, the

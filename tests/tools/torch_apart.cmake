@@ -1,8 +1,9 @@
 # cmake -DLAUNCHER=... -DLIGHT=... -DNETWORK=... -P torch_apart.cmake: fails unless LIGHT
-# (patchgraph-core) has no LibTorch library among the libraries it loads and NETWORK
-# (patchgraph-torch) has, and LAUNCHER (patchgraph) loads neither LibTorch nor OpenImageIO:
-# LibTorch costs every start about 0.6 s, OpenImageIO's libraries about 0.4 s
-# (tools/CMakeLists.txt).
+# (patchgraph-core) loads neither LibTorch nor OpenImageIO at its start and NETWORK
+# (patchgraph-torch) loads LibTorch, and LAUNCHER (patchgraph) loads neither: LibTorch costs every
+# start about 0.6 s (tools/CMakeLists.txt), OpenImageIO's libraries about 0.5 s; those come with
+# the image codec module when patchgraph-core first reads or writes an image
+# (core/src/image_codec.h), and at its start in patchgraph-torch, whose commands read images.
 cmake_minimum_required(VERSION 3.20)
 
 # Sets `torch_cpu` and `OpenImageIO` to whether `binary` loads those libraries: the dynamic
@@ -29,12 +30,12 @@ if(torch_cpu OR OpenImageIO)
   message(FATAL_ERROR "${LAUNCHER} loads LibTorch or OpenImageIO")
 endif()
 loaded_by("${LIGHT}")
-if(torch_cpu)
-  message(FATAL_ERROR "${LIGHT} loads LibTorch")
+if(torch_cpu OR OpenImageIO)
+  message(FATAL_ERROR "${LIGHT} loads LibTorch or OpenImageIO")
 endif()
 loaded_by("${NETWORK}")
 if(NOT torch_cpu)
   message(FATAL_ERROR "${NETWORK} does not load LibTorch")
 endif()
-message(STATUS "${LAUNCHER}: neither LibTorch nor OpenImageIO; ${LIGHT}: no LibTorch; "
+message(STATUS "${LAUNCHER}: neither LibTorch nor OpenImageIO; ${LIGHT}: neither; "
                "${NETWORK}: LibTorch")

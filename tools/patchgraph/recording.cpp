@@ -413,9 +413,9 @@ void refuse_grey(const VideoInfo& info, const std::string& path) {
 }
 
 VideoScan scan_video(const std::string& path, const FrameReading& reading, const FrameRange& keep) {
-  VideoReader reader(path);
+  const std::unique_ptr<VideoReader> reader = open_video(path);
   VideoScan scan;
-  scan.info = reader.info();
+  scan.info = reader->info();
   const VideoInfo& info = scan.info;
   // A phone's video is stored turned and shown upright by its display matrix, which decoding
   // does not apply: said before the size check, whose hint may otherwise be the only word.
@@ -437,23 +437,24 @@ VideoScan scan_video(const std::string& path, const FrameReading& reading, const
   check_frame_shape(path, reading.turned({info.width, info.height, 3}), reading);
   ImageU8 raw;
   double time_s = 0.0;
-  while (reader.next(raw, time_s)) {
+  while (reader->next(raw, time_s)) {
     if (keep.contains(int(scan.times_s.size())))
       scan.kept.push_back(sensor_image(raw, path, reading));
     scan.times_s.push_back(time_s);
   }
   if (scan.times_s.empty()) {
     throw InputError(path + ": holds no frame" +
-                     (reader.damaged_frames() > 0 ? " that decodes (" + reader.first_damage() + ")"
-                                                  : std::string()) +
+                     (reader->damaged_frames() > 0
+                          ? " that decodes (" + reader->first_damage() + ")"
+                          : std::string()) +
                      " (--video)");
   }
-  if (reader.damaged_frames() > 0) {
+  if (reader->damaged_frames() > 0) {
     std::fprintf(stderr,
                  "warning: %s: %d frame%s left out as damaged (the first: %s); the %zu that "
                  "decoded whole are the dataset's frames\n",
-                 path.c_str(), reader.damaged_frames(), reader.damaged_frames() == 1 ? "" : "s",
-                 reader.first_damage().c_str(), scan.times_s.size());
+                 path.c_str(), reader->damaged_frames(), reader->damaged_frames() == 1 ? "" : "s",
+                 reader->first_damage().c_str(), scan.times_s.size());
   }
   std::vector<double> steps;
   for (std::size_t i = 1; i < scan.times_s.size(); ++i) {
@@ -642,12 +643,12 @@ NoContactImages background_images(const std::vector<fs::path>& references,
     const bool is_video = has_video_extension(path);
     given.slices.push_back({path, is_video, given.images.size(), 0});
     if (is_video) {  // every frame
-      VideoReader reader(path);
-      check_size({reader.info().width, reader.info().height, 3});
-      refuse_grey(reader.info(), path);
+      const std::unique_ptr<VideoReader> reader = open_video(path);
+      check_size({reader->info().width, reader->info().height, 3});
+      refuse_grey(reader->info(), path);
       ImageU8 raw;
       double time_s = 0.0;
-      while (reader.next(raw, time_s)) given.images.push_back(sensor_image(raw, path, reading));
+      while (reader->next(raw, time_s)) given.images.push_back(sensor_image(raw, path, reading));
       if (given.images.size() == given.slices.back().begin) {
         throw InputError(path + ": holds no frame (--background)");
       }
@@ -851,7 +852,7 @@ int run_recording(const RecordingArgs& a) {
     writer.write_background(background);
     Progress progress("importing", frames, !a.quiet);
     std::unique_ptr<VideoReader> reader;
-    if (from_video) reader = std::make_unique<VideoReader>(a.video);
+    if (from_video) reader = open_video(a.video);
     FrameImages images;
     for (int i = 0; i < frames; ++i) {
       if (reader) {

@@ -1,6 +1,9 @@
 #pragma once
 // A video file's frames, decoded in order by FFmpeg's libraries (libavformat, libavcodec,
-// libswscale), as 8-bit RGB: `patchgraph recording --video`. FFmpeg is included only by video.cpp.
+// libswscale), as 8-bit RGB: `patchgraph recording --video`. FFmpeg is included only by
+// video_ffmpeg.cpp.
+#include <cctype>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -37,35 +40,36 @@ struct VideoInfo {
   double duration_s = 0.0;
 };
 
+// A video's frames, decoded in order: an FFmpeg decoder (video_ffmpeg.cpp).
 class VideoReader {
  public:
-  // Opens the file's best video stream; throws InputError naming the file when it is missing,
-  // not a video FFmpeg can read, or has no video stream.
-  explicit VideoReader(const std::string& path);
-  ~VideoReader();
-  VideoReader(const VideoReader&) = delete;
-  VideoReader& operator=(const VideoReader&) = delete;
-
-  const VideoInfo& info() const;
+  virtual ~VideoReader() = default;
+  virtual const VideoInfo& info() const = 0;
   // The next frame as RGB (3 channels) and its time in seconds from the stream's start; false
   // after the last. A frame that does not decode whole (a file cut short, a damaged packet) is
   // left out and counted (damaged_frames). Throws InputError naming the file and frame when a
   // frame changes size.
-  bool next(ImageU8& rgb, double& time_s);
+  virtual bool next(ImageU8& rgb, double& time_s) = 0;
   // Frames or packets left out as damaged so far, and what the first one's damage was.
-  int damaged_frames() const;
-  const std::string& first_damage() const;
-
- private:
-  struct State;
-  std::unique_ptr<State> s_;
+  virtual int damaged_frames() const = 0;
+  virtual const std::string& first_damage() const = 0;
 };
+
+// Opens the file's best video stream; throws InputError naming the file when it is missing,
+// not a video FFmpeg can read, or has no video stream. FFmpeg's libraries are a module of their
+// own (pg_video), loaded by the first call: they are some 130 libraries, and in a program's own
+// start-up every image read later (OpenImageIO, also loaded when needed) took 0.2 s longer.
+std::unique_ptr<VideoReader> open_video(const std::string& path);
 
 // Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...), for options
 // that take images or videos.
 bool has_video_extension(const std::string& path);
 
 // The file's extension in lower case (".png").
-std::string lower_extension(const std::string& path);
+inline std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext;
+}
 
 }  // namespace pg
