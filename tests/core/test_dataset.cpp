@@ -18,6 +18,7 @@
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
+#include "pg/core/module.h"
 #include "pg/core/point_io.h"
 
 namespace pg {
@@ -749,6 +750,32 @@ TEST(Image, TheCodecModuleComesWithTheFirstImage) {
   EXPECT_NE(mapped.find("libpg_image_codec"), std::string::npos);
   EXPECT_NE(mapped.find("libOpenImageIO"), std::string::npos);
   set_image_codec_threads(0);
+}
+
+// A module is found where it was built or, in a build folder moved as a whole, in the folder of
+// that name beside the program's (this test runs from build/tests, the codec is in build/core);
+// one in neither place is an error that names what and where.
+TEST(Module, FoundWhereBuiltOrBesideTheProgram) {
+  const fs::path build = fs::read_symlink("/proc/self/exe").parent_path().parent_path();
+  ASSERT_TRUE(fs::exists(build / "core" / "libpg_image_codec.so")) << build;
+  EXPECT_NE(module_entry("/moved/away/core/libpg_image_codec.so", "pg_image_codec_table",
+                         "the image codecs"),
+            nullptr);
+  try {
+    module_entry("/moved/away/core/libpg_none.so", "pg_none", "the nothing codecs");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("cannot load the nothing codecs"), std::string::npos) << what;
+    EXPECT_NE(what.find("/moved/away/core/libpg_none.so"), std::string::npos) << what;
+    EXPECT_NE(what.find((build / "core" / "libpg_none.so").string()), std::string::npos) << what;
+  }
+  try {  // there, but without the function asked for
+    module_entry((build / "core" / "libpg_image_codec.so").string(), "pg_none", "the codecs");
+    ADD_FAILURE() << "no error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no function pg_none"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Dataset, BackgroundIsTheWrittenReferenceOrTheMedianOfFramesWithoutContact) {
