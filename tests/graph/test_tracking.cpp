@@ -787,9 +787,11 @@ TEST(Tracking, SensorsOfDifferentSequencesAreRefused) {
 // A rolling limb: toy_human_16 turns the figure's arm about its own axis, which the touch hardly
 // sees (one direction free, the next weak). Without the image-to-image gate the frame's two
 // registrations, both at the full sigma, disagree along the weak direction and the solve
-// reconciles them by turning the arm along the free one: 8.6 mm off at the end, over 1 mm from
-// frame 18 on. With the gate (the default) the disagreeing image-to-image factors are left out
-// and the run stays within 1 mm throughout (0.21 mm at the end).
+// reconciles them by turning the arm along the free one: 9.1 mm off at worst. Where it ends
+// depends on the rounding (8.2 mm with the ICP's arithmetic one point at a time, 0.7 mm with
+// AVX2's eight lanes), so the largest errors are compared. With the gate (the default) the
+// disagreeing image-to-image factors are left out and the run stays within 1 mm throughout
+// (0.63 and 0.89 mm at worst, 0.47 and 0.41 mm at the end).
 TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
   TempDir tmp;
   const Dataset d = render_benchmark("toy_human_16", 300, tmp.path / "limb");
@@ -801,12 +803,16 @@ TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
   const TrackRun without_gate = track_dataset(d, ungated);
   EXPECT_GT(with_gate.summary.image_to_image_dropped, 0);
   EXPECT_EQ(without_gate.summary.image_to_image_dropped, 0);
-  double worst = 0;
-  for (const auto& f : with_gate.frames) worst = std::max(worst, f.translation_error_m);
-  EXPECT_LT(worst, 1e-3) << "largest translation error [m] with the gate";
+  const auto worst = [](const TrackRun& run) {
+    double w = 0;
+    for (const auto& f : run.frames) w = std::max(w, f.translation_error_m);
+    return w;
+  };
+  std::printf("largest translation error %.3f mm with the gate, %.3f mm without\n",
+              1e3 * worst(with_gate), 1e3 * worst(without_gate));
+  EXPECT_LT(worst(with_gate), 1e-3) << "largest translation error [m] with the gate";
   EXPECT_LT(with_gate.summary.final_rotation_error_rad, 0.05);
-  EXPECT_LT(2 * with_gate.summary.final_translation_error_m,
-            without_gate.summary.final_translation_error_m)
+  EXPECT_LT(4 * worst(with_gate), worst(without_gate))
       << "the gate is what keeps it (without it the arm turned away)";
 }
 

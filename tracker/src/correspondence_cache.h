@@ -2,7 +2,7 @@
 // Per-source-point nearest neighbours that survive between ICP iterations: a query is repeated
 // only when the point has moved far enough that its nearest target point could have changed.
 #include <Eigen/Core>
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif
 #include <cmath>
@@ -78,6 +78,25 @@ class CorrespondenceCache {
                                          nearest_.data(), 4);
     return _mm512_mask_cmp_ps_mask(lanes, d_sq, slack_sq, _CMP_LT_OQ) &
            _mm512_cmpneq_epi32_mask(answer, _mm512_set1_epi32(kNeverQueried));
+  }
+#elif defined(__AVX2__) && defined(__FMA__)
+  // The same for 8 points, with lane masks of all ones or zeros.
+  __m256i still_valid(__m256i index, __m256i lanes, __m256 x, __m256 y, __m256 z,
+                      __m256i& answer) const {
+    const __m256 zero = _mm256_setzero_ps(), lanes_ps = _mm256_castsi256_ps(lanes);
+    const auto gather = [&](const float* base) {
+      return _mm256_mask_i32gather_ps(zero, base, index, lanes_ps, 4);
+    };
+    const __m256 dx = _mm256_sub_ps(x, gather(qx_.data()));
+    const __m256 dy = _mm256_sub_ps(y, gather(qy_.data()));
+    const __m256 dz = _mm256_sub_ps(z, gather(qz_.data()));
+    const __m256 d_sq = _mm256_fmadd_ps(dx, dx, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dz, dz)));
+    const __m256i never = _mm256_set1_epi32(kNeverQueried);
+    answer = _mm256_mask_i32gather_epi32(never, nearest_.data(), index, lanes, 4);
+    const __m256i moved_less =
+        _mm256_castps_si256(_mm256_cmp_ps(d_sq, gather(slack_sq_.data()), _CMP_LT_OQ));
+    return _mm256_andnot_si256(_mm256_cmpeq_epi32(answer, never),
+                               _mm256_and_si256(lanes, moved_less));
   }
 #endif
 

@@ -1,6 +1,6 @@
 #include "pg/tracker/icp.h"
 
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
 #include <immintrin.h>
 #endif
 #include <tbb/blocked_range.h>
@@ -18,6 +18,34 @@ namespace {
 
 // Points per parallel task: enough work to amortise the task overhead.
 constexpr std::size_t kGrainSize = 256;
+
+#if !defined(__AVX512F__) && defined(__AVX2__) && defined(__FMA__)
+// AVX2 has no compress-store: a permutation per 8-bit lane mask moves the lanes that are set to
+// the front, in order (the rest of each row is never read).
+struct CompressTable {
+  alignas(32) int lanes[256][8] = {};
+};
+constexpr CompressTable make_compress_table() {
+  CompressTable t;
+  for (int mask = 0; mask < 256; ++mask) {
+    int n = 0;
+    for (int l = 0; l < 8; ++l) {
+      if (mask >> l & 1) t.lanes[mask][n++] = l;
+    }
+  }
+  return t;
+}
+constexpr CompressTable kCompress = make_compress_table();
+
+__m256i compress_permutation(unsigned mask) {
+  return _mm256_load_si256(reinterpret_cast<const __m256i*>(kCompress.lanes[mask]));
+}
+
+// Lanes [0, count) of 8 set (all ones), the rest clear.
+__m256i first_lanes(int count) {
+  return _mm256_cmpgt_epi32(_mm256_set1_epi32(count), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+}
+#endif
 
 // The normal equations of one Gauss-Newton iteration (eq. 5/6 linearised), in scaled
 // coordinates x = [rho_c; L phi] (degeneracy.h). Sums are kept in kLanes partial sums each: the
@@ -194,12 +222,29 @@ class Linearisation {
     }
     return rows;
   }
+#elif defined(__AVX2__) && defined(__FMA__)
+  struct Row {  // one row of [R t], broadcast
+    __m256 r0, r1, r2, t;
+    __m256 apply(__m256 x, __m256 y, __m256 z) const {
+      return _mm256_fmadd_ps(r0, x, _mm256_fmadd_ps(r1, y, _mm256_fmadd_ps(r2, z, t)));
+    }
+  };
+  // [R t] (points), or [R 0] (directions: normals).
+  std::array<Row, 3> broadcast_rows(bool translation) const {
+    std::array<Row, 3> rows;
+    for (int a = 0; a < 3; ++a) {
+      rows[a] = {_mm256_set1_ps(R_(a, 0)), _mm256_set1_ps(R_(a, 1)), _mm256_set1_ps(R_(a, 2)),
+                 _mm256_set1_ps(translation ? t_[a] : 0.0f)};
+    }
+    return rows;
+  }
 #endif
 
   // The correspondences of a range, gathered in chunks and linearised chunk by chunk (that needs
-  // no branch, so it is vectorised where AVX-512 is available). Finding them branches only for
-  // the points whose cached neighbour no longer holds: with AVX-512, 16 points are moved and
-  // tested against the cache at a time, and only those are handled one by one.
+  // no branch, so it is vectorised: 16 lanes with AVX-512, 8 with AVX2 and FMA, a scalar loop
+  // otherwise). Finding them branches only for the points whose cached neighbour no longer
+  // holds: the points are moved and tested against the cache a register at a time, and only
+  // those are handled one by one.
   template <RobustKernel kKernel>
   void run(const tbb::blocked_range<std::size_t>& range) {
     Chunk chunk;
@@ -246,6 +291,58 @@ class Linearisation {
         }
       }
       if (m > kChunk - 16) {  // the next 16 might not fit
+        linearise_chunk<kKernel>(chunk, m);
+        m = 0;
+      }
+    }
+#elif defined(__AVX2__) && defined(__FMA__)
+    const float* src = src_.data()->data();
+    const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    const __m256i stride = _mm256_set1_epi32(int(stride_)), three = _mm256_set1_epi32(3);
+    const std::array<Row, 3> rows = broadcast_rows(true);
+    const std::size_t vector_end = src_.size() < (std::size_t(1) << 29) ? range.end() : k;
+    for (; k < vector_end; k += 8) {
+      const int count = int(std::min<std::size_t>(8, vector_end - k));
+      const __m256i lanes = first_lanes(count);
+      const __m256i index =
+          _mm256_mullo_epi32(_mm256_add_epi32(_mm256_set1_epi32(int(k)), iota), stride);
+      const __m256i index3 = _mm256_mullo_epi32(index, three);
+      const __m256 zero = _mm256_setzero_ps(), lanes_ps = _mm256_castsi256_ps(lanes);
+      const __m256 sx = _mm256_mask_i32gather_ps(zero, src, index3, lanes_ps, 4);
+      const __m256 sy = _mm256_mask_i32gather_ps(zero, src + 1, index3, lanes_ps, 4);
+      const __m256 sz = _mm256_mask_i32gather_ps(zero, src + 2, index3, lanes_ps, 4);
+      const __m256 x = rows[0].apply(sx, sy, sz), y = rows[1].apply(sx, sy, sz),
+                   z = rows[2].apply(sx, sy, sz);
+      __m256i answer;
+      const __m256i valid = cache_.still_valid(index, lanes, x, y, z, answer);
+      const __m256i found =
+          _mm256_andnot_si256(_mm256_cmpgt_epi32(_mm256_setzero_si256(), answer), valid);
+      const unsigned found_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(found)));
+      // Written whole: m <= kChunk - 8 here, and the lanes past the found ones are overwritten.
+      const __m256i to_front = compress_permutation(found_bits);
+      _mm256_storeu_ps(chunk.x + m, _mm256_permutevar8x32_ps(x, to_front));
+      _mm256_storeu_ps(chunk.y + m, _mm256_permutevar8x32_ps(y, to_front));
+      _mm256_storeu_ps(chunk.z + m, _mm256_permutevar8x32_ps(z, to_front));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(chunk.i + m),
+                          _mm256_permutevar8x32_epi32(index, to_front));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(chunk.j + m),
+                          _mm256_permutevar8x32_epi32(answer, to_front));
+      m += __builtin_popcount(found_bits);
+      const unsigned stale =
+          ((1u << count) - 1) & ~unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(valid)));
+      if (stale != 0) {
+        alignas(32) float xs[8], ys[8], zs[8];
+        _mm256_store_ps(xs, x);
+        _mm256_store_ps(ys, y);
+        _mm256_store_ps(zs, z);
+        for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
+          const int l = __builtin_ctz(bits);
+          const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
+          const int j = cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
+          if (j >= 0) chunk.set(m++, p, (k + l) * stride_, j);
+        }
+      }
+      if (m > kChunk - 8) {  // the next 8 might not fit
         linearise_chunk<kKernel>(chunk, m);
         m = 0;
       }
@@ -348,6 +445,80 @@ class Linearisation {
       store(J[3] + e, _mm512_mul_ps(_mm512_fmsub_ps(uy, nz, _mm512_mul_ps(uz, ny)), inv_L_v));
       store(J[4] + e, _mm512_mul_ps(_mm512_fmsub_ps(uz, nx, _mm512_mul_ps(ux, nz)), inv_L_v));
       store(J[5] + e, _mm512_mul_ps(_mm512_fmsub_ps(ux, ny, _mm512_mul_ps(uy, nx)), inv_L_v));
+    }
+#elif defined(__AVX2__) && defined(__FMA__)
+    // The same, eight correspondences at a time, with lane masks of all ones or zeros.
+    const __m256i three = _mm256_set1_epi32(3);
+    const __m256 zero = _mm256_setzero_ps(), one = _mm256_set1_ps(1.0f);
+    const __m256 scale_v = _mm256_set1_ps(float(options_.kernel_scale_m));
+    const __m256 max_corr_sq_v = _mm256_set1_ps(max_corr_sq);
+    const __m256 inv_L_v = _mm256_set1_ps(inv_L_);
+    const __m256 cx = _mm256_set1_ps(c_.x()), cy = _mm256_set1_ps(c_.y()),
+                 cz = _mm256_set1_ps(c_.z());
+    const std::array<Row, 3> rotation = broadcast_rows(false);
+    const auto store = [](double* out, __m256 v) {
+      _mm256_storeu_pd(out, _mm256_cvtps_pd(_mm256_castps256_ps128(v)));
+      _mm256_storeu_pd(out + 4, _mm256_cvtps_pd(_mm256_extractf128_ps(v, 1)));
+    };
+    for (int e = 0; e < m; e += 8) {
+      const __m256i valid = first_lanes(m - e);
+      const __m256 valid_ps = _mm256_castsi256_ps(valid);
+      const auto gather_at = [&](__m256i index3, const float* base) {
+        return _mm256_mask_i32gather_ps(zero, base, index3, valid_ps, 4);
+      };
+      const __m256i j3 = _mm256_mullo_epi32(_mm256_maskload_epi32(c.j + e, valid), three);
+      const __m256 px = _mm256_maskload_ps(c.x + e, valid);
+      const __m256 py = _mm256_maskload_ps(c.y + e, valid);
+      const __m256 pz = _mm256_maskload_ps(c.z + e, valid);
+      const __m256 dx = _mm256_sub_ps(px, gather_at(j3, tp)),
+                   dy = _mm256_sub_ps(py, gather_at(j3, tp + 1)),
+                   dz = _mm256_sub_ps(pz, gather_at(j3, tp + 2));
+      __m256 nx = gather_at(j3, tn), ny = gather_at(j3, tn + 1), nz = gather_at(j3, tn + 2);
+      if (src_normals_) {  // symmetric_pair_normal, eight at a time
+        const __m256i i3 = _mm256_mullo_epi32(_mm256_maskload_epi32(c.i + e, valid), three);
+        const __m256 ax = gather_at(i3, src_normals_), ay = gather_at(i3, src_normals_ + 1),
+                     az = gather_at(i3, src_normals_ + 2);
+        const __m256 sx = rotation[0].apply(ax, ay, az), sy = rotation[1].apply(ax, ay, az),
+                     sz = rotation[2].apply(ax, ay, az);
+        const __m256 mx = _mm256_add_ps(nx, sx), my = _mm256_add_ps(ny, sy),
+                     mz = _mm256_add_ps(nz, sz);
+        const __m256 inv_norm =
+            _mm256_div_ps(one, _mm256_sqrt_ps(_mm256_fmadd_ps(
+                                   mx, mx, _mm256_fmadd_ps(my, my, _mm256_mul_ps(mz, mz)))));
+        const __m256 agree =
+            _mm256_cmp_ps(_mm256_fmadd_ps(nx, sx, _mm256_fmadd_ps(ny, sy, _mm256_mul_ps(nz, sz))),
+                          zero, _CMP_GT_OQ);
+        nx = _mm256_blendv_ps(nx, _mm256_mul_ps(mx, inv_norm), agree);
+        ny = _mm256_blendv_ps(ny, _mm256_mul_ps(my, inv_norm), agree);
+        nz = _mm256_blendv_ps(nz, _mm256_mul_ps(mz, inv_norm), agree);
+      }
+      const __m256 re = _mm256_fmadd_ps(nx, dx, _mm256_fmadd_ps(ny, dy, _mm256_mul_ps(nz, dz)));
+      __m256 we;  // robust_weight's values, without branches
+      if constexpr (kKernel == RobustKernel::kHuber) {
+        const __m256 abs_re = _mm256_andnot_ps(_mm256_set1_ps(-0.0f), re);
+        we = _mm256_div_ps(scale_v, _mm256_max_ps(abs_re, scale_v));
+      } else if constexpr (kKernel == RobustKernel::kTukey) {
+        const __m256 u = _mm256_div_ps(re, scale_v);
+        const __m256 s = _mm256_max_ps(_mm256_fnmadd_ps(u, u, one), zero);
+        we = _mm256_mul_ps(s, s);
+      } else {
+        we = one;
+      }
+      const __m256 d_sq = _mm256_fmadd_ps(dx, dx, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dz, dz)));
+      const __m256 keep =
+          _mm256_and_ps(_mm256_and_ps(valid_ps, _mm256_cmp_ps(d_sq, max_corr_sq_v, _CMP_LE_OQ)),
+                        _mm256_cmp_ps(we, zero, _CMP_GT_OQ));
+      kept += __builtin_popcount(unsigned(_mm256_movemask_ps(keep)));
+      const __m256 ux = _mm256_sub_ps(px, cx), uy = _mm256_sub_ps(py, cy),
+                   uz = _mm256_sub_ps(pz, cz);
+      store(w + e, _mm256_and_ps(keep, we));
+      store(r + e, _mm256_and_ps(keep, re));
+      store(J[0] + e, nx);
+      store(J[1] + e, ny);
+      store(J[2] + e, nz);
+      store(J[3] + e, _mm256_mul_ps(_mm256_fmsub_ps(uy, nz, _mm256_mul_ps(uz, ny)), inv_L_v));
+      store(J[4] + e, _mm256_mul_ps(_mm256_fmsub_ps(uz, nx, _mm256_mul_ps(ux, nz)), inv_L_v));
+      store(J[5] + e, _mm256_mul_ps(_mm256_fmsub_ps(ux, ny, _mm256_mul_ps(uy, nx)), inv_L_v));
     }
 #else
     for (int e = 0; e < m; ++e) {
