@@ -40,6 +40,26 @@ TEST(SE3Manifold, PassesCeresManifoldInvariants) {
   }
 }
 
+// The written-out PlusJacobian against the automatic one of the same Plus, at random poses and
+// at a block whose quaternion is not of unit length (Plus normalises it).
+TEST(SE3Manifold, PlusJacobianEqualsTheAutomaticOne) {
+  const SE3Manifold manifold;
+  const ceres::AutoDiffManifold<SE3RightPlus, kPoseBlockSize, kPoseTangentSize> automatic;
+  std::mt19937 rng(5);
+  for (int i = 0; i < 21; ++i) {
+    Block x(random_pose(rng));
+    if (i == 20) {
+      for (int k = 3; k < 7; ++k) x.v[k] *= 3.0;
+    }
+    Eigen::Matrix<double, 7, 6, Eigen::RowMajor> written, automatic_jacobian;
+    ASSERT_TRUE(manifold.PlusJacobian(x.v, written.data()));
+    ASSERT_TRUE(automatic.PlusJacobian(x.v, automatic_jacobian.data()));
+    EXPECT_LT((written - automatic_jacobian).cwiseAbs().maxCoeff(), 1e-14) << "pose " << i << "\n"
+                                                                           << written << "\n---\n"
+                                                                           << automatic_jacobian;
+  }
+}
+
 std::vector<double> evaluate(const ceres::CostFunction& cost, const std::vector<double*>& blocks,
                              std::vector<std::vector<double>>* jacobians = nullptr) {
   std::vector<double> r(cost.num_residuals());
