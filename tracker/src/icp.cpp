@@ -19,7 +19,16 @@ namespace {
 // Points per parallel task: enough work to amortise the task overhead.
 constexpr std::size_t kGrainSize = 256;
 
-#if !defined(__AVX512F__) && defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX512F__)
+// The float vector of the vectorised paths below, and the two operations they share.
+using VectorF = __m512;
+inline VectorF broadcast(float v) { return _mm512_set1_ps(v); }
+inline VectorF fmadd(VectorF a, VectorF b, VectorF c) { return _mm512_fmadd_ps(a, b, c); }
+#elif defined(__AVX2__) && defined(__FMA__)
+using VectorF = __m256;
+inline VectorF broadcast(float v) { return _mm256_set1_ps(v); }
+inline VectorF fmadd(VectorF a, VectorF b, VectorF c) { return _mm256_fmadd_ps(a, b, c); }
+
 // AVX2 has no compress-store: a permutation per 8-bit lane mask moves the lanes that are set to
 // the front, in order (the rest of each row is never read).
 struct CompressTable {
@@ -206,35 +215,19 @@ class Linearisation {
 
   Linearisation(const Linearisation&) = default;
 
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) || (defined(__AVX2__) && defined(__FMA__))
   struct Row {  // one row of [R t], broadcast
-    __m512 r0, r1, r2, t;
-    __m512 apply(__m512 x, __m512 y, __m512 z) const {
-      return _mm512_fmadd_ps(r0, x, _mm512_fmadd_ps(r1, y, _mm512_fmadd_ps(r2, z, t)));
+    VectorF r0, r1, r2, t;
+    VectorF apply(VectorF x, VectorF y, VectorF z) const {
+      return fmadd(r0, x, fmadd(r1, y, fmadd(r2, z, t)));
     }
   };
   // [R t] (points), or [R 0] (directions: normals).
   std::array<Row, 3> broadcast_rows(bool translation) const {
     std::array<Row, 3> rows;
     for (int a = 0; a < 3; ++a) {
-      rows[a] = {_mm512_set1_ps(R_(a, 0)), _mm512_set1_ps(R_(a, 1)), _mm512_set1_ps(R_(a, 2)),
-                 _mm512_set1_ps(translation ? t_[a] : 0.0f)};
-    }
-    return rows;
-  }
-#elif defined(__AVX2__) && defined(__FMA__)
-  struct Row {  // one row of [R t], broadcast
-    __m256 r0, r1, r2, t;
-    __m256 apply(__m256 x, __m256 y, __m256 z) const {
-      return _mm256_fmadd_ps(r0, x, _mm256_fmadd_ps(r1, y, _mm256_fmadd_ps(r2, z, t)));
-    }
-  };
-  // [R t] (points), or [R 0] (directions: normals).
-  std::array<Row, 3> broadcast_rows(bool translation) const {
-    std::array<Row, 3> rows;
-    for (int a = 0; a < 3; ++a) {
-      rows[a] = {_mm256_set1_ps(R_(a, 0)), _mm256_set1_ps(R_(a, 1)), _mm256_set1_ps(R_(a, 2)),
-                 _mm256_set1_ps(translation ? t_[a] : 0.0f)};
+      rows[a] = {broadcast(R_(a, 0)), broadcast(R_(a, 1)), broadcast(R_(a, 2)),
+                 broadcast(translation ? t_[a] : 0.0f)};
     }
     return rows;
   }
