@@ -112,6 +112,30 @@ TEST(SO3, JacobiansMatchNumericDerivatives) {
   }
 }
 
+// d/dd log(exp(xi) exp(d)) at d = 0 equals SE(3)'s Jr^-1(xi): at random tangents (angles near
+// 0 and up to 2.5 rad), on both sides of the series' switch at 0.05 rad, and at zero.
+TEST(SE3, InverseRightJacobianMatchesNumericDerivatives) {
+  std::vector<Vector6d> tangents = sample_tangents(40, 8);
+  for (double angle : {0.0, 1e-9, 1e-4, 0.01, 0.049, 0.051, 0.2, 1.0}) {
+    Vector6d xi;
+    xi << 0.3, -0.8, 0.5, 0.6, -0.3, 0.74;
+    xi.tail<3>() *= angle / xi.tail<3>().norm();
+    tangents.push_back(xi);
+  }
+  const double h = 1e-6;
+  for (Vector6d xi : tangents) {
+    if (xi.tail<3>().norm() > 3.0) xi.tail<3>() *= 2.5 / xi.tail<3>().norm();
+    const SE3 T = SE3::exp(xi);
+    Matrix6d numeric;
+    for (int k = 0; k < 6; ++k) {
+      const Vector6d d = h * Vector6d::Unit(k);
+      numeric.col(k) = ((T * SE3::exp(d)).log() - (T * SE3::exp(-d)).log()) / (2 * h);
+    }
+    EXPECT_TRUE(near_vec(se3_right_jacobian_inverse(xi).reshaped(), numeric.reshaped(), 1e-7))
+        << "xi = " << xi.transpose();
+  }
+}
+
 TEST(SE3, RpyRoundTripAndConvention) {
   const Eigen::Vector3d rpy(0.3, -0.7, 2.0);
   EXPECT_TRUE(near_vec(rpy_from_quaternion(quaternion_from_rpy(rpy)), rpy, 1e-12));

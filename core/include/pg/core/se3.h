@@ -108,6 +108,43 @@ Mat3<T> so3_right_jacobian_inverse(const Vec3<T>& phi) {
   return so3_left_jacobian_inverse<T>(-phi);
 }
 
+// The coupling block Q(rho, phi) of SE(3)'s left Jacobian, Jl(xi) = [Jl(phi) Q; 0 Jl(phi)]
+// (Barfoot, State Estimation for Robotics, eq. 7.86). Below an angle of 0.05 rad the
+// coefficients are their Taylor series to theta^4: the closed forms cancel (the last one loses
+// about 120 eps / theta^4 of its value: 1e-8 at 0.035 rad), the series' first neglected term is
+// below 1e-12 of them there.
+inline Eigen::Matrix3d se3_left_jacobian_q(const Eigen::Vector3d& rho, const Eigen::Vector3d& phi) {
+  const double theta_sq = phi.squaredNorm();
+  double c1, c2, c3;
+  if (theta_sq < 0.05 * 0.05) {
+    c1 = 1.0 / 6 - theta_sq / 120 + theta_sq * theta_sq / 5040;
+    c2 = 1.0 / 24 - theta_sq / 720 + theta_sq * theta_sq / 40320;
+    c3 = 1.0 / 120 - theta_sq / 2520 + theta_sq * theta_sq / 120960;
+  } else {
+    const double theta = std::sqrt(theta_sq), s = std::sin(theta), c = std::cos(theta);
+    c1 = (theta - s) / (theta_sq * theta);
+    c2 = (theta_sq + 2 * c - 2) / (2 * theta_sq * theta_sq);
+    c3 = (2 * theta - 3 * s + theta * c) / (2 * theta_sq * theta_sq * theta);
+  }
+  const Eigen::Matrix3d P = hat<double>(rho), F = hat<double>(phi);
+  const Eigen::Matrix3d FP = F * P, PF = P * F, FPF = FP * F;
+  return 0.5 * P + c1 * (FP + PF + FPF) + c2 * (F * FP + PF * F - 3 * FPF) +
+         c3 * (FPF * F + F * FPF);
+}
+
+// SE(3)'s inverse right Jacobian: log(exp(xi) exp(d)) ~= xi + Jr^-1(xi) d, the derivative of a
+// factor's log error under a right perturbation. Jr(xi) = Jl(-xi), and
+// Jl^-1 = [Jl^-1(phi), -Jl^-1(phi) Q Jl^-1(phi); 0, Jl^-1(phi)].
+inline Matrix6d se3_right_jacobian_inverse(const Vector6d& xi) {
+  const Eigen::Vector3d rho = -xi.head<3>(), phi = -xi.tail<3>();
+  const Eigen::Matrix3d J_inv = so3_left_jacobian_inverse<double>(phi);
+  Matrix6d out = Matrix6d::Zero();
+  out.topLeftCorner<3, 3>() = J_inv;
+  out.topRightCorner<3, 3>() = -J_inv * se3_left_jacobian_q(rho, phi) * J_inv;
+  out.bottomRightCorner<3, 3>() = J_inv;
+  return out;
+}
+
 template <typename T>
 class SE3T {
  public:

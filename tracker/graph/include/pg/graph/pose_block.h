@@ -46,6 +46,22 @@ struct SE3RightPlus {
   }
 };
 
+// A block's quaternion, normalised.
+inline Eigen::Quaterniond block_quaternion(const double* x) {
+  return Eigen::Quaterniond(x[6], x[3], x[4], x[5]).normalized();
+}
+
+// q (x) [v; 0] = Q(q) v: how a unit quaternion's coordinates (rows qx, qy, qz, qw) move when it
+// turns by q exp(phi), twice their derivative in phi. Its columns are orthonormal.
+inline Eigen::Matrix<double, 4, 3> quaternion_turns(const Eigen::Quaterniond& q) {
+  Eigen::Matrix<double, 4, 3> Q;
+  Q << q.w(), -q.z(), q.y(),  //
+      q.z(), q.w(), -q.x(),   //
+      -q.y(), q.x(), q.w(),   //
+      -q.x(), -q.y(), -q.z();
+  return Q;
+}
+
 // The manifold of the pose blocks: SE3RightPlus's Plus and Minus, with Plus's Jacobian written
 // out. Ceres asks for that Jacobian for every block at every solver iteration; differentiated
 // automatically (through exp, the quaternion product and its normalisation) it cost 12-24 % of
@@ -63,17 +79,12 @@ class SE3Manifold final : public ceres::Manifold {
   // q (x) [phi / 2; 0], which is already orthogonal to q (so the normalisation of the result does
   // not change it).
   bool PlusJacobian(const double* x, double* jacobian) const override {
-    const Eigen::Quaterniond q = Eigen::Quaterniond(x[6], x[3], x[4], x[5]).normalized();
+    const Eigen::Quaterniond q = block_quaternion(x);
     Eigen::Map<Eigen::Matrix<double, kPoseBlockSize, kPoseTangentSize, Eigen::RowMajor>> J(
         jacobian);
     J.setZero();
     J.topLeftCorner<3, 3>() = q.toRotationMatrix();
-    // Rows qx, qy, qz, qw; columns phi_x, phi_y, phi_z.
-    J.bottomRightCorner<4, 3>() << q.w(), -q.z(), q.y(),  //
-        q.z(), q.w(), -q.x(),                             //
-        -q.y(), q.x(), q.w(),                             //
-        -q.x(), -q.y(), -q.z();
-    J.bottomRightCorner<4, 3>() *= 0.5;
+    J.bottomRightCorner<4, 3>() = 0.5 * quaternion_turns(q);
     return true;
   }
   bool Minus(const double* y, const double* x, double* y_minus_x) const override {
