@@ -231,6 +231,19 @@ class Linearisation {
     }
     return rows;
   }
+
+  // The lanes in `stale` of the points from k on, whose cached neighbour no longer holds: each
+  // queried from its moved position (xs, ys, zs by lane), and added to the chunk if found.
+  void query_stale(unsigned stale, std::size_t k, const float* xs, const float* ys, const float* zs,
+                   Chunk& chunk, int& m) {
+    for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
+      const int l = __builtin_ctz(bits);
+      const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
+      const std::size_t i = (k + l) * stride_;
+      const int j = cache_.query(i, p, target_, radius_, max_corr_, eq.queries);
+      if (j >= 0) chunk.set(m++, p, i, j);
+    }
+  }
 #endif
 
   // The correspondences of a range, gathered in chunks and linearised chunk by chunk (that needs
@@ -276,12 +289,7 @@ class Linearisation {
         _mm512_store_ps(xs, x);
         _mm512_store_ps(ys, y);
         _mm512_store_ps(zs, z);
-        for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
-          const int l = __builtin_ctz(bits);
-          const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
-          const int j = cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
-          if (j >= 0) chunk.set(m++, p, (k + l) * stride_, j);
-        }
+        query_stale(stale, k, xs, ys, zs, chunk, m);
       }
       if (m > kChunk - 16) {  // the next 16 might not fit
         linearise_chunk<kKernel>(chunk, m);
@@ -328,12 +336,7 @@ class Linearisation {
         _mm256_store_ps(xs, x);
         _mm256_store_ps(ys, y);
         _mm256_store_ps(zs, z);
-        for (unsigned bits = stale; bits != 0; bits &= bits - 1) {
-          const int l = __builtin_ctz(bits);
-          const Eigen::Vector3f p(xs[l], ys[l], zs[l]);
-          const int j = cache_.query((k + l) * stride_, p, target_, radius_, max_corr_, eq.queries);
-          if (j >= 0) chunk.set(m++, p, (k + l) * stride_, j);
-        }
+        query_stale(stale, k, xs, ys, zs, chunk, m);
       }
       if (m > kChunk - 8) {  // the next 8 might not fit
         linearise_chunk<kKernel>(chunk, m);
