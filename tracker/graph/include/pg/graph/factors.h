@@ -10,10 +10,10 @@
 // Jacobians. Each pose enters E once, as itself or its inverse (the velocity prior's middle pose
 // twice), so moving block k to x_k exp(d) moves E to E exp(M_k d) with M_k an adjoint: for
 // E = A x B, M = Ad(B^-1); for E = A x^-1 B, M = -Ad(B^-1 x). Then dr/dd = S Jr^-1(log E) M_k.
-// Ceres asks for dr/dx in the block's 7 coordinates and multiplies it by the manifold's
-// PlusJacobian P = [R 0; 0 Q/2] (pose_block.h) to get dr/dd. P's columns are orthonormal up to
-// the 1/2, so the factors hand Ceres dr/dd [R^T 0; 0 2 Q^T], which P turns back into dr/dd (the
-// derivative along the quaternion's length, which no step of the solver takes, is left out).
+// Ceres asks for dr/dx in the block's 7 coordinates (and multiplies it by the manifold's
+// PlusJacobian P = [R 0; 0 Q/2], pose_block.h, to get dr/dd). r does not depend on the
+// quaternion's length (pose_from_block normalises it), and Q's columns are orthonormal and
+// orthogonal to q, so dr/dx = dr/dd [R^T 0; 0 2 Q^T] exactly.
 // Until 2026-11-30 these were autodiff functors: a factor of four blocks carried 28-wide jets
 // through its exp, log and products (test: Factors.ZeroAtTheTruthWithJacobiansMatchingNumericOnes).
 #include <ceres/sized_cost_function.h>
