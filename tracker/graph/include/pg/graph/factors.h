@@ -39,7 +39,7 @@ bool log_error(const SE3& E, const Matrix6d& S, double const* const* x, double* 
   for (std::size_t k = 0; k < kBlocks; ++k) {
     if (jacobians[k] == nullptr) continue;
     const Matrix6d J_tangent = SJ * M(k);
-    const Eigen::Quaterniond q = block_quaternion(x[k]);
+    const Eigen::Quaterniond q = pose_from_block(x[k]).rotation();
     Eigen::Map<Eigen::Matrix<double, 6, kPoseBlockSize, Eigen::RowMajor>> J(jacobians[k]);
     J.leftCols<3>() = J_tangent.leftCols<3>() * q.toRotationMatrix().transpose();
     J.rightCols<4>() = 2.0 * J_tangent.rightCols<3>() * quaternion_turns(q).transpose();

@@ -46,11 +46,6 @@ struct SE3RightPlus {
   }
 };
 
-// A block's quaternion, normalised.
-inline Eigen::Quaterniond block_quaternion(const double* x) {
-  return Eigen::Quaterniond(x[6], x[3], x[4], x[5]).normalized();
-}
-
 // q (x) [v; 0] = Q(q) v: how a unit quaternion's coordinates (rows qx, qy, qz, qw) move when it
 // turns by q exp(phi), twice their derivative in phi. Its columns are orthonormal.
 inline Eigen::Matrix<double, 4, 3> quaternion_turns(const Eigen::Quaterniond& q) {
@@ -79,7 +74,7 @@ class SE3Manifold final : public ceres::Manifold {
   // q (x) [phi / 2; 0], which is already orthogonal to q (so the normalisation of the result does
   // not change it).
   bool PlusJacobian(const double* x, double* jacobian) const override {
-    const Eigen::Quaterniond q = block_quaternion(x);
+    const Eigen::Quaterniond q = pose_from_block(x).rotation();
     Eigen::Map<Eigen::Matrix<double, kPoseBlockSize, kPoseTangentSize, Eigen::RowMajor>> J(
         jacobian);
     J.setZero();
