@@ -2,9 +2,9 @@
 """Read a tacsim dataset in Python: numpy, and Pillow for the 8-bit PNGs (both come with Debian's
 python3-matplotlib, which the README's commands install). No OpenEXR bindings needed: the float
 images (normals, depth) are read by the small OpenEXR reader below, which takes the files tacsim
-writes (single-part scan-line images of 32-bit float or 16-bit half channels, uncompressed or
-ZIP-compressed); the 16-bit PNG normals (normal_png), which Pillow would reduce to 8 bits, by the
-small PNG reader below.
+writes (single-part scan-line images of 32-bit float or 16-bit half channels, uncompressed, RLE-
+or ZIP-compressed; tacsim wrote ZIP before 2026-11-30, RLE since); the 16-bit PNG normals
+(normal_png), which Pillow would reduce to 8 bits, by the small PNG reader below.
 
     import sys; sys.path.insert(0, "tools")
     from pg_dataset import Dataset
@@ -36,7 +36,7 @@ except ImportError:
 
 _EXR_MAGIC = 20000630
 _EXR_TYPES = {1: np.dtype("<f2"), 2: np.dtype("<f4")}  # half, float (0, uint, is not written)
-_EXR_LINES = {0: 1, 2: 1, 3: 16}  # lines per block: none, ZIPS, ZIP
+_EXR_LINES = {0: 1, 1: 1, 2: 1, 3: 16}  # lines per block: none, RLE, ZIPS, ZIP
 
 
 def _exr_header(data, path):
@@ -69,11 +69,30 @@ def _exr_channels(raw):
     return channels
 
 
-def _unzip_block(packed, size):
-    """A ZIP block's bytes: inflated, the predictor undone, the two halves interleaved back."""
-    t = np.frombuffer(zlib.decompress(packed), dtype=np.uint8)
+def _unrle(packed):
+    """OpenEXR's run-length code undone: a signed count byte n, then -n literal bytes (n < 0) or
+    one byte repeated n + 1 times."""
+    out, at = bytearray(), 0
+    while at < len(packed):
+        n = struct.unpack_from("<b", packed, at)[0]
+        if n < 0:
+            if at + 1 - n > len(packed):
+                raise ValueError("an RLE run reaches past its block")
+            out += packed[at + 1:at + 1 - n]
+            at += 1 - n
+        else:
+            out += packed[at + 1:at + 2] * (n + 1)
+            at += 2
+    return bytes(out)
+
+
+def _unpack_block(packed, size, compression):
+    """A compressed block's bytes (ZIP: inflated; RLE: its runs expanded), then the predictor undone
+    and the two halves interleaved back, as both codes store them."""
+    expanded = zlib.decompress(packed) if compression in (2, 3) else _unrle(packed)
+    t = np.frombuffer(expanded, dtype=np.uint8)
     if t.size != size:
-        raise ValueError(f"a ZIP block inflates to {t.size} bytes, not {size}")
+        raise ValueError(f"a compressed block expands to {t.size} bytes, not {size}")
     t = np.cumsum(t.astype(np.int64) - 128, dtype=np.int64)  # t[i] = t[i-1] + d[i] - 128
     t = ((t + 128) & 0xFF).astype(np.uint8)
     out = np.empty(size, dtype=np.uint8)
@@ -99,7 +118,8 @@ def _decode_exr(data, path):
     attrs, at = _exr_header(data, path)
     compression = attrs["compression"][1][0]
     if compression not in _EXR_LINES:
-        raise ValueError(f"{path}: compression {compression} is not read here (none, ZIPS, ZIP)")
+        raise ValueError(f"{path}: compression {compression} is not read here (none, RLE, ZIPS, "
+                         "ZIP)")
     channels = _exr_channels(attrs["channels"][1])
     for name, pixel_type in channels:
         if pixel_type not in _EXR_TYPES:
@@ -115,8 +135,11 @@ def _decode_exr(data, path):
         y, packed_size = struct.unpack_from("<ii", data, offset)
         n = min(lines, y1 + 1 - y)
         packed = data[offset + 8:offset + 8 + packed_size]
+        if len(packed) != packed_size:
+            raise ValueError(f"{path}: damaged or cut short (the block of line {y} ends past the "
+                             "file's end)")
         size = n * row_bytes
-        block = packed if packed_size == size else _unzip_block(packed, size)
+        block = packed if packed_size == size else _unpack_block(packed, size, compression)
         at_byte = 0
         for row in range(y - y0, y - y0 + n):
             for c, (_, pixel_type) in enumerate(channels):

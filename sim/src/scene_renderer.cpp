@@ -17,6 +17,7 @@
 
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/image.h"
 #include "shading.h"
 
 namespace pg {
@@ -406,6 +407,9 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   summary.sensor_contact.assign(std::size_t(renderer.sensor_count()), SensorContact{});
   std::vector<std::vector<bool>> others_seen(std::size_t(renderer.sensor_count()),
                                              std::vector<bool>(scene.objects.size(), false));
+  // Each frame's files encoded on the thread that rendered it, while the render lasts: the frames
+  // already keep every core busy (set_image_codec_threads).
+  const ScopedImageCodecThreads codec_threads(1);
   const auto start = std::chrono::steady_clock::now();
   tbb::parallel_for(0, scene.frames, [&](int frame) {
     const auto frames = renderer.render_frame(frame);

@@ -710,6 +710,62 @@ TEST(Image, ExrFilesCarryNoWriteTime) {
       << "the capDate attribute is not empty";
 }
 
+// Dataset images are EXR files run-length compressed (image_codec.cpp says why): lossless, the
+// header says RLE, and a mostly untouched depth image (zeros) comes out far below its raw size.
+TEST(Image, ExrFilesAreLosslessAndRunLengthCompressed) {
+  TempDir tmp;
+  ImageF normals(160, 120, 3);
+  ImageF depth(160, 120, 1, 0.0f);
+  std::uint32_t state = 12345;
+  for (float& v : normals.data) {
+    state = state * 1664525u + 1013904223u;
+    v = float(state >> 8) / float(1u << 24) * 2.0f - 1.0f;  // every bit of the mantissa in use
+  }
+  for (int y = 50; y < 70; ++y) {
+    for (int x = 60; x < 90; ++x) depth.at(x, y) = 1e-4f * float(x + y);
+  }
+  for (const auto& [name, image] : {std::pair{"normal.exr", &normals}, {"depth.exr", &depth}}) {
+    SCOPED_TRACE(name);
+    write_image(tmp.str(name), *image);
+    const ImageF back = read_float_file(tmp.str(name));
+    ASSERT_TRUE(back.same_shape(image->width, image->height, image->channels));
+    EXPECT_EQ(back.data, image->data);
+    std::ifstream in(tmp.str(name), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // The header's attribute: name, type, a 4-byte size (1), then OpenEXR's code (RLE: 1; zip: 3).
+    const std::string attribute("compression\0compression\0\x01\0\0\0", 28);
+    const std::size_t at = bytes.find(attribute);
+    ASSERT_NE(at, std::string::npos) << "no compression attribute in the header";
+    ASSERT_LT(at + attribute.size(), bytes.size());
+    EXPECT_EQ(int(bytes[at + attribute.size()]), 1) << "not run-length compressed";
+  }
+  const auto raw = std::uintmax_t(depth.data.size() * sizeof(float));
+  EXPECT_LT(fs::file_size(tmp.str("depth.exr")), raw / 10);
+}
+
+// 1 codec thread is the calling one: no pool of OpenEXR's threads stays behind (its pool of one
+// worker, OpenImageIO's 1, took twice as long to read a frame).
+TEST(Image, OneCodecThreadIsTheCallingOne) {
+  TempDir tmp;
+  write_image(tmp.str("a.exr"), ImageF(16, 16, 3, 0.25f));
+  const auto threads = [] {
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& task : fs::directory_iterator("/proc/self/task")) ++n;
+    return n;
+  };
+  set_image_codec_threads(4);
+  read_float_file(tmp.str("a.exr"));
+  const std::size_t with_pool = threads();
+  {
+    const ScopedImageCodecThreads one(1);
+    EXPECT_EQ(image_codec_threads(), 1);
+    EXPECT_EQ(read_float_file(tmp.str("a.exr")).data, std::vector<float>(16 * 16 * 3, 0.25f));
+    EXPECT_LE(threads() + 4, with_pool) << "the decoding pool's threads are still there";
+  }
+  EXPECT_EQ(image_codec_threads(), 4);
+  set_image_codec_threads(0);
+}
+
 TEST(Image, ErrorsNameThePath) {
   TempDir tmp;
   expect_input_error([&] { read_image_u8(tmp.str("none.png")); }, "none.png");

@@ -448,16 +448,12 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   // updates with frame i's: the two never touch the same data.
   const auto prepare = [&](int i) { return prepare_frame(feeds, frames, i, options); };
   const auto loop_start = std::chrono::steady_clock::now();
-  // One decoding thread while this run lasts (set_image_codec_threads), as it was afterwards.
-  struct CodecThreads {
-    const int before = image_codec_threads();
-    ~CodecThreads() { set_image_codec_threads(before); }
-  };
-  std::optional<CodecThreads> codec_threads;
+  // Images decoded on the thread that reads them while this run lasts: beside the update a
+  // decoding pool would crowd it, and without prefetch the calling thread alone decodes the
+  // datasets' RLE files faster than a pool (set_image_codec_threads).
+  const ScopedImageCodecThreads codec_threads(1);
   std::optional<FramePreparer> preparer;
   if (options.prefetch) {
-    codec_threads.emplace();
-    set_image_codec_threads(1);
     preparer.emplace(prepare);
     preparer->start(0);
   }
