@@ -139,7 +139,10 @@ def _decode_exr(data, path):
             raise ValueError(f"{path}: damaged or cut short (the block of line {y} ends past the "
                              "file's end)")
         size = n * row_bytes
-        block = packed if packed_size == size else _unpack_block(packed, size, compression)
+        try:
+            block = packed if packed_size == size else _unpack_block(packed, size, compression)
+        except ValueError as e:
+            raise ValueError(f"{path}: damaged ({e}, the block of line {y})") from None
         at_byte = 0
         for row in range(y - y0, y - y0 + n):
             for c, (_, pixel_type) in enumerate(channels):
