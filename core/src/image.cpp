@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
-#include "image_codec.h"
+#include "image_formats.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/module.h"
@@ -15,9 +18,7 @@ namespace pg {
 
 namespace {
 
-// Threads asked for before the codec module was loaded (-1: none), and the module's table once
-// it is (image_codec.h).
-std::atomic<int> requested_threads{-1};
+// The module's table once it is loaded (image_codec.h).
 std::atomic<const image_codec::Table*> loaded_table{nullptr};
 
 // The codec table, the module loaded on the first call (thread-safe; a failure throws and the
@@ -27,12 +28,35 @@ const image_codec::Table& codec() {
     using Entry = const image_codec::Table* (*)();
     const image_codec::Table* t = reinterpret_cast<Entry>(module_entry(
         PG_IMAGE_CODEC_MODULE, image_codec::kEntryPoint, "the image codecs (OpenImageIO)"))();
+    t->set_threads(image_codec::exr_table().threads());
     loaded_table.store(t);
-    const int threads = requested_threads.load();
-    if (threads >= 0) t->set_threads(threads);
     return t;
   }();
   return *table;
+}
+
+// The codecs of a file to read (by its first bytes) and of one to write (by its extension): PNG
+// and EXR in pg_core, the rest through the module.
+const image_codec::Table& reader_of(const std::string& path) {
+  switch (image_codec::format_of_file(path)) {
+    case image_codec::Format::kPng:
+      return image_codec::png_table();
+    case image_codec::Format::kExr:
+      return image_codec::exr_table();
+    default:
+      return codec();
+  }
+}
+
+const image_codec::Table& writer_of(const std::string& path) {
+  switch (image_codec::format_of_name(path)) {
+    case image_codec::Format::kPng:
+      return image_codec::png_table();
+    case image_codec::Format::kExr:
+      return image_codec::exr_table();
+    default:
+      return codec();
+  }
 }
 
 void check_readable(const std::string& path) {
@@ -47,7 +71,7 @@ void throw_if_error(const std::string& error) {
 ImageF read_float(const std::string& path, image_codec::Stored stored) {
   check_readable(path);
   ImageF image;
-  throw_if_error(codec().read_float(path, stored, image));
+  throw_if_error(reader_of(path).read_float(path, stored, image));
   return image;
 }
 
@@ -65,21 +89,39 @@ void throw_if_write_error(const std::string& path, const std::string& error, int
 void write_float(const std::string& path, const ImageF& image, bool as_u16) {
   check_writable_shape(path, image.channels, image.empty());
   int error_number = 0;
-  const std::string error = codec().write_float(path, image, as_u16, error_number);
+  const std::string error = writer_of(path).write_float(path, image, as_u16, error_number);
   throw_if_write_error(path, error, error_number);
 }
 
 }  // namespace
 
+namespace image_codec {
+
+Format format_of_file(const std::string& path) {
+  char magic[8] = {};
+  std::ifstream in(path, std::ios::binary);
+  if (!in.read(magic, sizeof magic)) return Format::kOther;
+  if (std::memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0) return Format::kPng;
+  if (std::memcmp(magic, "\x76\x2f\x31\x01", 4) == 0) return Format::kExr;
+  return Format::kOther;
+}
+
+Format format_of_name(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  if (ext == ".png") return Format::kPng;
+  if (ext == ".exr") return Format::kExr;
+  return Format::kOther;
+}
+
+}  // namespace image_codec
+
 void set_image_codec_threads(int threads) {
-  requested_threads.store(std::max(0, threads));
+  image_codec::exr_table().set_threads(threads);
   if (const image_codec::Table* t = loaded_table.load()) t->set_threads(threads);
 }
 
-int image_codec_threads() {
-  if (const image_codec::Table* t = loaded_table.load()) return t->threads();
-  return std::max(0, requested_threads.load());  // OpenImageIO's default: 0, one per core
-}
+int image_codec_threads() { return image_codec::exr_table().threads(); }
 
 ImageF read_image_float(const std::string& path) {
   return read_float(path, image_codec::Stored::kAny);
@@ -96,7 +138,7 @@ ImageF read_u16_file(const std::string& path) {
 ImageU8 read_image_u8(const std::string& path) {
   check_readable(path);
   ImageU8 image;
-  throw_if_error(codec().read_u8(path, image));
+  throw_if_error(reader_of(path).read_u8(path, image));
   return image;
 }
 
@@ -105,7 +147,7 @@ void check_image_output(const std::string& path) {
   if (std::filesystem::is_directory(path, ec)) {
     throw InputError(path + ": is a folder; give the image file's name");
   }
-  throw_if_error(codec().check_writer(path));
+  throw_if_error(writer_of(path).check_writer(path));
   const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();
   if (!std::filesystem::is_directory(folder, ec)) {
     throw InputError(path + ": cannot write: " + folder.string() + " is not a folder");
@@ -117,7 +159,7 @@ void write_image(const std::string& path, const ImageF& image) { write_float(pat
 void write_image(const std::string& path, const ImageU8& image) {
   check_writable_shape(path, image.channels, image.empty());
   int error_number = 0;
-  const std::string error = codec().write_u8(path, image, error_number);
+  const std::string error = writer_of(path).write_u8(path, image, error_number);
   throw_if_write_error(path, error, error_number);
 }
 
@@ -139,7 +181,7 @@ std::optional<std::array<int, 3>> first_non_finite(const ImageF& image) {
 ImageShape read_image_shape(const std::string& path) {
   check_readable(path);
   ImageShape shape;
-  throw_if_error(codec().read_shape(path, shape));
+  throw_if_error(reader_of(path).read_shape(path, shape));
   return shape;
 }
 

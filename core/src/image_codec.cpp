@@ -14,11 +14,6 @@ namespace pg::image_codec {
 
 namespace {
 
-// An OpenImageIO error's first line: a reader may stack the same failure in several lines
-// (libpng's adds "PNG read error: " with the same words, then "PNG library error"), and an error
-// message is one line.
-std::string first_line(const std::string& error) { return error.substr(0, error.find('\n')); }
-
 // Opens a file for reading; on failure `error` holds why.
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path, std::string& error) {
   auto in = OIIO::ImageInput::open(path);

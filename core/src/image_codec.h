@@ -1,6 +1,7 @@
 #pragma once
 // The image files' codecs (OpenImageIO), built as a module of their own (pg_image_codec, from
-// image_codec.cpp) that image.cpp loads when a program first reads or writes an image.
+// image_codec.cpp) that image.cpp loads when a program first reads or writes an image that is
+// neither PNG nor EXR (those pg_core handles itself, image_formats.h).
 // OpenImageIO brings in some 260 libraries (OpenVDB, GDAL, OpenCV, ...) whose loading and
 // relocation took about 0.5 s at the start of every program that linked it, whether it touched an
 // image or not: `tacsim --help`, a command-line error, each unit test's process.
@@ -13,6 +14,12 @@
 #include "pg/core/image.h"
 
 namespace pg::image_codec {
+
+// The first line of a library's error message (a message is one line; libpng's reader under
+// OpenImageIO stacks the same failure in several).
+inline std::string first_line(const std::string& error) {
+  return error.substr(0, error.find('\n'));
+}
 
 // What a float read requires the file to store.
 enum class Stored { kAny, kFloat, kUInt16 };

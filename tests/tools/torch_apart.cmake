@@ -1,9 +1,9 @@
 # cmake -DLAUNCHER=... -DLIGHT=... -DNETWORK=... -P torch_apart.cmake: fails unless LIGHT
-# (patchgraph-core) loads neither LibTorch nor OpenImageIO at its start and NETWORK
-# (patchgraph-torch) loads LibTorch, and LAUNCHER (patchgraph) loads neither: LibTorch costs every
-# start about 0.6 s (tools/CMakeLists.txt), OpenImageIO's libraries about 0.5 s; those come with
-# the image codec module when patchgraph-core first reads or writes an image
-# (core/src/image_codec.h), and at its start in patchgraph-torch, whose commands read images.
+# (patchgraph-core) loads neither LibTorch nor OpenImageIO at its start, NETWORK
+# (patchgraph-torch) loads LibTorch and not OpenImageIO, and LAUNCHER (patchgraph) loads neither:
+# LibTorch costs every start about 0.6 s (tools/CMakeLists.txt), OpenImageIO's libraries about
+# 0.5 s; those come with the image codec module when a program first reads or writes an image
+# that is neither PNG nor EXR (core/src/image_formats.h).
 cmake_minimum_required(VERSION 3.20)
 
 # Sets `torch_cpu` and `OpenImageIO` to whether `binary` loads those libraries: the dynamic
@@ -37,5 +37,8 @@ loaded_by("${NETWORK}")
 if(NOT torch_cpu)
   message(FATAL_ERROR "${NETWORK} does not load LibTorch")
 endif()
+if(OpenImageIO)
+  message(FATAL_ERROR "${NETWORK} loads OpenImageIO at its start")
+endif()
 message(STATUS "${LAUNCHER}: neither LibTorch nor OpenImageIO; ${LIGHT}: neither; "
-               "${NETWORK}: LibTorch")
+               "${NETWORK}: LibTorch alone")

@@ -290,18 +290,6 @@ int run_track(const TrackArgs& a) {
 }  // namespace
 }  // namespace pg
 
-#ifdef PG_IMAGE_CODEC_AT_START
-// patchgraph-torch links the image codec module and so loads OpenImageIO at its start: its
-// commands read images (model-info aside), and loaded later, beside LibTorch's libraries, the
-// module took 0.28 s longer (core/CMakeLists.txt). A reference to the module's one function keeps
-// the linker from leaving it out; pg_core's first image finds it loaded.
-namespace pg::image_codec {
-struct Table;
-}
-extern "C" const pg::image_codec::Table* pg_image_codec_table();
-[[gnu::used]] static const auto kImageCodecAtStart = &pg_image_codec_table;
-#endif
-
 int main(int argc, char** argv) {
   using namespace pg;
   CLI::App app{"patchgraph: in-hand object tracking from tactile images (PatchGraph)"};

@@ -1,6 +1,8 @@
 #pragma once
 // Images as the sensor streams them: width x height, 1-3 interleaved channels, row-major.
-// File I/O goes through OpenImageIO (PNG, EXR, JPEG, ...), chosen by the file extension.
+// File I/O: PNG (libpng) and EXR (OpenEXR) in pg_core itself, any other format (JPEG, TIFF, ...)
+// through OpenImageIO, loaded with the first such file; a file is read by its content and
+// written by its extension.
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -36,7 +38,9 @@ using ImageU8 = Image<std::uint8_t>;
 // none when every value is finite. For errors that name the pixel.
 std::optional<std::array<int, 3>> first_non_finite(const ImageF& image);
 
-// Reads any format OpenImageIO knows. 8-bit files read as float are scaled to [0, 1].
+// Reads any format OpenImageIO knows. 8-bit and 16-bit files read as float are scaled to [0, 1].
+// A PNG's alpha channel reads as stored (OpenImageIO, which read PNG files until 2026-11-30,
+// multiplied the colour channels by it).
 // Throws InputError naming the path when the file is missing or unreadable.
 ImageF read_image_float(const std::string& path);
 ImageU8 read_image_u8(const std::string& path);
@@ -47,13 +51,13 @@ ImageF read_float_file(const std::string& path);
 // (a dataset's normal_png: an 8-bit file would read as normals a hundredth of a radian coarse).
 ImageF read_u16_file(const std::string& path);
 
-// Threads OpenImageIO may use to decode or encode one image (the pool of its OpenEXR plugin,
-// process-wide; 0: one per core, its default; 1: the calling thread alone, no pool). track_dataset
+// Threads that may decode or encode one EXR image (OpenEXR's pool, process-wide; 0: one per core,
+// the default; 1: the calling thread alone, no pool). track_dataset
 // sets 1 while it runs: it reads the next frame on a thread of its own beside the tracker's update,
 // which a pool the size of the machine would crowd (measured on 2 cores: the update 1.0 -> 1.3 ms
 // a frame with the pool, 1.0 without). So does a render, whose frames keep every core busy. On
-// one thread, a 120x160 frame of normals (RLE) reads in 1.4 ms, against 2.1 with the pool of 2
-// cores and 3.0 with a pool of one worker, OpenImageIO's 1, which hands the caller's work over.
+// one thread, a 120x160 frame of normals (RLE) read in 1.4 ms through OpenImageIO, against 2.1
+// with the pool of 2 cores and 3.0 with a pool of one worker, which hands the caller's work over.
 void set_image_codec_threads(int threads);
 int image_codec_threads();
 
@@ -78,8 +82,8 @@ void write_image(const std::string& path, const ImageU8& image);
 // Writes values in [0, 1] (clamped) as 16-bit integers 0-65535 (PNG, TIFF): images that tools
 // without float formats read. read_image_float reads them back scaled to [0, 1].
 void write_image_u16(const std::string& path, const ImageF& image);
-// Throws InputError naming the path unless write_image could write there: an image format that
-// OpenImageIO writes, in a folder that exists. For long jobs, to fail before the work.
+// Throws InputError naming the path unless write_image could write there: PNG, EXR or another
+// format that OpenImageIO writes, in a folder that exists. For long jobs, to fail before the work.
 void check_image_output(const std::string& path);
 
 // Reads only the header: width, height and channel count. Throws like read_image_*.
