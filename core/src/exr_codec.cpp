@@ -5,13 +5,14 @@
 #include <ImfCompression.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfIO.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 #include <ImfThreading.h>
 
 #include <algorithm>
 #include <atomic>
-#include <cerrno>
+#include <cstring>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -42,6 +43,24 @@ int exr_threads() {
   }
   return pool;
 }
+
+// A file written into memory, then to disk in one write (write_file).
+class MemoryStream : public Imf::OStream {
+ public:
+  MemoryStream(const std::string& path, std::vector<std::uint8_t>& bytes)
+      : Imf::OStream(path.c_str()), bytes_(bytes) {}
+  void write(const char c[], int n) override {
+    if (at_ + std::size_t(n) > bytes_.size()) bytes_.resize(at_ + std::size_t(n));
+    std::memcpy(bytes_.data() + at_, c, std::size_t(n));
+    at_ += std::size_t(n);
+  }
+  std::uint64_t tellp() override { return at_; }
+  void seekp(std::uint64_t at) override { at_ = std::size_t(at); }
+
+ private:
+  std::vector<std::uint8_t>& bytes_;
+  std::size_t at_ = 0;
+};
 
 const char* type_name(Imf::PixelType type) {
   switch (type) {
@@ -139,13 +158,15 @@ std::string write_float(const std::string& path, const ImageF& image, bool as_u1
                    Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(const_cast<float*>(pixels + c)),
                               x_stride, x_stride * std::size_t(image.width)));
     }
-    errno = 0;
-    Imf::OutputFile out(path.c_str(), header, exr_threads());
-    out.setFrameBuffer(frame);
-    out.writePixels(image.height);
-    return {};
+    std::vector<std::uint8_t> bytes;
+    {
+      MemoryStream stream(path, bytes);
+      Imf::OutputFile out(stream, header, exr_threads());
+      out.setFrameBuffer(frame);
+      out.writePixels(image.height);
+    }  // the line offsets are written as the file closes
+    return write_file(path, bytes, error_number);
   } catch (const std::exception& e) {
-    error_number = errno;
     return path + ": cannot write image: " + first_line(e.what());
   }
 }

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -104,6 +106,24 @@ Format format_of_file(const std::string& path) {
   if (std::memcmp(magic, "\x89PNG\r\n\x1a\n", 8) == 0) return Format::kPng;
   if (std::memcmp(magic, "\x76\x2f\x31\x01", 4) == 0) return Format::kExr;
   return Format::kOther;
+}
+
+std::string write_file(const std::string& path, const std::vector<std::uint8_t>& bytes,
+                       int& error_number) {
+  errno = 0;
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  if (!file) {
+    error_number = errno;
+    return path + ": cannot write image: cannot open the file";
+  }
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), file) == bytes.size();
+  error_number = errno;
+  if (std::fclose(file) != 0 || !written) {
+    if (error_number == 0) error_number = errno;
+    return path + ": cannot write image: the file is incomplete";
+  }
+  error_number = 0;
+  return {};
 }
 
 Format format_of_name(const std::string& path) {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "image_codec.h"
 
@@ -23,6 +24,11 @@ Format format_of_name(const std::string& path);
 
 const Table& png_table();
 const Table& exr_table();
+
+// Writes a file encoded in memory to `path` (replacing it): "" or the error naming the path,
+// errno's value in error_number. One write where the encoders' own made many small ones.
+std::string write_file(const std::string& path, const std::vector<std::uint8_t>& bytes,
+                       int& error_number);
 
 // Largest image read: width x height x channels values. A damaged header can claim any size.
 inline constexpr long long kMaxImageValues = 1ll << 28;
