@@ -28,14 +28,14 @@ namespace {
 // program that sets them and reads no EXR file starts no pool.
 std::atomic<int> requested_threads{0};
 
-// The threads to hand a file: 0 is OpenEXR's calling thread.
+// The threads to hand a file: 0 is OpenEXR's calling thread. A pool of one worker is never made:
+// the caller would hand it the work and wait (image.h).
 int exr_threads() {
   static std::mutex mutex;
   static int applied = -1;
   const int requested = requested_threads.load();
-  const int pool = requested == 1   ? 0
-                   : requested == 0 ? int(std::max(1u, std::thread::hardware_concurrency()))
-                                    : requested;
+  int pool = requested == 0 ? int(std::thread::hardware_concurrency()) : requested;
+  if (pool <= 1) pool = 0;
   const std::lock_guard<std::mutex> lock(mutex);
   if (pool != applied) {
     Imf::setGlobalThreadCount(pool);

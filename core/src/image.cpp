@@ -37,10 +37,10 @@ const image_codec::Table& codec() {
   return *table;
 }
 
-// The codecs of a file to read (by its first bytes) and of one to write (by its extension): PNG
-// and EXR in pg_core, the rest through the module.
-const image_codec::Table& reader_of(const std::string& path) {
-  switch (image_codec::format_of_file(path)) {
+// The codecs of a format: PNG and EXR in pg_core, the rest through the module. A file to read
+// goes by its first bytes, one to write by its extension.
+const image_codec::Table& codec_of(image_codec::Format format) {
+  switch (format) {
     case image_codec::Format::kPng:
       return image_codec::png_table();
     case image_codec::Format::kExr:
@@ -50,15 +50,12 @@ const image_codec::Table& reader_of(const std::string& path) {
   }
 }
 
+const image_codec::Table& reader_of(const std::string& path) {
+  return codec_of(image_codec::format_of_file(path));
+}
+
 const image_codec::Table& writer_of(const std::string& path) {
-  switch (image_codec::format_of_name(path)) {
-    case image_codec::Format::kPng:
-      return image_codec::png_table();
-    case image_codec::Format::kExr:
-      return image_codec::exr_table();
-    default:
-      return codec();
-  }
+  return codec_of(image_codec::format_of_name(path));
 }
 
 void check_readable(const std::string& path) {
