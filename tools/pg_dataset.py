@@ -202,43 +202,51 @@ def _decode_png(data, path):
         raise ValueError(f"{path}: the image data inflates to {len(raw)} bytes, not "
                          f"{height * (row_bytes + 1)}")
     rows = np.frombuffer(raw, dtype=np.uint8).reshape(height, row_bytes + 1)
-    image = np.zeros((height + 1, row_bytes), dtype=np.uint8)  # row 0: the zeros above the first
-    for y in range(height):
-        kind, line, above = rows[y, 0], rows[y, 1:], image[y]
-        if kind == 0:
-            image[y + 1] = line
-        elif kind == 1:  # Sub: a running sum of each byte position in the pixel, modulo 256
-            image[y + 1] = np.cumsum(line.reshape(width, step), axis=0, dtype=np.uint8).ravel()
-        elif kind == 2:  # Up
-            image[y + 1] = line + above
-        elif kind in (3, 4):  # Average, Paeth: each byte depends on the one just decoded
-            image[y + 1] = _unfilter_sequential(kind, line.tolist(), above.tolist(), step)
-        else:
-            raise ValueError(f"{path}: row {y} has filter type {kind}")
-    image = image[1:]
+    kinds = rows[:, 0]
+    if kinds.max(initial=0) > 4:
+        y = int(np.argmax(kinds > 4))
+        raise ValueError(f"{path}: row {y} has filter type {kinds[y]}")
+    if (kinds >= 3).any():  # Average or Paeth somewhere: each byte needs the one just decoded
+        image = _unfilter_diagonals(kinds, rows[:, 1:], width, step)
+    else:
+        image = np.zeros((height + 1, row_bytes), dtype=np.uint8)  # row 0: zeros above the first
+        for y in range(height):
+            kind, line, above = kinds[y], rows[y, 1:], image[y]
+            if kind == 0:
+                image[y + 1] = line
+            elif kind == 1:  # Sub: a running sum of each byte position in the pixel, modulo 256
+                image[y + 1] = np.cumsum(line.reshape(width, step), axis=0, dtype=np.uint8).ravel()
+            else:  # Up
+                image[y + 1] = line + above
+        image = image[1:]
     if bits == 16:
         image = image.view(">u2").astype(np.uint16)
     return image.reshape(height, width, _PNG_CHANNELS[colour])
 
 
-def _unfilter_sequential(kind, line, above, step):
-    out = [0] * len(line)
-    for i, value in enumerate(line):
-        left = out[i - step] if i >= step else 0
-        if kind == 3:
-            out[i] = (value + ((left + above[i]) >> 1)) & 0xFF
-            continue
-        upper_left = above[i - step] if i >= step else 0
-        estimate = left + above[i] - upper_left
-        distances = (abs(estimate - left), abs(estimate - above[i]), abs(estimate - upper_left))
-        if distances[0] <= distances[1] and distances[0] <= distances[2]:
-            predictor = left
-        elif distances[1] <= distances[2]:
-            predictor = above[i]
-        else:
-            predictor = upper_left
-        out[i] = (value + predictor) & 0xFF
-    return out
+def _unfilter_diagonals(kinds, lines, width, step):
+    """Undoes any mix of the five filters: a pixel needs its left, upper and upper-left
+    neighbours, all on the two anti-diagonals before its own, so each anti-diagonal is decoded
+    at once (width + height steps, where a byte at a time took 0.35 s a 120x160 frame of 16-bit
+    normals; tacsim writes every row with the Paeth filter since 2026-11-30)."""
+    height = len(kinds)
+    filtered = lines.reshape(height, width, step).astype(np.int16)
+    image = np.zeros((height + 1, width + 1, step), dtype=np.int16)  # a row and column of zeros
+    kind = kinds.astype(np.int16)[:, None]
+    for d in range(width + height - 1):
+        ys = np.arange(max(0, d - width + 1), min(height - 1, d) + 1)
+        xs = d - ys
+        left, up, upper_left = image[ys + 1, xs], image[ys, xs + 1], image[ys, xs]
+        estimate = left + up - upper_left
+        to_left, to_up = np.abs(estimate - left), np.abs(estimate - up)
+        to_upper_left = np.abs(estimate - upper_left)
+        paeth = np.where((to_left <= to_up) & (to_left <= to_upper_left), left,
+                         np.where(to_up <= to_upper_left, up, upper_left))
+        k = kind[ys]
+        predictor = np.select([k == 0, k == 1, k == 2, k == 3],
+                              [np.zeros_like(left), left, up, (left + up) >> 1], paeth)
+        image[ys + 1, xs + 1] = (filtered[ys, xs] + predictor) & 0xFF
+    return image[1:, 1:].astype(np.uint8).reshape(height, width * step)
 
 
 def read_ply(path):
