@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -311,6 +312,62 @@ TEST(ImageFormats, DamagedFilesAreRefusedNamingThem) {
   std::ofstream(tmp.str("bad_crc.png"), std::ios::binary) << png;
   expect_input_error([&] { read_image_u8(tmp.str("bad_crc.png")); },
                      {"bad_crc.png: cannot decode image"});
+}
+
+// Bytes damaged at random (a PNG's chunk checksums made right again, so that the damage reaches
+// the decoder): each file reads or is refused with an InputError naming it, never a crash (the
+// sanitizer build checks the memory), a hang or another exception.
+std::string with_checksums(std::string png) {
+  for (std::size_t at = 8; at + 12 <= png.size();) {
+    const std::uint32_t size = std::uint32_t(std::uint8_t(png[at])) << 24 |
+                               std::uint32_t(std::uint8_t(png[at + 1])) << 16 |
+                               std::uint32_t(std::uint8_t(png[at + 2])) << 8 |
+                               std::uint32_t(std::uint8_t(png[at + 3]));
+    if (size > png.size() - at - 12) break;
+    const auto crc = std::uint32_t(
+        crc32(0, reinterpret_cast<const Bytef*>(png.data() + at + 4), uInt(size + 4)));
+    for (int k = 0; k < 4; ++k) png[at + 8 + size + k] = char(crc >> (24 - 8 * k));
+    at += 12 + size;
+  }
+  return png;
+}
+
+TEST(ImageFormats, DamagedBytesAreReadOrRefused) {
+  TempDir tmp;
+  ImageF f(24, 16, 3);
+  for (std::size_t i = 0; i < f.data.size(); ++i) f.data[i] = float(i % 29) / 29.0f;
+  write_image(tmp.str("a.png"), f);
+  write_image_u16(tmp.str("b.png"), f);
+  write_image(tmp.str("c.exr"), f);
+  std::mt19937 rng(5);
+  int read = 0, refused = 0;
+  for (const char* name : {"a.png", "b.png", "c.exr"}) {
+    std::ifstream in(tmp.str(name), std::ios::binary);
+    const std::string whole((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const bool png = std::string(name).find(".png") != std::string::npos;
+    for (int trial = 0; trial < 300; ++trial) {
+      std::string bytes = whole;
+      const int changes = 1 + int(rng() % 4);
+      for (int k = 0; k < changes; ++k) {
+        const std::size_t at = 8 + rng() % (bytes.size() - 8);  // the magic bytes kept
+        bytes[at] = rng() % 3 == 0 ? char(0xff) : char(rng() & 0xff);
+      }
+      if (rng() % 5 == 0) bytes.resize(8 + rng() % (bytes.size() - 8));
+      if (png) bytes = with_checksums(bytes);
+      const std::string path = tmp.str(std::string("damaged_") + name);
+      std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes;
+      try {
+        const ImageF image = read_image_float(path);
+        EXPECT_GT(image.width * image.height * image.channels, 0) << name << " trial " << trial;
+        ++read;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+        ++refused;
+      }
+    }
+  }
+  std::printf("damaged files: %d read, %d refused\n", read, refused);
+  EXPECT_GT(refused, 100);
 }
 
 // A write that cannot reach its file names it and the cause.
