@@ -9,7 +9,8 @@
 set -euo pipefail
 packages=(
   cmake g++ make pkg-config
-  libeigen3-dev nlohmann-json3-dev libopenimageio-dev libpng-dev libopenexr-dev libembree-dev libtinygltf-dev
+  libeigen3-dev nlohmann-json3-dev libopenimageio-dev libpng-dev libopenexr-dev
+  libembree-dev libtinygltf-dev
   libglm-dev libceres-dev libfftw3-dev libnanoflann-dev libtbb-dev
   libcli11-dev libgtest-dev libbenchmark-dev libtorch-dev libopenblas0-openmp zlib1g-dev
   libavformat-dev libavcodec-dev libswscale-dev libavutil-dev ffmpeg

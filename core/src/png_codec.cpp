@@ -6,7 +6,6 @@
 
 #include <csetjmp>
 #include <cstdio>
-#include <cstring>
 #include <memory>
 #include <vector>
 
@@ -29,16 +28,12 @@ void on_error(png_structp png, png_const_charp message) {
 
 void on_warning(png_structp, png_const_charp) {}  // an ancillary chunk's complaint: read on
 
-struct ByteSource {
-  const std::uint8_t* data;
-  std::size_t size, at;
-};
-
+// Reads through stdio's buffer: a header read (read_image_shape, for every frame of a recording)
+// reads no more of the file than the chunks before the pixels.
 void read_bytes(png_structp png, png_bytep out, std::size_t n) {
-  auto* source = static_cast<ByteSource*>(png_get_io_ptr(png));
-  if (n > source->size - source->at) png_error(png, "the file is cut short");
-  std::memcpy(out, source->data + source->at, n);
-  source->at += n;
+  if (std::fread(out, 1, n, static_cast<std::FILE*>(png_get_io_ptr(png))) != n) {
+    png_error(png, "the file is cut short");
+  }
 }
 
 struct ByteSink {
@@ -66,9 +61,10 @@ struct PngLayout {
 };
 
 // Stage 1: the header, and the transformations to the layout above.
-bool read_header(png_structp png, png_infop info, ByteSource* source, PngLayout* layout) {
+bool read_header(png_structp png, png_infop info, std::FILE* file, PngLayout* layout) {
   if (setjmp(png_jmpbuf(png))) return false;
-  png_set_read_fn(png, source, read_bytes);
+  png_set_read_fn(png, file, read_bytes);
+  png_set_sig_bytes(png, 8);  // checked by the caller
   png_read_info(png, info);
   const int color_type = png_get_color_type(png, info);
   const int depth = png_get_bit_depth(png, info);
@@ -92,30 +88,24 @@ bool read_rows(png_structp png, png_bytepp rows) {
   return true;
 }
 
-// A file being read: its bytes, libpng's handles (destroyed together) and its error message.
+// A file being read: the file, libpng's handles (destroyed together) and its error message.
 class PngReader {
  public:
   ~PngReader() { png_destroy_read_struct(&png_, info_ ? &info_ : nullptr, nullptr); }
 
-  // Reads the file and its header; the layout is then known.
+  // Opens the file and reads its header; the layout is then known.
   std::string open(const std::string& path) {
-    std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"),
-                                                         std::fclose);
-    if (!file) return path + ": cannot read image: cannot open the file";
-    // In blocks: a file's size on disk may not be what it holds (a file growing as it is read).
-    std::uint8_t block[1 << 16];
-    for (std::size_t n; (n = std::fread(block, 1, sizeof block, file.get())) > 0;) {
-      bytes_.insert(bytes_.end(), block, block + n);
-    }
-    if (std::ferror(file.get())) return path + ": cannot read image: a read error";
-    if (bytes_.size() < 8 || png_sig_cmp(bytes_.data(), 0, 8) != 0) {
+    file_.reset(std::fopen(path.c_str(), "rb"));
+    if (!file_) return path + ": cannot read image: cannot open the file";
+    png_byte signature[8] = {};
+    if (std::fread(signature, 1, sizeof signature, file_.get()) != sizeof signature ||
+        png_sig_cmp(signature, 0, sizeof signature) != 0) {
       return path + ": cannot read image: not a PNG file";
     }
     png_ = png_create_read_struct(PNG_LIBPNG_VER_STRING, &error_, on_error, on_warning);
     if (png_) info_ = png_create_info_struct(png_);
     if (!info_) return path + ": cannot read image: out of memory";
-    source_ = {bytes_.data(), bytes_.size(), 0};
-    if (!read_header(png_, info_, &source_, &layout_)) {
+    if (!read_header(png_, info_, file_.get(), &layout_)) {
       return path + ": cannot read image: " + error_.message;
     }
     return {};
@@ -140,11 +130,10 @@ class PngReader {
   }
 
  private:
-  std::vector<std::uint8_t> bytes_;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file_{nullptr, std::fclose};
   PngError error_;
   png_structp png_ = nullptr;
   png_infop info_ = nullptr;
-  ByteSource source_{};
   PngLayout layout_;
 };
 
