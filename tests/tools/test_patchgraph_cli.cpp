@@ -2844,6 +2844,41 @@ TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {
   EXPECT_TRUE(fs::exists(out("eval") + "/runs"));
 }
 
+// With gtpatch among the methods, summary.md sets each other method's median final errors against
+// GroundtruthPatch's (issue 5's 1.5x target), from the same runs as results.csv.
+TEST_F(PatchgraphCli, EvalSetsTheMethodsAgainstGroundtruthPatch) {
+  const CliRun r =
+      patchgraph("eval --datasets " + data() +
+                 " --methods patchgraph gtpatch -q --no-plots --out " + out("eval_ratio"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto results = read_csv_table(out("eval_ratio") + "/results.csv");
+  ASSERT_EQ(results.rows.size(), 2u);
+  ASSERT_EQ(results.cell(1, "method"), "gtpatch");
+  const auto ratio = [&](const std::string& column) {
+    return std::stod(results.cell(0, column)) / std::stod(results.cell(1, column));
+  };
+  const double t = ratio("final_translation_error_m"), rot = ratio("final_rotation_error_rad");
+  ASSERT_GT(t, 0);
+  ASSERT_GT(rot, 0);
+  const auto cell = [](double x) {
+    char c[32];
+    std::snprintf(c, sizeof c, "%.*fx", x < 10 ? 2 : x < 100 ? 1 : 0, x);
+    return std::string(c);
+  };
+  const std::string text = testing_support::file_text(out("eval_ratio") + "/summary.md");
+  const std::string expected = "| cube | patchgraph | " + cell(t) + " | " + cell(rot) + " |";
+  EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text;
+  EXPECT_EQ(text.find("| cube | gtpatch | " + cell(1.0)), std::string::npos) << text;
+  // Without gtpatch there is nothing to set them against.
+  const CliRun none =
+      patchgraph("eval --datasets " + data() + " --methods patchgraph -q --no-plots --out " +
+                 out("eval_noratio"));
+  ASSERT_EQ(none.code, 0) << none.out;
+  const std::string text2 = testing_support::file_text(out("eval_noratio") + "/summary.md");
+  EXPECT_NE(text2.find("| cube | patchgraph | 1 |"), std::string::npos) << text2;
+  EXPECT_EQ(text2.find("GroundtruthPatch"), std::string::npos) << text2;
+}
+
 // Each sequence of an eval draws its own noise (a seed from --seed and the folder's name), and
 // `track --seed S` with S from results.csv reproduces that run alone.
 TEST_F(PatchgraphCli, EvalSeedsEachSequenceAndTrackReproducesARun) {

@@ -126,6 +126,38 @@ std::vector<Group> group_runs(const std::vector<Row>& rows,
   return groups;
 }
 
+// "1.42x" (three significant digits up to 1000x), or "-" where GroundtruthPatch's median is zero
+// (nothing to divide by).
+std::string ratio_cell(double value, double reference) {
+  if (!(reference > 0)) return "-";
+  const double ratio = value / reference;
+  char cell[32];
+  std::snprintf(cell, sizeof(cell), "%.*fx", ratio < 10 ? 2 : ratio < 100 ? 1 : 0, ratio);
+  return cell;
+}
+
+// Each method's median final errors over GroundtruthPatch's on the same object (the paper's
+// "best a method can do", issue 5's 1.5x target); empty without gtpatch among the methods.
+std::string gtpatch_ratios_markdown(const std::vector<Group>& groups) {
+  std::ostringstream md;
+  for (const Group& reference : groups) {
+    if (reference.method != "gtpatch") continue;
+    const double t_ref = quantile(reference.translation, 0.5);
+    const double r_ref = quantile(reference.rotation, 0.5);
+    for (const Group& g : groups) {
+      if (g.object != reference.object || g.method == "gtpatch") continue;
+      if (md.tellp() == 0) {
+        md << "\nMedian final error over GroundtruthPatch's (gtpatch, the object's model):\n\n"
+              "| object | method | translation | rotation |\n|---|---|---:|---:|\n";
+      }
+      md << "| " << markdown_cell(g.object) << " | " << g.method << " | "
+         << ratio_cell(quantile(g.translation, 0.5), t_ref) << " | "
+         << ratio_cell(quantile(g.rotation, 0.5), r_ref) << " |\n";
+    }
+  }
+  return md.str();
+}
+
 std::string summary_markdown(const std::vector<Group>& groups) {
   std::ostringstream md;
   md << "| object | method | runs | final translation [mm] median (q1-q3) | final rotation [rad] "
@@ -141,6 +173,7 @@ std::string summary_markdown(const std::vector<Group>& groups) {
         quantile(rot, 0.75), quantile(g.ms, 0.5));
     md << line;
   }
+  md << gtpatch_ratios_markdown(groups);
   return md.str();
 }
 
