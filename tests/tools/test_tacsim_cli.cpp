@@ -36,7 +36,7 @@ TEST(TacsimCli, UsageErrorsExitWithTwo) {
   const CliRun unknown = tacsim("frobnicate");
   EXPECT_EQ(unknown.code, 2);
   EXPECT_NE(unknown.out.find("unknown subcommand 'frobnicate' (known: render, info, bench, sheet, "
-                             "presses)"),
+                             "presses, sensitivity)"),
             std::string::npos)
       << unknown.out;
   EXPECT_EQ(tacsim("render").code, 2);  // missing SCENE and --out
@@ -53,12 +53,54 @@ TEST(TacsimCli, UsageErrorsExitWithTwo) {
 }
 
 TEST(TacsimCli, HelpOnEverySubcommand) {
-  for (const char* sub : {"", "render ", "info ", "bench ", "sheet ", "presses "}) {
+  for (const char* sub : {"", "render ", "info ", "bench ", "sheet ", "presses ", "sensitivity "}) {
     const CliRun r = tacsim(std::string(sub) + "--help");
     EXPECT_EQ(r.code, 0) << sub;
     EXPECT_NE(r.out.find("Usage"), std::string::npos) << r.out;
   }
   EXPECT_NE(tacsim("render --help").out.find("--outputs"), std::string::npos);
+}
+
+// sensitivity prints the bound's summary for the undeformed and the tilted gel and writes its map;
+// a camera without noise, an unknown preset or a bad tilt is a usage error.
+TEST(TacsimCli, SensitivityReportsTheBoundAndRefusesANoiseFreeCamera) {
+  const TempDir tmp;
+  const std::string map = tmp.str("bound.exr");
+  const CliRun r = tacsim("sensitivity --tilt 25 --out " + map);
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* line :
+       {"sensor digit: 120 x 160 px, camera noise sigma 7.00 levels",
+        "clipped: ", "undeformed gel: median ", "tilted 25 deg, 8 directions: median ", "wrote "}) {
+    EXPECT_NE(r.out.find(line), std::string::npos) << line << "\n" << r.out;
+  }
+  const ImageF bound = read_image_float(map);
+  ASSERT_TRUE(bound.same_shape(120, 160, 1));
+  EXPECT_TRUE(std::all_of(bound.data.begin(), bound.data.end(),
+                          [](float v) { return v > 0 && v <= 1.5708f; }));
+  // Twice the noise, twice the bound, in the printed median too.
+  const auto median_deg = [](const std::string& out) {
+    const std::size_t at = out.find("undeformed gel: median ");
+    return at == std::string::npos ? -1.0 : std::stod(out.substr(at + 23));
+  };
+  const CliRun quiet = tacsim("sensitivity --tilt 0 --sigma 3.5");
+  const CliRun loud = tacsim("sensitivity --tilt 0 --sigma 7");
+  ASSERT_EQ(quiet.code, 0) << quiet.out;
+  EXPECT_EQ(quiet.out.find("tilted"), std::string::npos) << quiet.out;
+  EXPECT_NEAR(median_deg(loud.out), 2 * median_deg(quiet.out), 0.02) << loud.out << quiet.out;
+  // A sensor file whose camera has no noise.
+  const std::string sensor = tmp.str("quiet.json");
+  std::ofstream(sensor) << R"({"preset": "digit", "noise": {"sigma": 0}})";
+  const CliRun none = tacsim("sensitivity --sensor-file " + sensor);
+  EXPECT_EQ(none.code, 2) << none.out;
+  EXPECT_NE(none.out.find("noise.sigma is 0"), std::string::npos) << none.out;
+  EXPECT_EQ(tacsim("sensitivity --sensor-file " + sensor + " --sigma 2").code, 0);
+  EXPECT_EQ(tacsim("sensitivity --sigma 0").code, 2);
+  EXPECT_EQ(tacsim("sensitivity --tilt 90").code, 2);
+  EXPECT_EQ(tacsim("sensitivity --sensor nope").code, 2);
+  EXPECT_EQ(tacsim("sensitivity --sensor digit --sensor-file " + sensor).code, 2);
+  const CliRun missing = tacsim("sensitivity --sensor-file " + tmp.str("missing.json"));
+  EXPECT_EQ(missing.code, 1) << missing.out;
+  EXPECT_NE(missing.out.find("missing.json"), std::string::npos) << missing.out;
 }
 
 TEST(TacsimCli, BadInputNamesTheFileAndExitsWithOne) {

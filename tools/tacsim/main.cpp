@@ -24,6 +24,7 @@
 #include "pg/core/image_change.h"
 #include "pg/sim/scene_renderer.h"
 #include "presses.h"
+#include "sensitivity.h"
 #include "sheet.h"
 
 namespace pg {
@@ -447,7 +448,30 @@ int main(int argc, char** argv) {
       ->add_option("--seed", presses.seed, "Seeds the presses and the scene's noise (default 1)")
       ->check(kSeed);
 
+  SensitivityArgs sensitivity;
+  CLI::App* cmd_sensitivity = app.add_subcommand(
+      "sensitivity",
+      "How accurately one colour frame can tell the gel's normal at each pixel: the per-pixel "
+      "Cramer-Rao bound through the sensor's lights and camera noise");
+  CLI::Option* sensitivity_preset =
+      cmd_sensitivity->add_option("--sensor", sensitivity.sensor, "Sensor preset (default digit)");
+  cmd_sensitivity
+      ->add_option("--sensor-file", sensitivity.sensor_file, "Sensor configuration file (JSON)")
+      ->excludes(sensitivity_preset);
+  cmd_sensitivity
+      ->add_option("--sigma", sensitivity.sigma,
+                   "Camera noise [levels on 0-255] (default: the sensor's noise.sigma)")
+      ->check(range_check(0.0, 255.0));
+  cmd_sensitivity
+      ->add_option("--tilt", sensitivity.tilt_deg,
+                   "Also normals tilted this far from the undeformed gel's, in eight directions "
+                   "[deg] (default 20; 0: only the undeformed gel)")
+      ->check(range_check(0.0, 89.0));
+  cmd_sensitivity->add_option("--out,-o", sensitivity.out,
+                              "Write the per-pixel bound [rad] as an image (EXR)");
+
   return run_cli(app, argc, argv, [&]() -> int {
+    if (cmd_sensitivity->parsed()) return run_sensitivity(sensitivity);
     if (cmd_presses->parsed()) return run_presses(presses);
     if (cmd_sheet->parsed()) return run_sheet(sheet);
     if (cmd_render->parsed()) {

@@ -12,6 +12,7 @@
 #include "pg/core/json_fields.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/presses.h"
+#include "sensor_choice.h"
 
 namespace pg {
 namespace {
@@ -44,19 +45,7 @@ int run_presses(const PressesArgs& a) {
   if (fs::is_directory(a.out)) {
     throw InputError("--out " + a.out + ": is a folder; give the scene file to write (a .json)");
   }
-  if (!a.sensor.empty() && !a.sensor_file.empty()) {
-    throw UsageError("--sensor and --sensor-file: give one");
-  }
-  SensorModel sensor;
-  if (!a.sensor_file.empty()) {
-    sensor = load_sensor_file(a.sensor_file);
-  } else {
-    try {
-      sensor = sensor_preset(a.sensor.empty() ? "digit" : a.sensor);
-    } catch (const InputError& e) {
-      throw UsageError(std::string("--sensor: ") + e.what());
-    }
-  }
+  const SensorModel sensor = chosen_sensor(a.sensor, a.sensor_file);
   // The defaults follow the sensor (0.3-1.5 mm on the presets' 2 mm gels), so that only what
   // was given is blamed.
   const double max_indentation = sensor.gel.max_indentation_m;

@@ -1,0 +1,23 @@
+#pragma once
+// The sensor a tacsim command's --sensor PRESET / --sensor-file FILE options name.
+#include <string>
+
+#include "../common/cli_main.h"
+#include "pg/core/error.h"
+#include "pg/core/sensor.h"
+
+namespace pg {
+
+// The preset (default "digit"; an unknown name is a usage error) or the file's sensor (a file
+// that is missing or malformed is an InputError naming it); both given is a usage error.
+inline SensorModel chosen_sensor(const std::string& preset, const std::string& file) {
+  if (!preset.empty() && !file.empty()) throw UsageError("--sensor and --sensor-file: give one");
+  if (!file.empty()) return load_sensor_file(file);
+  try {
+    return sensor_preset(preset.empty() ? "digit" : preset);
+  } catch (const InputError& e) {
+    throw UsageError(std::string("--sensor: ") + e.what());
+  }
+}
+
+}  // namespace pg
