@@ -97,6 +97,10 @@ TEST(TacsimCli, SensitivityReportsTheBoundAndRefusesANoiseFreeCamera) {
   EXPECT_EQ(tacsim("sensitivity --sigma 0").code, 2);
   EXPECT_EQ(tacsim("sensitivity --tilt 90").code, 2);
   EXPECT_EQ(tacsim("sensitivity --sensor nope").code, 2);
+  const CliRun png = tacsim("sensitivity --out " + tmp.str("bound.png"));
+  EXPECT_EQ(png.code, 2) << png.out;
+  EXPECT_NE(png.out.find("give an .exr file"), std::string::npos) << png.out;
+  EXPECT_FALSE(fs::exists(tmp.str("bound.png")));
   EXPECT_EQ(tacsim("sensitivity --sensor digit --sensor-file " + sensor).code, 2);
   const CliRun missing = tacsim("sensitivity --sensor-file " + tmp.str("missing.json"));
   EXPECT_EQ(missing.code, 1) << missing.out;

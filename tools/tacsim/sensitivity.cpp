@@ -1,8 +1,10 @@
 #include "sensitivity.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <vector>
 
@@ -66,7 +68,14 @@ int run_sensitivity(const SensitivityArgs& a) {
                                   : "the sensor's noise.sigma is 0: a noise-free camera bounds "
                                     "nothing; give --sigma, the camera's noise in levels");
   }
-  if (!a.out.empty()) check_image_output(a.out);
+  if (!a.out.empty()) {
+    std::string ext = std::filesystem::path(a.out).extension().string();
+    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+    if (ext != ".exr") {
+      throw UsageError("--out " + a.out + ": the map holds radians as floats; give an .exr file");
+    }
+    check_image_output(a.out);
+  }
   const double tilt = a.tilt_deg * M_PI / 180.0;
   const NormalBound flat = normal_bound(sensor, sigma);
   std::vector<NormalBound> tilted;
