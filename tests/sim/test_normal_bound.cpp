@@ -4,8 +4,8 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
-#include <limits>
 
 #include "pg/core/error.h"
 #include "pg/core/gel_rays.h"
