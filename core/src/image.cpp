@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -124,8 +123,7 @@ std::string write_file(const std::string& path, const std::vector<std::uint8_t>&
 }
 
 Format format_of_name(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  const std::string ext = lower_extension(path);
   if (ext == ".png") return Format::kPng;
   if (ext == ".exr") return Format::kExr;
   return Format::kOther;

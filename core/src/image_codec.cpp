@@ -5,10 +5,10 @@
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
-#include <filesystem>
 #include <memory>
+
+#include "pg/core/file_io.h"
 
 namespace pg::image_codec {
 
@@ -63,8 +63,7 @@ std::string read(const std::string& path, OIIO::TypeDesc type, Stored stored, Im
 }
 
 bool holds_float(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  const std::string ext = lower_extension(path);
   return ext == ".exr" || ext == ".tif" || ext == ".tiff" || ext == ".hdr" || ext == ".pfm";
 }
 

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -21,8 +22,21 @@ bool unclipped(float value) { return value > 0.0f && value < 255.0f; }
 
 }  // namespace
 
-NormalBound normal_bound(const SensorModel& sensor, double sigma, double tilt_rad,
-                         double azimuth_rad) {
+struct NormalBounds::State {
+  GelRays rays;
+  ImageF gel;  // the undeformed gel's normals
+  Shader shader;
+};
+
+NormalBounds::NormalBounds(const SensorModel& sensor) : state_(std::make_unique<State>()) {
+  state_->rays = make_gel_rays(sensor.camera, sensor.gel);
+  state_->gel = undeformed_gel_normals(state_->rays);
+  state_->shader = make_shader(sensor);
+}
+
+NormalBounds::~NormalBounds() = default;
+
+NormalBound NormalBounds::compute(double sigma, double tilt_rad, double azimuth_rad) const {
   if (!(sigma > 0) || !std::isfinite(sigma)) {
     throw InputError("camera noise sigma " + std::to_string(sigma) +
                      ": a bound needs a positive, finite noise (a noise-free camera bounds "
@@ -31,9 +45,9 @@ NormalBound normal_bound(const SensorModel& sensor, double sigma, double tilt_ra
   if (!(tilt_rad >= 0 && tilt_rad < M_PI / 2)) {
     throw InputError("tilt " + std::to_string(tilt_rad) + " rad: must lie in [0, pi / 2)");
   }
-  const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
-  const ImageF gel = undeformed_gel_normals(rays);
-  const Shader shader = make_shader(sensor);
+  const GelRays& rays = state_->rays;
+  const ImageF& gel = state_->gel;
+  const Shader& shader = state_->shader;
   const int n = rays.width * rays.height;
   // The tilt turns every normal about the same in-plane axis, perpendicular to the azimuth.
   const Eigen::AngleAxisf turn(float(tilt_rad),
@@ -109,6 +123,11 @@ NormalBound normal_bound(const SensorModel& sensor, double sigma, double tilt_ra
   }
   for (int ch = 0; ch < 3; ++ch) out.clipped_fraction[ch] = double(clipped[ch]) / double(n);
   return out;
+}
+
+NormalBound normal_bound(const SensorModel& sensor, double sigma, double tilt_rad,
+                         double azimuth_rad) {
+  return NormalBounds(sensor).compute(sigma, tilt_rad, azimuth_rad);
 }
 
 }  // namespace pg

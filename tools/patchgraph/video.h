@@ -2,11 +2,10 @@
 // A video file's frames, decoded in order by FFmpeg's libraries (libavformat, libavcodec,
 // libswscale), as 8-bit RGB: `patchgraph recording --video`. FFmpeg is included only by
 // video_ffmpeg.cpp.
-#include <cctype>
-#include <filesystem>
 #include <memory>
 #include <string>
 
+#include "pg/core/file_io.h"
 #include "pg/core/image.h"
 
 namespace pg {
@@ -64,12 +63,5 @@ std::unique_ptr<VideoReader> open_video(const std::string& path);
 // Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...), for options
 // that take images or videos.
 bool has_video_extension(const std::string& path);
-
-// The file's extension in lower case (".png"). Inline: the video module uses it too.
-inline std::string lower_extension(const std::string& path) {
-  std::string ext = std::filesystem::path(path).extension().string();
-  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  return ext;
-}
 
 }  // namespace pg

@@ -1,15 +1,14 @@
 #include "sensitivity.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <limits>
 #include <vector>
 
 #include "../common/cli_main.h"
 #include "pg/core/error.h"
+#include "pg/core/file_io.h"
 #include "pg/sim/normal_bound.h"
 #include "sensor_choice.h"
 
@@ -69,18 +68,17 @@ int run_sensitivity(const SensitivityArgs& a) {
                                     "nothing; give --sigma, the camera's noise in levels");
   }
   if (!a.out.empty()) {
-    std::string ext = std::filesystem::path(a.out).extension().string();
-    for (char& ch : ext) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-    if (ext != ".exr") {
+    if (lower_extension(a.out) != ".exr") {
       throw UsageError("--out " + a.out + ": the map holds radians as floats; give an .exr file");
     }
     check_image_output(a.out);
   }
   const double tilt = a.tilt_deg * M_PI / 180.0;
-  const NormalBound flat = normal_bound(sensor, sigma);
+  const NormalBounds bounds(sensor);
+  const NormalBound flat = bounds.compute(sigma);
   std::vector<NormalBound> tilted;
   for (int k = 0; tilt > 0 && k < kAzimuths; ++k) {
-    tilted.push_back(normal_bound(sensor, sigma, tilt, 2.0 * M_PI * k / kAzimuths));
+    tilted.push_back(bounds.compute(sigma, tilt, 2.0 * M_PI * k / kAzimuths));
   }
   std::printf("sensor %s: %d x %d px, camera noise sigma %.2f levels, exposure %.3g\n",
               sensor.name.c_str(), sensor.camera.width, sensor.camera.height, sigma,
@@ -90,9 +88,9 @@ int run_sensitivity(const SensitivityArgs& a) {
       "clipped: %.1f / %.1f / %.1f %% of pixels\n",
       flat.brightest[0], flat.brightest[1], flat.brightest[2], 100 * flat.clipped_fraction[0],
       100 * flat.clipped_fraction[1], 100 * flat.clipped_fraction[2]);
-  if (*std::max_element(flat.brightest.begin(), flat.brightest.end()) >= 255) {
-    const double fit = sensor.shading.exposure * 245.0 /
-                       *std::max_element(flat.brightest.begin(), flat.brightest.end());
+  const double brightest = *std::max_element(flat.brightest.begin(), flat.brightest.end());
+  if (brightest >= 255) {
+    const double fit = sensor.shading.exposure * 245.0 / brightest;
     std::printf(
         "  (shading.exposure %.3g would keep it below 255, but dims every press by as much "
         "against the same noise: docs/renderer.md, \"Clipping\")\n",

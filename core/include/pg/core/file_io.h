@@ -1,12 +1,22 @@
 #pragma once
 // Writing files so that a full disk (or a folder gone from under a run) is an InputError naming
 // the file and the cause, never a truncated file taken for a whole one.
+#include <cctype>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <string_view>
 
 namespace pg {
+
+// The file's extension in lower case (".png"). Inline: the image and video modules use it too,
+// which do not link pg_core.
+inline std::string lower_extension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  for (auto& ch : ext) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  return ext;
+}
 
 // The bytes of the files in `folder` and below it (0 for none, or no such folder).
 std::uintmax_t folder_bytes(const std::string& folder);

@@ -5,6 +5,7 @@
 // noise. A question of the sensor's design (where its lights sit, its exposure) that needs no
 // press rendered (docs/renderer.md, "How much a frame tells").
 #include <array>
+#include <memory>
 
 #include "pg/core/image.h"
 #include "pg/core/sensor.h"
@@ -22,10 +23,25 @@ struct NormalBound {
   std::array<double, 3> brightest{}, clipped_fraction{};
 };
 
-// The bound for the undeformed gel's normal at each pixel turned by tilt_rad toward the image
-// direction azimuth_rad (0: +x), with camera noise of sigma levels (> 0) in each channel. A
-// channel clipped at 0 or 255 tells nothing: its change is not seen. Throws InputError for
-// sigma <= 0 or a tilt outside [0, pi / 2).
+// A sensor's bounds: its per-pixel rays, undeformed gel normals and lights, made once for any
+// number of noise levels and tilts (the rays are most of one bound's work).
+class NormalBounds {
+ public:
+  explicit NormalBounds(const SensorModel& sensor);
+  ~NormalBounds();
+
+  // The bound for the undeformed gel's normal at each pixel turned by tilt_rad toward the image
+  // direction azimuth_rad (0: +x), with camera noise of sigma levels (> 0) in each channel. A
+  // channel clipped at 0 or 255 tells nothing: its change is not seen. Throws InputError for
+  // sigma <= 0 or a tilt outside [0, pi / 2).
+  NormalBound compute(double sigma, double tilt_rad = 0, double azimuth_rad = 0) const;
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+// NormalBounds(sensor).compute(sigma, tilt_rad, azimuth_rad), for one bound.
 NormalBound normal_bound(const SensorModel& sensor, double sigma, double tilt_rad = 0,
                          double azimuth_rad = 0);
 
