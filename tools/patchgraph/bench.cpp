@@ -186,7 +186,7 @@ using Models = std::map<std::string, NormalsModels>;
 
 TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t seed,
                          const Models& models) {
-  TrackOptions o = make_track_options(args_for(s, seed), dataset, models.at(s.normals));
+  TrackOptions o = make_track_options(args_for(s, seed), {&dataset}, models.at(s.normals));
   // One thread, frame after frame: what bench measures is the update, with nothing beside it
   // (and --threads is the threads it uses).
   o.prefetch = false;
@@ -283,10 +283,11 @@ int run_track_bench(const TrackBenchArgs& in) {
   // in track and eval).
   as_usage_error([&] {
     check_given_once(args.scenes);
-    // "gt", or a model file however its path is written.
+    // "gt", "shading", or a model file however its path is written.
     std::map<std::string, std::string> seen;
     for (const std::string& n : args.normals) {
-      const auto [it, fresh] = seen.emplace(n == "gt" ? n : fs::weakly_canonical(n).string(), n);
+      const auto [it, fresh] =
+          seen.emplace(n == "gt" || n == kShadingNormals ? n : fs::weakly_canonical(n).string(), n);
       if (!fresh) throw InputError("--normals: " + n + " given twice (also as " + it->second + ")");
     }
   });
@@ -337,7 +338,7 @@ int run_track_bench(const TrackBenchArgs& in) {
   };
   {
     const Dataset first = dataset_for(scenes.front(), Setting());
-    for (const auto& [source, loaded] : models) check_normals_models(loaded, {&first});
+    for (const auto& [source, loaded] : models) check_normals_models(source, loaded, {&first});
     for (auto& s : settings) {
       // What `track` sets for the normals source, recorded as run.
       const TrackOptions o = options_for(s, first, 0, models);

@@ -229,7 +229,7 @@ int run_eval(const EvalArgs& args) {
     check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
-    check_normals_models(models, sensors);
+    check_normals_models(args.track.normals, models, sensors);
     if (gtpatch) load_object_mesh(*sensors[0]);  // its mesh found before any run, not after
     note_missing_frames(sensors);
     note_long_batch(args.track, *sensors[0]);
@@ -270,7 +270,7 @@ int run_eval(const EvalArgs& args) {
         a.method = m;
         a.seed = seed;
         const TrackRun run =
-            track_dataset(sensors, make_track_options(a, dataset, models), [&](int frame, int) {
+            track_dataset(sensors, make_track_options(a, sensors, models), [&](int frame, int) {
               progress.update(int(std::min<long>(frames_done + frame, INT_MAX)));
             });
         frames_done += dataset.frames();

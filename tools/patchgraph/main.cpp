@@ -60,11 +60,11 @@ int run_track(const TrackArgs& a) {
     }
   }
   const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
-  check_normals_models(models, sensors);  // before the output folder is made
+  check_normals_models(a.normals, models, sensors);  // before the output folder is made
   check_same_sequence(sensors);
   const Dataset& dataset = datasets[0];
   const int unpaired_frames = note_missing_frames(sensors);
-  const TrackOptions options = make_track_options(a, dataset, models);
+  const TrackOptions options = make_track_options(a, sensors, models);
   if (dataset.info().scene.empty() && (a.end_effector_noise < 0 || a.vision_noise < 0)) {
     std::fprintf(stderr,
                  "note: %s has no scene (a recording): its poses are taken as measured, without "
@@ -274,7 +274,8 @@ int run_track(const TrackArgs& a) {
   std::printf("per-frame update median %.3f ms (%.0f Hz), mean %.3f ms -> %s\n", s.median_frame_ms,
               s.hz, s.mean_frame_ms, a.out.c_str());
   if (s.normals != "gt") {
-    std::printf("of which normals from the model: median %.3f ms\n", s.median_normals_ms);
+    std::printf("of which normals from the %s: median %.3f ms\n",
+                s.normals == kShadingNormals ? "shading's inverse" : "model", s.median_normals_ms);
   }
   // (More than 1000 / the update's ms when the next frame's images and model run beside it.)
   std::printf("whole run       %.3g frames/s (reading the images included; %s)\n", s.throughput_fps,

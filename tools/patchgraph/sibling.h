@@ -22,13 +22,15 @@ inline bool takes_normals_models(const std::string& command) {
   return command == "track" || command == "eval" || command == "bench";
 }
 
-// Whether a --normals value ("gt", "MODEL" or "MODEL,MODEL,...") names anything but gt.
+// Whether a --normals value ("gt", "shading", "MODEL" or "MODEL,MODEL,...") names anything but
+// gt and shading, which need no network.
 inline bool names_a_model(const std::string& normals) {
   std::size_t begin = 0;
   while (true) {
     const std::size_t end = normals.find(',', begin);
-    if (normals.substr(begin, end == std::string::npos ? std::string::npos : end - begin) != "gt")
-      return true;
+    const std::string item =
+        normals.substr(begin, end == std::string::npos ? std::string::npos : end - begin);
+    if (item != "gt" && item != "shading") return true;
     if (end == std::string::npos) return false;
     begin = end + 1;
   }

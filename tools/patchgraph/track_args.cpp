@@ -15,6 +15,7 @@
 #include "pg/learn/normal_model.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/mesh_sampling.h"
+#include "pg/sim/shading_inversion.h"
 
 namespace pg {
 
@@ -24,10 +25,12 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
         ->check(CLI::IsMember(method_names()));
   }
   app.add_option("--normals", a.normals,
-                 "Normals source: gt (the dataset's normal images), a model file from "
-                 "train-normals (applied to the colour images), or one model per sensor in the "
-                 "sequence's order, separated by commas (sensors of different sizes or "
-                 "illumination; so a model's path cannot hold a comma)");
+                 "Normals source: gt (the dataset's normal images), shading (the colour images "
+                 "read through the inverse of the sensor model's shading, no network; exact only "
+                 "for renders of that sensor), a model file from train-normals (applied to the "
+                 "colour images), or one model per sensor in the sequence's order, separated by "
+                 "commas (sensors of different sizes or illumination; so a model's path cannot "
+                 "hold a comma)");
   app.add_option("--normals-threads", a.normals_threads,
                  "Torch threads for --normals MODEL (default 1; 0: all cores). The model runs "
                  "beside the tracker's update (unless --no-prefetch), which takes a core of its "
@@ -157,18 +160,18 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
 }
 
 NormalsModels load_normals_models(const TrackArgs& a) {
-  if (a.normals == "gt") return {};
+  if (a.normals == "gt" || a.normals == kShadingNormals) return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   const std::vector<std::string> paths = comma_items(a.normals);
   std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
   NormalsModels models;
   for (const std::string& path : paths) {
-    if (path.empty() || path == "gt") {
-      throw UsageError(
-          "--normals " + a.normals + ": " +
-          (path.empty() ? "an empty model name in the list" : "gt is for every sensor or none") +
-          "; give gt, one model file for every sensor, or one per sensor in the "
-          "sequence's order, separated by commas");
+    if (path.empty() || path == "gt" || path == kShadingNormals) {
+      throw UsageError("--normals " + a.normals + ": " +
+                       (path.empty() ? "an empty model name in the list"
+                                     : path + " is for every sensor or none") +
+                       "; give gt, shading, one model file for every sensor, or one per sensor "
+                       "in the sequence's order, separated by commas");
     }
     auto& model = loaded[path];
     if (!model) {
@@ -211,7 +214,7 @@ void warn_of_other_optics(const NormalEstimator& model, const DatasetInfo& info,
                model.info().sensor.name.c_str());
 }
 
-void check_normals_models(const NormalsModels& models,
+void check_normals_models(const std::string& normals, const NormalsModels& models,
                           const std::vector<const Dataset*>& datasets) {
   if (models.size() > 1 && models.size() != datasets.size()) {
     std::string names;
@@ -222,7 +225,16 @@ void check_normals_models(const NormalsModels& models,
   }
   for (std::size_t k = 0; k < datasets.size(); ++k) {
     const NormalEstimator* model = normals_model_for(models, k);
-    check_normals_source(*datasets[k], model ? model->path() : "gt");
+    const bool shading = normals == kShadingNormals;
+    check_normals_source(*datasets[k], model ? model->path() : shading ? normals : "gt");
+    if (shading && datasets[k]->info().scene.empty()) {
+      std::fprintf(stderr,
+                   "warning: %s: no scene rendered it (a recording): --normals shading inverts "
+                   "its dataset.json's sensor model, lights and exposure, which describe a real "
+                   "sensor's only if measured; a network trained on its presses reads it "
+                   "(docs/learned_normals.md \"Inverting the shading\")\n",
+                   datasets[k]->dir().c_str());
+    }
     if (model) {
       model->check_sensor(datasets[k]->info().sensor, datasets[k]->dir());
       warn_of_other_optics(*model, datasets[k]->info(), datasets[k]->dir());
@@ -281,10 +293,22 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets) {
   return total;
 }
 
-TrackOptions make_track_options(const TrackArgs& a, const Dataset& dataset,
+TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Dataset*>& datasets,
                                 const NormalsModels& models) {
+  if (datasets.empty()) throw std::logic_error("make_track_options: no dataset");
+  const Dataset& dataset = *datasets[0];
   TrackOptions o;
-  if (a.normals != "gt") {
+  if (a.normals == kShadingNormals) {
+    // Each sensor's own lights; blended onto a real background where it was rendered so.
+    auto inversions = std::make_shared<std::vector<ShadingInversion>>();
+    for (const Dataset* d : datasets) {
+      inversions->emplace_back(d->info().sensor, !d->info().background.empty());
+    }
+    o.normals = [inversions](std::size_t sensor, const ImageU8& color, const ImageU8& reference) {
+      return inversions->at(sensor).normals(color, reference);
+    };
+    o.normals_name = a.normals;
+  } else if (a.normals != "gt") {
     if (models.empty()) throw std::logic_error("make_track_options: --normals not loaded");
     o.normals = [models](std::size_t sensor, const ImageU8& color, const ImageU8& reference) {
       return normals_model_for(models, sensor)->predict(color, reference);

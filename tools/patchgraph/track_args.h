@@ -18,8 +18,8 @@ struct TrackArgs {
   std::vector<std::string> datasets;
   std::string out;
   std::string method = "patchgraph";
-  // "gt", a model file from train-normals for every sensor, or one per sensor in the sequence's
-  // order, comma-separated (load_normals_models).
+  // "gt", "shading" (kShadingNormals), a model file from train-normals for every sensor, or one
+  // per sensor in the sequence's order, comma-separated (load_normals_models).
   std::string normals = "gt";
   int normals_threads = 1;
   int normals_phases = 1;  // NormalEstimator::set_phases
@@ -45,19 +45,27 @@ struct TrackArgs {
   double max_translation_m = -1, max_rotation_rad = -1;
 };
 
+// --normals shading: each sensor's own shading model inverted pixel by pixel (pg/sim/
+// shading_inversion.h), no network.
+inline const std::string kShadingNormals = "shading";
+
 void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // The --normals models: none for "gt", one for every sensor, or one per sensor in the order of
 // the sequence's datasets ("below.pt,side.pt"; a file named twice is loaded once).
 using NormalsModels = std::vector<std::shared_ptr<const NormalEstimator>>;
-// --normals of `args` loaded, with its threads and phases. Throws InputError for an empty name
-// in the list, "gt" beside a model, or a file that does not load (naming it).
+// --normals of `args` loaded, with its threads and phases (none for gt and shading). Throws
+// InputError for an empty name in the list, "gt" or "shading" beside a model, or a file that
+// does not load (naming it).
 NormalsModels load_normals_models(const TrackArgs& args);
 // The model that reads sensor `sensor`'s images: the one model, or that sensor's; null for none.
 const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_t sensor);
-// Checks that `models` fit `datasets` (one sequence's sensors, in order): none, one, or one per
-// dataset, and that each dataset has what its model reads (colour images of the model's size;
-// without a model, its normal images). Throws InputError naming the dataset, or --normals.
-void check_normals_models(const NormalsModels& models, const std::vector<const Dataset*>& datasets);
+// Checks that `models` (--normals `normals`, loaded) fit `datasets` (one sequence's sensors, in
+// order): none, one, or one per dataset, and that each dataset has what its source reads (colour
+// images of the model's size; for shading its colour images; for gt its normal images). Throws
+// InputError naming the dataset, or --normals. For shading, warns of a dataset that no scene
+// rendered (a recording: its sensor file describes its lights only if they were measured).
+void check_normals_models(const std::string& normals, const NormalsModels& models,
+                          const std::vector<const Dataset*>& datasets);
 // Warns (stderr) when a dataset's frames (`info`) have another background than `model` was
 // trained on (NormalEstimator::background_difference), or its sensor other optics
 // (NormalEstimator::sensor_difference); `where` names the dataset.
@@ -78,8 +86,9 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets);
 inline constexpr int kLongBatchFrames = 1000;
 void note_long_batch(const TrackArgs& args, const Dataset& dataset);
 // Checks --method, loads --config and, for gtpatch, the primary dataset's object mesh. `models`:
-// --normals loaded (eval's runs share them; check_normals_models has held for the sequence).
-TrackOptions make_track_options(const TrackArgs& args, const Dataset& dataset,
+// --normals loaded (eval's runs share them; check_normals_models has held for the sequence
+// `datasets`, the primary first; --normals shading inverts each one's own sensor).
+TrackOptions make_track_options(const TrackArgs& args, const std::vector<const Dataset*>& datasets,
                                 const NormalsModels& models);
 // GroundtruthPatch's object model: the mesh's surface sampled every kModelSpacingM, at most
 // kMaxModelPoints points (about 0.1 m^2 of surface; points, normals and k-d tree some 350 MB).

@@ -1,0 +1,171 @@
+// pg::ShadingInversion: normals read back from the renderer's colour frames by inverting its
+// shading, against the frames' ground-truth normals, with and without the camera's noise, on the
+// synthetic and on a real-style blended background; and its refusals.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include "pg/core/error.h"
+#include "pg/core/image.h"
+#include "pg/sim/normal_bound.h"
+#include "pg/sim/primitives.h"
+#include "pg/sim/renderer.h"
+#include "pg/sim/shading_inversion.h"
+
+namespace pg {
+namespace {
+
+constexpr double kRadius = 0.006;
+
+std::shared_ptr<const ObjectShape> sphere_shape() {
+  static const auto shape = std::make_shared<ObjectShape>(make_uv_sphere(float(kRadius), 180, 360));
+  return shape;
+}
+
+SE3 pressed_sphere(double press = 0.001, double cx = 0.0005) {
+  return SE3::Translation({cx, 0.0, kRadius - press});
+}
+
+double angle(const ImageF& a, const ImageF& b, std::size_t i) {
+  double dot = 0;
+  for (int c = 0; c < 3; ++c) dot += double(a.data[3 * i + c]) * b.data[3 * i + c];
+  return std::acos(std::clamp(dot, -1.0, 1.0));
+}
+
+// The angles [rad] between the estimate and the rendered normals over the pixels whose rendered
+// normal turns more than 0.05 rad from the undeformed gel's (the contact).
+std::vector<double> contact_angles(const ImageF& estimate, const ImageF& truth,
+                                   const ImageF& undeformed) {
+  std::vector<double> out;
+  for (std::size_t i = 0; i < truth.data.size() / 3; ++i) {
+    if (angle(truth, undeformed, i) > 0.05) out.push_back(angle(estimate, truth, i));
+  }
+  return out;
+}
+
+double quantile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  const std::size_t k = std::min(v.size() - 1, std::size_t(q * double(v.size())));
+  std::nth_element(v.begin(), v.begin() + std::ptrdiff_t(k), v.end());
+  return v[k];
+}
+
+RenderSettings settings(bool noise) {
+  RenderSettings s;
+  s.noise = noise;
+  return s;
+}
+
+ImageU8 reference_of(const SensorRenderer& r) {
+  return r.render({pressed_sphere(-0.01)}, 0).images.color;  // no contact, no noise
+}
+
+TEST(ShadingInversion, ReadsTheNormalsOfANoiseFreeRender) {
+  const SensorModel sensor = sensor_preset("digit");  // exposure 0.9: some channels clip
+  const SensorRenderer r(sensor, {sphere_shape()}, settings(false));
+  const RenderedFrame f = r.render({pressed_sphere()}, 0);
+  const ShadingInversion inversion(sensor, false);
+  const ImageF n = inversion.normals(f.images.color, reference_of(r));
+  const ImageF undeformed = r.render({pressed_sphere(-0.01)}, 0).images.normal;
+  const std::vector<double> angles = contact_angles(n, f.images.normal, undeformed);
+  ASSERT_GT(angles.size(), 300u);
+  // Left: the colours' rounding to 8 bits, and the shading taken at the undeformed gel, not the
+  // indented (up to 1 mm nearer the lights).
+  EXPECT_LT(quantile(angles, 0.5), 0.01);
+  EXPECT_LT(quantile(angles, 0.9), 0.03);
+  // Every normal is a unit vector; pixels far from the contact keep the undeformed normal.
+  for (std::size_t i = 0; i < n.data.size() / 3; ++i) {
+    const double norm = std::sqrt(double(n.data[3 * i]) * n.data[3 * i] +
+                                  double(n.data[3 * i + 1]) * n.data[3 * i + 1] +
+                                  double(n.data[3 * i + 2]) * n.data[3 * i + 2]);
+    ASSERT_NEAR(norm, 1.0, 1e-4) << i;
+  }
+  EXPECT_LT(angle(n, undeformed, 0), 1e-3);  // the renderer builds them from its own grid
+}
+
+TEST(ShadingInversion, WithTheCamerasNoiseItsErrorIsNearTheBound) {
+  const SensorModel sensor = sensor_preset("digit");
+  const SensorRenderer r(sensor, {sphere_shape()}, settings(true));
+  const SensorRenderer quiet(sensor, {sphere_shape()}, settings(false));
+  const ShadingInversion inversion(sensor, false);
+  const ImageU8 reference = reference_of(quiet);
+  const ImageF undeformed = quiet.render({pressed_sphere(-0.01)}, 0).images.normal;
+  std::vector<double> angles;
+  for (int seed = 1; seed <= 4; ++seed) {
+    const RenderedFrame f = r.render({pressed_sphere()}, std::uint64_t(seed));
+    const std::vector<double> a =
+        contact_angles(inversion.normals(f.images.color, reference), f.images.normal, undeformed);
+    angles.insert(angles.end(), a.begin(), a.end());
+  }
+  // The Cramer-Rao bound of the sensor's noise (sigma 7) at a 20 degree tilt, median over the
+  // image: what an unbiased per-pixel estimate can reach.
+  const NormalBound bound = normal_bound(sensor, sensor.noise.sigma, 0.35, 0.0);
+  std::vector<double> b(bound.angle_rad.data.begin(), bound.angle_rad.data.end());
+  const double median_bound = quantile(b, 0.5);
+  ASSERT_GT(median_bound, 0.03);
+  EXPECT_LT(quantile(angles, 0.5), 1.5 * median_bound);
+  EXPECT_GT(quantile(angles, 0.5), 0.3 * median_bound);
+}
+
+TEST(ShadingInversion, ReadsFramesBlendedOntoARealBackground) {
+  // A textured stand-in for a real sensor's no-contact image (the blend only adds it).
+  const SensorModel sensor = sensor_preset("digit");
+  ImageU8 bg(sensor.camera.width, sensor.camera.height, 3);
+  for (int y = 0; y < bg.height; ++y)
+    for (int x = 0; x < bg.width; ++x)
+      for (int c = 0; c < 3; ++c)
+        bg.at(x, y, c) = std::uint8_t(90 + 40 * c + 20 * std::sin(0.2 * x + 0.3 * y + c));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("pg_inversion_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / "bg.png").string();
+  write_image(path, bg);
+  RenderSettings s = settings(false);
+  s.background = path;
+  const SensorRenderer r(sensor, {sphere_shape()}, s);
+  const RenderedFrame f = r.render({pressed_sphere()}, 0);
+  const ImageU8 reference = reference_of(r);
+  const ImageF undeformed = r.render({pressed_sphere(-0.01)}, 0).images.normal;
+  const std::vector<double> blended =
+      contact_angles(ShadingInversion(sensor, true).normals(f.images.color, reference),
+                     f.images.normal, undeformed);
+  // Read as the shading itself, the frame's change is half what the normals make.
+  const std::vector<double> unblended =
+      contact_angles(ShadingInversion(sensor, false).normals(f.images.color, reference),
+                     f.images.normal, undeformed);
+  std::filesystem::remove_all(dir);
+  ASSERT_GT(blended.size(), 300u);
+  // The blend's blur (0.2 mm) smooths the change: the rim's normals are read softer.
+  EXPECT_LT(quantile(blended, 0.5), 0.03);
+  EXPECT_GT(quantile(unblended, 0.5), 2 * quantile(blended, 0.5));
+}
+
+TEST(ShadingInversion, AFrameWithoutChangeIsTheUndeformedGelAndWrongSizesAreRefused) {
+  const SensorModel sensor = sensor_preset("digit");
+  const SensorRenderer r(sensor, {sphere_shape()}, settings(false));
+  const ImageU8 reference = reference_of(r);
+  const ImageF undeformed = r.render({pressed_sphere(-0.01)}, 0).images.normal;
+  const ShadingInversion inversion(sensor, false);
+  const ImageF n = inversion.normals(reference, reference);
+  ASSERT_EQ(n.data.size(), undeformed.data.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < n.data.size() / 3; ++i)
+    worst = std::max(worst, angle(n, undeformed, i));
+  EXPECT_LT(worst, 1e-3);
+  const ImageU8 small(sensor.camera.width / 2, sensor.camera.height / 2, 3);
+  EXPECT_THROW(inversion.normals(small, reference), InputError);
+  EXPECT_THROW(inversion.normals(reference, small), InputError);
+  const ImageU8 gray(sensor.camera.width, sensor.camera.height, 1);
+  EXPECT_THROW(inversion.normals(gray, reference), InputError);
+  SensorModel no_gain = sensor;
+  no_gain.shading.background_gain = 0;
+  EXPECT_THROW(ShadingInversion(no_gain, true), InputError);
+  EXPECT_NO_THROW(ShadingInversion(no_gain, false));
+}
+
+}  // namespace
+}  // namespace pg
