@@ -50,6 +50,12 @@ NormalMetrics evaluate_normals(const NormalEstimator&, const std::vector<std::st
                                const std::function<void(int, int)>&) {
   absent("evaluate_normals");
 }
+void check_evaluation_data(const std::vector<std::string>&) { absent("check_evaluation_data"); }
+NormalMetrics evaluate_normals(const NormalsReader&, const std::string&,
+                               const std::vector<std::string>&,
+                               const std::function<void(int, int)>&) {
+  absent("evaluate_normals");
+}
 void train_normals(const TrainOptions&, const std::function<void(const EpochReport&)>&,
                    const std::function<void(int, int, int)>&) {
   absent("train_normals");

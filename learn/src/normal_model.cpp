@@ -626,7 +626,8 @@ ImageF NormalEstimator::predict(const ImageU8& color, const ImageU8& background)
 
 namespace {
 
-std::vector<Dataset> open_evaluation_data(const NormalEstimator& model,
+// `model`: null for none (NormalsReader).
+std::vector<Dataset> open_evaluation_data(const NormalEstimator* model,
                                           const std::vector<std::string>& datasets) {
   std::vector<Dataset> sets;
   for (const auto& dir : datasets) {
@@ -638,41 +639,37 @@ std::vector<Dataset> open_evaluation_data(const NormalEstimator& model,
                          "' output, needed to evaluate normals");
       }
     }
-    model.check_sensor(sets.back().info().sensor, dir);
+    if (model) model->check_sensor(sets.back().info().sensor, dir);
   }
   return sets;
 }
 
-}  // namespace
-
-void check_evaluation_data(const NormalEstimator& model, const std::vector<std::string>& datasets) {
-  for (const Dataset& d : open_evaluation_data(model, datasets)) d.background();
-}
-
-NormalMetrics evaluate_normals(const NormalEstimator& model,
-                               const std::vector<std::string>& datasets,
-                               const std::function<void(int, int)>& progress) {
-  const std::vector<Dataset> sets = open_evaluation_data(model, datasets);
+// evaluate_normals over opened datasets; `what` names the reader's output in errors, `why` what
+// a non-finite one means.
+NormalMetrics evaluate_opened(const std::vector<Dataset>& sets, const NormalsReader& read,
+                              const std::string& what, const std::string& why,
+                              const std::function<void(int, int)>& progress) {
   int total = 0;
   for (const Dataset& d : sets) total += d.frames();
   learn::MetricSums sums;
   std::vector<double> times;
   int done = 0;
-  for (const Dataset& d : sets) {
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    const Dataset& d = sets[k];
     const ImageU8 background = d.background();
     for (int i = 0; i < d.frames(); ++i) {
       const ImageU8 color = d.color(i);
       const auto start = std::chrono::steady_clock::now();
-      const ImageF predicted = model.predict(color, background);
+      const ImageF predicted = read(k, color, background);
       times.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
               .count());
       const auto not_finite = std::count_if(predicted.data.begin(), predicted.data.end(),
                                             [](float v) { return !std::isfinite(v); });
       if (not_finite > 0) {
-        throw InputError(model.path() + ": the network's output is not a finite number at " +
-                         std::to_string(not_finite / 3) + " pixels of " + d.dir() + " frame " +
-                         std::to_string(i) + " (a diverged or damaged model)");
+        throw InputError(what + " is not a finite number at " + std::to_string(not_finite / 3) +
+                         " pixels of " + d.dir() + " frame " + std::to_string(i) + " (" + why +
+                         ")");
       }
       sums.add(learn::image_to_tensor(predicted).unsqueeze(0),
                learn::image_to_tensor(learn::true_normals(d, i)).unsqueeze(0),
@@ -684,6 +681,34 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
   NormalMetrics m = sums.metrics(done);
   if (!times.empty()) m.ms_per_frame = upper_median(times);
   return m;
+}
+
+}  // namespace
+
+void check_evaluation_data(const NormalEstimator& model, const std::vector<std::string>& datasets) {
+  for (const Dataset& d : open_evaluation_data(&model, datasets)) d.background();
+}
+
+void check_evaluation_data(const std::vector<std::string>& datasets) {
+  for (const Dataset& d : open_evaluation_data(nullptr, datasets)) d.background();
+}
+
+NormalMetrics evaluate_normals(const NormalEstimator& model,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress) {
+  return evaluate_opened(
+      open_evaluation_data(&model, datasets),
+      [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
+        return model.predict(color, reference);
+      },
+      model.path() + ": the network's output", "a diverged or damaged model", progress);
+}
+
+NormalMetrics evaluate_normals(const NormalsReader& read, const std::string& name,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress) {
+  return evaluate_opened(open_evaluation_data(nullptr, datasets), read, name + "'s output",
+                         "a fault of " + name, progress);
 }
 
 }  // namespace pg

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 
 #include "../common/cli_main.h"
@@ -16,6 +17,7 @@
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/sim/shading_inversion.h"
 #include "track_args.h"
 
 namespace pg {
@@ -119,7 +121,10 @@ CLI::App* add_train_normals_command(CLI::App& app, TrainNormalsArgs& a) {
 CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   CLI::App* cmd = app.add_subcommand(
       "eval-normals", "Measure a normals model: MSE of (n+1)/2 and angular error (Table I)");
-  cmd->add_option("--model,-m", a.model, "Model file (from train-normals)")->required();
+  cmd->add_option("--model,-m", a.model,
+                  "Model file (from train-normals), or shading: the sensor model's shading "
+                  "inverted pixel by pixel (track --normals shading), no network")
+      ->required();
   cmd->add_option("--data", a.data, "Dataset folders (color, normal, mask outputs)")->required();
   cmd->add_option("--json", a.json, "Also write the results to this JSON file");
   cmd->add_option("--threads", a.threads, "Torch threads (default 1)")->check(kThreads);
@@ -373,7 +378,12 @@ int run_model_info(const ModelInfoArgs& a) {
 }
 
 int run_eval_normals(const EvalNormalsArgs& a) {
+  const bool shading = a.model == kShadingNormals;
   as_usage_error([&] { check_given_once(a.data); });
+  if (shading && a.phases != 1) {
+    throw UsageError("--phases " + std::to_string(a.phases) +
+                     ": the shading's inverse reads each pixel by itself, in one pass (1)");
+  }
   if (!a.json.empty()) {  // checked before the evaluation, written after it
     const std::filesystem::path folder = std::filesystem::path(a.json).parent_path();
     if (!folder.empty() && !std::filesystem::is_directory(folder)) {
@@ -382,16 +392,23 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     if (std::filesystem::is_directory(a.json)) {
       throw InputError("--json " + a.json + ": is a folder; give the JSON file's name");
     }
-    check_output_is_not_input(a.json, a.model, "--model", "--json");
+    if (!shading) check_output_is_not_input(a.json, a.model, "--model", "--json");
     check_output_is_no_dataset(a.json, true, "--json");
     for (const std::string& dir : a.data)
       check_output_is_not_input(a.json, dir, "the dataset", "--json");
     check_can_write(a.json);  // now, not after the evaluation
   }
-  NormalEstimator model = NormalEstimator::load(a.model, a.threads);
-  model.set_phases(a.phases);
-  check_evaluation_data(model, a.data);
+  std::optional<NormalEstimator> loaded;
+  if (shading) {
+    check_evaluation_data(a.data);
+  } else {
+    loaded = NormalEstimator::load(a.model, a.threads);
+    loaded->set_phases(a.phases);
+    check_evaluation_data(*loaded, a.data);
+  }
   for (const std::string& dir : a.data) {
+    if (shading) break;
+    const NormalEstimator& model = *loaded;
     warn_of_other_optics(model, Dataset::open(dir).info(), dir);
     // Its own training frames measure the fit, not how the model reads frames it has not seen.
     const auto& trained = model.info().training_data;
@@ -413,10 +430,18 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     const NormalMetrics m = [&] {
       try {
         const StopOnSignals stop;
-        return evaluate_normals(model, {dir}, [&](int done, int total) {
+        const auto report = [&](int done, int total) {
           if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
           progress->update(done);
-        });
+        };
+        if (!shading) return evaluate_normals(*loaded, {dir}, report);
+        const DatasetInfo info = Dataset::open(dir).info();
+        const ShadingInversion inversion(info.sensor, !info.background.empty());
+        return evaluate_normals(
+            [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
+              return inversion.normals(color, reference);
+            },
+            "--model shading", {dir}, report);
       } catch (const Stopped& e) {
         throw e.with_note("in " + dir +
                           (a.json.empty() ? "" : "; --json " + a.json + " not written") +
@@ -441,10 +466,11 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   }
   if (!a.json.empty()) {
     write_text_atomically(
-        a.json,
-        nlohmann::json{{"model", a.model}, {"arch", model.info().spec.arch}, {"results", results}}
-                .dump(2) +
-            "\n");
+        a.json, nlohmann::json{{"model", a.model},
+                               {"arch", shading ? kShadingNormals : loaded->info().spec.arch},
+                               {"results", results}}
+                        .dump(2) +
+                    "\n");
   }
   return kExitOk;
 }

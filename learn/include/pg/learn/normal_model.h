@@ -143,6 +143,19 @@ NormalMetrics evaluate_normals(const NormalEstimator& model,
                                const std::vector<std::string>& datasets,
                                const std::function<void(int, int)>& progress = nullptr);
 
+// Normals from something other than a network (the shading's inverse, pg/sim/
+// shading_inversion.h): the index of the dataset in evaluate_normals' list, a frame's colour
+// image and that dataset's no-contact reference -> unit normals, width x height x 3.
+using NormalsReader =
+    std::function<ImageF(std::size_t dataset, const ImageU8& color, const ImageU8& reference)>;
+// check_evaluation_data without a model's own checks: the outputs and the reference.
+void check_evaluation_data(const std::vector<std::string>& datasets);
+// The same metrics for `read`, named `name` in errors (InputError where it gives a value that is
+// not a finite number).
+NormalMetrics evaluate_normals(const NormalsReader& read, const std::string& name,
+                               const std::vector<std::string>& datasets,
+                               const std::function<void(int, int)>& progress = nullptr);
+
 struct TrainOptions {
   std::vector<std::string> train_data;  // dataset folders with color, normal and mask outputs
   std::vector<std::string> val_data;    // validation folders; empty: hold out val_fraction
