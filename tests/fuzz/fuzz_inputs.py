@@ -8,7 +8,8 @@ Seven kinds of input, each mutated from a good one by a seeded random generator:
            garbled), rendered with tacsim render
   mesh     a mesh file (glTF binary: its JSON's fields and its data; OBJ, STL and PLY, text and
            binary: bytes replaced, the file cut), rendered in a scene
-  dataset  a rendered dataset (dataset.json, poses.csv, a frame's image), tracked
+  dataset  a rendered dataset (dataset.json, poses.csv, a frame's image), tracked (a damaged
+           dataset.json or colour frame with --normals shading in some cases)
   config   patchgraph track's --config and --normals MODEL files (as a checkpoint below),
            tracked
   circles  label-ball's --circles file, the circles.csv a run writes and a user corrects by
@@ -387,6 +388,9 @@ class Fuzzer:
                 doc = json.load(f)
             with open(path, "w") as f:
                 json.dump(mutate_json(doc, rng), f)
+            # The shading's inverse reads the sensor model (lights, exposure, image size) itself.
+            if rng.random() < 0.5:
+                extra = ["--normals", "shading"]
         elif what == "poses.csv":
             path = os.path.join(dataset, "poses.csv")
             with open(path) as f:
@@ -398,7 +402,8 @@ class Fuzzer:
             name = rng.choice(sorted(os.listdir(os.path.join(dataset, folder))))
             mutate_image(os.path.join(dataset, folder, name), rng, base)
             if folder == "color":
-                extra = ["--normals", os.path.join(REPO, "models", "normals_unet.pt")]
+                extra = ["--normals", rng.choice([os.path.join(REPO, "models", "normals_unet.pt"),
+                                                  "shading"])]
         self.track("dataset", case, dataset, extra, [dataset], [dataset])
         shutil.rmtree(dataset)
 

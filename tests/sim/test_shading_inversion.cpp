@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <random>
 #include <vector>
 
 #include "pg/core/error.h"
@@ -165,6 +166,44 @@ TEST(ShadingInversion, AFrameWithoutChangeIsTheUndeformedGelAndWrongSizesAreRefu
   no_gain.shading.background_gain = 0;
   EXPECT_THROW(ShadingInversion(no_gain, true), InputError);
   EXPECT_NO_THROW(ShadingInversion(no_gain, false));
+}
+
+// Frames no shading makes (white, black, random colours) and sensors whose shading tells little
+// (one light, a light off, over-exposed, nearly dark) give unit normals within the largest tilt,
+// never NaN.
+TEST(ShadingInversion, AnyFrameAndSensorGiveUnitNormals) {
+  SensorModel one_light = sensor_preset("digit");
+  one_light.lights.resize(1);
+  SensorModel dark_light = sensor_preset("digit");
+  dark_light.lights[1].intensity = 0;
+  SensorModel glaring = sensor_preset("digit");
+  glaring.shading.exposure = 20;
+  SensorModel dim = sensor_preset("digit");
+  dim.shading.exposure = 1e-3;
+  std::mt19937 rng(3);
+  for (const SensorModel& sensor : {sensor_preset("digit"), one_light, dark_light, glaring, dim}) {
+    const SensorRenderer r(sensor, {sphere_shape()}, settings(false));
+    const ImageU8 reference = reference_of(r);
+    const ImageU8 pressed = r.render({pressed_sphere(0.0015)}, 0).images.color;
+    ImageU8 white = reference, black = reference, random = reference;
+    std::fill(white.data.begin(), white.data.end(), std::uint8_t(255));
+    std::fill(black.data.begin(), black.data.end(), std::uint8_t(0));
+    for (auto& v : random.data) v = std::uint8_t(rng() & 255u);
+    for (bool blended : {false, true}) {
+      const ShadingInversion inversion(sensor, blended);
+      const ImageF undeformed = inversion.normals(reference, reference);
+      for (const ImageU8* frame : std::vector<const ImageU8*>{&pressed, &white, &black, &random}) {
+        const ImageF n = inversion.normals(*frame, reference);
+        ASSERT_EQ(n.data.size(), 3 * std::size_t(sensor.camera.width) * sensor.camera.height);
+        for (std::size_t i = 0; i < n.data.size() / 3; ++i) {
+          const double x = n.data[3 * i], y = n.data[3 * i + 1], z = n.data[3 * i + 2];
+          ASSERT_NEAR(x * x + y * y + z * z, 1.0, 1e-4) << i;
+          // At most atan(3), 72 degrees, from the undeformed gel's normal.
+          ASSERT_LT(angle(n, undeformed, i), std::atan(3.0) + 1e-3) << i;
+        }
+      }
+    }
+  }
 }
 
 }  // namespace
