@@ -812,10 +812,46 @@ TEST_F(PatchgraphCli, TrackWithTheShadingsInverse) {
       patchgraph("track " + out("shading_rec") + " -q --normals shading --out " + out("x"));
   ASSERT_EQ(recorded.code, 0) << recorded.out;
   EXPECT_NE(recorded.out.find("warning: " + out("shading_rec") +
-                              ": no scene rendered it (a recording): --normals shading inverts"),
+                              ": no scene rendered it (a recording): the shading's inverse"),
             std::string::npos)
       << recorded.out;
   EXPECT_EQ(r.out.find("no scene rendered it"), std::string::npos) << r.out;
+}
+
+// --blend-shading W averages the model's normals with the shading's inverse: at 1 it is the
+// inverse alone; at 0.5 neither; without a model it is refused.
+TEST_F(PatchgraphCli, BlendShadingAveragesTheModelWithTheShadingsInverse) {
+  const auto summary_of = [&](const std::string& normals, const std::string& name) {
+    const CliRun r =
+        patchgraph("track " + data() + " -q --normals " + normals + " --out " + out(name));
+    EXPECT_EQ(r.code, 0) << r.out;
+    return parse_json_file(out(name) + "/summary.json");
+  };
+  const auto alone = summary_of("shading", "blend_alone");
+  const auto model = summary_of(kDefaultModel, "blend_model");
+  const auto whole = summary_of(kDefaultModel + " --blend-shading 1", "blend_whole");
+  const auto half = summary_of(kDefaultModel + " --blend-shading 0.5", "blend_half");
+  EXPECT_EQ(half["normals"], kDefaultModel + "+shading:0.5");
+  for (const char* error : {"translation_rmse_m", "rotation_rmse_rad"}) {
+    // (The same normals renormalised: the last bits differ, 1e-5 of the run's errors.)
+    const double a = alone[error].get<double>(), m = model[error].get<double>();
+    EXPECT_NEAR(whole[error].get<double>(), a, 1e-4 * a) << error;
+    EXPECT_GT(std::abs(half[error].get<double>() - a), 1e-2 * a) << error;
+    EXPECT_GT(std::abs(half[error].get<double>() - m), 1e-2 * m) << error;
+  }
+  // The default scene's blend: 0.672 mm / 0.0454 rad RMSE (the model 0.715 / 0.0499, the
+  // inverse 0.375 / 0.0255).
+  EXPECT_LT(half["translation_rmse_m"].get<double>(), 1.2e-3);
+  EXPECT_LT(half["rotation_rmse_rad"].get<double>(), 0.08);
+  for (const std::string& normals : {std::string("gt"), std::string("shading")}) {
+    const CliRun refused = patchgraph("track " + data() + " --normals " + normals +
+                                      " --blend-shading 0.5 --out " + out("x"));
+    EXPECT_EQ(refused.code, 2) << refused.out;
+    EXPECT_NE(refused.out.find("--blend-shading 0.5: averages a model's normals with the "
+                               "shading's inverse; give --normals MODEL"),
+              std::string::npos)
+        << refused.out;
+  }
 }
 
 // A sensor pose that jumps 1 m for one frame (a glitch in poses.csv) is warned about, naming the

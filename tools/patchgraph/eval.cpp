@@ -229,7 +229,7 @@ int run_eval(const EvalArgs& args) {
     check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
-    check_normals_models(args.track.normals, models, sensors);
+    check_normals_models(args.track.normals, models, sensors, args.track.blend_shading > 0);
     if (gtpatch) load_object_mesh(*sensors[0]);  // its mesh found before any run, not after
     note_missing_frames(sensors);
     note_long_batch(args.track, *sensors[0]);

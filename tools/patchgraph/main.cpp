@@ -60,7 +60,8 @@ int run_track(const TrackArgs& a) {
     }
   }
   const std::vector<const Dataset*> sensors = dataset_pointers(datasets);
-  check_normals_models(a.normals, models, sensors);  // before the output folder is made
+  // Before the output folder is made.
+  check_normals_models(a.normals, models, sensors, a.blend_shading > 0);
   check_same_sequence(sensors);
   const Dataset& dataset = datasets[0];
   const int unpaired_frames = note_missing_frames(sensors);

@@ -40,6 +40,11 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Average --normals MODEL over the frame shifted by a pixel: 1 (default), 2 or "
                  "4 passes per frame, less error for more time")
       ->check(CLI::IsMember({1, 2, 4}));
+  app.add_option("--blend-shading", a.blend_shading,
+                 "Average --normals MODEL's normals with the shading's inverse (--normals "
+                 "shading), this its weight from 0 (default: the model alone) to 1; for renders "
+                 "of the dataset's sensor")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option(
       "--config", a.config,
       "Tracker config JSON (depth, mask, icp options): each key given replaces the "
@@ -159,7 +164,28 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   return ok;
 }
 
+ImageF blend_normals(ImageF a, const ImageF& b, float w) {
+  if (a.data.size() != b.data.size()) throw std::logic_error("blend_normals: sizes differ");
+  for (std::size_t i = 0; i + 2 < a.data.size(); i += 3) {
+    float v[3], norm_sq = 0;
+    for (int c = 0; c < 3; ++c) {
+      v[c] = (1 - w) * a.data[i + c] + w * b.data[i + c];
+      norm_sq += v[c] * v[c];
+    }
+    // Two opposite normals average to nothing: a's stands.
+    if (!(norm_sq > 1e-12f)) continue;
+    const float inv = 1.0f / std::sqrt(norm_sq);
+    for (int c = 0; c < 3; ++c) a.data[i + c] = v[c] * inv;
+  }
+  return a;
+}
+
 NormalsModels load_normals_models(const TrackArgs& a) {
+  if (a.blend_shading > 0 && (a.normals == "gt" || a.normals == kShadingNormals)) {
+    throw UsageError("--blend-shading " + format_number(a.blend_shading) +
+                     ": averages a model's normals with the shading's inverse; give --normals "
+                     "MODEL (--normals shading is the inverse alone)");
+  }
   if (a.normals == "gt" || a.normals == kShadingNormals) return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   const std::vector<std::string> paths = comma_items(a.normals);
@@ -215,7 +241,7 @@ void warn_of_other_optics(const NormalEstimator& model, const DatasetInfo& info,
 }
 
 void check_normals_models(const std::string& normals, const NormalsModels& models,
-                          const std::vector<const Dataset*>& datasets) {
+                          const std::vector<const Dataset*>& datasets, bool blend_shading) {
   if (models.size() > 1 && models.size() != datasets.size()) {
     std::string names;
     for (const Dataset* d : datasets) names += (names.empty() ? "" : ", ") + d->dir();
@@ -227,12 +253,13 @@ void check_normals_models(const std::string& normals, const NormalsModels& model
     const NormalEstimator* model = normals_model_for(models, k);
     const bool shading = normals == kShadingNormals;
     check_normals_source(*datasets[k], model ? model->path() : shading ? normals : "gt");
-    if (shading && datasets[k]->info().scene.empty()) {
+    if ((shading || blend_shading) && datasets[k]->info().scene.empty()) {
       std::fprintf(stderr,
-                   "warning: %s: no scene rendered it (a recording): --normals shading inverts "
-                   "its dataset.json's sensor model, lights and exposure, which describe a real "
-                   "sensor's only if measured; a network trained on its presses reads it "
-                   "(docs/learned_normals.md \"Inverting the shading\")\n",
+                   "warning: %s: no scene rendered it (a recording): the shading's inverse "
+                   "(--normals shading, --blend-shading) reads it through its dataset.json's "
+                   "sensor model, lights and exposure, which describe a real sensor's only if "
+                   "measured; a network trained on its presses reads it (docs/learned_normals.md "
+                   "\"Inverting the shading\")\n",
                    datasets[k]->dir().c_str());
     }
     if (model) {
@@ -298,12 +325,18 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   if (datasets.empty()) throw std::logic_error("make_track_options: no dataset");
   const Dataset& dataset = *datasets[0];
   TrackOptions o;
-  if (a.normals == kShadingNormals) {
-    // Each sensor's own lights; blended onto a real background where it was rendered so.
-    auto inversions = std::make_shared<std::vector<ShadingInversion>>();
+  if (a.blend_shading > 0 && models.empty()) {
+    throw std::logic_error("make_track_options: --blend-shading without a model");
+  }
+  // Each sensor's own lights; blended onto a real background where it was rendered so.
+  std::shared_ptr<std::vector<ShadingInversion>> inversions;
+  if (a.normals == kShadingNormals || a.blend_shading > 0) {
+    inversions = std::make_shared<std::vector<ShadingInversion>>();
     for (const Dataset* d : datasets) {
       inversions->emplace_back(d->info().sensor, !d->info().background.empty());
     }
+  }
+  if (a.normals == kShadingNormals) {
     o.normals = [inversions](std::size_t sensor, const ImageU8& color, const ImageU8& reference) {
       return inversions->at(sensor).normals(color, reference);
     };
@@ -314,6 +347,14 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
       return normals_model_for(models, sensor)->predict(color, reference);
     };
     o.normals_name = a.normals;
+    if (a.blend_shading > 0) {
+      o.normals = [models, inversions, w = float(a.blend_shading)](
+                      std::size_t sensor, const ImageU8& color, const ImageU8& reference) {
+        return blend_normals(normals_model_for(models, sensor)->predict(color, reference),
+                             inversions->at(sensor).normals(color, reference), w);
+      };
+      o.normals_name += "+shading:" + format_number(a.blend_shading);
+    }
   }
   o.graph.method = method_from_string(a.method);
   o.graph.window = a.window;

@@ -23,6 +23,9 @@ struct TrackArgs {
   std::string normals = "gt";
   int normals_threads = 1;
   int normals_phases = 1;  // NormalEstimator::set_phases
+  // With --normals MODEL: the weight in [0, 1] of the shading's inverse averaged with the model's
+  // normals (0: the model alone).
+  double blend_shading = 0;
   std::string config;      // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;
@@ -53,19 +56,23 @@ void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // The --normals models: none for "gt", one for every sensor, or one per sensor in the order of
 // the sequence's datasets ("below.pt,side.pt"; a file named twice is loaded once).
 using NormalsModels = std::vector<std::shared_ptr<const NormalEstimator>>;
+// The unit normals of (1 - w) a + w b per pixel (a's where the two cancel): a model's normals
+// averaged with the shading's inverse (--blend-shading).
+ImageF blend_normals(ImageF a, const ImageF& b, float w);
 // --normals of `args` loaded, with its threads and phases (none for gt and shading). Throws
-// InputError for an empty name in the list, "gt" or "shading" beside a model, or a file that
-// does not load (naming it).
+// InputError for an empty name in the list, "gt" or "shading" beside a model, --blend-shading
+// without a model, or a file that does not load (naming it).
 NormalsModels load_normals_models(const TrackArgs& args);
 // The model that reads sensor `sensor`'s images: the one model, or that sensor's; null for none.
 const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_t sensor);
 // Checks that `models` (--normals `normals`, loaded) fit `datasets` (one sequence's sensors, in
 // order): none, one, or one per dataset, and that each dataset has what its source reads (colour
 // images of the model's size; for shading its colour images; for gt its normal images). Throws
-// InputError naming the dataset, or --normals. For shading, warns of a dataset that no scene
-// rendered (a recording: its sensor file describes its lights only if they were measured).
+// InputError naming the dataset, or --normals. For shading (or a model's normals blended with it,
+// --blend-shading), warns of a dataset that no scene rendered (a recording: its sensor file
+// describes its lights only if they were measured).
 void check_normals_models(const std::string& normals, const NormalsModels& models,
-                          const std::vector<const Dataset*>& datasets);
+                          const std::vector<const Dataset*>& datasets, bool blend_shading = false);
 // Warns (stderr) when a dataset's frames (`info`) have another background than `model` was
 // trained on (NormalEstimator::background_difference), or its sensor other optics
 // (NormalEstimator::sensor_difference); `where` names the dataset.
