@@ -68,8 +68,8 @@ ShadingInversion::ShadingInversion(const SensorModel& sensor, bool blended)
   s.blended = blended;
   s.gain = blended ? float(sensor.shading.background_gain) : 1.0f;
   if (!(s.gain > 0)) {
-    throw InputError("shading.background_gain " + std::to_string(s.gain) +
-                     ": a blended frame shows no change of the shading to invert");
+    throw InputError("shading.background_gain " + std::to_string(sensor.shading.background_gain) +
+                     ": a blended frame shows none of the shading's change to invert");
   }
   s.shader = make_shader(sensor);
   s.gel_normals = undeformed_gel_normals(rays);

@@ -803,6 +803,18 @@ TEST_F(PatchgraphCli, TrackWithTheShadingsInverse) {
   }
   refused("track " + no_color + " --normals shading --out " + out("x"), 1,
           no_color + ": dataset has no 'color' output, needed for --normals shading");
+  // Frames blended onto a real background with no gain show nothing of the shading.
+  const std::string no_gain = data_copy("data_shading_no_gain");
+  {
+    nlohmann::json info = parse_json_file(no_gain + "/dataset.json");
+    info["sensor"]["shading"]["background_gain"] = 0.0;
+    info["render"]["background"] = "/a/real/background.png";
+    std::ofstream(no_gain + "/dataset.json") << info.dump(2);
+  }
+  for (const std::string& command : {"track " + no_gain + " --normals shading --out " + out("x"),
+                                     "eval-normals -q --model shading --data " + no_gain}) {
+    refused(command, 1, no_gain + "/dataset.json: sensor.shading.background_gain 0: ");
+  }
   // A recording's frames come from a real sensor, which its sensor file need not describe.
   const CliRun imported =
       patchgraph("recording --images " + data() + "/color --background " + data() +

@@ -401,6 +401,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   std::optional<NormalEstimator> loaded;
   if (shading) {
     check_evaluation_data(a.data);
+    for (const std::string& dir : a.data) check_shading_readable(Dataset::open(dir));
   } else {
     loaded = NormalEstimator::load(a.model, a.threads);
     loaded->set_phases(a.phases);

@@ -164,6 +164,16 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
   return ok;
 }
 
+void check_shading_readable(const Dataset& dataset) {
+  const DatasetInfo& info = dataset.info();
+  if (!info.background.empty() && !(info.sensor.shading.background_gain > 0)) {
+    throw InputError(dataset.dir() + "/dataset.json: sensor.shading.background_gain " +
+                     format_number(info.sensor.shading.background_gain) +
+                     ": its frames, blended onto a real background, show none of the shading's "
+                     "change; the shading's inverse has nothing to read");
+  }
+}
+
 ImageF blend_normals(ImageF a, const ImageF& b, float w) {
   if (a.data.size() != b.data.size()) throw std::logic_error("blend_normals: sizes differ");
   for (std::size_t i = 0; i + 2 < a.data.size(); i += 3) {
@@ -253,6 +263,7 @@ void check_normals_models(const std::string& normals, const NormalsModels& model
     const NormalEstimator* model = normals_model_for(models, k);
     const bool shading = normals == kShadingNormals;
     check_normals_source(*datasets[k], model ? model->path() : shading ? normals : "gt");
+    if (shading || blend_shading) check_shading_readable(*datasets[k]);
     if ((shading || blend_shading) && datasets[k]->info().scene.empty()) {
       std::fprintf(stderr,
                    "warning: %s: no scene rendered it (a recording): the shading's inverse "

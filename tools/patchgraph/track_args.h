@@ -56,6 +56,9 @@ void add_track_options(CLI::App& app, TrackArgs& args, bool with_method = true);
 // The --normals models: none for "gt", one for every sensor, or one per sensor in the order of
 // the sequence's datasets ("below.pt,side.pt"; a file named twice is loaded once).
 using NormalsModels = std::vector<std::shared_ptr<const NormalEstimator>>;
+// Throws InputError naming DIR/dataset.json unless the shading's inverse can read the dataset's
+// frames: blended onto a real background, they need a background_gain above 0.
+void check_shading_readable(const Dataset& dataset);
 // The unit normals of (1 - w) a + w b per pixel (a's where the two cancel): a model's normals
 // averaged with the shading's inverse (--blend-shading).
 ImageF blend_normals(ImageF a, const ImageF& b, float w);
