@@ -15,7 +15,8 @@
 #   scripts/train_normals.sh --table   the paper's Table I: U-Net, ResNet and MLP trained on the
 #                                      same presses rendered with the real DIGIT background
 #                                      (../shared/data), evaluated on held-out sphere and cube
-#                                      presses and the unseen toy brick and toy human; writes
+#                                      presses and the unseen toy brick and toy human, beside the
+#                                      shading's inverse (eval-normals --model shading); writes
 #                                      out/normals_table/table.md
 #
 # Environment: THREADS (Torch threads, default 1: on a 2-core machine shared with anything else,
@@ -97,13 +98,17 @@ for arch in unet resnet mlp; do
     --data "$d/sphere_val" "$d/cube_val" "$d/toy_brick_val" "$d/toy_human_val" \
     --json "$table/$arch.json"
 done
+# The reference without a network: the renders' own shading inverted pixel by pixel.
+"$patchgraph" eval-normals --model shading --quiet \
+  --data "$d/sphere_val" "$d/cube_val" "$d/toy_brick_val" "$d/toy_human_val" \
+  --json "$table/shading.json"
 /usr/bin/python3 - "$table" <<'PY'
 import json, sys, os
 table = sys.argv[1]
 names = ["sphere_val", "cube_val", "toy_brick_val", "toy_human_val"]
 lines = ["| model | " + " | ".join(n.replace("_val", "") for n in names) + " | ms/frame |",
          "|---|" + "---|" * (len(names) + 1)]
-for arch in ["unet", "resnet", "mlp"]:
+for arch in ["unet", "resnet", "mlp", "shading"]:
     r = {os.path.basename(x["dataset"]): x for x in json.load(open(f"{table}/{arch}.json"))["results"]}
     cells = [f'{r[n]["mse_image"]*1e3:.2f} / {r[n]["mse_contact"]*1e3:.1f} / {r[n]["angle_contact_deg"]:.1f}°' for n in names]
     ms = sorted(r[n]["ms_per_frame"] for n in names)[len(names) // 2]
