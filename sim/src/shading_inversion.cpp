@@ -35,15 +35,15 @@ float residual(Reading reading, float model, float target) {
   return 0.0f;
 }
 
-// Changed pixels this far from a changed region still get their own estimate: the change test's
-// 10 levels (in a 3x3 mean) are a turn of a few degrees, which a contact's rim stays below.
+// Pixels this far from a changed region still get their own estimate: the change test's 10 levels
+// (in a 3x3 mean) are a turn of a few degrees, which a contact's rim stays below.
 constexpr int kMarginPixels = 2;
 // Levenberg-Marquardt per pixel on the normal's two tilts (tangents of the turn off the
 // undeformed normal); the colour is nearly linear in the normal, so few iterations do.
 constexpr int kIterations = 12;
 constexpr float kStep = 1e-3f;  // forward difference of the tilts
 constexpr float kLargestStep = 0.25f;
-constexpr float kConvergedStep = 1e-4f;  // 0.1 mrad, a fortieth of the noise's bound
+constexpr float kConvergedStep = 1e-4f;  // 0.1 mrad; the noise's bound is some 50 mrad
 constexpr float kLargestTilt = 3.0f;     // tangent: 72 degrees
 constexpr int kChunk = 4096;
 
@@ -136,11 +136,12 @@ ImageF ShadingInversion::normals(const ImageU8& color, const ImageU8& reference)
   std::vector<float> target(3 * kChunk), a(kChunk), b(kChunk), mu(kChunk);
   std::vector<Reading> reading(3 * kChunk);
   // Per iteration, the pixels still moving, in structure-of-arrays form for shade_span: their
-  // points, the normals of three samples (the tilts, and a step in each) and then of the trial.
+  // points, the normals of three samples (the tilts, and a step in each: a1, b1) and then of the
+  // trial.
   std::vector<int> moving(kChunk);
   std::vector<float> px(kChunk), py(kChunk), pz(kChunk);
   std::vector<float> nx(3 * kChunk), ny(3 * kChunk), nz(3 * kChunk), rgb(9 * kChunk);
-  std::vector<float> cost(kChunk), trial_a(kChunk), trial_b(kChunk);
+  std::vector<float> cost(kChunk), trial_a(kChunk), trial_b(kChunk), a1(kChunk), b1(kChunk);
   for (std::size_t start = 0; start < pixels.size(); start += kChunk) {
     const int count = int(std::min<std::size_t>(kChunk, pixels.size() - start));
     const int* idx = &pixels[start];
@@ -190,7 +191,6 @@ ImageF ShadingInversion::normals(const ImageU8& color, const ImageU8& reference)
                         target[3 * j + c]);
       }
     };
-    std::vector<float> a1(kChunk), b1(kChunk);
     for (int it = 0; it < kIterations && m > 0; ++it) {
       for (int q = 0; q < m; ++q) {
         const int j = moving[q];
