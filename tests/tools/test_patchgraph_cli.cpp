@@ -1045,8 +1045,8 @@ TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
   EXPECT_LT(angle, 30.0);
 }
 
-// eval-normals --model shading: the same metrics for the shading's inverse (no network), and its
-// refusals.
+// eval-normals --model shading: the same metrics for the shading's inverse (no network); a model
+// averaged with it (--blend-shading); the refusals.
 TEST_F(PatchgraphCli, EvalNormalsMeasuresTheShadingsInverse) {
   const CliRun r = patchgraph("eval-normals -q --model shading --data " + data() + " --json " +
                               out("shading_normals.json"));
@@ -1061,6 +1061,22 @@ TEST_F(PatchgraphCli, EvalNormalsMeasuresTheShadingsInverse) {
   EXPECT_GT(angle, 0.5);  // the camera's noise (sigma 7) allows no better than some 2.5 deg
   // 3.16 deg on the default scene (the default model: 6.42 deg).
   EXPECT_LT(angle, 5.0);
+  // Averaged with the default model (--blend-shading): 3.79 deg, the model alone 6.42.
+  const CliRun blended =
+      patchgraph("eval-normals -q --model " + kDefaultModel + " --blend-shading 0.5 --data " +
+                 data() + " --json " + out("blended_normals.json"));
+  ASSERT_EQ(blended.code, 0) << blended.out;
+  const CliRun model = patchgraph("eval-normals -q --model " + kDefaultModel + " --data " + data() +
+                                  " --json " + out("model_normals.json"));
+  ASSERT_EQ(model.code, 0) << model.out;
+  const auto b = parse_json_file(out("blended_normals.json"));
+  EXPECT_EQ(b["blend_shading"].get<double>(), 0.5);
+  EXPECT_LT(b["results"][0]["angle_contact_deg"].get<double>(),
+            0.8 * parse_json_file(out("model_normals.json"))["results"][0]["angle_contact_deg"]
+                      .get<double>());
+  const CliRun both =
+      patchgraph("eval-normals -q --model shading --blend-shading 0.5 --data " + data());
+  EXPECT_EQ(both.code, 2) << both.out;
   const CliRun phases = patchgraph("eval-normals -q --model shading --phases 2 --data " + data());
   EXPECT_EQ(phases.code, 2) << phases.out;
   EXPECT_NE(phases.out.find("--phases 2: the shading's inverse reads each pixel by itself"),

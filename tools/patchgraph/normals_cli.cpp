@@ -132,6 +132,10 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
                   "Average the model over the frame shifted by a pixel: 1 (default), 2 or 4 "
                   "passes (as track --normals-phases)")
       ->check(CLI::IsMember({1, 2, 4}));
+  cmd->add_option("--blend-shading", a.blend_shading,
+                  "Average the model's normals with the shading's inverse, this its weight from "
+                  "0 (default: the model alone) to 1 (as track --blend-shading)")
+      ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }
@@ -384,6 +388,11 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     throw UsageError("--phases " + std::to_string(a.phases) +
                      ": the shading's inverse reads each pixel by itself, in one pass (1)");
   }
+  if (shading && a.blend_shading > 0) {
+    throw UsageError("--blend-shading " + format_number(a.blend_shading) +
+                     ": averages a model's normals with the shading's inverse; give --model "
+                     "MODEL (--model shading is the inverse alone)");
+  }
   if (!a.json.empty()) {  // checked before the evaluation, written after it
     const std::filesystem::path folder = std::filesystem::path(a.json).parent_path();
     if (!folder.empty() && !std::filesystem::is_directory(folder)) {
@@ -401,11 +410,13 @@ int run_eval_normals(const EvalNormalsArgs& a) {
   std::optional<NormalEstimator> loaded;
   if (shading) {
     check_evaluation_data(a.data);
-    for (const std::string& dir : a.data) check_shading_readable(Dataset::open(dir));
   } else {
     loaded = NormalEstimator::load(a.model, a.threads);
     loaded->set_phases(a.phases);
     check_evaluation_data(*loaded, a.data);
+  }
+  if (shading || a.blend_shading > 0) {
+    for (const std::string& dir : a.data) check_shading_readable(Dataset::open(dir));
   }
   for (const std::string& dir : a.data) {
     if (shading) break;
@@ -435,14 +446,22 @@ int run_eval_normals(const EvalNormalsArgs& a) {
           if (!progress) progress = std::make_unique<Progress>("evaluating", total, !a.quiet);
           progress->update(done);
         };
-        if (!shading) return evaluate_normals(*loaded, {dir}, report);
+        if (!shading && a.blend_shading == 0) return evaluate_normals(*loaded, {dir}, report);
         const DatasetInfo info = Dataset::open(dir).info();
         const ShadingInversion inversion(info.sensor, !info.background.empty());
+        if (shading) {
+          return evaluate_normals(
+              [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
+                return inversion.normals(color, reference);
+              },
+              "--model shading", {dir}, report);
+        }
         return evaluate_normals(
             [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
-              return inversion.normals(color, reference);
+              return blend_normals(loaded->predict(color, reference),
+                                   inversion.normals(color, reference), float(a.blend_shading));
             },
-            "--model shading", {dir}, report);
+            a.model + " blended with the shading's inverse", {dir}, report);
       } catch (const Stopped& e) {
         throw e.with_note("in " + dir +
                           (a.json.empty() ? "" : "; --json " + a.json + " not written") +
@@ -469,6 +488,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     write_text_atomically(
         a.json, nlohmann::json{{"model", a.model},
                                {"arch", shading ? kShadingNormals : loaded->info().spec.arch},
+                               {"blend_shading", a.blend_shading},
                                {"results", results}}
                         .dump(2) +
                     "\n");

@@ -20,6 +20,7 @@ struct EvalNormalsArgs {
   std::string json;  // output file
   int threads = 1;
   int phases = 1;  // NormalEstimator::set_phases
+  double blend_shading = 0;  // as track's --blend-shading
   bool quiet = false;
 };
 
