@@ -61,6 +61,12 @@ class PatchgraphCli : public ::testing::Test {
     return run(TACSIM_PATH, "render " + out(name + ".json") + " " + args + " --out " + out(name));
   }
   // A fresh copy of the suite's dataset, to corrupt.
+  // Expects `patchgraph args` refused with this exit code and a message containing `text`.
+  static void expect_refused(const std::string& args, int code, const std::string& text) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, code) << args;
+    EXPECT_NE(r.out.find(text), std::string::npos) << args << "\n" << r.out;
+  }
   static std::string data_copy(const std::string& name) {
     const std::string copy = out(name);
     fs::remove_all(copy);
@@ -86,12 +92,7 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   for (const char* sub : {"--help", "track --help", "eval --help"}) {
     EXPECT_EQ(patchgraph(sub).code, 0) << sub;
   }
-  // Refused with this exit code and a message containing `text`.
-  const auto refused = [&](const std::string& args, int code, const std::string& text) {
-    const CliRun r = patchgraph(args);
-    EXPECT_EQ(r.code, code) << args;
-    EXPECT_NE(r.out.find(text), std::string::npos) << args << "\n" << r.out;
-  };
+  const auto& refused = expect_refused;
   const std::string track = "track " + data() + " ";
   refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
   refused(track + "--method icpgraph --out " + out("x"), 2, "--method: icpgraph not in");
@@ -788,11 +789,7 @@ TEST_F(PatchgraphCli, TrackWithTheShadingsInverse) {
   EXPECT_LT(summary["rotation_rmse_rad"].get<double>(), 0.05);
   // The learned normals' front-end settings: its normals are noisy as a network's are.
   EXPECT_EQ(summary["config"]["mask"]["relative_depth"].get<double>(), 0.2);
-  const auto refused = [&](const std::string& args, int code, const std::string& text) {
-    const CliRun bad = patchgraph(args);
-    EXPECT_EQ(bad.code, code) << args;
-    EXPECT_NE(bad.out.find(text), std::string::npos) << args << "\n" << bad.out;
-  };
+  const auto& refused = expect_refused;
   refused("track " + data() + " --normals shading," + kDefaultModel + " --out " + out("x"), 2,
           "shading is for every sensor or none");
   const std::string no_color = data_copy("data_shading_no_color");
@@ -856,13 +853,10 @@ TEST_F(PatchgraphCli, BlendShadingAveragesTheModelWithTheShadingsInverse) {
   EXPECT_LT(half["translation_rmse_m"].get<double>(), 1.2e-3);
   EXPECT_LT(half["rotation_rmse_rad"].get<double>(), 0.08);
   for (const std::string& normals : {std::string("gt"), std::string("shading")}) {
-    const CliRun refused = patchgraph("track " + data() + " --normals " + normals +
-                                      " --blend-shading 0.5 --out " + out("x"));
-    EXPECT_EQ(refused.code, 2) << refused.out;
-    EXPECT_NE(refused.out.find("--blend-shading 0.5: averages a model's normals with the "
-                               "shading's inverse; give --normals MODEL"),
-              std::string::npos)
-        << refused.out;
+    expect_refused(
+        "track " + data() + " --normals " + normals + " --blend-shading 0.5 --out " + out("x"), 2,
+        "--blend-shading 0.5: averages a model's normals with the shading's inverse; "
+        "give --normals MODEL");
   }
 }
 
@@ -1074,14 +1068,11 @@ TEST_F(PatchgraphCli, EvalNormalsMeasuresTheShadingsInverse) {
   EXPECT_LT(b["results"][0]["angle_contact_deg"].get<double>(),
             0.8 * parse_json_file(out("model_normals.json"))["results"][0]["angle_contact_deg"]
                       .get<double>());
-  const CliRun both =
-      patchgraph("eval-normals -q --model shading --blend-shading 0.5 --data " + data());
-  EXPECT_EQ(both.code, 2) << both.out;
-  const CliRun phases = patchgraph("eval-normals -q --model shading --phases 2 --data " + data());
-  EXPECT_EQ(phases.code, 2) << phases.out;
-  EXPECT_NE(phases.out.find("--phases 2: the shading's inverse reads each pixel by itself"),
-            std::string::npos)
-      << phases.out;
+  expect_refused("eval-normals -q --model shading --blend-shading 0.5 --data " + data(), 2,
+                 "--blend-shading 0.5: averages a model's normals with the shading's inverse; "
+                 "give --model MODEL");
+  expect_refused("eval-normals -q --model shading --phases 2 --data " + data(), 2,
+                 "--phases 2: the shading's inverse reads each pixel by itself");
 }
 
 // model-info describes a model file from its own record, after the checks every user of the

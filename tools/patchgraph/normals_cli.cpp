@@ -415,13 +415,12 @@ int run_eval_normals(const EvalNormalsArgs& a) {
     loaded->set_phases(a.phases);
     check_evaluation_data(*loaded, a.data);
   }
-  if (shading || a.blend_shading > 0) {
-    for (const std::string& dir : a.data) check_shading_readable(Dataset::open(dir));
-  }
   for (const std::string& dir : a.data) {
-    if (shading) break;
+    const Dataset dataset = Dataset::open(dir);
+    if (shading || a.blend_shading > 0) check_shading_readable(dataset);
+    if (shading) continue;
     const NormalEstimator& model = *loaded;
-    warn_of_other_optics(model, Dataset::open(dir).info(), dir);
+    warn_of_other_optics(model, dataset.info(), dir);
     // Its own training frames measure the fit, not how the model reads frames it has not seen.
     const auto& trained = model.info().training_data;
     if (std::any_of(trained.begin(), trained.end(), [&](const std::string& t) {
