@@ -14,6 +14,7 @@
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <tuple>
 #include <utility>
 
 #include "../common/test_support.h"
@@ -2944,6 +2945,98 @@ TEST_F(PatchgraphCli, BallPressesBecomeTrainingLabels) {
   std::getline(edited_in, row0);
   std::getline(edited_in, row1);
   EXPECT_EQ(split_csv_line(row1).at(2), "given") << row1;
+}
+
+// A real sensor's lights measured, as its user would: ball presses recorded with lights other
+// than the preset's (moved, recoloured), imported with the preset, labelled by label-ball and
+// fitted; held-out presses read through the shading's inverse come out far closer with the
+// fitted lights, which a sensor file then holds. Labels without normals, or no press, are refused.
+TEST_F(PatchgraphCli, FitSensorMeasuresARecordedSensorsLights) {
+  nlohmann::json truth = {{"preset", "digit"}, {"shading", {{"specular", 0.4}}}};
+  truth["lights"] = {
+      {{"position_m", {0.024, -0.003, -0.015}}, {"color", {1.0, 0.3, 0.1}}, {"intensity", 0.7}},
+      {{"position_m", {-0.013, 0.0213, -0.02}}, {"color", {0.2, 0.9, 0.3}}, {"intensity", 1.2}},
+      {{"position_m", {-0.008, -0.0123, -0.014}}, {"color", {0.1, 0.35, 1.0}}, {"intensity", 0.9}}};
+  std::ofstream(out("true_lights.json")) << truth.dump(2);
+  const std::string ball = std::string(PG_SOURCE_DIR) + "/meshes/ball_bearing_0p5in.glb";
+  for (const auto& [name, frames, seed] : {std::tuple<std::string, int, int>{"fit_train", 16, 1},
+                                           std::tuple<std::string, int, int>{"fit_val", 6, 2}}) {
+    ASSERT_EQ(run(TACSIM_PATH, "presses " + ball + " --sensor-file " + out("true_lights.json") +
+                                   " --frames " + std::to_string(frames) + " --seed " +
+                                   std::to_string(seed) + " --out " + out(name + ".json"))
+                  .code,
+              0);
+    ASSERT_EQ(run(TACSIM_PATH, "render " + out(name + ".json") + " -q --outputs color --out " +
+                                   out(name + "_render"))
+                  .code,
+              0);
+    // Imported as a real sensor's frames, under the preset: its lights unmeasured.
+    const CliRun imported =
+        patchgraph("recording --images " + out(name + "_render") + "/color --background " +
+                   out(name + "_render") +
+                   "/background.png --static-sensor --sensor digit -q --out " + out(name + "_rec"));
+    ASSERT_EQ(imported.code, 0) << imported.out;
+    const CliRun labelled = patchgraph("label-ball " + out(name + "_rec") +
+                                       " --diameter 0.0127 -q --out " + out(name + "_labels"));
+    ASSERT_EQ(labelled.code, 0) << labelled.out;
+  }
+  const CliRun r = patchgraph("fit-sensor " + out("fit_train_labels") + " --val " +
+                              out("fit_val_labels") + " -q --out " + out("fitted.json"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("their change from the no-contact image"), std::string::npos) << r.out;
+  double start_rms = 0, fitted_rms = 0, start_deg = 0, fitted_deg = 0;
+  const std::size_t residual = r.out.find("residual: ");
+  ASSERT_NE(residual, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + residual,
+                        "residual: %lf levels with the start's lights, %lf fitted", &start_rms,
+                        &fitted_rms),
+            2)
+      << r.out;
+  const std::size_t held = r.out.find("median contact angle: ");
+  ASSERT_NE(held, std::string::npos) << r.out;
+  ASSERT_EQ(std::sscanf(r.out.c_str() + held,
+                        "median contact angle: %lf deg with the start's lights, %lf deg",
+                        &start_deg, &fitted_deg),
+            2)
+      << r.out;
+  // The camera's noise is 7 levels; the labels' circles are found, not given, so their rims err.
+  EXPECT_LT(fitted_rms, 10.0) << r.out;
+  EXPECT_GT(start_rms, 2 * fitted_rms) << r.out;
+  EXPECT_LT(fitted_deg, 0.5 * start_deg) << r.out;
+  // The file is a sensor file: a recording made with it, and a render.
+  const SensorModel fitted = load_sensor_file(out("fitted.json"));
+  EXPECT_EQ(fitted.lights.size(), 3u);
+  EXPECT_EQ(patchgraph("recording --images " + out("fit_val_render") + "/color --background " +
+                       out("fit_val_render") + "/background.png --static-sensor --sensor-file " +
+                       out("fitted.json") + " -q --out " + out("fit_val_rec_fitted"))
+                .code,
+            0);
+  EXPECT_EQ(Dataset::open(out("fit_val_rec_fitted")).info().sensor.lights[1].position_m,
+            fitted.lights[1].position_m);
+
+  const auto& refused = expect_refused;
+  refused("fit-sensor " + out("fit_train_rec") + " --out " + out("x.json"), 1,
+          out("fit_train_rec") +
+              "/dataset.json: outputs: the fit needs colour images and their "
+              "normals");
+  refused("fit-sensor " + data() + " " + out("fit_train_labels") + " --out " + out("x.json"), 1,
+          out("fit_train_labels") +
+              ": a real background (a recording, or a render blended onto "
+              "one), unlike " +
+              data());
+  refused(
+      "fit-sensor " + out("fit_train_labels") + " --sensor digit_240x320 --out " + out("x.json"), 1,
+      out("fit_train_labels") + ": frames 120x160, but --sensor digit_240x320's are 240x320");
+  refused("fit-sensor " + out("fit_train_labels") + " --iterations 0 --out " + out("x.json"), 2,
+          "--iterations");
+  refused("fit-sensor --out " + out("x.json"), 2, "datasets is required");
+  ASSERT_EQ(render_scene("examples/no_contact.json",
+                         "-q --outputs color,normal --out " + out("fit_no_contact"))
+                .code,
+            0);
+  refused("fit-sensor " + out("fit_no_contact") + " --out " + out("x.json"), 1,
+          out("fit_no_contact") + ": no frame has a labelled contact");
+  EXPECT_FALSE(fs::exists(out("x.json")));
 }
 
 TEST_F(PatchgraphCli, EvalRunsTheMatrixAndSummarises) {

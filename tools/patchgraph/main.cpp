@@ -19,6 +19,7 @@
 #include "../common/progress.h"
 #include "bench.h"
 #include "eval.h"
+#include "fit_sensor.h"
 #include "label_ball.h"
 #include "normals_cli.h"
 #include "pg/core/image_change.h"
@@ -354,6 +355,8 @@ int main(int argc, char** argv) {
   CLI::App* cmd_recording = add_recording_command(app, recording_args);
   LabelBallArgs label_ball_args;
   CLI::App* cmd_label_ball = add_label_ball_command(app, label_ball_args);
+  FitSensorArgs fit_sensor_args;
+  CLI::App* cmd_fit_sensor = add_fit_sensor_command(app, fit_sensor_args);
 
   return run_cli(app, argc, argv, [&]() -> int {
 #ifdef PG_NETWORK_PROGRAM
@@ -377,6 +380,7 @@ int main(int argc, char** argv) {
     if (cmd_model_info->parsed()) return run_model_info(model_info_args);
     if (cmd_recording->parsed()) return run_recording(recording_args);
     if (cmd_label_ball->parsed()) return run_label_ball(label_ball_args);
+    if (cmd_fit_sensor->parsed()) return run_fit_sensor(fit_sensor_args);
     if (cmd_bench->parsed()) return run_track_bench(bench);
     if (cmd_track->parsed()) return run_track(track);
     if (cmd_eval->parsed()) return run_eval(eval);

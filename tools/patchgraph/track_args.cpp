@@ -166,11 +166,11 @@ bool within_accuracy_gate(const TrackArgs& a, const std::string& what, double tr
 
 void check_shading_readable(const Dataset& dataset) {
   const DatasetInfo& info = dataset.info();
-  if (!info.background.empty() && !(info.sensor.shading.background_gain > 0)) {
+  if (info.on_real_background() && !(info.sensor.shading.background_gain > 0)) {
     throw InputError(dataset.dir() + "/dataset.json: sensor.shading.background_gain " +
                      format_number(info.sensor.shading.background_gain) +
-                     ": its frames, blended onto a real background, show none of the shading's "
-                     "change; the shading's inverse has nothing to read");
+                     ": its frames, a real background plus the shading's change scaled by this "
+                     "gain, show none of it; the shading's inverse has nothing to read");
   }
 }
 
@@ -267,10 +267,11 @@ void check_normals_models(const std::string& normals, const NormalsModels& model
     if ((shading || blend_shading) && datasets[k]->info().scene.empty()) {
       std::fprintf(stderr,
                    "warning: %s: no scene rendered it (a recording): the shading's inverse "
-                   "(--normals shading, --blend-shading) reads it through its dataset.json's "
-                   "sensor model, lights and exposure, which describe a real sensor's only if "
-                   "measured; a network trained on its presses reads it (docs/learned_normals.md "
-                   "\"Inverting the shading\")\n",
+                   "(--normals shading, --blend-shading) reads its change from the no-contact "
+                   "image through its dataset.json's sensor model, whose lights describe a real "
+                   "sensor's only if measured (patchgraph fit-sensor on its ball presses, then "
+                   "recording --sensor-file); a network trained on its presses reads it too "
+                   "(docs/learned_normals.md \"Inverting the shading\")\n",
                    datasets[k]->dir().c_str());
     }
     if (model) {
@@ -339,12 +340,13 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   if (a.blend_shading > 0 && models.empty()) {
     throw std::logic_error("make_track_options: --blend-shading without a model");
   }
-  // Each sensor's own lights; blended onto a real background where it was rendered so.
+  // Each sensor's own lights; its change from a real background read where it has one (a
+  // blended render, a recording).
   std::shared_ptr<std::vector<ShadingInversion>> inversions;
   if (a.normals == kShadingNormals || a.blend_shading > 0) {
     inversions = std::make_shared<std::vector<ShadingInversion>>();
     for (const Dataset* d : datasets) {
-      inversions->emplace_back(d->info().sensor, !d->info().background.empty());
+      inversions->emplace_back(d->info().sensor, d->info().on_real_background());
     }
   }
   if (a.normals == kShadingNormals) {

@@ -58,6 +58,12 @@ struct DatasetInfo {
   // Normals in either form: "normal" (float EXR) or "normal_png" (16-bit), which Dataset::normal
   // reads.
   bool has_normals() const;
+  // Whether the frames are a real background plus the shading's change (a render blended onto a
+  // real image, or a real sensor's recording, whose no-contact image is its own), not the sensor
+  // model's shading itself: how the shading's inverse and the fit of a sensor's lights read them.
+  bool on_real_background() const {
+    return !background.empty() || (!render_known && scene.empty());
+  }
   int width() const { return sensor.camera.width; }
   int height() const { return sensor.camera.height; }
 };
