@@ -75,20 +75,33 @@ SensorModel sensor_of(SensorModel s, const std::vector<double>& theta) {
   return s;
 }
 
-// Colours, intensities and the specular share stay non-negative, and each light between the
-// camera and the deepest-pressed gel with kLightRoom to spare, as a sensor file must have them.
-constexpr double kLightRoom = 5e-4;  // [m]
+// The parameters kept to what a sensor file may hold: colours and intensities from 0 to 1000,
+// the shares from 0 to 10, and each light between the camera and the deepest-pressed gel with
+// kLightRoom to spare. The gel's surface curves away from the camera beyond the gel, so a light
+// may not stray sideways without bound: at most twice as far from the axis as the start's
+// farthest or the gel's corner, and nearer where the surface there leaves it no room.
+constexpr double kLightRoom = 5e-4;        // [m]
+constexpr double kLargestIntensity = 1e3;  // a sensor file's largest
+constexpr double kLargestShare = 10.0;     // a sensor file's largest ambient or specular share
 void keep_feasible(std::vector<double>& theta, const SensorModel& sensor) {
+  double reach = std::hypot(0.5 * sensor.gel.width_m, 0.5 * sensor.gel.height_m);
+  for (const PointLight& l : sensor.lights) reach = std::max(reach, l.position_m.head<2>().norm());
+  reach *= 2.0;
+  const double nearest = -sensor.camera.distance_m + kLightRoom;
+  auto farthest = [&](double x, double y) {
+    return sensor.gel.surface_z(x, y) - sensor.gel.max_indentation_m - kLightRoom;
+  };
   for (std::size_t k = 0; k < sensor.lights.size(); ++k) {
     double* t = &theta[kPerLight * k];
-    const double nearest = -sensor.camera.distance_m + kLightRoom;
-    const double farthest =
-        sensor.gel.surface_z(t[0], t[1]) - sensor.gel.max_indentation_m - kLightRoom;
-    t[2] = std::clamp(t[2], nearest, std::max(nearest, farthest));
-    for (int a = 3; a < 6; ++a) t[a] = std::max(0.0, t[a]);
+    const double radius = std::hypot(t[0], t[1]);
+    double scale = radius > reach ? reach / radius : 1.0;
+    for (int i = 0; i < 60 && farthest(scale * t[0], scale * t[1]) < nearest; ++i) scale *= 0.9;
+    t[0] *= scale, t[1] *= scale;
+    t[2] = std::clamp(t[2], nearest, std::max(nearest, farthest(t[0], t[1])));
+    for (int a = 3; a < 6; ++a) t[a] = std::clamp(t[a], 0.0, kLargestIntensity);
   }
   for (std::size_t a = kPerLight * sensor.lights.size(); a < theta.size(); ++a)
-    theta[a] = std::max(0.0, theta[a]);
+    theta[a] = std::clamp(theta[a], 0.0, kLargestShare);
 }
 
 // The frame's value per channel of every sample as the model has it [levels]: blended onto a real

@@ -9,7 +9,8 @@ Seven kinds of input, each mutated from a good one by a seeded random generator:
   mesh     a mesh file (glTF binary: its JSON's fields and its data; OBJ, STL and PLY, text and
            binary: bytes replaced, the file cut), rendered in a scene
   dataset  a rendered dataset (dataset.json, poses.csv, a frame's image), tracked (a damaged
-           dataset.json or colour frame with --normals shading in some cases)
+           dataset.json or colour frame with --normals shading in some cases; a quarter of
+           those not of poses.csv given to fit-sensor instead)
   config   patchgraph track's --config and --normals MODEL files (as a checkpoint below),
            tracked
   circles  label-ball's --circles file, the circles.csv a run writes and a user corrects by
@@ -404,8 +405,33 @@ class Fuzzer:
             if folder == "color":
                 extra = ["--normals", rng.choice([os.path.join(REPO, "models", "normals_unet.pt"),
                                                   "shading"])]
-        self.track("dataset", case, dataset, extra, [dataset], [dataset])
+        if what != "poses.csv" and rng.random() < 0.25:
+            self.fit_sensor(case, dataset)
+        else:
+            self.track("dataset", case, dataset, extra, [dataset], [dataset])
         shutil.rmtree(dataset)
+
+    def fit_sensor(self, case, dataset):
+        """fit-sensor on a damaged dataset: the frames' colours and normals fitted, or refused."""
+        out = os.path.join(self.work, "fitted.json")
+        if os.path.exists(out):
+            os.remove(out)
+        rc, err = self.run([self.args.patchgraph, "fit-sensor", dataset, "--iterations", "10",
+                            "--out", out, "-q"])
+        self.judge("dataset", case, rc, err, [dataset], [dataset],
+                   result_check=lambda: self.sensor_not_finite(out))
+
+    @staticmethod
+    def sensor_not_finite(path):
+        """What is wrong with fit-sensor's sensor file: it must exist and hold finite numbers."""
+        if not os.path.exists(path):
+            return "exit 0 without the sensor file"
+        with open(path) as f:
+            doc = json.load(f, parse_constant=lambda c: float("nan"))
+        for where, value in json_nodes(doc):
+            if isinstance(value, float) and not math.isfinite(value):
+                return f"{path}: {'.'.join(map(str, where))} is {value}"
+        return None
 
     def fuzz_config(self, case, rng, config):
         base = self.base_dataset()

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <vector>
 
 #include "pg/core/error.h"
@@ -182,6 +183,49 @@ TEST(ShadingFit, FitsTheChangeOfFramesBlendedOntoARealBackground) {
   // against 0.0083), the preset's 0.13.
   EXPECT_LT(o.fitted, 1.5 * o.true_lights);
   EXPECT_GT(o.preset, 3 * o.true_lights);
+}
+
+// Frames no shading makes (white, black, random colours) under a ball's labels, and sensors
+// that tell little (one light, a light off) or of another size (the GelSight Mini's 240x320):
+// the fit ends with finite lights that a sensor file may hold, never NaN.
+TEST(ShadingFit, AnyFramesGiveFiniteLightsASensorFileHolds) {
+  SensorModel one_light = sensor_preset("digit");
+  one_light.lights.resize(1);
+  SensorModel dark_light = sensor_preset("digit");
+  dark_light.lights[1].intensity = 0;
+  std::mt19937 rng(5);
+  for (const SensorModel& sensor :
+       {sensor_preset("digit"), one_light, dark_light, sensor_preset("gelsight_mini")}) {
+    RenderSettings settings;
+    settings.noise = false;
+    const SensorRenderer r(sensor, {ball()}, settings);
+    const RenderedFrame untouched = r.render({ball_at(0, 0, -0.01)}, 0);
+    const RenderedFrame pressed = r.render({ball_at(0.001, 0, 0.001)}, 0);
+    ImageU8 white = pressed.images.color, black = white, random = white;
+    std::fill(white.data.begin(), white.data.end(), std::uint8_t(255));
+    std::fill(black.data.begin(), black.data.end(), std::uint8_t(0));
+    for (auto& v : random.data) v = std::uint8_t(rng() & 255u);
+    for (bool blended : {false, true}) {
+      for (const ImageU8* frame : {&white, &black, &random}) {
+        ShadingFitOptions options;
+        options.max_iterations = 15;
+        ShadingFit fit(sensor, blended, options);
+        ASSERT_GT(fit.add_frame(*frame, untouched.images.color, pressed.images.normal), 50u);
+        const ShadingFitResult result = fit.solve();
+        EXPECT_TRUE(std::isfinite(result.rms_levels) && std::isfinite(result.rms_start_levels));
+        EXPECT_LE(result.rms_levels, result.rms_start_levels + 1e-9);
+        for (const PointLight& l : result.sensor.lights) {
+          ASSERT_TRUE(l.position_m.allFinite() && l.color.allFinite() && std::isfinite(l.intensity))
+              << sensor.name;
+        }
+        try {
+          sensor_from_json(sensor_to_json(result.sensor), "fitted");
+        } catch (const InputError& e) {
+          ADD_FAILURE() << sensor.name << (blended ? " blended: " : ": ") << e.what();
+        }
+      }
+    }
+  }
 }
 
 TEST(ShadingFit, RefusesFramesItCannotFit) {

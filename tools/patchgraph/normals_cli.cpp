@@ -447,7 +447,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
         };
         if (!shading && a.blend_shading == 0) return evaluate_normals(*loaded, {dir}, report);
         const DatasetInfo info = Dataset::open(dir).info();
-        const ShadingInversion inversion(info.sensor, !info.background.empty());
+        const ShadingInversion inversion(info.sensor, info.on_real_background());
         if (shading) {
           return evaluate_normals(
               [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
