@@ -261,15 +261,22 @@ class Fuzzer:
                                  f"line: {last[:300]!r})")
 
     @staticmethod
-    def non_finite(result_dir):
-        summary = os.path.join(result_dir, "summary.json")
-        if not os.path.exists(summary):
-            return "exit 0 without summary.json"
-        with open(summary) as f:
+    def json_not_finite(path, name):
+        """What is wrong with a JSON file a run wrote: it must exist and hold finite numbers."""
+        if not os.path.exists(path):
+            return f"exit 0 without {name}"
+        with open(path) as f:
             doc = json.load(f, parse_constant=lambda c: float("nan"))
-        for path, value in json_nodes(doc):
+        for where, value in json_nodes(doc):
             if isinstance(value, float) and not math.isfinite(value):
-                return f"summary.json: {'.'.join(map(str, path))} is {value}"
+                return f"{name}: {'.'.join(map(str, where))} is {value}"
+        return None
+
+    @staticmethod
+    def non_finite(result_dir):
+        problem = Fuzzer.json_not_finite(os.path.join(result_dir, "summary.json"), "summary.json")
+        if problem:
+            return problem
         with open(os.path.join(result_dir, "poses.csv")) as f:
             for number, line in enumerate(f, 1):
                 if number > 1 and any(c.strip().lower() in ("nan", "inf", "-inf")
@@ -419,19 +426,7 @@ class Fuzzer:
         rc, err = self.run([self.args.patchgraph, "fit-sensor", dataset, "--iterations", "10",
                             "--out", out, "-q"])
         self.judge("dataset", case, rc, err, [dataset], [dataset],
-                   result_check=lambda: self.sensor_not_finite(out))
-
-    @staticmethod
-    def sensor_not_finite(path):
-        """What is wrong with fit-sensor's sensor file: it must exist and hold finite numbers."""
-        if not os.path.exists(path):
-            return "exit 0 without the sensor file"
-        with open(path) as f:
-            doc = json.load(f, parse_constant=lambda c: float("nan"))
-        for where, value in json_nodes(doc):
-            if isinstance(value, float) and not math.isfinite(value):
-                return f"{path}: {'.'.join(map(str, where))} is {value}"
-        return None
+                   result_check=lambda: self.json_not_finite(out, "the sensor file"))
 
     def fuzz_config(self, case, rng, config):
         base = self.base_dataset()

@@ -253,6 +253,37 @@ TEST(PatchgraphBench, ALearnedRowRecordsItsOwnSettings) {
   EXPECT_EQ(learned, 1);
 }
 
+// A row MODEL+shading:W tracks with the model's normals averaged with the shading's inverse
+// (`track --normals MODEL --blend-shading W`): a row of its own, with the model's settings and
+// other errors than the model alone; a weight outside (0, 1] or a blend without a model is a
+// usage error.
+TEST(PatchgraphBench, ABlendRowIsTheModelAveragedWithTheShadingsInverse) {
+  TempDir tmp;
+  const std::string scene = std::string(PG_SOURCE_DIR) + "/scenes/benchmark/cube_00.json";
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_unet.pt";
+  const std::string blend = model + "+shading:0.5";
+  const auto r = testing_support::run_command(
+      PATCHGRAPH_PATH, "bench --quick -q --no-plot --frames 10 --scenes " + scene +
+                           " --normals gt " + model + " " + blend + " --out " + tmp.str("b"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto csv = read_csv_table(tmp.str("b/bench.csv"));
+  std::map<std::string, std::size_t> row_of;
+  for (std::size_t i = 0; i < csv.rows.size(); ++i) row_of[csv.cell(i, "normals")] = i;
+  ASSERT_TRUE(row_of.count(blend) && row_of.count(model)) << r.out;
+  // The model's settings (no image-to-image gate, the averaged integration), its own errors.
+  EXPECT_EQ(csv.cell(row_of[blend], "image_to_image_gate"), "0");
+  EXPECT_EQ(csv.cell(row_of[blend], "depth_integration"), "averaged");
+  EXPECT_NE(csv.cell(row_of[blend], "median_final_translation_m"),
+            csv.cell(row_of[model], "median_final_translation_m"));
+  for (const std::string& bad : {model + "+shading:0", model + "+shading:1.5", model + "+shading:x",
+                                 std::string("shading+shading:0.5")}) {
+    const auto refused = testing_support::run_command(
+        PATCHGRAPH_PATH, "bench --quick -q --no-plot --normals " + bad + " --out " + tmp.str("x"));
+    EXPECT_EQ(refused.code, 2) << bad << "\n" << refused.out;
+    EXPECT_NE(refused.out.find("--normals " + bad + ": "), std::string::npos) << refused.out;
+  }
+}
+
 // The cache knows a render by the contents of the files its scene names: the same scene however
 // its path is written hits, a mesh replaced under the same name renders anew; a cache entry that
 // no longer reads is named, with what to do.

@@ -10,6 +10,8 @@
 #include <map>
 #include <memory>
 #include <sstream>
+#include <tuple>
+#include <utility>
 
 #include "../common/cli_main.h"
 #include "../common/machine_info.h"
@@ -169,11 +171,40 @@ void mark_pareto(std::vector<Row>& rows) {
   }
 }
 
+// A --normals row "MODEL+shading:W" is the model's normals averaged with the shading's inverse
+// (track's --normals MODEL --blend-shading W, whose summary.json names its normals so): the model
+// and W; any other row is its source and 0. Throws InputError for a W outside (0, 1] or a blend
+// without a model.
+constexpr const char* kBlendMark = "+shading:";
+std::pair<std::string, double> split_blend(const std::string& source) {
+  const std::size_t at = source.rfind(kBlendMark);
+  if (at == std::string::npos) return {source, 0.0};
+  const std::string model = source.substr(0, at);
+  const std::string weight = source.substr(at + std::string(kBlendMark).size());
+  double w = 0;
+  std::size_t used = 0;
+  try {
+    w = std::stod(weight, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != weight.size() || !(w > 0 && w <= 1)) {
+    throw InputError("--normals " + source + ": the shading's weight must be a number in (0, 1], " +
+                     "got '" + weight + "'");
+  }
+  if (model.empty() || model == "gt" || model == kShadingNormals) {
+    throw InputError("--normals " + source + ": averages a model's normals with the shading's " +
+                     "inverse; give MODEL+shading:W");
+  }
+  return {model, w};
+}
+
 TrackArgs args_for(const Setting& s, std::uint64_t seed) {
   TrackArgs a;
   a.seed = seed;
   a.method = s.method;
-  a.normals = s.normals;  // the same path as `patchgraph track --normals`
+  // The same source as `patchgraph track --normals` (and --blend-shading).
+  std::tie(a.normals, a.blend_shading) = split_blend(s.normals);
   a.window = s.window;
   a.keyframe_interval = s.keyframe_interval;
   a.no_registration_information = !s.registration_information;
@@ -286,8 +317,11 @@ int run_track_bench(const TrackBenchArgs& in) {
     // "gt", "shading", or a model file however its path is written.
     std::map<std::string, std::string> seen;
     for (const std::string& n : args.normals) {
+      const auto [model, weight] = split_blend(n);
+      const std::string key =
+          model == "gt" || model == kShadingNormals ? model : fs::weakly_canonical(model).string();
       const auto [it, fresh] =
-          seen.emplace(n == "gt" || n == kShadingNormals ? n : fs::weakly_canonical(n).string(), n);
+          seen.emplace(weight > 0 ? key + kBlendMark + format_number(weight) : key, n);
       if (!fresh) throw InputError("--normals: " + n + " given twice (also as " + it->second + ")");
     }
   });
@@ -338,7 +372,10 @@ int run_track_bench(const TrackBenchArgs& in) {
   };
   {
     const Dataset first = dataset_for(scenes.front(), Setting());
-    for (const auto& [source, loaded] : models) check_normals_models(source, loaded, {&first});
+    for (const auto& [source, loaded] : models) {
+      const auto [model, weight] = split_blend(source);
+      check_normals_models(model, loaded, {&first}, weight > 0);
+    }
     for (auto& s : settings) {
       // What `track` sets for the normals source, recorded as run.
       const TrackOptions o = options_for(s, first, 0, models);

@@ -333,7 +333,9 @@ int main(int argc, char** argv) {
   cmd_bench->add_option("--scenes", bench.scenes,
                         "Scene files (default: benchmark 00-02 per object)");
   cmd_bench->add_option("--cache", bench.cache, "Rendered datasets, reused (default: OUT/cache)");
-  cmd_bench->add_option("--normals", bench.normals, "Normals sources, one row each (default: gt)");
+  cmd_bench->add_option("--normals", bench.normals,
+                        "Normals sources, one row each: gt, shading, MODEL, or MODEL+shading:W "
+                        "(track's --normals MODEL --blend-shading W) (default: gt)");
   // Fewer frames time the first updates alone and end every setting at the first pose's prior.
   cmd_bench
       ->add_option("--frames", bench.frames,
