@@ -109,7 +109,8 @@ CLI::App* add_fit_sensor_command(CLI::App& app, FitSensorArgs& a) {
       "colours, written as a sensor file");
   cmd->add_option("datasets", a.datasets,
                   "Labelled presses: datasets with colour images and normals (patchgraph "
-                  "label-ball on a recording of ball presses, or a render)")
+                  "label-ball on a recording of ball presses, or a render; a ball's: sharp edges, "
+                  "which a sensor blurs, bend the fit)")
       ->required();
   cmd->add_option("--out,-o", a.out, "The fitted sensor file (JSON)")->required();
   cmd->add_option("--val", a.val,
