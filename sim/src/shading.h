@@ -3,9 +3,11 @@
 // of the deformed gel, and the pixel noise.
 #include <Eigen/Core>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "gel_surface.h"
+#include "pg/core/error.h"
 #include "pg/core/sensor.h"
 
 namespace pg {
@@ -22,6 +24,18 @@ struct Shader {
   Eigen::Vector3f camera;  // camera centre in S
 };
 Shader make_shader(const SensorModel& sensor);
+
+// Throws InputError "WHAT WxHxC: the sensor's images are WxHx3" unless `image` (an ImageU8 or
+// ImageF) is width x height x 3: a frame the shading is read from (ShadingInversion) or fitted
+// to (ShadingFit), or its reference or normals.
+template <typename Image>
+void check_sensor_image(const char* what, const Image& image, int width, int height) {
+  if (image.same_shape(width, height, 3)) return;
+  throw InputError(std::string(what) + " " + std::to_string(image.width) + "x" +
+                   std::to_string(image.height) + "x" + std::to_string(image.channels) +
+                   ": the sensor's images are " + std::to_string(width) + "x" +
+                   std::to_string(height) + "x3");
+}
 
 // Linear RGB in [0, ~1] of a run of gel points p with outward normals n (+z toward the
 // object), in structure-of-arrays form so that the compiler vectorises it; the coating is lit

@@ -182,17 +182,9 @@ std::size_t ShadingFit::add_frame(const ImageU8& color, const ImageU8& reference
                                   const ImageF& normals) {
   State& s = *state_;
   const int w = s.rays.width, h = s.rays.height;
-  auto check = [&](const char* what, int width, int height, int channels) {
-    if (width != w || height != h || channels != 3) {
-      throw InputError(std::string(what) + " " + std::to_string(width) + "x" +
-                       std::to_string(height) + "x" + std::to_string(channels) +
-                       ": the sensor's images are " + std::to_string(w) + "x" + std::to_string(h) +
-                       "x3");
-    }
-  };
-  check("colour frame", color.width, color.height, color.channels);
-  check("reference image", reference.width, reference.height, reference.channels);
-  check("normal image", normals.width, normals.height, normals.channels);
+  check_sensor_image("colour frame", color, w, h);
+  check_sensor_image("reference image", reference, w, h);
+  check_sensor_image("normal image", normals, w, h);
   const float min_cos = float(std::cos(s.options.min_turn_rad));
   Samples& out = s.samples;
   std::size_t added = 0;

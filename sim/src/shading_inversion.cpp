@@ -105,14 +105,8 @@ ShadingInversion& ShadingInversion::operator=(ShadingInversion&&) noexcept = def
 
 ImageF ShadingInversion::normals(const ImageU8& color, const ImageU8& reference) const {
   const State& s = *state_;
-  for (const auto* image : {&color, &reference}) {
-    if (!image->same_shape(s.width, s.height, 3)) {
-      throw InputError(std::string(image == &color ? "colour frame" : "reference image") + " " +
-                       std::to_string(image->width) + "x" + std::to_string(image->height) + "x" +
-                       std::to_string(image->channels) + ": the sensor's images are " +
-                       std::to_string(s.width) + "x" + std::to_string(s.height) + "x3");
-    }
-  }
+  check_sensor_image("colour frame", color, s.width, s.height);
+  check_sensor_image("reference image", reference, s.width, s.height);
   ImageF out = s.gel_normals;
   // The pixels to estimate: the changed regions beyond specks, and kMarginPixels around them.
   const ChangedRegions changes = changed_regions(color, reference);

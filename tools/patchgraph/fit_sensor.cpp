@@ -25,29 +25,34 @@ namespace {
 // the held-out comparison's pixels (as eval-normals' contact region, docs/learned_normals.md).
 constexpr double kContactTurnRad = 0.05;
 
-// Opens each dataset, refusing one without colour images or normals, or of another size than
-// the sensor's.
-std::vector<Dataset> open_labelled(const std::vector<std::string>& dirs, const SensorModel& sensor,
-                                   const std::string& sensor_source) {
+// Opens each dataset, refusing one without colour images or normals.
+std::vector<Dataset> open_labelled(const std::vector<std::string>& dirs) {
   std::vector<Dataset> out;
   for (const std::string& dir : dirs) {
     Dataset d = Dataset::open(dir);
-    const DatasetInfo& info = d.info();
-    if (!info.has_output("color") || !info.has_normals()) {
+    if (!d.info().has_output("color") || !d.info().has_normals()) {
       throw InputError(dir +
                        "/dataset.json: outputs: the fit needs colour images and their "
                        "normals (a render's, or ball presses labelled by patchgraph "
                        "label-ball)");
     }
+    out.push_back(std::move(d));
+  }
+  return out;
+}
+
+// Refuses a dataset of another image size than the sensor's (`sensor_source` names it).
+void check_sizes(const std::vector<Dataset>& datasets, const SensorModel& sensor,
+                 const std::string& sensor_source) {
+  for (const Dataset& d : datasets) {
+    const DatasetInfo& info = d.info();
     if (info.width() != sensor.camera.width || info.height() != sensor.camera.height) {
-      throw InputError(dir + ": frames " + std::to_string(info.width()) + "x" +
+      throw InputError(d.dir() + ": frames " + std::to_string(info.width()) + "x" +
                        std::to_string(info.height()) + ", but " + sensor_source + "'s are " +
                        std::to_string(sensor.camera.width) + "x" +
                        std::to_string(sensor.camera.height));
     }
-    out.push_back(std::move(d));
   }
-  return out;
 }
 
 double angle_between(const float* a, const float* b) {
@@ -64,14 +69,14 @@ std::vector<double> held_out_medians(const std::vector<Dataset>& val,
   std::vector<std::vector<double>> angles(sensors.size());
   Progress progress("reading held-out presses", frames, !quiet);
   int done = 0;
+  const ImageF undeformed =
+      undeformed_gel_normals(make_gel_rays(sensors[0].camera, sensors[0].gel));
   for (const Dataset& d : val) {
     std::vector<ShadingInversion> inversions;
     for (const SensorModel& s : sensors) {
       inversions.emplace_back(s, d.info().on_real_background());
     }
     const ImageU8 reference = d.background();
-    const ImageF undeformed =
-        undeformed_gel_normals(make_gel_rays(sensors[0].camera, sensors[0].gel));
     for (int f = 0; f < d.frames(); ++f) {
       const ImageU8 color = d.color(f);
       const ImageF label = d.normal(f);
@@ -129,6 +134,8 @@ CLI::App* add_fit_sensor_command(CLI::App& app, FitSensorArgs& a) {
 
 int run_fit_sensor(const FitSensorArgs& a) {
   check_can_write(a.out);
+  const std::vector<Dataset> data = open_labelled(a.datasets);
+  const std::vector<Dataset> val = open_labelled(a.val);
   // The start's sensor: given, or the one the first dataset was recorded or rendered with.
   SensorModel start;
   std::string source;
@@ -139,11 +146,11 @@ int run_fit_sensor(const FitSensorArgs& a) {
     start = sensor_preset(a.sensor);
     source = "--sensor " + a.sensor;
   } else {
-    start = Dataset::open(a.datasets.front()).info().sensor;
-    source = a.datasets.front() + "/dataset.json's sensor";
+    start = data.front().info().sensor;
+    source = data.front().dir() + "/dataset.json's sensor";
   }
-  const std::vector<Dataset> data = open_labelled(a.datasets, start, source);
-  const std::vector<Dataset> val = open_labelled(a.val, start, source);
+  check_sizes(data, start, source);
+  check_sizes(val, start, source);
   // One reading for all: the change from a real background, or the render's own shading.
   const bool blended = data.front().info().on_real_background();
   for (const Dataset& d : data) {
@@ -173,9 +180,9 @@ int run_fit_sensor(const FitSensorArgs& a) {
     }
   }
   if (fit.pixels() == 0) {
-    throw InputError(joined(a.datasets) +
-                     ": no frame has a labelled contact (normals turned 0.03 rad or more from "
-                     "the undeformed gel's); nothing to fit the lights to");
+    throw InputError(joined(a.datasets) + ": no frame has a labelled contact (normals turned " +
+                     format_number(options.min_turn_rad) +
+                     " rad or more from the undeformed gel's); nothing to fit the lights to");
   }
   const ShadingFitResult r = fit.solve([&](int iteration, double rms) {
     stop_if_asked();
