@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <iostream>
 #include <sstream>
@@ -254,8 +255,17 @@ RawMesh read_gltf(const std::string& path, bool binary) {
   loader.SetImageLoader(&skip_image, nullptr);
   tinygltf::Model model;
   std::string error, warning;
-  const bool ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
-                         : loader.LoadASCIIFromFile(&model, &error, &warning, path);
+  bool ok = false;
+  try {
+    ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
+                : loader.LoadASCIIFromFile(&model, &error, &warning, path);
+  } catch (const std::exception& e) {
+    // tinygltf indexes some arrays unchecked by the file's own counts: a field of the wrong
+    // type (an "accessors" string, an empty "buffers") escapes as std::out_of_range.
+    throw FormatError(std::string("glTF parse error: the file's JSON has fields of the wrong "
+                                  "type or count (") +
+                      e.what() + ")");
+  }
   if (!ok) {
     std::string what = without_json_tag(error.empty() ? warning : error);
     while (!what.empty() && (what.back() == '\n' || what.back() == ' ')) what.pop_back();

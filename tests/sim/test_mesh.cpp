@@ -8,6 +8,7 @@
 #include <array>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -526,6 +527,24 @@ TEST_F(MeshIoTest, ParseErrorsNameTheFileAndLine) {
   message = load_error(write("junk.gltf", "solid not json"));
   EXPECT_TRUE(Contains(message, "junk.gltf: glTF parse error: ")) << message;
   EXPECT_FALSE(Contains(message, "[json.exception")) << message;
+}
+
+// A GLB whose JSON gives a field of the wrong type or count: tinygltf indexes its arrays by the
+// file's own counts and throws std::out_of_range, which reached the user as "vector::
+// _M_range_check" without the file's name (a fuzz case: a buffer of byteLength 0 beside a BIN
+// chunk).
+TEST_F(MeshIoTest, AGlbWithFieldsOfTheWrongCountNamesTheFile) {
+  const auto u32 = [](uint32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); };
+  std::string json = R"({"asset": {"version": "2.0"}, "buffers": [{"byteLength": 0}]})";
+  json.append((4 - json.size() % 4) % 4, ' ');
+  const std::string bin(8, '\0');
+  const std::string chunks = u32(static_cast<uint32_t>(json.size())) + u32(0x4E4F534Au) + json +
+                             u32(static_cast<uint32_t>(bin.size())) + u32(0x004E4942u) + bin;
+  const std::string path =
+      write("wrong_count.glb",
+            u32(0x46546C67u) + u32(2u) + u32(static_cast<uint32_t>(12 + chunks.size())) + chunks);
+  const std::string message = load_error(path);
+  EXPECT_TRUE(Contains(message, path + ": glTF parse error: ")) << message;
 }
 
 // A garbage file's "word" is quoted back in the message: cut short and made printable, not echoed
