@@ -259,12 +259,12 @@ RawMesh read_gltf(const std::string& path, bool binary) {
   try {
     ok = binary ? loader.LoadBinaryFromFile(&model, &error, &warning, path)
                 : loader.LoadASCIIFromFile(&model, &error, &warning, path);
-  } catch (const std::exception& e) {
-    // tinygltf indexes some arrays unchecked by the file's own counts: a field of the wrong
-    // type (an "accessors" string, an empty "buffers") escapes as std::out_of_range.
-    throw FormatError(std::string("glTF parse error: the file's JSON has fields of the wrong "
-                                  "type or count (") +
-                      e.what() + ")");
+  } catch (const std::exception&) {
+    // tinygltf indexes some arrays by the file's own counts, unchecked: a buffer of byteLength 0
+    // beside a BIN chunk escapes as std::out_of_range, whose words mean nothing to a user.
+    throw FormatError(
+        "glTF parse error: a field whose type or count does not match the rest of the file (an "
+        "index past the end of an array it declares)");
   }
   if (!ok) {
     std::string what = without_json_tag(error.empty() ? warning : error);
