@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "change_filter.h"
 #include "pg/core/error.h"
 #include "pg/core/gel_rays.h"
 #include "pg/core/image_change.h"
@@ -53,6 +54,7 @@ struct ShadingInversion::State {
   int width = 0, height = 0;
   bool blended = false;
   float gain = 1.0f;
+  ChangeFilter filter{0.0};  // blended: the change, Wiener-filtered for the blend's blur
   Shader shader;
   std::vector<Eigen::Vector3f> point, gel, t1, t2;  // per pixel: undeformed gel point, normal
   std::vector<float> gel_shade;                     // the undeformed gel's shading [levels]
@@ -71,6 +73,7 @@ ShadingInversion::ShadingInversion(const SensorModel& sensor, bool blended)
     throw InputError("shading.background_gain " + std::to_string(sensor.shading.background_gain) +
                      ": a blended frame shows none of the shading's change to invert");
   }
+  if (blended) s.filter = ChangeFilter(sensor.shading.background_blur_m * rays.px_per_m);
   s.shader = make_shader(sensor);
   s.gel_normals = undeformed_gel_normals(rays);
   const int n = rays.width * rays.height;
@@ -125,6 +128,9 @@ ImageF ShadingInversion::normals(const ImageU8& color, const ImageU8& reference)
   std::vector<int> pixels;
   for (int i = 0; i < w * h; ++i)
     if (near[i]) pixels.push_back(i);
+  // A blended frame's change at those pixels, filtered for the blend's blur and the noise.
+  std::vector<float> change;
+  if (s.blended) s.filter.change_at(color, reference, pixels, change);
 
   // Per chunk of pixels: what each channel reads, and the tilts solved so far.
   std::vector<float> target(3 * kChunk), a(kChunk), b(kChunk), mu(kChunk);
@@ -154,8 +160,9 @@ ImageF ShadingInversion::normals(const ImageU8& color, const ImageU8& reference)
           t = float(seen);
           r = seen >= 255 ? Reading::kAtLeast : seen <= 0 ? Reading::kAtMost : Reading::kValue;
         } else if (seen > 0 && seen < 255 && ref > 0 && ref < 255) {
-          // bg + gain (sim - sim_bg): the shading is sim_bg plus the change over the gain.
-          t = s.gel_shade[at] + float(seen - ref) / s.gain;
+          // bg + gain blur(sim - sim_bg): the shading is sim_bg plus the change (filtered) over
+          // the gain.
+          t = s.gel_shade[at] + change[3 * (start + j) + c] / s.gain;
           r = Reading::kValue;
         } else {
           t = 0.0f;
