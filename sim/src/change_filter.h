@@ -21,8 +21,8 @@ class ChangeFilter {
  public:
   // The noise-to-signal ratio k: chosen on the training presses of
   // scripts/train_normals.sh rendered onto the real DIGIT background (sphere and cube, 100
-  // frames): the inverse's contact angle 5.40 / 6.22 deg as the frames are, 3.92 / 4.32 at 0.1,
-  // 2.72 / 3.42 at 0.3, 2.48 / 3.41 at 0.5, 2.35 / 3.64 at 1.
+  // frames; a scratch FFT version of the filter): the inverse's contact angle 5.40 / 6.22 deg as
+  // the frames are, 3.92 / 4.32 at 0.1, 2.72 / 3.42 at 0.3, 2.48 / 3.41 at 0.5, 2.35 / 3.64 at 1.
   static constexpr double kNoiseToSignal = 0.3;
 
   // `blur_px`: the blend's Gaussian sigma in pixels (background_blur_m times the image scale at

@@ -176,11 +176,14 @@ TEST(ShadingFit, FitsOtherLightsDownToTheCamerasNoise) {
 TEST(ShadingFit, FitsTheChangeOfFramesBlendedOntoARealBackground) {
   const Outcome o = fit_other_lights(true);
   EXPECT_TRUE(o.fit.converged);
-  EXPECT_LT(o.fit.rms_levels, 8.0);
+  // The change is fitted as the inverse reads it, through the Wiener filter for the blend's blur
+  // (pg::ChangeFilter), which cuts the noise the blur left unmatched: measured 14.3 -> 4.2 levels
+  // (15.6 -> 7.6 with the change as it is).
+  EXPECT_LT(o.fit.rms_levels, 6.0);
   EXPECT_GT(o.fit.rms_start_levels, 1.5 * o.fit.rms_levels);
-  // The blend's blur (0.2 mm), which neither the fit nor the inverse models, costs the fitted
-  // lights a little: measured 0.030 rad against the true lights' 0.023 (without the blur 0.0069
-  // against 0.0083), the preset's 0.13.
+  // The blur itself, which neither the fit nor the inverse models, costs the fitted lights a
+  // little: measured 0.026 rad against the true lights' 0.020 (0.030 against 0.023 unfiltered;
+  // without the blur 0.0069 against 0.0083), the preset's 0.13.
   EXPECT_LT(o.fitted, 1.5 * o.true_lights);
   EXPECT_GT(o.preset, 3 * o.true_lights);
 }

@@ -216,6 +216,7 @@ TEST(ChangeFilter, KeepsWhatTheBlurLeftAndCutsTheNoise) {
   ASSERT_NEAR(blur_px, 1.26, 0.01);
   const ChangeFilter filter(blur_px);
   ASSERT_TRUE(filter.active());
+  std::printf("kernel radius %d px\n", filter.radius());
   EXPECT_GE(filter.radius(), 3);
   EXPECT_LE(filter.radius(), 10);
   const int w = 40, h = 30;
@@ -295,8 +296,14 @@ TEST(ShadingInversion, AnyFrameAndSensorGiveUnitNormals) {
   glaring.shading.exposure = 20;
   SensorModel dim = sensor_preset("digit");
   dim.shading.exposure = 1e-3;
+  // The blend's blur at the largest a sensor file holds (1 cm: the change's filter cut at its
+  // largest reach), and one too small to blur.
+  SensorModel blurry = sensor_preset("digit"), sharp = sensor_preset("digit");
+  blurry.shading.background_blur_m = 0.01;
+  sharp.shading.background_blur_m = 1e-7;
   std::mt19937 rng(3);
-  for (const SensorModel& sensor : {sensor_preset("digit"), one_light, dark_light, glaring, dim}) {
+  for (const SensorModel& sensor :
+       {sensor_preset("digit"), one_light, dark_light, glaring, dim, blurry, sharp}) {
     const SensorRenderer r(sensor, {sphere_shape()}, settings(false));
     const ImageU8 reference = reference_of(r);
     const ImageU8 pressed = r.render({pressed_sphere(0.0015)}, 0).images.color;

@@ -15,7 +15,9 @@ class ShadingInversion {
  public:
   // `blended`: the frames are TACTO's blend of the shading's change onto a real background image
   // (out = bg + blur(sim - sim_bg) * background_gain; a dataset whose DatasetInfo::background is
-  // set); else the shading itself, as the synthetic background renders it.
+  // set), or a real sensor's change from its no-contact image; the change is read through the
+  // Wiener filter for a blur of shading.background_blur_m (sim/src/change_filter.h; 0: as it
+  // is). Else the frames are the shading itself, as the synthetic background renders it.
   ShadingInversion(const SensorModel& sensor, bool blended);
   ~ShadingInversion();
   ShadingInversion(ShadingInversion&&) noexcept;
