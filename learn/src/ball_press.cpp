@@ -324,7 +324,8 @@ constexpr double kRadiusTolerancePx = 0.5;
 // be fitted and the predicted circle brought onto the found one; otherwise it is left as it was.
 // Its depth is the caller's to update (place()).
 void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
-                      double radius_m, const GelModel& gel, BallPress* press) {
+                      double radius_m, const GelModel& gel, double blend_blur_px,
+                      BallPress* press) {
   const int w = rays.width, h = rays.height;
   const ImageF flat = undeformed_gel_normals(rays);
   // The colour change per channel against the tilt (nx, ny of the normal less the undeformed
@@ -360,19 +361,38 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
   // ball at c.
   std::vector<Eigen::Vector2d> boundary, edge;
   ImageU8 predicted = reference;
+  // A blended frame's change was blurred (TACTO's blend): the predicted one is too, so that its
+  // visible edge falls where the frame's does.
+  const GaussianKernel blur = gaussian_kernel(blend_blur_px);
+  const std::size_t n = std::size_t(w) * h;
+  std::vector<float> delta_of(blur.weights.empty() ? 0 : 3 * n), plane(delta_of.empty() ? 0 : n),
+      blurred(plane.size());
   const auto predicted_circle = [&](const Eigen::Vector3d& c, Eigen::Vector2d* centre,
                                     double* radius) {
     const ImageF rigid = sphere_indentation(rays, c, radius_m);
     const ImageF normal = gel_normals(rays, elastic_indentation(gel.elastic, rays.px_per_m, rigid));
-    for (std::size_t i = 0; i < std::size_t(w) * h; ++i) {
+    for (std::size_t i = 0; i < n; ++i) {
       const Eigen::Vector2d tilt(normal.data[3 * i] - flat.data[3 * i],
                                  normal.data[3 * i + 1] - flat.data[3 * i + 1]);
-      const Eigen::Vector3d value =
-          Eigen::Vector3d(reference.data[3 * i], reference.data[3 * i + 1],
-                          reference.data[3 * i + 2]) +
-          slope.transpose() * tilt;
-      for (int ch = 0; ch < 3; ++ch)
-        predicted.data[3 * i + ch] = std::uint8_t(std::clamp(std::lround(value[ch]), 0L, 255L));
+      const Eigen::Vector3d delta = slope.transpose() * tilt;
+      for (int ch = 0; ch < 3; ++ch) {
+        if (!delta_of.empty()) {
+          delta_of[3 * i + ch] = float(delta[ch]);
+          continue;
+        }
+        predicted.data[3 * i + ch] =
+            std::uint8_t(std::clamp(std::lround(reference.data[3 * i + ch] + delta[ch]), 0L, 255L));
+      }
+    }
+    if (!delta_of.empty()) {
+      const PixelRect all{0, 0, w, h};
+      for (int ch = 0; ch < 3; ++ch) {
+        for (std::size_t i = 0; i < n; ++i) plane[i] = delta_of[3 * i + ch];
+        gaussian_blur(plane.data(), blurred.data(), plane.data(), w, all, blur);
+        for (std::size_t i = 0; i < n; ++i)
+          predicted.data[3 * i + ch] = std::uint8_t(
+              std::clamp(std::lround(reference.data[3 * i + ch] + blurred[i]), 0L, 255L));
+      }
     }
     BallPress ignored;
     if (!change_boundary(predicted, reference, &boundary, &edge, &ignored) ||
@@ -424,9 +444,9 @@ void place_by_shading(const ImageU8& color, const ImageU8& reference, const GelR
 
 // Step 2 and the depth check for a ball placed through its circle.
 void place(const ImageU8& color, const ImageU8& reference, const GelRays& rays, double radius_m,
-           const GelModel& gel, BallPress* press) {
+           const GelModel& gel, double blend_blur_px, BallPress* press) {
   if (!press->found) return;
-  place_by_shading(color, reference, rays, radius_m, gel, press);
+  place_by_shading(color, reference, rays, radius_m, gel, blend_blur_px, press);
   press->found = place_at(rays, press->centre_m, radius_m, gel.max_indentation_m, press);
   if (!press->found && !press->shading_fit) {
     press->reason =
@@ -437,18 +457,19 @@ void place(const ImageU8& color, const ImageU8& reference, const GelRays& rays, 
 }  // namespace
 
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
-                          double radius_m, const GelModel& gel) {
+                          double radius_m, const GelModel& gel, double blend_blur_px) {
   std::vector<Eigen::Vector2d> boundary, at_edge;
   BallPress press;
   if (!change_boundary(color, reference, &boundary, &at_edge, &press)) return press;
   press = fit_press(rays, boundary, at_edge, radius_m);
-  place(color, reference, rays, radius_m, gel, &press);
+  place(color, reference, rays, radius_m, gel, blend_blur_px, &press);
   return press;
 }
 
 BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
                                  const GelRays& rays, const Eigen::Vector2d& centre_px,
-                                 double radius_px, double radius_m, const GelModel& gel) {
+                                 double radius_px, double radius_m, const GelModel& gel,
+                                 double blend_blur_px) {
   std::vector<Eigen::Vector2d> boundary;
   const int n = 90;
   for (int k = 0; k < n; ++k) {
@@ -483,7 +504,7 @@ BallPress ball_press_from_circle(const ImageU8& color, const ImageU8& reference,
         changed, kMinPressPixels);
     return press;
   }
-  place(color, reference, rays, radius_m, gel, &press);
+  place(color, reference, rays, radius_m, gel, blend_blur_px, &press);
   return press;
 }
 
