@@ -220,8 +220,7 @@ std::size_t ShadingFit::add_frame(const ImageU8& color, const ImageU8& reference
     out.push(s.rays.point(i, 0.0f), Eigen::Vector3f(n[0], n[1], n[2]) / norm,
              Eigen::Vector3f(g[0], g[1], g[2]), seen, base);
   }
-  const std::size_t added = labelled.size();
-  return added;
+  return labelled.size();
 }
 
 ShadingFitResult ShadingFit::solve(const std::function<void(int, double)>& progress) const {

@@ -54,9 +54,9 @@ struct BallPress {
 // contacts; three or more: the lighting or the camera), most of the image changed (a dropout,
 // the lighting), less than half of the circle lies in the image, or the press reaches the
 // image's edge outside the circle fitted to its arc (its centre beyond the edge).
-// `blend_blur_px`: frames a render blended onto a real background (TACTO's blend) show the change
-// blurred by a Gaussian of this sigma [px] (shading.background_blur_m times the image scale):
-// step 2's predicted frame is blurred by it too. 0 for frames without a known blur.
+// `blend_blur_px`: a render blended onto a real background (TACTO's blend) shows the change
+// blurred by a Gaussian of this sigma [px] (shading.background_blur_m times the image scale);
+// step 2's predicted frame is then blurred by it too. 0 for frames without a known blur.
 BallPress find_ball_press(const ImageU8& color, const ImageU8& reference, const GelRays& rays,
                           double radius_m, const GelModel& gel, double blend_blur_px = 0.0);
 // The same from a circle given by hand (image pixels, as BallPress::centre_px and radius_px):
