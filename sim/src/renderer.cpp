@@ -178,7 +178,7 @@ void SensorRenderer::State::prepare() {
                        " is not a finite number");
     }
     background = resample_bilinear(rgb, w, h);
-    blend_blur = gaussian_kernel(sensor.shading.background_blur_m * gel.px_per_m);
+    blend_blur = gaussian_kernel(gel.blend_blur_px(sensor.shading));
   }
   background_u8 = ImageU8(w, h, 3);
   if (noise) background_fixed.resize(background.data.size());

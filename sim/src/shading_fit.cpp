@@ -172,7 +172,7 @@ ShadingFit::ShadingFit(const SensorModel& start, bool blended, ShadingFitOptions
   if (start.lights.empty()) throw InputError("lights: the sensor has no light to fit");
   s.rays = make_gel_rays(start.camera, start.gel);
   s.gel_normals = undeformed_gel_normals(s.rays);
-  if (blended) s.filter = ChangeFilter(start.shading.background_blur_m * s.rays.px_per_m);
+  if (blended) s.filter = ChangeFilter(s.rays.blend_blur_px(start.shading));
 }
 
 ShadingFit::~ShadingFit() = default;
@@ -189,6 +189,8 @@ std::size_t ShadingFit::add_frame(const ImageU8& color, const ImageU8& reference
   check_sensor_image("reference image", reference, w, h);
   check_sensor_image("normal image", normals, w, h);
   const float min_cos = float(std::cos(s.options.min_turn_rad));
+  Samples& out = s.samples;
+  const std::size_t first = out.size();
   std::vector<int> labelled;
   for (int i = 0; i < w * h; ++i) {
     const float* n = &normals.data[3 * std::size_t(i)];
@@ -197,28 +199,28 @@ std::size_t ShadingFit::add_frame(const ImageU8& color, const ImageU8& reference
     const float norm = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
     if (!(norm > 0.5f && norm < 1.5f)) continue;  // not a normal: no label there
     if ((n[0] * g[0] + n[1] * g[1] + n[2] * g[2]) / norm > min_cos) continue;
-    labelled.push_back(i);
-  }
-  // Blended, the frame's change filtered for the blend's blur, as ShadingInversion reads it; a
-  // channel the camera clipped keeps its value, which only bounds the model.
-  std::vector<float> change;
-  if (s.blended) s.filter.change_at(color, reference, labelled, change);
-  Samples& out = s.samples;
-  for (std::size_t j = 0; j < labelled.size(); ++j) {
-    const int i = labelled[j];
-    const float* n = &normals.data[3 * std::size_t(i)];
-    const float norm = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    const float* g = &s.gel_normals.data[3 * std::size_t(i)];
     float seen[3], base[3];
     for (int c = 0; c < 3; ++c) {
       const std::size_t at = 3 * std::size_t(i) + c;
       seen[c] = color.data[at];
       base[c] = s.blended ? reference.data[at] : 0.0f;
-      if (s.blended && color.data[at] > 0 && color.data[at] < 255)
-        seen[c] = std::clamp(base[c] + change[3 * j + c], 0.0f, 255.0f);
     }
     out.push(s.rays.point(i, 0.0f), Eigen::Vector3f(n[0], n[1], n[2]) / norm,
              Eigen::Vector3f(g[0], g[1], g[2]), seen, base);
+    labelled.push_back(i);
+  }
+  // Blended, the frame's change filtered for the blend's blur, as ShadingInversion reads it; a
+  // channel the camera clipped keeps its value, which only bounds the model.
+  if (s.blended) {
+    std::vector<float> change;
+    s.filter.change_at(color, reference, labelled, change);
+    for (std::size_t j = 0; j < labelled.size(); ++j)
+      for (int c = 0; c < 3; ++c) {
+        const std::uint8_t v = color.data[3 * std::size_t(labelled[j]) + c];
+        const std::size_t at = 3 * (first + j) + c;
+        if (v > 0 && v < 255)
+          out.seen[at] = std::clamp(out.base[at] + change[3 * j + c], 0.0f, 255.0f);
+      }
   }
   return labelled.size();
 }

@@ -73,7 +73,7 @@ ShadingInversion::ShadingInversion(const SensorModel& sensor, bool blended)
     throw InputError("shading.background_gain " + std::to_string(sensor.shading.background_gain) +
                      ": a blended frame shows none of the shading's change to invert");
   }
-  if (blended) s.filter = ChangeFilter(sensor.shading.background_blur_m * rays.px_per_m);
+  if (blended) s.filter = ChangeFilter(rays.blend_blur_px(sensor.shading));
   s.shader = make_shader(sensor);
   s.gel_normals = undeformed_gel_normals(rays);
   const int n = rays.width * rays.height;

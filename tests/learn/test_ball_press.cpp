@@ -72,7 +72,7 @@ Accuracy measure(const std::string& dir) {
   const ImageU8 reference = d.background();
   // Over a real background the blend blurred the change, as label-ball tells find_ball_press.
   const double blend_blur_px =
-      d.info().background.empty() ? 0.0 : d.info().sensor.shading.background_blur_m * rays.px_per_m;
+      d.info().background.empty() ? 0.0 : rays.blend_blur_px(d.info().sensor.shading);
   Accuracy acc;
   for (int f = 0; f < d.frames(); ++f) {
     const BallPress press = find_ball_press(d.color(f), reference, rays, kBallRadius,

@@ -3,11 +3,9 @@
 // the fitted model predicts their change down to the camera's noise, and the shading's inverse
 // through it reads held-out presses as well as through the true lights; and its refusals.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <vector>
@@ -18,9 +16,13 @@
 #include "pg/sim/renderer.h"
 #include "pg/sim/shading_fit.h"
 #include "pg/sim/shading_inversion.h"
+#include "shading_test_support.h"
 
 namespace pg {
 namespace {
+
+using testing_support::normal_angle;
+using testing_support::TexturedBackground;
 
 constexpr double kRadius = 0.004;
 
@@ -31,12 +33,6 @@ std::shared_ptr<const ObjectShape> ball() {
 
 // The ball pressed `press` deep at (x, y) in S [m].
 SE3 ball_at(double x, double y, double press) { return SE3::Translation({x, y, kRadius - press}); }
-
-double angle(const ImageF& a, const ImageF& b, std::size_t i) {
-  double dot = 0;
-  for (int c = 0; c < 3; ++c) dot += double(a.data[3 * i + c]) * b.data[3 * i + c];
-  return std::acos(std::clamp(dot, -1.0, 1.0));
-}
 
 double median(std::vector<double> v) {
   if (v.empty()) return NAN;
@@ -60,24 +56,6 @@ SensorModel other_lights() {
   s.shading.specular = 0.4;
   return s;
 }
-
-// A textured stand-in for a real sensor's no-contact image, written to a temporary file.
-struct Background {
-  std::filesystem::path dir;
-  std::string path;
-  explicit Background(const SensorModel& sensor) {
-    ImageU8 bg(sensor.camera.width, sensor.camera.height, 3);
-    for (int y = 0; y < bg.height; ++y)
-      for (int x = 0; x < bg.width; ++x)
-        for (int c = 0; c < 3; ++c)
-          bg.at(x, y, c) = std::uint8_t(80 + 40 * c + 20 * std::sin(0.2 * x + 0.3 * y + c));
-    dir = std::filesystem::temp_directory_path() / ("pg_shading_fit_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
-    path = (dir / "bg.png").string();
-    write_image(path, bg);
-  }
-  ~Background() { std::filesystem::remove_all(dir); }
-};
 
 struct Press {
   ImageU8 color;
@@ -105,7 +83,8 @@ std::vector<double> inverse_angles(const ShadingInversion& inversion, const std:
   for (const Press& p : ps) {
     const ImageF n = inversion.normals(p.color, reference);
     for (std::size_t i = 0; i < n.data.size() / 3; ++i)
-      if (angle(p.normals, undeformed, i) > 0.05) out.push_back(angle(n, p.normals, i));
+      if (normal_angle(p.normals, undeformed, i) > 0.05)
+        out.push_back(normal_angle(n, p.normals, i));
   }
   return out;
 }
@@ -123,7 +102,7 @@ struct Outcome {
 Outcome fit_other_lights(bool blended) {
   const SensorModel truth = other_lights();
   const SensorModel start = sensor_preset("digit");
-  const Background bg(truth);
+  const TexturedBackground bg(truth);
   RenderSettings settings;
   if (blended) settings.background = bg.path;
   const SensorRenderer noisy(truth, {ball()}, settings);

@@ -2,12 +2,10 @@
 // shading, against the frames' ground-truth normals, with and without the camera's noise, on the
 // synthetic and on a real-style blended background; and its refusals.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <filesystem>
 #include <numeric>
 #include <random>
 #include <vector>
@@ -21,9 +19,13 @@
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
 #include "pg/sim/shading_inversion.h"
+#include "shading_test_support.h"
 
 namespace pg {
 namespace {
+
+using testing_support::normal_angle;
+using testing_support::TexturedBackground;
 
 constexpr double kRadius = 0.006;
 
@@ -36,19 +38,13 @@ SE3 pressed_sphere(double press = 0.001, double cx = 0.0005) {
   return SE3::Translation({cx, 0.0, kRadius - press});
 }
 
-double angle(const ImageF& a, const ImageF& b, std::size_t i) {
-  double dot = 0;
-  for (int c = 0; c < 3; ++c) dot += double(a.data[3 * i + c]) * b.data[3 * i + c];
-  return std::acos(std::clamp(dot, -1.0, 1.0));
-}
-
 // The angles [rad] between the estimate and the rendered normals over the pixels whose rendered
 // normal turns more than 0.05 rad from the undeformed gel's (the contact).
 std::vector<double> contact_angles(const ImageF& estimate, const ImageF& truth,
                                    const ImageF& undeformed) {
   std::vector<double> out;
   for (std::size_t i = 0; i < truth.data.size() / 3; ++i) {
-    if (angle(truth, undeformed, i) > 0.05) out.push_back(angle(estimate, truth, i));
+    if (normal_angle(truth, undeformed, i) > 0.05) out.push_back(normal_angle(estimate, truth, i));
   }
   return out;
 }
@@ -68,26 +64,6 @@ RenderSettings settings(bool noise) {
 
 ImageU8 reference_of(const SensorRenderer& r) {
   return r.render({pressed_sphere(-0.01)}, 0).images.color;  // no contact, no noise
-}
-
-std::filesystem::path scratch_dir() {
-  const std::filesystem::path dir =
-      std::filesystem::temp_directory_path() / ("pg_inversion_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
-// A textured stand-in for a real sensor's no-contact image (the blend only adds it), written
-// into `dir`; returns its path.
-std::string textured_background(const SensorModel& sensor, const std::filesystem::path& dir) {
-  ImageU8 bg(sensor.camera.width, sensor.camera.height, 3);
-  for (int y = 0; y < bg.height; ++y)
-    for (int x = 0; x < bg.width; ++x)
-      for (int c = 0; c < 3; ++c)
-        bg.at(x, y, c) = std::uint8_t(90 + 40 * c + 20 * std::sin(0.2 * x + 0.3 * y + c));
-  const std::string path = (dir / "bg.png").string();
-  write_image(path, bg);
-  return path;
 }
 
 TEST(ShadingInversion, ReadsTheNormalsOfANoiseFreeRender) {
@@ -110,7 +86,7 @@ TEST(ShadingInversion, ReadsTheNormalsOfANoiseFreeRender) {
                                   double(n.data[3 * i + 2]) * n.data[3 * i + 2]);
     ASSERT_NEAR(norm, 1.0, 1e-4) << i;
   }
-  EXPECT_LT(angle(n, undeformed, 0), 1e-3);  // the renderer builds them from its own grid
+  EXPECT_LT(normal_angle(n, undeformed, 0), 1e-3);  // the renderer builds them from its own grid
 }
 
 TEST(ShadingInversion, WithTheCamerasNoiseItsErrorIsNearTheBound) {
@@ -139,9 +115,9 @@ TEST(ShadingInversion, WithTheCamerasNoiseItsErrorIsNearTheBound) {
 
 TEST(ShadingInversion, ReadsFramesBlendedOntoARealBackground) {
   const SensorModel sensor = sensor_preset("digit");
-  const std::filesystem::path dir = scratch_dir();
+  const TexturedBackground bg(sensor);
   RenderSettings s = settings(false);
-  s.background = textured_background(sensor, dir);
+  s.background = bg.path;
   const SensorRenderer r(sensor, {sphere_shape()}, s);
   const RenderedFrame f = r.render({pressed_sphere()}, 0);
   const ImageU8 reference = reference_of(r);
@@ -153,7 +129,6 @@ TEST(ShadingInversion, ReadsFramesBlendedOntoARealBackground) {
   const std::vector<double> unblended =
       contact_angles(ShadingInversion(sensor, false).normals(f.images.color, reference),
                      f.images.normal, undeformed);
-  std::filesystem::remove_all(dir);
   ASSERT_GT(blended.size(), 300u);
   EXPECT_LT(quantile(blended, 0.5), 0.03);
   EXPECT_GT(quantile(unblended, 0.5), 2 * quantile(blended, 0.5));
@@ -165,9 +140,9 @@ TEST(ShadingInversion, ReadsFramesBlendedOntoARealBackground) {
 // filter for that blur (pg::ChangeFilter); told of no blur, it reads the frame as it is.
 TEST(ShadingInversion, ReadsABlendedChangeThroughTheBlursWienerFilter) {
   const SensorModel sensor = sensor_preset("digit");
-  const std::filesystem::path dir = scratch_dir();
+  const TexturedBackground bg(sensor);
   RenderSettings s = settings(true);
-  s.background = textured_background(sensor, dir);
+  s.background = bg.path;
   RenderSettings quiet_settings = s;
   quiet_settings.noise = false;
   const auto cube = std::make_shared<ObjectShape>(make_box({0.004f, 0.004f, 0.004f}));
@@ -203,7 +178,6 @@ TEST(ShadingInversion, ReadsABlendedChangeThroughTheBlursWienerFilter) {
     EXPECT_LT(quantile(with, 0.5), 0.75 * quantile(without, 0.5));
     EXPECT_LT(quantile(with, 0.9), 0.9 * quantile(without, 0.9));
   }
-  std::filesystem::remove_all(dir);
 }
 
 // The filter itself: a uniform change passes as it is, also at the image's edges (mirrored); the
@@ -211,8 +185,7 @@ TEST(ShadingInversion, ReadsABlendedChangeThroughTheBlursWienerFilter) {
 // change alone.
 TEST(ChangeFilter, KeepsWhatTheBlurLeftAndCutsTheNoise) {
   const SensorModel sensor = sensor_preset("digit");
-  const double blur_px =
-      sensor.shading.background_blur_m * make_gel_rays(sensor.camera, sensor.gel).px_per_m;
+  const double blur_px = make_gel_rays(sensor.camera, sensor.gel).blend_blur_px(sensor.shading);
   ASSERT_NEAR(blur_px, 1.26, 0.01);
   const ChangeFilter filter(blur_px);
   ASSERT_TRUE(filter.active());
@@ -271,7 +244,7 @@ TEST(ShadingInversion, AFrameWithoutChangeIsTheUndeformedGelAndWrongSizesAreRefu
   ASSERT_EQ(n.data.size(), undeformed.data.size());
   double worst = 0;
   for (std::size_t i = 0; i < n.data.size() / 3; ++i)
-    worst = std::max(worst, angle(n, undeformed, i));
+    worst = std::max(worst, normal_angle(n, undeformed, i));
   EXPECT_LT(worst, 1e-3);
   const ImageU8 small(sensor.camera.width / 2, sensor.camera.height / 2, 3);
   EXPECT_THROW(inversion.normals(small, reference), InputError);
@@ -321,7 +294,7 @@ TEST(ShadingInversion, AnyFrameAndSensorGiveUnitNormals) {
           const double x = n.data[3 * i], y = n.data[3 * i + 1], z = n.data[3 * i + 2];
           ASSERT_NEAR(x * x + y * y + z * z, 1.0, 1e-4) << i;
           // At most atan(3), 72 degrees, from the undeformed gel's normal.
-          ASSERT_LT(angle(n, undeformed, i), std::atan(3.0) + 1e-3) << i;
+          ASSERT_LT(normal_angle(n, undeformed, i), std::atan(3.0) + 1e-3) << i;
         }
       }
     }

@@ -353,7 +353,7 @@ int run_label_ball(const LabelBallArgs& a) {
   // and imported by `recording`: 11 deg held out through the lights fitted to such labels,
   // against 4.3 without it).
   const double blend_blur_px =
-      d.info().background.empty() ? 0.0 : sensor.shading.background_blur_m * rays.px_per_m;
+      d.info().background.empty() ? 0.0 : rays.blend_blur_px(sensor.shading);
   try {
     const StopOnSignals stop;
     Progress progress("finding presses", d.frames(), !a.quiet);

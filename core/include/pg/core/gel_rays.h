@@ -27,6 +27,10 @@ struct GelRays {
   }
   // Area of one pixel on the gel at its centre [m^2].
   double pixel_area_m2() const { return 1.0 / (px_per_m * px_per_m); }
+  // The sigma of the blur TACTO's blend gives the change (shading.background_blur_m) [px].
+  double blend_blur_px(const ShadingModel& shading) const {
+    return shading.background_blur_m * px_per_m;
+  }
 };
 
 // Solves surface_z(d t) = t - distance for every pixel's ray (a fixed-point iteration; the gel's
