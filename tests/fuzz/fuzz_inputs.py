@@ -734,7 +734,8 @@ TRACK_CONFIG = {
               "crop_margin_px": 4, "dst_backend": "real_fft", "integration": "parity"},
     "mask": {"min_depth_m": 1e-4, "relative_depth": 0, "core_relative_depth": 0.2},
     "icp": {"max_iterations": 30, "max_correspondence_m": 1e-3, "kernel": "huber",
-            "kernel_scale_m": 1e-4, "symmetric": True, "convergence_translation_m": 1e-7,
+            "kernel_scale_m": 1e-4, "symmetric": True, "max_normal_angle_rad": 0.25,
+            "convergence_translation_m": 1e-7,
             "convergence_rotation_rad": 1e-6, "min_points": 20, "voxel_size_m": 0,
             "coarse_points": 128, "coarse_step_m": 2e-6, "min_eigenvalue_ratio": 5e-3,
             "flat_radius_m": 0, "min_residual_sigma_m": 1e-5}}

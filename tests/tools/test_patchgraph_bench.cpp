@@ -81,9 +81,10 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   EXPECT_NE(r.out.find("| setting | median update [ms]"), std::string::npos) << r.out;
 
   const auto csv = read_csv_table(tmp.str("b/bench.csv"));
-  for (const char* c : {"setting", "runs", "median_frame_ms", "median_final_translation_m",
-                        "median_final_rotation_rad", "pareto_translation", "pareto_rotation",
-                        "icp_symmetric", "depth_integration", "image_to_image_gate"}) {
+  for (const char* c :
+       {"setting", "runs", "median_frame_ms", "median_final_translation_m",
+        "median_final_rotation_rad", "pareto_translation", "pareto_rotation", "icp_symmetric",
+        "icp_max_normal_angle_rad", "depth_integration", "image_to_image_gate"}) {
     ASSERT_TRUE(csv.column.count(c)) << c;
   }
   std::vector<std::string> settings;
@@ -100,6 +101,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     SCOPED_TRACE(settings.back());
     EXPECT_EQ(cell("runs"), "2");
     EXPECT_EQ(cell("icp_symmetric"), "1");           // ground-truth normals throughout
+    EXPECT_EQ(cell("icp_max_normal_angle_rad"), "0.25");  // the quick sweep does not turn it off
     EXPECT_EQ(cell("depth_integration"), "parity");  // the quick sweep: default
     EXPECT_EQ(cell("image_to_image_gate"), "1");
     for (const char* c :

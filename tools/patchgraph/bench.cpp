@@ -44,6 +44,8 @@ struct Setting {
   // 0 / 1: the symmetric ICP objective off / on; -1: as `track` sets it for the normals source
   // (resolved to 0 or 1 before the sweep runs).
   int icp_symmetric = -1;
+  // IcpOptions::max_normal_angle_rad (0: every pair, whatever its normals)
+  double max_normal_angle_rad = IcpOptions().max_normal_angle_rad;
   bool contact_core = true;  // false: the cloud is always the whole contact
   // 0 / 1: the averaged / parity integration of the normals; -1: as `track` sets it for the
   // normals source (resolved before the sweep runs, as icp_symmetric).
@@ -93,6 +95,7 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
   add("registration information", "off", [](Setting& s) { s.registration_information = false; });
   if (!args.quick) {
     add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
+    add("pairs' normals limit", "off", [](Setting& s) { s.max_normal_angle_rad = 0; });
     add("contact core", "off", [](Setting& s) { s.contact_core = false; });
     add("integration", "averaged", [](Setting& s) { s.parity_integration = 0; });
     add("image-to-image gate", "off", [](Setting& s) { s.image_to_image_gate = false; });
@@ -225,6 +228,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t
   o.front_end.icp.max_correspondence_m = s.max_correspondence_m;
   o.front_end.icp.voxel_size_m = s.voxel_m;
   if (s.icp_symmetric >= 0) o.front_end.icp.symmetric = s.icp_symmetric == 1;
+  o.front_end.icp.max_normal_angle_rad = s.max_normal_angle_rad;
   if (!s.contact_core) o.front_end.mask.core_relative_depth = 0.0;
   if (s.parity_integration >= 0) {
     o.front_end.depth.integration =
@@ -238,7 +242,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
          "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
-         "contact_core,depth_integration,image_to_image_gate,runs,"
+         "icp_max_normal_angle_rad,contact_core,depth_integration,image_to_image_gate,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
          "median_translation_rmse_m,median_rotation_rmse_rad,pareto_translation,pareto_rotation\n";
   for (const Row& r : rows) {
@@ -247,7 +251,7 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
         << "," << csv_field(s.normals) << "," << s.width << "," << s.height << ","
         << s.keyframe_interval << "," << s.window << "," << s.registration_information << ","
         << s.icp_iterations << "," << s.max_correspondence_m << "," << s.voxel_m << ","
-        << s.icp_symmetric << "," << s.contact_core << ","
+        << s.icp_symmetric << "," << s.max_normal_angle_rad << "," << s.contact_core << ","
         << (s.parity_integration == 1 ? "parity" : "averaged") << "," << s.image_to_image_gate
         << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad
         << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";

@@ -18,6 +18,9 @@ namespace {
 
 // Points per parallel task: enough work to amortise the task overhead.
 constexpr std::size_t kGrainSize = 256;
+// A step that moves the cloud by less than this turns IcpOptions::max_normal_angle_rad on [m]:
+// an eighth of a pixel at 120x160.
+constexpr double kNormalLimitStepM = 2e-5;
 
 #if defined(__AVX512F__)
 // The float vector of the vectorised paths below, and the two operations they share.
@@ -165,7 +168,7 @@ class Linearisation {
  public:
   Linearisation(const PointCloud& source, std::size_t stride, const PointCloudTree& target,
                 const SE3& T, const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
-                CorrespondenceCache& cache, float radius)
+                CorrespondenceCache& cache, float radius, float min_dot)
       : src_(source.points),
         src_normals_(o.symmetric && source.normals.size() == source.points.size()
                          ? source.normals.data()->data()
@@ -178,6 +181,7 @@ class Linearisation {
         c_(c.cast<float>()),
         inv_L_(float(inv_L)),
         max_corr_(float(o.max_correspondence_m)),
+        min_dot_(min_dot),
         radius_(radius),
         options_(o),
         cache_(cache) {}
@@ -395,6 +399,7 @@ class Linearisation {
       const __m512 dx = _mm512_sub_ps(px, gather(tp)), dy = _mm512_sub_ps(py, gather(tp + 1)),
                    dz = _mm512_sub_ps(pz, gather(tp + 2));
       __m512 nx = gather(tn), ny = gather(tn + 1), nz = gather(tn + 2);
+      __mmask16 compatible = 0xFFFF;
       if (src_normals_) {  // symmetric_pair_normal, sixteen at a time
         const __m512i i3 = _mm512_mullo_epi32(_mm512_maskz_loadu_epi32(valid, c.i + e), three);
         const auto gather_source = [&](const float* base) {
@@ -409,9 +414,9 @@ class Linearisation {
         const __m512 inv_norm = _mm512_div_ps(
             _mm512_set1_ps(1.0f), _mm512_sqrt_ps(_mm512_fmadd_ps(
                                       mx, mx, _mm512_fmadd_ps(my, my, _mm512_mul_ps(mz, mz)))));
-        const __mmask16 agree = _mm512_cmp_ps_mask(
-            _mm512_fmadd_ps(nx, sx, _mm512_fmadd_ps(ny, sy, _mm512_mul_ps(nz, sz))), zero,
-            _CMP_GT_OQ);
+        const __m512 dot = _mm512_fmadd_ps(nx, sx, _mm512_fmadd_ps(ny, sy, _mm512_mul_ps(nz, sz)));
+        const __mmask16 agree = _mm512_cmp_ps_mask(dot, zero, _CMP_GT_OQ);
+        compatible = _mm512_cmp_ps_mask(dot, _mm512_set1_ps(min_dot_), _CMP_GE_OQ);
         nx = _mm512_mask_mul_ps(nx, agree, mx, inv_norm);
         ny = _mm512_mask_mul_ps(ny, agree, my, inv_norm);
         nz = _mm512_mask_mul_ps(nz, agree, mz, inv_norm);
@@ -429,7 +434,7 @@ class Linearisation {
       }
       const __m512 d_sq = _mm512_fmadd_ps(dx, dx, _mm512_fmadd_ps(dy, dy, _mm512_mul_ps(dz, dz)));
       const __mmask16 keep = _mm512_mask_cmp_ps_mask(valid, d_sq, max_corr_sq_v, _CMP_LE_OQ) &
-                             _mm512_cmp_ps_mask(we, zero, _CMP_GT_OQ);
+                             _mm512_cmp_ps_mask(we, zero, _CMP_GT_OQ) & compatible;
       kept += __builtin_popcount(unsigned(keep));
       const __m512 ux = _mm512_sub_ps(px, cx), uy = _mm512_sub_ps(py, cy),
                    uz = _mm512_sub_ps(pz, cz);
@@ -470,6 +475,7 @@ class Linearisation {
                    dy = _mm256_sub_ps(py, gather_at(j3, tp + 1)),
                    dz = _mm256_sub_ps(pz, gather_at(j3, tp + 2));
       __m256 nx = gather_at(j3, tn), ny = gather_at(j3, tn + 1), nz = gather_at(j3, tn + 2);
+      __m256 compatible = valid_ps;
       if (src_normals_) {  // symmetric_pair_normal, eight at a time
         const __m256i i3 = _mm256_mullo_epi32(_mm256_maskload_epi32(c.i + e, valid), three);
         const __m256 ax = gather_at(i3, src_normals_), ay = gather_at(i3, src_normals_ + 1),
@@ -481,9 +487,9 @@ class Linearisation {
         const __m256 inv_norm =
             _mm256_div_ps(one, _mm256_sqrt_ps(_mm256_fmadd_ps(
                                    mx, mx, _mm256_fmadd_ps(my, my, _mm256_mul_ps(mz, mz)))));
-        const __m256 agree =
-            _mm256_cmp_ps(_mm256_fmadd_ps(nx, sx, _mm256_fmadd_ps(ny, sy, _mm256_mul_ps(nz, sz))),
-                          zero, _CMP_GT_OQ);
+        const __m256 dot = _mm256_fmadd_ps(nx, sx, _mm256_fmadd_ps(ny, sy, _mm256_mul_ps(nz, sz)));
+        const __m256 agree = _mm256_cmp_ps(dot, zero, _CMP_GT_OQ);
+        compatible = _mm256_cmp_ps(dot, _mm256_set1_ps(min_dot_), _CMP_GE_OQ);
         nx = _mm256_blendv_ps(nx, _mm256_mul_ps(mx, inv_norm), agree);
         ny = _mm256_blendv_ps(ny, _mm256_mul_ps(my, inv_norm), agree);
         nz = _mm256_blendv_ps(nz, _mm256_mul_ps(mz, inv_norm), agree);
@@ -503,7 +509,7 @@ class Linearisation {
       const __m256 d_sq = _mm256_fmadd_ps(dx, dx, _mm256_fmadd_ps(dy, dy, _mm256_mul_ps(dz, dz)));
       const __m256 keep =
           _mm256_and_ps(_mm256_and_ps(valid_ps, _mm256_cmp_ps(d_sq, max_corr_sq_v, _CMP_LE_OQ)),
-                        _mm256_cmp_ps(we, zero, _CMP_GT_OQ));
+                        _mm256_and_ps(_mm256_cmp_ps(we, zero, _CMP_GT_OQ), compatible));
       kept += __builtin_popcount(unsigned(_mm256_movemask_ps(keep)));
       const __m256 ux = _mm256_sub_ps(px, cx), uy = _mm256_sub_ps(py, cy),
                    uz = _mm256_sub_ps(pz, cz);
@@ -521,18 +527,20 @@ class Linearisation {
       const int j3 = 3 * c.j[e];
       const float dx = c.x[e] - tp[j3], dy = c.y[e] - tp[j3 + 1], dz = c.z[e] - tp[j3 + 2];
       float nx = tn[j3], ny = tn[j3 + 1], nz = tn[j3 + 2];
+      bool compatible = true;
       if (src_normals_) {
         const int i3 = 3 * c.i[e];
-        const Eigen::Vector3f n = symmetric_pair_normal<float>(
-            {nx, ny, nz},
-            R_ * Eigen::Vector3f(src_normals_[i3], src_normals_[i3 + 1], src_normals_[i3 + 2]));
+        const Eigen::Vector3f ns =
+            R_ * Eigen::Vector3f(src_normals_[i3], src_normals_[i3 + 1], src_normals_[i3 + 2]);
+        compatible = nx * ns.x() + ny * ns.y() + nz * ns.z() >= min_dot_;
+        const Eigen::Vector3f n = symmetric_pair_normal<float>({nx, ny, nz}, ns);
         nx = n.x();
         ny = n.y();
         nz = n.z();
       }
       const float re = nx * dx + ny * dy + nz * dz;  // point-to-plane residual [m]
       const float we = float(robust_weight(kKernel, options_.kernel_scale_m, re));
-      const bool keep = (dx * dx + dy * dy + dz * dz <= max_corr_sq) & (we > 0.0f);
+      const bool keep = (dx * dx + dy * dy + dz * dz <= max_corr_sq) & (we > 0.0f) & compatible;
       kept += keep;
       w[e] = keep ? we : 0.0f;
       r[e] = keep ? re : 0.0f;
@@ -556,7 +564,7 @@ class Linearisation {
   std::size_t stride_;
   Eigen::Matrix3f R_;
   Eigen::Vector3f t_, c_;
-  float inv_L_, max_corr_, radius_;
+  float inv_L_, max_corr_, min_dot_, radius_;
   const IcpOptions& options_;
   CorrespondenceCache& cache_;
 };
@@ -564,12 +572,14 @@ class Linearisation {
 NormalEquations linearise(const PointCloud& source, std::size_t stride,
                           const PointCloudTree& target, const SE3& T, const Eigen::Vector3d& c,
                           double inv_L, const IcpOptions& o, CorrespondenceCache& cache,
-                          float radius) {
+                          float radius, bool limit_normals) {
   const std::size_t count = (source.points.size() + stride - 1) / stride;
   // A subsample of a few hundred points is still split in a few ranges: its first queries, far
   // from the target, cost several times a near one.
   const std::size_t grain = std::clamp<std::size_t>(count / 4, 32, kGrainSize);
-  Linearisation body(source, stride, target, T, c, inv_L, o, cache, radius);
+  // (A pair's normals' cosine is at least -1: -2 keeps every pair.)
+  const float min_dot = limit_normals ? float(std::cos(o.max_normal_angle_rad)) : -2.0f;
+  Linearisation body(source, stride, target, T, c, inv_L, o, cache, radius, min_dot);
   tbb::parallel_deterministic_reduce(tbb::blocked_range<std::size_t>(0, count, grain), body);
   return body.eq;
 }
@@ -655,6 +665,13 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     stride = n / std::size_t(o.coarse_points);
   }
   const int min_inliers = std::max(o.min_points, 6);
+  // The pairs' normals are limited (IcpOptions::max_normal_angle_rad) once a step moves the
+  // cloud by less than kNormalLimitStepM: near the answer a pair whose normals differ that much
+  // straddles a crease, but from a distant guess it is often what pulls the cloud in (across a
+  // rounded corner half a millimetre off, say).
+  const bool limit_wanted = o.symmetric && o.max_normal_angle_rad > 0.0 &&
+                            source->normals.size() == source->points.size();
+  bool limit = false;
 
   SE3 T = T_target_source_guess;
   CycleWatch cycle;
@@ -664,7 +681,9 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     // (and a subsample whose correspondences keep flipping cannot use them all up).
     if (iteration > o.max_iterations / 2) stride = 1;
 
-    const NormalEquations eq = linearise(*source, stride, target, T, c, inv_L, o, *cache_, radius);
+    const bool limited = limit;
+    const NormalEquations eq =
+        linearise(*source, stride, target, T, c, inv_L, o, *cache_, radius, limited);
     last_queries_ += eq.queries;
     result.iterations = iteration;
     const bool coarse = stride > 1;
@@ -712,19 +731,25 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     const SE3 T_c = SE3::Translation(c);
     const SE3 linearised = T;
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
+    if (limit_wanted && !limit &&
+        step_c.head<3>().norm() + step_c.tail<3>().norm() * L < kNormalLimitStepM) {
+      limit = true;
+      cycle = CycleWatch();  // a cycle is among limited iterations
+    }
     if (coarse) {
       // Fine from the next iteration once the subsample's points move less than coarse_step_m.
       if (step_c.head<3>().norm() + step_c.tail<3>().norm() * L < o.coarse_step_m) stride = 1;
       continue;
     }
     result.T_target_source = T;
-    if (step_c.head<3>().norm() < o.convergence_translation_m &&
+    // (Not converged before an iteration with the pairs' normals limited, when they are to be.)
+    if (limited == limit_wanted && step_c.head<3>().norm() < o.convergence_translation_m &&
         step_c.tail<3>().norm() < o.convergence_rotation_rad) {
       result.converged = true;
       result.status = IcpStatus::kConverged;
       return result;
     }
-    if (cycle.closed(linearised, cs.centre, L, o.cycle_extent_m)) {
+    if (limited == limit_wanted && cycle.closed(linearised, cs.centre, L, o.cycle_extent_m)) {
       // The answer is then this iteration's linearisation point, which the Hessian, information
       // and residuals above describe.
       result.T_target_source = linearised;

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "pg/core/json_fields.h"
+#include "pg/core/numbers.h"
 
 namespace pg {
 
@@ -72,6 +73,7 @@ void read_icp(const nlohmann::json& j, const std::string& where, IcpOptions& o) 
               o.kernel);
   o.kernel_scale_m = f.number_in("kernel_scale_m", 1e-9, 1.0, o.kernel_scale_m);
   o.symmetric = f.optional<bool>("symmetric", o.symmetric);
+  o.max_normal_angle_rad = f.number_in("max_normal_angle_rad", 0.0, kPi, o.max_normal_angle_rad);
   o.convergence_translation_m =
       f.number_in("convergence_translation_m", 0.0, 1.0, o.convergence_translation_m);
   o.convergence_rotation_rad =
@@ -140,6 +142,7 @@ nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
         {"kernel", to_string(c.icp.kernel)},
         {"kernel_scale_m", c.icp.kernel_scale_m},
         {"symmetric", c.icp.symmetric},
+        {"max_normal_angle_rad", c.icp.max_normal_angle_rad},
         {"convergence_translation_m", c.icp.convergence_translation_m},
         {"convergence_rotation_rad", c.icp.convergence_rotation_rad},
         {"cycle_extent_m", c.icp.cycle_extent_m},
