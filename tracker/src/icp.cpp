@@ -156,6 +156,12 @@ Centroid centroid_and_radius(const std::vector<Eigen::Vector3f>& points) {
   return c;
 }
 
+// Whether a pair's residual is along the mean of its two normals (IcpOptions::symmetric), which
+// needs the source's normals; only then can the pairs' normals be limited.
+bool uses_source_normals(const PointCloud& source, const IcpOptions& o) {
+  return o.symmetric && source.normals.size() == source.points.size();
+}
+
 // Eq. 5/6 linearised at T: correspondences, robust weights and the normal equations in scaled
 // coordinates about c, summed over every stride-th source point in parallel. A oneTBB reduction
 // body (the imperative form): a range adds its terms to the body's own sums. The reduction is
@@ -170,9 +176,7 @@ class Linearisation {
                 const SE3& T, const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
                 CorrespondenceCache& cache, float radius, float min_dot)
       : src_(source.points),
-        src_normals_(o.symmetric && source.normals.size() == source.points.size()
-                         ? source.normals.data()->data()
-                         : nullptr),
+        src_normals_(uses_source_normals(source, o) ? source.normals.data()->data() : nullptr),
         tgt_(target.cloud()),
         target_(target),
         stride_(stride),
@@ -669,8 +673,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   // cloud by less than kNormalLimitStepM: near the answer a pair whose normals differ that much
   // straddles a crease, but from a distant guess it is often what pulls the cloud in (across a
   // rounded corner half a millimetre off, say).
-  const bool limit_wanted = o.symmetric && o.max_normal_angle_rad > 0.0 &&
-                            source->normals.size() == source->points.size();
+  const bool limit_wanted = o.max_normal_angle_rad > 0.0 && uses_source_normals(*source, o);
   bool limit = false;
 
   SE3 T = T_target_source_guess;
@@ -731,14 +734,14 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
     const SE3 T_c = SE3::Translation(c);
     const SE3 linearised = T;
     T = T_c * SE3::exp(step_c) * T_c.inverse() * T;
-    if (limit_wanted && !limit &&
-        step_c.head<3>().norm() + step_c.tail<3>().norm() * L < kNormalLimitStepM) {
+    const double moved_m = step_c.head<3>().norm() + step_c.tail<3>().norm() * L;
+    if (limit_wanted && !limit && moved_m < kNormalLimitStepM) {
       limit = true;
       cycle = CycleWatch();  // a cycle is among limited iterations
     }
     if (coarse) {
       // Fine from the next iteration once the subsample's points move less than coarse_step_m.
-      if (step_c.head<3>().norm() + step_c.tail<3>().norm() * L < o.coarse_step_m) stride = 1;
+      if (moved_m < o.coarse_step_m) stride = 1;
       continue;
     }
     result.T_target_source = T;
