@@ -156,10 +156,12 @@ Centroid centroid_and_radius(const std::vector<Eigen::Vector3f>& points) {
   return c;
 }
 
+bool has_normals(const PointCloud& cloud) { return cloud.normals.size() == cloud.points.size(); }
+
 // Whether a pair's residual is along the mean of its two normals (IcpOptions::symmetric), which
-// needs the source's normals; only then can the pairs' normals be limited.
+// needs the source's normals.
 bool uses_source_normals(const PointCloud& source, const IcpOptions& o) {
-  return o.symmetric && source.normals.size() == source.points.size();
+  return o.symmetric && has_normals(source);
 }
 
 // Eq. 5/6 linearised at T: correspondences, robust weights and the normal equations in scaled
@@ -176,7 +178,10 @@ class Linearisation {
                 const SE3& T, const Eigen::Vector3d& c, double inv_L, const IcpOptions& o,
                 CorrespondenceCache& cache, float radius, float min_dot)
       : src_(source.points),
-        src_normals_(uses_source_normals(source, o) ? source.normals.data()->data() : nullptr),
+        src_normals_(uses_source_normals(source, o) || (min_dot > -2.0f && has_normals(source))
+                         ? source.normals.data()->data()
+                         : nullptr),
+        symmetric_(uses_source_normals(source, o)),
         tgt_(target.cloud()),
         target_(target),
         stride_(stride),
@@ -419,7 +424,8 @@ class Linearisation {
             _mm512_set1_ps(1.0f), _mm512_sqrt_ps(_mm512_fmadd_ps(
                                       mx, mx, _mm512_fmadd_ps(my, my, _mm512_mul_ps(mz, mz)))));
         const __m512 dot = _mm512_fmadd_ps(nx, sx, _mm512_fmadd_ps(ny, sy, _mm512_mul_ps(nz, sz)));
-        const __mmask16 agree = _mm512_cmp_ps_mask(dot, zero, _CMP_GT_OQ);
+        const __mmask16 agree =
+            symmetric_ ? _mm512_cmp_ps_mask(dot, zero, _CMP_GT_OQ) : __mmask16(0);
         compatible = _mm512_cmp_ps_mask(dot, _mm512_set1_ps(min_dot_), _CMP_GE_OQ);
         nx = _mm512_mask_mul_ps(nx, agree, mx, inv_norm);
         ny = _mm512_mask_mul_ps(ny, agree, my, inv_norm);
@@ -492,7 +498,7 @@ class Linearisation {
             _mm256_div_ps(one, _mm256_sqrt_ps(_mm256_fmadd_ps(
                                    mx, mx, _mm256_fmadd_ps(my, my, _mm256_mul_ps(mz, mz)))));
         const __m256 dot = _mm256_fmadd_ps(nx, sx, _mm256_fmadd_ps(ny, sy, _mm256_mul_ps(nz, sz)));
-        const __m256 agree = _mm256_cmp_ps(dot, zero, _CMP_GT_OQ);
+        const __m256 agree = symmetric_ ? _mm256_cmp_ps(dot, zero, _CMP_GT_OQ) : zero;
         compatible = _mm256_cmp_ps(dot, _mm256_set1_ps(min_dot_), _CMP_GE_OQ);
         nx = _mm256_blendv_ps(nx, _mm256_mul_ps(mx, inv_norm), agree);
         ny = _mm256_blendv_ps(ny, _mm256_mul_ps(my, inv_norm), agree);
@@ -537,10 +543,12 @@ class Linearisation {
         const Eigen::Vector3f ns =
             R_ * Eigen::Vector3f(src_normals_[i3], src_normals_[i3 + 1], src_normals_[i3 + 2]);
         compatible = nx * ns.x() + ny * ns.y() + nz * ns.z() >= min_dot_;
-        const Eigen::Vector3f n = symmetric_pair_normal<float>({nx, ny, nz}, ns);
-        nx = n.x();
-        ny = n.y();
-        nz = n.z();
+        if (symmetric_) {
+          const Eigen::Vector3f n = symmetric_pair_normal<float>({nx, ny, nz}, ns);
+          nx = n.x();
+          ny = n.y();
+          nz = n.z();
+        }
       }
       const float re = nx * dx + ny * dy + nz * dz;  // point-to-plane residual [m]
       const float we = float(robust_weight(kKernel, options_.kernel_scale_m, re));
@@ -562,7 +570,9 @@ class Linearisation {
   }
 
   const std::vector<Eigen::Vector3f>& src_;
-  const float* src_normals_;  // null: the residuals are along the target's normals alone
+  // Null when neither the objective (symmetric_) nor the limit on the pairs' normals reads them.
+  const float* src_normals_;
+  bool symmetric_;  // the residuals are along the pairs' mean normals, else the target's alone
   const PointCloud& tgt_;
   const PointCloudTree& target_;
   std::size_t stride_;
@@ -673,7 +683,7 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   // cloud by less than kNormalLimitStepM: near the answer a pair whose normals differ that much
   // straddles a crease, but from a distant guess it is often what pulls the cloud in (across a
   // rounded corner half a millimetre off, say).
-  const bool limit_wanted = o.max_normal_angle_rad > 0.0 && uses_source_normals(*source, o);
+  const bool limit_wanted = o.max_normal_angle_rad > 0.0 && has_normals(*source);
   bool limit = false;
 
   SE3 T = T_target_source_guess;

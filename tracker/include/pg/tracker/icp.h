@@ -30,12 +30,13 @@ struct IcpOptions {
   // the target's tangent plane: on a 1 mm rounding sampled every 0.16 mm that is ~3 um, as much
   // as a frame's motion, and it biases the weakly seen rotations of small curved contacts.
   bool symmetric = true;
-  // With the symmetric objective, once a step moves the cloud by less than 0.02 mm: a pair whose
+  // For a source with normals, once a step moves the cloud by less than 0.02 mm: a pair whose
   // two normals (the target point's and the moved source point's) differ by more than this is
-  // not used (0: every pair). Near the answer such a pair straddles a crease, a toy brick's stud
-  // rim say, where the nearest sample of the other frame lies on the other face and the pair's
-  // mean normal is neither face's; from a distant guess the same pairs often pull the cloud in,
-  // hence the wait for a small step (docs/tracker_geometry.md) [rad].
+  // not used (0: every pair), with either objective. Near the answer such a pair straddles a
+  // crease, a toy brick's stud rim say, where the nearest sample of the other frame lies on the
+  // other face: its mean normal is neither face's, and its target normal is the wrong face's
+  // for the source point. From a distant guess the same pairs often pull the cloud in, hence
+  // the wait for a small step (docs/tracker_geometry.md) [rad].
   double max_normal_angle_rad = 0.25;
   // Converged when an update moves the source centroid by less than this [m] and rotates by
   // less than convergence_rotation_rad [rad].
