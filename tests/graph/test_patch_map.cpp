@@ -1,7 +1,11 @@
 // The local patch's fusion: a per-voxel mean on a grid fixed in the object frame.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <stdexcept>
+#include <vector>
 
 #include "pg/graph/patch_map.h"
 
@@ -79,6 +83,71 @@ TEST(PatchMap, KeyFramesAreFusedInTheObjectFrame) {
   EXPECT_TRUE(patch.empty());
   patch.add_keyframe(surface_object, SE3());
   EXPECT_EQ(patch.keyframes(), 1);
+}
+
+// The fused points of two patches, each with its normal, are the same within `tol`, in
+// whichever order (a point without a voxel of its own is numbered in the order it came).
+void expect_same_patch(const PatchMap& a, const PatchMap& b, double tol) {
+  const auto sorted = [](const PointCloud& c) {
+    std::vector<std::array<float, 6>> v;
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      const auto& p = c.points[i];
+      const auto& n = c.normals[i];
+      v.push_back({p.x(), p.y(), p.z(), n.x(), n.y(), n.z()});
+    }
+    std::sort(v.begin(), v.end());
+    return v;
+  };
+  const auto va = sorted(a.cloud_object()), vb = sorted(b.cloud_object());
+  ASSERT_EQ(va.size(), vb.size());
+  for (std::size_t i = 0; i < va.size(); ++i) {
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(va[i][k], vb[i][k], k < 3 ? tol : 1e-6) << i;
+  }
+}
+
+TEST(PatchMap, AMovedKeyFrameIsAsIfFusedThereInTheFirstPlace) {
+  // Key frame 0 fused at a pose 50 um and 20 mrad off, key frame 1 at its own; then key frame 0
+  // moved to its true pose: the patch is the one fused at the true poses, voxel for voxel, for
+  // a grid (half its voxels shared by both key frames) and for voxel_m 0 (every point its own).
+  const PointCloud surface = square(0.25e-4, 0.25e-4, 0.5e-4, 20, 0.5e-4);
+  const SE3 truth = SE3::Translation({1e-4, -2e-4, 0});
+  const SE3 off(Eigen::Quaterniond(Eigen::AngleAxisd(0.02, Eigen::Vector3d::UnitX())),
+                Eigen::Vector3d(1.5e-4, -2e-4, 0));
+  const PointCloud second = square(0.5e-3, 0.25e-4, 0.5e-4, 20, 0.5e-4);
+  for (double voxel_m : {1e-4, 0.0}) {
+    SCOPED_TRACE(voxel_m);
+    const PatchMapOptions options{10, voxel_m};
+    PatchMap moved(options), reference(options);
+    ASSERT_EQ(moved.add_keyframe(surface, off, true), 0);
+    ASSERT_EQ(moved.add_keyframe(second, SE3()), 1);
+    const std::size_t before = moved.cloud_object().size();
+    moved.move_keyframe(0, truth);
+    reference.add_keyframe(surface, truth);
+    reference.add_keyframe(second, SE3());
+    EXPECT_EQ(moved.keyframes(), 2);
+    // The off pose put key frame 0's points in other voxels than the true one does.
+    if (voxel_m > 0) {
+      EXPECT_NE(before, moved.cloud_object().size());
+    }
+    expect_same_patch(moved, reference, 1e-12);
+    EXPECT_EQ(moved.tree().size(), reference.tree().size());
+  }
+}
+
+TEST(PatchMap, OnlyAMovableKeyFrameMovesAndOnlyOnce) {
+  const PointCloud surface = square(0.5e-4, 0.5e-4, 0.5e-4, 5, 1e-4);
+  PatchMap patch;
+  patch.add_keyframe(surface, SE3());                            // 0: not movable
+  const int movable = patch.add_keyframe(surface, SE3(), true);  // 1
+  EXPECT_THROW(patch.move_keyframe(0, SE3()), std::invalid_argument);
+  EXPECT_THROW(patch.move_keyframe(7, SE3()), std::invalid_argument);
+  patch.move_keyframe(movable, SE3::Translation({1e-3, 0, 0}));
+  EXPECT_EQ(patch.cloud_object().size(), 2 * surface.size());
+  EXPECT_THROW(patch.move_keyframe(movable, SE3()), std::invalid_argument);
+  patch.reset();
+  patch.add_keyframe(surface, SE3(), true);
+  patch.reset();  // forgets what it could move
+  EXPECT_THROW(patch.move_keyframe(0, SE3()), std::invalid_argument);
 }
 
 }  // namespace

@@ -102,6 +102,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     EXPECT_EQ(cell("runs"), "2");
     EXPECT_EQ(cell("icp_symmetric"), "1");           // ground-truth normals throughout
     EXPECT_EQ(cell("icp_max_normal_angle_rad"), "0.25");  // the quick sweep does not turn it off
+    EXPECT_EQ(cell("keyframe_settle"), "0");         // the default; the full sweep's row sets 4
     EXPECT_EQ(cell("depth_integration"), "parity");  // the quick sweep: default
     EXPECT_EQ(cell("image_to_image_gate"), "1");
     for (const char* c :

@@ -666,6 +666,38 @@ TEST_F(PatchgraphCli, DampingSigmaWeighsTheDampingPrior) {
   EXPECT_LT(rmse("damping_off"), 5 * rmse("damping_default"));
 }
 
+// Key frames may settle: move to the pose the window settled on for them, N frames after they
+// were fused (off by default). Either way the default scene tracks, and the patches differ: the
+// option reaches the tracker. A negative count is a usage error.
+TEST_F(PatchgraphCli, KeyFrameSettlingIsAnOptionInTheSummary) {
+  for (const char* settle : {"", "4"}) {
+    const std::string name = std::string("settle_") + settle;
+    const std::string option = *settle ? std::string(" --keyframe-settle ") + settle : "";
+    const CliRun r = patchgraph("track " + data() + " -q" + option + " --out " + out(name));
+    ASSERT_EQ(r.code, 0) << r.out;
+  }
+  const auto summary = [&](const std::string& settle) {
+    return parse_json_file(out("settle_" + settle) + "/summary.json");
+  };
+  EXPECT_EQ(summary("")["keyframe_settle_frames"].get<int>(), 0) << "the default";
+  EXPECT_EQ(summary("4")["keyframe_settle_frames"].get<int>(), 4);
+  for (const std::string settle : {"", "4"}) {
+    EXPECT_LT(summary(settle)["translation_rmse_m"].get<double>(), 0.5e-3) << settle;
+    EXPECT_LT(summary(settle)["rotation_rmse_rad"].get<double>(), 0.02) << settle;
+  }
+  const auto bytes = [&](const std::string& settle) {
+    std::ifstream in(out("settle_" + settle) + "/patch.ply", std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  ASSERT_FALSE(bytes("").empty());
+  EXPECT_NE(bytes(""), bytes("4"));
+  const CliRun bad =
+      patchgraph("track " + data() + " -q --keyframe-settle -1 --out " + out("settle_bad"));
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.out.find("--keyframe-settle"), std::string::npos) << bad.out;
+  EXPECT_FALSE(fs::exists(out("settle_bad")));
+}
+
 // The motion priors' frame is an option, recorded in the summary; on the default scene's still
 // sensor the two frames track alike (tests/graph: Tracking.AnObjectHeldInAShakingHand... for a
 // moving one).

@@ -36,6 +36,7 @@ struct Setting {
   std::string method = "patchgraph";
   std::string normals = "gt";
   int keyframe_interval = TrackArgs().keyframe_interval;
+  int keyframe_settle = TrackArgs().keyframe_settle;  // PatchMapOptions::keyframe_settle_frames
   int window = TrackArgs().window;
   bool registration_information = true;
   int icp_iterations = IcpOptions().max_iterations;
@@ -96,6 +97,7 @@ std::vector<Setting> sweep(const TrackBenchArgs& args) {
   if (!args.quick) {
     add("ICP objective", "target normals", [](Setting& s) { s.icp_symmetric = 0; });
     add("pairs' normals limit", "off", [](Setting& s) { s.max_normal_angle_rad = 0; });
+    add("key-frame settling", "4 frames", [](Setting& s) { s.keyframe_settle = 4; });
     add("contact core", "off", [](Setting& s) { s.contact_core = false; });
     add("integration", "averaged", [](Setting& s) { s.parity_integration = 0; });
     add("image-to-image gate", "off", [](Setting& s) { s.image_to_image_gate = false; });
@@ -210,6 +212,7 @@ TrackArgs args_for(const Setting& s, std::uint64_t seed) {
   std::tie(a.normals, a.blend_shading) = split_blend(s.normals);
   a.window = s.window;
   a.keyframe_interval = s.keyframe_interval;
+  a.keyframe_settle = s.keyframe_settle;
   a.no_registration_information = !s.registration_information;
   if (!s.image_to_image_gate) a.image_to_image_gate = 0;
   return a;
@@ -240,7 +243,7 @@ TrackOptions options_for(const Setting& s, const Dataset& dataset, std::uint64_t
 void write_csv(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream out = open_for_writing(path);
   out.precision(9);
-  out << "setting,knob,value,method,normals,width,height,keyframe_interval,window,"
+  out << "setting,knob,value,method,normals,width,height,keyframe_interval,keyframe_settle,window,"
          "registration_information,icp_iterations,max_correspondence_m,voxel_m,icp_symmetric,"
          "icp_max_normal_angle_rad,contact_core,depth_integration,image_to_image_gate,runs,"
          "median_frame_ms,median_final_translation_m,median_final_rotation_rad,"
@@ -249,12 +252,13 @@ void write_csv(const std::string& path, const std::vector<Row>& rows) {
     const Setting& s = r.setting;
     out << csv_field(s.name()) << "," << s.knob << "," << csv_field(s.value) << "," << s.method
         << "," << csv_field(s.normals) << "," << s.width << "," << s.height << ","
-        << s.keyframe_interval << "," << s.window << "," << s.registration_information << ","
-        << s.icp_iterations << "," << s.max_correspondence_m << "," << s.voxel_m << ","
-        << s.icp_symmetric << "," << s.max_normal_angle_rad << "," << s.contact_core << ","
-        << (s.parity_integration == 1 ? "parity" : "averaged") << "," << s.image_to_image_gate
-        << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m << "," << r.final_r_rad
-        << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t << "," << r.front_r << "\n";
+        << s.keyframe_interval << "," << s.keyframe_settle << "," << s.window << ","
+        << s.registration_information << "," << s.icp_iterations << "," << s.max_correspondence_m
+        << "," << s.voxel_m << "," << s.icp_symmetric << "," << s.max_normal_angle_rad << ","
+        << s.contact_core << "," << (s.parity_integration == 1 ? "parity" : "averaged") << ","
+        << s.image_to_image_gate << "," << r.runs.size() << "," << r.median_ms << "," << r.final_t_m
+        << "," << r.final_r_rad << "," << r.rmse_t_m << "," << r.rmse_r_rad << "," << r.front_t
+        << "," << r.front_r << "\n";
   }
   close_checked(out, path);
 }

@@ -56,6 +56,12 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Frames between patch key frames (default " +
                      std::to_string(TrackArgs().keyframe_interval) + ")")
       ->check(kPositive);
+  app.add_option(
+         "--keyframe-settle", a.keyframe_settle,
+         "Frames after which a key frame's cloud moves to the pose the fixed-lag window "
+         "settled on for it, at most window - 1; 0 keeps the pose it was fused with (default " +
+             std::to_string(TrackArgs().keyframe_settle) + ")")
+      ->check(kNonNegative);
   app.add_option("--motion-frame", a.motion_frame,
                  "Frame of the motion priors while in contact: sensor (default; the object is "
                  "held and moves with the sensor) or world (the sensor moves over a fixed "
@@ -372,6 +378,7 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   o.graph.method = method_from_string(a.method);
   o.graph.window = a.window;
   o.graph.patch.keyframe_interval = a.keyframe_interval;
+  o.graph.patch.keyframe_settle_frames = a.keyframe_settle;
   o.graph.motion_frame = motion_frame_from_string(a.motion_frame);
   o.graph.registration_information = !a.no_registration_information;
   if (a.registration_sigma > 0) {

@@ -29,6 +29,7 @@ struct TrackArgs {
   std::string config;      // tracker config JSON (depth, mask, icp options)
   int window = 5;
   int keyframe_interval = 10;
+  int keyframe_settle = PatchMapOptions().keyframe_settle_frames;
   std::string motion_frame = "sensor";  // GraphOptions::motion_frame
   bool no_registration_information = false;
   // Factor sigmas; 0 keeps GraphOptions' own (the paper's values).

@@ -1,5 +1,9 @@
 #include "pg/graph/patch_map.h"
 
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
 namespace pg {
 
 void PatchMap::reset() {
@@ -7,28 +11,64 @@ void PatchMap::reset() {
   fused_.clear();
   tree_.reset();
   keyframes_ = 0;
+  next_own_cell_ = 0;
+  movable_.clear();
 }
 
-void PatchMap::add_keyframe(const PointCloud& cloud_sensor, const SE3& T_object_sensor) {
+int PatchMap::add_keyframe(const PointCloud& cloud_sensor, const SE3& T_object_sensor,
+                           bool movable) {
+  std::vector<VoxelKey> keys = accumulate(cloud_sensor, T_object_sensor);
+  if (movable) movable_.push_back({keyframes_, cloud_sensor, T_object_sensor, std::move(keys)});
+  rebuild();
+  return keyframes_++;
+}
+
+void PatchMap::move_keyframe(int keyframe, const SE3& T_object_sensor) {
+  const auto it = std::find_if(movable_.begin(), movable_.end(),
+                               [&](const MovableKeyframe& m) { return m.keyframe == keyframe; });
+  if (it == movable_.end()) {
+    throw std::invalid_argument("PatchMap::move_keyframe: key frame " + std::to_string(keyframe) +
+                                " is not a movable key frame of this patch");
+  }
+  accumulate(it->cloud_sensor, it->T_object_sensor, &it->keys);
+  accumulate(it->cloud_sensor, T_object_sensor);
+  movable_.erase(it);
+  rebuild();
+}
+
+std::vector<PatchMap::VoxelKey> PatchMap::accumulate(const PointCloud& cloud_sensor,
+                                                     const SE3& T_object_sensor,
+                                                     const std::vector<VoxelKey>* remove) {
+  // Taking a key frame out repeats the transform it was added with, so each point subtracts
+  // exactly the values it added, from the voxel it went to.
   const PointCloud moved = transform_cloud(T_object_sensor, cloud_sensor);
   const double inv = options_.voxel_m > 0 ? 1.0 / options_.voxel_m : 0.0;
   // Cell indices past this (a voxel edge 1e-15 of the coordinates) would overflow; such points,
   // and every point when voxel_m is 0, keep a cell of their own, numbered past any real one.
   constexpr double kMaxCell = 1e15;
+  const double sign = remove ? -1.0 : 1.0;
+  std::vector<VoxelKey> keys(moved.size());
   for (std::size_t i = 0; i < moved.size(); ++i) {
     const Eigen::Vector3d p = moved.points[i].cast<double>();
-    const Eigen::Vector3d cell = (p * inv).array().floor();
-    const std::array<std::int64_t, 3> key =
-        inv > 0 && cell.cwiseAbs().maxCoeff() < kMaxCell
-            ? std::array<std::int64_t, 3>{std::int64_t(cell.x()), std::int64_t(cell.y()),
-                                          std::int64_t(cell.z())}
-            : std::array<std::int64_t, 3>{std::int64_t(kMaxCell) + std::int64_t(voxels_.size()), 0,
-                                          0};
-    VoxelSum& v = voxels_[key];
-    v.point_sum += p;
-    v.normal_sum += moved.normals[i].cast<double>();
-    ++v.count;
+    if (remove) {
+      keys[i] = (*remove)[i];
+    } else {
+      const Eigen::Vector3d cell = (p * inv).array().floor();
+      keys[i] =
+          inv > 0 && cell.cwiseAbs().maxCoeff() < kMaxCell
+              ? VoxelKey{std::int64_t(cell.x()), std::int64_t(cell.y()), std::int64_t(cell.z())}
+              : VoxelKey{std::int64_t(kMaxCell) + next_own_cell_++, 0, 0};
+    }
+    const auto v = voxels_.try_emplace(keys[i]).first;
+    v->second.point_sum += sign * p;
+    v->second.normal_sum += sign * moved.normals[i].cast<double>();
+    v->second.count += remove ? -1 : 1;
+    if (v->second.count == 0) voxels_.erase(v);
   }
+  return keys;
+}
+
+void PatchMap::rebuild() {
   fused_.clear();
   fused_.reserve(voxels_.size());
   for (const auto& [key, v] : voxels_) {
@@ -38,11 +78,11 @@ void PatchMap::add_keyframe(const PointCloud& cloud_sensor, const SE3& T_object_
                      Eigen::Vector3f((v.normal_sum / len).cast<float>()));
   }
   tree_ = std::make_unique<PointCloudTree>(fused_);
-  ++keyframes_;
 }
 
 void PatchMap::set_model(const PointCloud& model_object) {
   voxels_.clear();
+  movable_.clear();
   fused_ = model_object;
   tree_ = std::make_unique<PointCloudTree>(fused_);
   keyframes_ = 0;

@@ -702,6 +702,7 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
       {"median_normals_ms", s.median_normals_ms},
       {"window", graph.window},
       {"keyframe_interval", graph.patch.keyframe_interval},
+      {"keyframe_settle_frames", graph.patch.keyframe_settle_frames},
       {"motion_frame", to_string(graph.motion_frame)},
       {"registration_information", graph.registration_information},
       {"image_to_image_gate_rad", graph.image_to_image_gate_rad},

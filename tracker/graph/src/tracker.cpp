@@ -100,6 +100,11 @@ PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& mod
   // stays the one the tables measured.
   model_icp_.options().symmetric = false;
   model_icp_.options().max_normal_angle_rad = 0.0;
+  // The window solves a frame for the last time window - 1 frames after it: settling later
+  // would move nothing, and keep key frames' clouds for nothing (0: the window holds every frame).
+  settle_frames_ = std::max(
+      0, options_.window > 0 ? std::min(options_.patch.keyframe_settle_frames, options_.window - 1)
+                             : options_.patch.keyframe_settle_frames);
   sensors_.resize(1);
   sensors_[0].patch = PatchMap(options_.patch);
   if (options_.method == Method::kGroundTruthPatch) {
@@ -389,6 +394,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       if (!rejoining[k]) {
         track.patch.reset();
         track.last_keyframe = -1;
+        track.unsettled.clear();
       }
     }
     track.in_episode =
@@ -455,6 +461,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     // It touched elsewhere than before: a fresh patch from here (not a failure).
     sensors_[k].patch.reset();
     sensors_[k].last_keyframe = -1;
+    sensors_[k].unsettled.clear();
     anchors[k] = Outcome::kNotTried;
   }
   // The frame's anchor failed when no sensor's that was tried was accepted: each failed to
@@ -483,6 +490,17 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   for (std::size_t k = 0; k < n_sensors; ++k) {
     SensorTrack& track = sensors_[k];
     const bool contact = solved.sensors[k].contact;
+    // Key frames fused settle_frames ago move to the pose the window has settled on since (a
+    // key frame is first fused with its frame's filtered estimate, so that the next frames can
+    // register against its surface at once).
+    const auto T_object_sensor = [k](const Frame& f) {
+      return pose_from_block(f.o).inverse() * pose_from_block(f.sensors[k].e);
+    };
+    while (!track.unsettled.empty() && t - track.unsettled.front()[0] >= settle_frames_) {
+      track.patch.move_keyframe(track.unsettled.front()[1],
+                                T_object_sensor(frames_[std::size_t(track.unsettled.front()[0])]));
+      track.unsettled.erase(track.unsettled.begin());
+    }
     // Key frame: fuse the cloud into the sensor's patch with the solved pose, unless its patch
     // registration failed: after a jump, say, the cloud would be fused at a wrong pose, and
     // every later registration would agree with the polluted patch instead of reporting the
@@ -492,8 +510,9 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     if (options_.method == Method::kPatchGraph && contact && anchors[k] != Outcome::kFailed &&
         (track.last_keyframe < 0 || patch_too_small ||
          t - track.last_keyframe >= options_.patch.keyframe_interval)) {
-      track.patch.add_keyframe(
-          track.cloud, pose_from_block(solved.o).inverse() * pose_from_block(solved.sensors[k].e));
+      const int keyframe =
+          track.patch.add_keyframe(track.cloud, T_object_sensor(solved), settle_frames_ > 0);
+      if (settle_frames_ > 0) track.unsettled.push_back({t, keyframe});
       track.last_keyframe = t;
       est.keyframe = true;
     }

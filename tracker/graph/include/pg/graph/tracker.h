@@ -189,6 +189,7 @@ class PatchGraphTracker {
   int frames() const { return int(frames_.size()); }
 
  private:
+  int settle_frames_ = 0;  // PatchMapOptions::keyframe_settle_frames, at most window - 1
   struct SensorState {
     double e[kPoseBlockSize];  // T_world_sensor
     bool contact = false;
@@ -208,6 +209,9 @@ class PatchGraphTracker {
     bool in_episode = false;  // this sensor's own contact (or missing measurement within it)
     std::unique_ptr<PointCloudTree> previous_tree;  // the previous frame's cloud, for eq. 5
     PointCloud cloud;                               // this frame's
+    // Key frames fused with their frame's first estimate, to be moved to the window's settled
+    // one (PatchMapOptions::keyframe_settle_frames): {frame, the patch's key frame number}.
+    std::vector<std::array<int, 2>> unsettled;
   };
   enum class FactorKind {
     kImageToImage,
