@@ -1,6 +1,7 @@
 #pragma once
 // The local patch (paper section IV-C): key-frame clouds fused in the object frame with the
-// estimates current when each was added, averaged per voxel, with a k-d tree for registration.
+// estimates current when each was added (or moved later to revised ones), averaged per voxel,
+// with a k-d tree for registration.
 // Reset at every new contact episode. For the GroundtruthPatch baseline it holds a fixed model.
 #include <array>
 #include <cstdint>

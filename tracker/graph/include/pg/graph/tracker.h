@@ -189,7 +189,6 @@ class PatchGraphTracker {
   int frames() const { return int(frames_.size()); }
 
  private:
-  int settle_frames_ = 0;  // PatchMapOptions::keyframe_settle_frames, at most window - 1
   struct SensorState {
     double e[kPoseBlockSize];  // T_world_sensor
     bool contact = false;
@@ -270,6 +269,7 @@ class PatchGraphTracker {
   bool gate_image_to_image(std::size_t first_registration, double& disagreement);
 
   GraphOptions options_;
+  int settle_frames_ = 0;             // PatchMapOptions::keyframe_settle_frames, at most window - 1
   std::vector<SensorTrack> sensors_;  // at least one
   PointToPlaneIcp icp_;
   // gtpatch's registrations against the object model: with the model's normals alone. The
