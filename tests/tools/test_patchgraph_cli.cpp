@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <initializer_list>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -55,6 +56,17 @@ class PatchgraphCli : public ::testing::Test {
   static void TearDownTestSuite() { fs::remove_all(dir_); }
   static std::string data() { return (dir_ / "data").string(); }
   static std::string out(const std::string& name) { return (dir_ / name).string(); }
+  // Tracks the suite's data once per value of `option` ("" leaves the option out) into
+  // OUT/PREFIX+VALUE, each run asserted to succeed.
+  static void track_each(const std::string& prefix, const std::string& option,
+                         std::initializer_list<const char*> values) {
+    for (const char* value : values) {
+      const std::string given = *value ? " " + option + " " + value : "";
+      const CliRun r =
+          patchgraph("track " + data() + " -q" + given + " --out " + out(prefix + value));
+      ASSERT_EQ(r.code, 0) << option << " " << value << "\n" << r.out;
+    }
+  }
   // Writes `scene` to OUT/NAME.json and renders it into OUT/NAME (tacsim render ARGS).
   static CliRun render_scene_json(const nlohmann::json& scene, const std::string& name,
                                   const std::string& args) {
@@ -670,12 +682,7 @@ TEST_F(PatchgraphCli, DampingSigmaWeighsTheDampingPrior) {
 // were fused (off by default). Either way the default scene tracks, and the patches differ: the
 // option reaches the tracker. A negative count is a usage error.
 TEST_F(PatchgraphCli, KeyFrameSettlingIsAnOptionInTheSummary) {
-  for (const char* settle : {"", "4"}) {
-    const std::string name = std::string("settle_") + settle;
-    const std::string option = *settle ? std::string(" --keyframe-settle ") + settle : "";
-    const CliRun r = patchgraph("track " + data() + " -q" + option + " --out " + out(name));
-    ASSERT_EQ(r.code, 0) << r.out;
-  }
+  ASSERT_NO_FATAL_FAILURE(track_each("settle_", "--keyframe-settle", {"", "4"}));
   const auto summary = [&](const std::string& settle) {
     return parse_json_file(out("settle_" + settle) + "/summary.json");
   };
@@ -702,12 +709,7 @@ TEST_F(PatchgraphCli, KeyFrameSettlingIsAnOptionInTheSummary) {
 // sensor the two frames track alike (tests/graph: Tracking.AnObjectHeldInAShakingHand... for a
 // moving one).
 TEST_F(PatchgraphCli, MotionFrameIsAnOptionInTheSummary) {
-  for (const char* frame : {"sensor", "world", ""}) {
-    const std::string name = std::string("motion_") + frame;
-    const std::string option = *frame ? std::string(" --motion-frame ") + frame : "";
-    const CliRun r = patchgraph("track " + data() + " -q" + option + " --out " + out(name));
-    ASSERT_EQ(r.code, 0) << r.out;
-  }
+  ASSERT_NO_FATAL_FAILURE(track_each("motion_", "--motion-frame", {"sensor", "world", ""}));
   const auto summary = [&](const std::string& frame) {
     return parse_json_file(out("motion_" + frame) + "/summary.json");
   };

@@ -47,19 +47,18 @@ std::vector<PatchMap::VoxelKey> PatchMap::accumulate(const PointCloud& cloud_sen
   // and every point when voxel_m is 0, keep a cell of their own, numbered past any real one.
   constexpr double kMaxCell = 1e15;
   const double sign = remove ? -1.0 : 1.0;
-  std::vector<VoxelKey> keys(moved.size());
+  std::vector<VoxelKey> keys;  // of the points added (a removal reads them from `remove`)
+  if (!remove) keys.resize(moved.size());
   for (std::size_t i = 0; i < moved.size(); ++i) {
     const Eigen::Vector3d p = moved.points[i].cast<double>();
-    if (remove) {
-      keys[i] = (*remove)[i];
-    } else {
+    if (!remove) {
       const Eigen::Vector3d cell = (p * inv).array().floor();
       keys[i] =
           inv > 0 && cell.cwiseAbs().maxCoeff() < kMaxCell
               ? VoxelKey{std::int64_t(cell.x()), std::int64_t(cell.y()), std::int64_t(cell.z())}
               : VoxelKey{std::int64_t(kMaxCell) + next_own_cell_++, 0, 0};
     }
-    const auto v = voxels_.try_emplace(keys[i]).first;
+    const auto v = voxels_.try_emplace(remove ? (*remove)[i] : keys[i]).first;
     v->second.point_sum += sign * p;
     v->second.normal_sum += sign * moved.normals[i].cast<double>();
     v->second.count += remove ? -1 : 1;

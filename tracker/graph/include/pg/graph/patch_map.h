@@ -74,8 +74,8 @@ class PatchMap {
     SE3 T_object_sensor;
     std::vector<VoxelKey> keys;  // each point's voxel
   };
-  // Adds each point of the cloud at T to its voxel's sums, or with `remove` takes it out of the
-  // voxel `keys` recorded when it was added; returns the voxels used.
+  // Adds each point of the cloud at T to its voxel's sums and returns the voxels used, or with
+  // `remove` takes each out of the voxel recorded when it was added (and returns none).
   std::vector<VoxelKey> accumulate(const PointCloud& cloud_sensor, const SE3& T_object_sensor,
                                    const std::vector<VoxelKey>* remove = nullptr);
   void rebuild();  // the fused cloud and its tree from the voxels' sums
