@@ -73,13 +73,19 @@ class PatchgraphCli : public ::testing::Test {
     std::ofstream(out(name + ".json")) << scene.dump(2);
     return run(TACSIM_PATH, "render " + out(name + ".json") + " " + args + " --out " + out(name));
   }
-  // A fresh copy of the suite's dataset, to corrupt.
   // Expects `patchgraph args` refused with this exit code and a message containing `text`.
   static void expect_refused(const std::string& args, int code, const std::string& text) {
     const CliRun r = patchgraph(args);
     EXPECT_EQ(r.code, code) << args;
     EXPECT_NE(r.out.find(text), std::string::npos) << args << "\n" << r.out;
   }
+  // A ratio as summary.md writes it against GroundtruthPatch: "1.42x", "14.2x", "142x".
+  static std::string ratio_text(double x) {
+    char c[32];
+    std::snprintf(c, sizeof c, "%.*fx", x < 10 ? 2 : x < 100 ? 1 : 0, x);
+    return c;
+  }
+  // A fresh copy of the suite's dataset, to corrupt.
   static std::string data_copy(const std::string& name) {
     const std::string copy = out(name);
     fs::remove_all(copy);
@@ -3153,11 +3159,7 @@ TEST_F(PatchgraphCli, EvalSetsTheMethodsAgainstGroundtruthPatch) {
   const double t = ratio("final_translation_error_m"), rot = ratio("final_rotation_error_rad");
   ASSERT_GT(t, 0);
   ASSERT_GT(rot, 0);
-  const auto cell = [](double x) {
-    char c[32];
-    std::snprintf(c, sizeof c, "%.*fx", x < 10 ? 2 : x < 100 ? 1 : 0, x);
-    return std::string(c);
-  };
+  const auto& cell = ratio_text;
   const std::string text = testing_support::file_text(out("eval_ratio") + "/summary.md");
   const std::string expected = "| cube | patchgraph | " + cell(t) + " | " + cell(rot) + " |";
   EXPECT_NE(text.find(expected), std::string::npos) << expected << "\n" << text;
@@ -3192,6 +3194,66 @@ TEST_F(PatchgraphCli, EvalSeedsEachSequenceAndTrackReproducesARun) {
   const auto summary = parse_json_file(out("track_seed") + "/summary.json");
   EXPECT_EQ(std::to_string(summary["seed"].get<std::uint64_t>()), results.cell(0, "seed"));
   EXPECT_NEAR(summary["final_translation_error_m"].get<double>(), t0, 1e-7);
+}
+
+// --seeds runs every dataset and method once per noise seed, each run the one `eval --seed S`
+// makes; summary.md's medians are over all of them, with each seed's medians and ratios beside.
+TEST_F(PatchgraphCli, EvalPoolsSeveralNoiseSeeds) {
+  const CliRun r =
+      patchgraph("eval --datasets " + data() +
+                 " --methods patchgraph gtpatch --seeds 0 7 -q --no-plots --out " + out("seeds"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto results = read_csv_table(out("seeds") + "/results.csv");
+  ASSERT_EQ(results.rows.size(), 4u);
+  // Seed by seed, each in the methods' order.
+  const std::vector<std::string> seed = {"0", "0", "7", "7"};
+  const std::vector<std::string> method = {"patchgraph", "gtpatch", "patchgraph", "gtpatch"};
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(results.cell(i, "eval_seed"), seed[i]);
+    EXPECT_EQ(results.cell(i, "method"), method[i]);
+    EXPECT_EQ(results.cell(i, "run"), "runs/data_" + method[i] + "_seed" + seed[i]);
+    EXPECT_TRUE(fs::exists(out("seeds") + "/" + results.cell(i, "run") + "/summary.json"));
+  }
+  EXPECT_NE(results.cell(0, "final_translation_error_m"),
+            results.cell(2, "final_translation_error_m"));
+  // Seed 7's PatchGraph run is the one eval --seed 7 makes, to the last digit.
+  const CliRun one =
+      patchgraph("eval --datasets " + data() +
+                 " --methods patchgraph --seed 7 -q --no-plots --out " + out("seed7"));
+  ASSERT_EQ(one.code, 0) << one.out;
+  const auto single = read_csv_table(out("seed7") + "/results.csv");
+  ASSERT_EQ(single.rows.size(), 1u);
+  EXPECT_EQ(single.cell(0, "eval_seed"), "7");
+  EXPECT_EQ(single.cell(0, "run"), "runs/data_patchgraph");
+  for (const char* column : {"seed", "final_translation_error_m", "final_rotation_error_rad"}) {
+    EXPECT_EQ(single.cell(0, column), results.cell(2, column)) << column;
+  }
+  // The medians: of two runs, their mean; each seed's alone; the ratios to GroundtruthPatch's.
+  const auto value = [&](std::size_t i, const char* column) {
+    return std::stod(results.cell(i, column));
+  };
+  const char* t = "final_translation_error_m";
+  const char* rot = "final_rotation_error_rad";
+  const std::string text = testing_support::file_text(out("seeds") + "/summary.md");
+  char line[256];
+  std::snprintf(line, sizeof line, "| cube | patchgraph | 2 | %.3f (",
+                1e3 * (value(0, t) + value(2, t)) / 2);
+  EXPECT_NE(text.find(line), std::string::npos) << line << "\n" << text;
+  EXPECT_NE(text.find("| object | method | seed 0 | seed 7 |"), std::string::npos) << text;
+  std::snprintf(line, sizeof line, "| cube | gtpatch | %.3f / %.4f | %.3f / %.4f |",
+                1e3 * value(1, t), value(1, rot), 1e3 * value(3, t), value(3, rot));
+  EXPECT_NE(text.find(line), std::string::npos) << line << "\n" << text;
+  const auto& ratio = ratio_text;
+  const std::string by_seed =
+      ratio(value(0, rot) / value(1, rot)) + " / " + ratio(value(2, rot) / value(3, rot)) + " |";
+  EXPECT_NE(text.find(by_seed), std::string::npos) << by_seed << "\n" << text;
+  // A seed given twice, or --seeds with --seed, is a usage error.
+  const std::string refused_out = out("seeds_refused");
+  expect_refused("eval --datasets " + data() + " --seeds 3 3 --out " + refused_out, 2,
+                 "--seeds: 3 given twice");
+  expect_refused("eval --datasets " + data() + " --seed 1 --seeds 2 3 --out " + refused_out, 2,
+                 "--seed excludes --seeds");
+  EXPECT_FALSE(fs::exists(refused_out));
 }
 
 }  // namespace

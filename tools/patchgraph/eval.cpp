@@ -78,6 +78,7 @@ double quantile(std::vector<double> v, double q) {
 
 struct Row {
   std::string dataset, object, method, run;
+  std::uint64_t eval_seed;  // the --seed (or --seeds value) that s.seed was mixed from
   TrackSummary s;
 };
 
@@ -86,22 +87,37 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
-         "lost_frames,degenerate_frames,seed,run\n";
+         "lost_frames,degenerate_frames,seed,run,eval_seed\n";
   for (const auto& r : rows) {
     out << csv_field(r.dataset) << "," << csv_field(r.object) << "," << r.method << ","
         << r.s.frames << "," << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
-        << csv_field(r.run) << "\n";
+        << csv_field(r.run) << "," << r.eval_seed << "\n";
   }
   write_text_atomically(path, out.str());
 }
 
-// One object and method's runs: final errors [m, rad] and per-frame update times [ms].
+// One object and method's runs: final errors [m, rad], per-frame update times [ms] and the
+// runs' eval seeds.
 struct Group {
   std::string object, method;
   std::vector<double> translation, rotation, ms;
+  std::vector<std::uint64_t> seeds;
+
+  // The runs of one eval seed alone.
+  Group of_seed(std::uint64_t seed) const {
+    Group g{object, method, {}, {}, {}, {}};
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+      if (seeds[i] != seed) continue;
+      g.translation.push_back(translation[i]);
+      g.rotation.push_back(rotation[i]);
+      g.ms.push_back(ms[i]);
+      g.seeds.push_back(seed);
+    }
+    return g;
+  }
 };
 
 // Groups by object (sorted), then method (in `methods`' order).
@@ -114,11 +130,12 @@ std::vector<Group> group_runs(const std::vector<Row>& rows,
     for (const auto& m : methods) {
       const auto it = per_method.find(m);
       if (it == per_method.end()) continue;
-      Group g{object, m, {}, {}, {}};
+      Group g{object, m, {}, {}, {}, {}};
       for (const Row* r : it->second) {
         g.translation.push_back(r->s.final_translation_error_m);
         g.rotation.push_back(r->s.final_rotation_error_rad);
         g.ms.push_back(r->s.median_frame_ms);
+        g.seeds.push_back(r->eval_seed);
       }
       groups.push_back(std::move(g));
     }
@@ -137,28 +154,72 @@ std::string ratio_cell(double value, double reference) {
 }
 
 // Each method's median final errors over GroundtruthPatch's on the same object (the paper's
-// "best a method can do", issue 5's 1.5x target); empty without gtpatch among the methods.
-std::string gtpatch_ratios_markdown(const std::vector<Group>& groups) {
+// "best a method can do", issue 5's 1.5x target); empty without gtpatch among the methods. With
+// several eval seeds, also the ratio of each seed's medians, in `seeds`' order.
+std::string gtpatch_ratios_markdown(const std::vector<Group>& groups,
+                                    const std::vector<std::uint64_t>& seeds) {
+  const bool by_seed = seeds.size() > 1;
   std::ostringstream md;
   for (const Group& reference : groups) {
     if (reference.method != "gtpatch") continue;
-    const double t_ref = quantile(reference.translation, 0.5);
-    const double r_ref = quantile(reference.rotation, 0.5);
     for (const Group& g : groups) {
       if (g.object != reference.object || g.method == "gtpatch") continue;
       if (md.tellp() == 0) {
         md << "\nMedian final error over GroundtruthPatch's (gtpatch, the object's model):\n\n"
-              "| object | method | translation | rotation |\n|---|---|---:|---:|\n";
+              "| object | method | translation | rotation |"
+           << (by_seed ? " translation by seed | rotation by seed |\n|---|---|---:|---:|---|---|\n"
+                       : "\n|---|---|---:|---:|\n");
       }
-      md << "| " << markdown_cell(g.object) << " | " << g.method << " | "
-         << ratio_cell(quantile(g.translation, 0.5), t_ref) << " | "
-         << ratio_cell(quantile(g.rotation, 0.5), r_ref) << " |\n";
+      const auto ratios = [](const Group& value, const Group& ref) {
+        return std::pair{
+            ratio_cell(quantile(value.translation, 0.5), quantile(ref.translation, 0.5)),
+            ratio_cell(quantile(value.rotation, 0.5), quantile(ref.rotation, 0.5))};
+      };
+      const auto [t, r] = ratios(g, reference);
+      md << "| " << markdown_cell(g.object) << " | " << g.method << " | " << t << " | " << r
+         << " |";
+      if (by_seed) {
+        std::string t_seeds, r_seeds;
+        for (const std::uint64_t seed : seeds) {
+          const auto [ts, rs] = ratios(g.of_seed(seed), reference.of_seed(seed));
+          t_seeds += (t_seeds.empty() ? "" : " / ") + ts;
+          r_seeds += (r_seeds.empty() ? "" : " / ") + rs;
+        }
+        md << " " << t_seeds << " | " << r_seeds << " |";
+      }
+      md << "\n";
     }
   }
   return md.str();
 }
 
-std::string summary_markdown(const std::vector<Group>& groups) {
+// With several eval seeds, each object and method's median final errors seed by seed.
+std::string seed_medians_markdown(const std::vector<Group>& groups,
+                                  const std::vector<std::uint64_t>& seeds) {
+  if (seeds.size() < 2) return "";
+  std::ostringstream md;
+  md << "\nMedian final error by noise seed (--seeds), translation [mm] / rotation [rad]:\n\n"
+        "| object | method |";
+  for (const std::uint64_t seed : seeds) md << " seed " << seed << " |";
+  md << "\n|---|---|";
+  for (std::size_t k = 0; k < seeds.size(); ++k) md << "---|";
+  md << "\n";
+  char cell[64];
+  for (const Group& g : groups) {
+    md << "| " << markdown_cell(g.object) << " | " << g.method << " |";
+    for (const std::uint64_t seed : seeds) {
+      const Group s = g.of_seed(seed);
+      std::snprintf(cell, sizeof cell, " %.3f / %.4f |", quantile(s.translation, 0.5) * 1e3,
+                    quantile(s.rotation, 0.5));
+      md << cell;
+    }
+    md << "\n";
+  }
+  return md.str();
+}
+
+std::string summary_markdown(const std::vector<Group>& groups,
+                             const std::vector<std::uint64_t>& seeds) {
   std::ostringstream md;
   md << "| object | method | runs | final translation [mm] median (q1-q3) | final rotation [rad] "
         "median (q1-q3) | median update [ms] |\n|---|---|---:|---|---|---:|\n";
@@ -173,7 +234,8 @@ std::string summary_markdown(const std::vector<Group>& groups) {
         quantile(rot, 0.75), quantile(g.ms, 0.5));
     md << line;
   }
-  md << gtpatch_ratios_markdown(groups);
+  md << seed_medians_markdown(groups, seeds);
+  md << gtpatch_ratios_markdown(groups, seeds);
   return md.str();
 }
 
@@ -215,9 +277,15 @@ int run_eval(const EvalArgs& args) {
   const std::vector<std::string> datasets = expand_datasets(args.datasets);
   std::vector<std::string> methods = args.methods.empty() ? method_names() : args.methods;
   for (const std::string& m : methods) method_from_string(m);  // fail before any work
+  const std::vector<std::uint64_t> seeds =
+      args.seeds.empty() ? std::vector<std::uint64_t>{args.track.seed} : args.seeds;
+  const bool several_seeds = seeds.size() > 1;
   std::vector<std::string> names;
   as_usage_error([&] {
     check_names_given_once(methods, "--methods");
+    std::vector<std::string> seed_names;
+    for (const std::uint64_t seed : seeds) seed_names.push_back(std::to_string(seed));
+    check_names_given_once(seed_names, "--seeds");
     names = run_names(datasets);
   });
   const bool gtpatch = std::find(methods.begin(), methods.end(), "gtpatch") != methods.end();
@@ -246,54 +314,60 @@ int run_eval(const EvalArgs& args) {
       args.out, {"results.csv", "summary.md", "runs", "boxplots.png", "trajectories_*.png"});
   std::vector<Row> rows;
   int done = 0;
-  const int total = int(datasets.size() * methods.size());
+  const int total = int(datasets.size() * methods.size() * seeds.size());
   const std::string results = (fs::path(args.out) / "results.csv").string();
   // Progress over every run's frames: a long sequence is minutes of tracking between two of the
   // per-run lines. On a terminal each per-run line first clears the progress line it follows.
   long total_frames = 0, frames_done = 0;
   for (const auto& sensors : opened)
-    total_frames += long(sensors[0].frames()) * long(methods.size());
+    total_frames += long(sensors[0].frames()) * long(methods.size() * seeds.size());
   Progress progress("tracking", int(std::min<long>(total_frames, INT_MAX)), !args.track.quiet);
   const bool tty = isatty(fileno(stderr));
   try {
     const StopOnSignals stop;
-    for (std::size_t k = 0; k < opened.size(); ++k) {
-      const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
-      const Dataset& dataset = *sensors[0];
-      const std::string& dir = datasets[k];
-      // The seed: the dataset's folder name, whatever other datasets run with it (the run's
-      // name adds the parent folder's where two datasets share a name).
-      const std::uint64_t seed =
-          sequence_seed(args.track.seed, fs::weakly_canonical(dir).filename().string());
-      for (const auto& m : methods) {
-        TrackArgs a = args.track;
-        a.method = m;
-        a.seed = seed;
-        const TrackRun run =
-            track_dataset(sensors, make_track_options(a, sensors, models), [&](int frame, int) {
-              progress.update(int(std::min<long>(frames_done + frame, INT_MAX)));
-            });
-        frames_done += dataset.frames();
-        const std::string name = names[k] + "_" + m;
-        const fs::path run_dir = fs::path(args.out) / "runs" / name;
-        try {
-          write_track_outputs(run, sensors, run_dir.string());
-        } catch (const InputError&) {
-          // A run whose outputs could not all be written (a full disk) leaves none of them, and
-          // no empty runs folder (eval's own: it replaces them).
-          std::error_code ec;
-          fs::remove_all(run_dir, ec);
-          if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
-          throw;
-        }
-        rows.push_back({dir, dataset.info().object_name, m, "runs/" + name, run.summary});
-        ++done;
-        if (!args.track.quiet) {
-          std::fprintf(stderr, "%s[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n",
-                       tty ? "\r\033[K" : "", done, total, name.c_str(),
-                       dataset.info().object_name.c_str(),
-                       run.summary.final_translation_error_m * 1e3,
-                       run.summary.final_rotation_error_rad, run.summary.hz);
+    // Seed by seed, so that a matrix stopped part-way holds whole seeds first.
+    for (std::size_t run_seed = 0; run_seed < seeds.size(); ++run_seed) {
+      for (std::size_t k = 0; k < opened.size(); ++k) {
+        const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
+        const Dataset& dataset = *sensors[0];
+        const std::string& dir = datasets[k];
+        // The seed: the dataset's folder name, whatever other datasets run with it (the run's
+        // name adds the parent folder's where two datasets share a name).
+        const std::uint64_t seed =
+            sequence_seed(seeds[run_seed], fs::weakly_canonical(dir).filename().string());
+        for (const auto& m : methods) {
+          TrackArgs a = args.track;
+          a.method = m;
+          a.seed = seed;
+          const TrackRun run =
+              track_dataset(sensors, make_track_options(a, sensors, models), [&](int frame, int) {
+                progress.update(int(std::min<long>(frames_done + frame, INT_MAX)));
+              });
+          frames_done += dataset.frames();
+          const std::string name =
+              names[k] + "_" + m +
+              (several_seeds ? "_seed" + std::to_string(seeds[run_seed]) : std::string());
+          const fs::path run_dir = fs::path(args.out) / "runs" / name;
+          try {
+            write_track_outputs(run, sensors, run_dir.string());
+          } catch (const InputError&) {
+            // A run whose outputs could not all be written (a full disk) leaves none of them, and
+            // no empty runs folder (eval's own: it replaces them).
+            std::error_code ec;
+            fs::remove_all(run_dir, ec);
+            if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
+            throw;
+          }
+          rows.push_back(
+              {dir, dataset.info().object_name, m, "runs/" + name, seeds[run_seed], run.summary});
+          ++done;
+          if (!args.track.quiet) {
+            std::fprintf(stderr, "%s[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n",
+                         tty ? "\r\033[K" : "", done, total, name.c_str(),
+                         dataset.info().object_name.c_str(),
+                         run.summary.final_translation_error_m * 1e3,
+                         run.summary.final_rotation_error_rad, run.summary.hz);
+          }
         }
       }
     }
@@ -326,7 +400,7 @@ int run_eval(const EvalArgs& args) {
                  untouched_runs, untouched.c_str(), untouched_runs > 3 ? ", ..." : "");
   }
   const std::vector<Group> groups = group_runs(rows, methods);
-  const std::string md = summary_markdown(groups);
+  const std::string md = summary_markdown(groups, seeds);
   write_text_atomically((fs::path(args.out) / "summary.md").string(), md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());

@@ -1,4 +1,5 @@
 #pragma once
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -10,13 +11,17 @@ struct EvalArgs {
   std::vector<std::string> datasets;  // dataset folders or folders holding datasets
   std::vector<std::string> methods;   // empty: all four
   std::string out;
-  TrackArgs track;  // shared tracking options (its method is ignored)
+  TrackArgs track;  // shared tracking options (its method and, with seeds, its seed ignored)
+  // --seeds: every dataset and method once per seed (each mixed with the dataset's name, as
+  // track.seed is), the summary's medians over all of them; empty: track.seed alone.
+  std::vector<std::uint64_t> seeds;
   bool no_plots = false;
 };
 
 // Tracks every dataset with every method, writes OUT/results.csv, OUT/summary.md (median and
 // quartiles of the final errors per object and method), per-run outputs under OUT/runs/, and
-// the plots (OUT/boxplots.png, OUT/trajectories_<object>.png) with tools/plot_eval.py.
+// the plots (OUT/boxplots.png, OUT/trajectories_<object>.png) with tools/plot_eval.py. With
+// several seeds, summary.md also gives each seed's medians.
 int run_eval(const EvalArgs& args);
 
 }  // namespace pg

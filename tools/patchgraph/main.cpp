@@ -323,6 +323,13 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember(method_names()));
   cmd_eval->add_option("--out,-o", eval.out, "Output folder")->required();
   add_track_options(*cmd_eval, eval.track, /*with_method=*/false);
+  cmd_eval
+      ->add_option("--seeds", eval.seeds,
+                   "Several noise seeds instead of --seed: every dataset and method runs once "
+                   "with each (runs/<name>_<method>_seed<S>), summary.md gives the medians over "
+                   "all of them and seed by seed")
+      ->check(kSeed)
+      ->excludes("--seed");
   cmd_eval->add_flag("--no-plots,--no-plot", eval.no_plots, "Skip the matplotlib plots");
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 
