@@ -106,15 +106,17 @@ struct Group {
   std::vector<double> translation, rotation, ms;
   std::vector<std::uint64_t> seeds;
 
+  void add(double translation_m, double rotation_rad, double frame_ms, std::uint64_t seed) {
+    translation.push_back(translation_m);
+    rotation.push_back(rotation_rad);
+    ms.push_back(frame_ms);
+    seeds.push_back(seed);
+  }
   // The runs of one eval seed alone.
   Group of_seed(std::uint64_t seed) const {
     Group g{object, method, {}, {}, {}, {}};
     for (std::size_t i = 0; i < seeds.size(); ++i) {
-      if (seeds[i] != seed) continue;
-      g.translation.push_back(translation[i]);
-      g.rotation.push_back(rotation[i]);
-      g.ms.push_back(ms[i]);
-      g.seeds.push_back(seed);
+      if (seeds[i] == seed) g.add(translation[i], rotation[i], ms[i], seed);
     }
     return g;
   }
@@ -132,10 +134,8 @@ std::vector<Group> group_runs(const std::vector<Row>& rows,
       if (it == per_method.end()) continue;
       Group g{object, m, {}, {}, {}, {}};
       for (const Row* r : it->second) {
-        g.translation.push_back(r->s.final_translation_error_m);
-        g.rotation.push_back(r->s.final_rotation_error_rad);
-        g.ms.push_back(r->s.median_frame_ms);
-        g.seeds.push_back(r->eval_seed);
+        g.add(r->s.final_translation_error_m, r->s.final_rotation_error_rad, r->s.median_frame_ms,
+              r->eval_seed);
       }
       groups.push_back(std::move(g));
     }
