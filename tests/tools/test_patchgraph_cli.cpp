@@ -121,6 +121,13 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_EQ(version.out.rfind("patchgraph 0.", 0), 0u) << version.out;
   // An option's value forgotten: the next option had been taken as it (a folder named --quiet).
   refused(track + "--out --quiet", 2, "--out: '--quiet' is an option, not a value");
+  // ... said so before the option's own checks, a number's too (they had said "must be a whole
+  // number ..., got --out" and "not a number: --out"), short names included.
+  refused(track + "--seed --out " + out("x"), 2,
+          "--seed: '--out' is an option, not a value: give --seed its value");
+  refused(track + "--window -q --out " + out("x"), 2, "--window: '-q' is an option, not a value");
+  refused("eval --datasets " + data() + " --seeds --out " + out("x"), 2,
+          "--seeds: '--out' is an option, not a value");
   refused("eval --datasets " + data() + " --methods icpgraph --out " + out("x"), 2,
           "--methods: icpgraph not in");
   refused(track + "--normals unet.pt --out " + out("x"), 1, "unet.pt: model file not found");

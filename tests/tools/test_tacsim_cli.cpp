@@ -244,6 +244,13 @@ TEST(TacsimCli, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
   EXPECT_EQ(
       r.out.rfind("error: --frames: must be a whole number from 1 to 10000000, got 1e300\n", 0), 0u)
       << r.out;
+  // Its value forgotten, the next option is named as such (it had been "..., got --out").
+  const CliRun forgotten = tacsim("render " + kScenes + "default.json --frames --out x");
+  EXPECT_EQ(forgotten.code, 2);
+  EXPECT_EQ(forgotten.out.rfind(
+                "error: --frames: '--out' is an option, not a value: give --frames its value\n", 0),
+            0u)
+      << forgotten.out;
 }
 
 // A pose list longer than the scene's frames is said to be cut short (a frames not updated after

@@ -346,43 +346,50 @@ inline std::string whole_number_problem(const std::string& text, bool is_unsigne
   return "must be a whole number " + words + ", got " + text;
 }
 
-// Puts whole_number_problem's check in front of every whole-number option's own checks, in `app`
-// and its subcommands. CLI11 runs an option's checks before it converts the value, and theirs
-// read it as a floating-point number, so "1.5" or "1e300" passed a range check and failed the
-// conversion with CLI11's "Could not convert: --epochs = 1.5".
-inline void check_whole_numbers_first(CLI::App& app) {
+// Puts two checks in front of every option's own, in `app` and its subcommands, both run before
+// the option's validators and its conversion:
+// - an option's value that is another option's name (`--seeds --out X`, `--out --quiet`): CLI11
+//   takes the next word as the value, whatever it is, and the option's own check then said "must
+//   be a whole number ..., got --out" (or made a folder named --quiet);
+// - whole_number_problem's for a whole-number option: the option's own checks read the value as a
+//   floating-point number, so "1.5" or "1e300" passed a range check and failed the conversion
+//   with CLI11's "Could not convert: --epochs = 1.5".
+inline void check_values_first(CLI::App& app) {
   for (CLI::Option* option : app.get_options()) {
+    if (option->get_expected_min() <= 0) continue;          // a flag takes no value
     const std::string full_type = option->get_type_name();  // "INT:1 to 256 (or 0)"
     const std::size_t colon = full_type.find(':');
     const std::string type = full_type.substr(0, colon);
-    if (type != "INT" && type != "UINT") continue;
-    const std::string range = colon == std::string::npos ? "" : full_type.substr(colon + 1);
+    if (type == "INT" || type == "UINT") {
+      const std::string range = colon == std::string::npos ? "" : full_type.substr(colon + 1);
+      option->transform(CLI::Validator(
+          [is_unsigned = type == "UINT", range](std::string& text) {
+            return whole_number_problem(text, is_unsigned, range);
+          },
+          ""));
+    }
+    // Added last, so run first (a transform goes in front of the checks before it).
     option->transform(CLI::Validator(
-        [is_unsigned = type == "UINT", range](std::string& text) {
-          return whole_number_problem(text, is_unsigned, range);
+        [&app, name = option->get_name()](std::string& text) -> std::string {
+          if (text.size() > 1 && text[0] == '-' && app.get_option_no_throw(text) != nullptr) {
+            return "'" + text + "' is an option, not a value: give " + name + " its value";
+          }
+          return {};
         },
         ""));
   }
-  for (CLI::App* sub : app.get_subcommands({})) check_whole_numbers_first(*sub);
+  for (CLI::App* sub : app.get_subcommands({})) check_values_first(*sub);
 }
 
 // Throws CLI::ValidationError for an option or argument given as an empty string (`--out ""`,
 // a shell variable that was never set): no option of these tools means anything by it, and a
-// file named "" fails later with a message that names nothing. (Whole numbers were checked
-// before their conversion: check_whole_numbers_first.)
+// file named "" fails later with a message that names nothing. (Whole numbers and values that
+// are options' names were checked before their conversion: check_values_first.)
 inline void check_values(const CLI::App& app) {
   for (const CLI::Option* option : app.get_options()) {
     for (const std::string& value : option->results()) {
       if (value.empty() && option->get_expected_min() > 0) {
         throw CLI::ValidationError(option->get_name(), "an empty value");
-      }
-      // `--out --quiet`: CLI11 takes the next word as the value, whatever it is (a folder named
-      // --quiet was made).
-      if (value.size() > 1 && value[0] == '-' && option->get_expected_min() > 0 &&
-          app.get_option_no_throw(value) != nullptr) {
-        throw CLI::ValidationError(
-            option->get_name(),
-            "'" + value + "' is an option, not a value: give " + option->get_name() + " its value");
       }
     }
   }
@@ -415,7 +422,7 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
   // --version: the project's version (tools/CMakeLists.txt gives it).
   app.set_version_flag("--version",
                        std::filesystem::path(argv[0]).filename().string() + " " + PG_VERSION);
-  check_whole_numbers_first(app);
+  check_values_first(app);
   try {
     app.parse(argc, argv);
     check_values(app);
