@@ -304,6 +304,46 @@ TEST(Tracking, UnobservableDirectionsAreReported) {
   const TrackRun c = track_dataset(dc, TrackOptions());
   EXPECT_GT(c.summary.contact_frames, 50);
   EXPECT_LT(c.summary.degenerate_frames, c.summary.contact_frames / 10);
+  // The sphere's free turn is a warning (its rotation follows the motion prior); the corner's
+  // few free frames are not.
+  EXPECT_EQ(turn_unseen_frames(s.summary), three);
+  const std::vector<std::string> warned = track_warnings(s.summary);
+  EXPECT_NE(std::find(warned.begin(), warned.end(), "turn_unseen"), warned.end());
+  const std::vector<std::string> corner = track_warnings(c.summary);
+  EXPECT_EQ(std::find(corner.begin(), corner.end(), "turn_unseen"), corner.end());
+}
+
+// Each warning at its threshold, named in track's order.
+TEST(Tracking, TrackWarningsNameWhatIsWrongAtTheirThresholds) {
+  TrackSummary s;
+  s.contact_frames = 100;
+  s.unconstrained_direction_frames[0] = 100;
+  EXPECT_TRUE(track_warnings(s).empty());
+  s.unconstrained_direction_frames[0] = 75;
+  s.unconstrained_direction_frames[2] = 20;
+  s.unconstrained_direction_frames[5] = 5;  // 25: a quarter, not more
+  EXPECT_TRUE(track_warnings(s).empty());
+  s.unconstrained_direction_frames[0] = 74;
+  s.unconstrained_direction_frames[3] = 1;
+  EXPECT_EQ(turn_unseen_frames(s), 26);
+  EXPECT_EQ(track_warnings(s), std::vector<std::string>{"turn_unseen"});
+  s.unconverged_registrations = 50;  // half: not more
+  s.marked_contact_frames = 200;     // found in half: not fewer
+  s.two_registration_frames = 9;     // too few to tell
+  s.disagreeing_registration_frames = 9;
+  EXPECT_EQ(track_warnings(s), std::vector<std::string>{"turn_unseen"});
+  s.unconverged_registrations = 51;
+  s.marked_contact_frames = 202;
+  s.two_registration_frames = 40;
+  s.disagreeing_registration_frames = 11;
+  s.lost_frames = 1;
+  s.saturated_frames = 1;
+  EXPECT_EQ(track_warnings(s), (std::vector<std::string>{
+                                   "lost_frames", "unconverged_registrations", "contact_not_found",
+                                   "disagreeing_registrations", "saturated", "turn_unseen"}));
+  TrackSummary none;  // nothing touched
+  none.sensor_pose_jumps = 2;
+  EXPECT_EQ(track_warnings(none), (std::vector<std::string>{"no_contact", "sensor_pose_jumps"}));
 }
 
 // A rounded cube edge pressed into the gel and turning about it (benchmark cube_01's first 60

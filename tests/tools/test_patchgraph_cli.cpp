@@ -915,6 +915,9 @@ TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
   const CliRun still = patchgraph("track " + data() + " -q --out " + out("no_jump"));
   ASSERT_EQ(still.code, 0) << still.out;
   EXPECT_EQ(still.out.find("sensor pose jumps"), std::string::npos) << still.out;
+  // summary.json's warnings name what track warned of: the default scene, a cube corner with a
+  // still sensor, none.
+  EXPECT_EQ(parse_json_file(out("no_jump") + "/summary.json")["warnings"], nlohmann::json::array());
   const std::string copy =
       data_copy_with_poses("data_sensor_glitch", [](std::vector<FramePose>& poses) {
         poses[30].T_world_sensor =
@@ -928,6 +931,8 @@ TEST_F(PatchgraphCli, ASensorPoseThatJumpsIsWarnedAbout) {
                             copy + "/poses.csv?"),
             std::string::npos)
       << glitch.out;
+  EXPECT_EQ(parse_json_file(out("glitch") + "/summary.json")["warnings"],
+            nlohmann::json({"sensor_pose_jumps"}));
   const CliRun imported =
       patchgraph("recording --images " + data() + "/color --background " + data() +
                  "/background.png --poses " + copy + "/poses.csv -q --out " + out("glitch_rec"));
@@ -1260,7 +1265,10 @@ TEST_F(PatchgraphCli, TrackTakesSeveralSensorsOfOneSequence) {
             std::string::npos)
       << below_alone.out;
   // A turn free (the face's spin) in over a quarter of the frames: a warning, not a note, as the
-  // rotation can drift with nothing failing.
+  // rotation can drift with nothing failing; summary.json names it.
+  EXPECT_NE(std::find(alone["warnings"].begin(), alone["warnings"].end(), "turn_unseen"),
+            alone["warnings"].end())
+      << alone["warnings"];
   EXPECT_NE(
       below_alone.out.find("warning: in " + std::to_string(alone["degenerate_frames"].get<int>()) +
                            " of " + std::to_string(alone["contact_frames"].get<int>()) +
@@ -1888,8 +1896,9 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
   EXPECT_NE(t.out.find("warning: no frame with contact: nothing was registered"), std::string::npos)
       << t.out;
   EXPECT_GT(changed_regions(no_contact[1], no_contact[4]).changed, 30);  // more than a contact's
-  EXPECT_EQ(parse_json_file(out("rec_still_track") + "/summary.json")["contact_frames"].get<int>(),
-            0);
+  const auto still_summary = parse_json_file(out("rec_still_track") + "/summary.json");
+  EXPECT_EQ(still_summary["contact_frames"].get<int>(), 0);
+  EXPECT_EQ(still_summary["warnings"], nlohmann::json({"no_contact"}));
 
   // eval says so of its runs without contact (the five frames, against their noise-free reference).
   t = patchgraph("eval -q --no-plots --methods constvel --normals " + std::string(PG_SOURCE_DIR) +

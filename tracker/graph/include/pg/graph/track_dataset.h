@@ -132,6 +132,10 @@ struct TrackSummary {
   // counts as 6; ImageToImage's and ConstVel's frames as 0): a sphere's three rotations, an edge's
   // slide (1) or its slide and turn (2, where the estimate follows only the motion priors).
   std::array<int, 7> unconstrained_direction_frames{};
+  // Frames some dataset's poses.csv marks as in contact (its `contact` column), and the sensor
+  // pose jumps in the datasets' poses (sensor_jumps), for track_warnings.
+  int marked_contact_frames = 0;
+  int sensor_pose_jumps = 0;
   // Errors against ground truth: RMSE over the frames that have it, final = the last frame's;
   // NaN where there is none.
   double translation_rmse_m = 0;
@@ -213,6 +217,22 @@ SE3 sensor_pose_at(const std::vector<FramePose>& poses, double time_s, int frame
 
 // The summary of per-frame results (RMSE over the frames with ground truth, final = last frame).
 TrackSummary summarize(const std::vector<FrameResult>& frames, const std::string& method);
+
+// Contact frames whose image-to-patch registration left two to five directions free, a turn
+// among them (an edge's or a cylinder's turn about its axis beside the slide, a flat face's spin,
+// a sphere's rotations; six is no registration at all).
+int turn_unseen_frames(const TrackSummary& s);
+
+// What a run's summary warns of, by name, in the order `patchgraph track` says it: summary.json's
+// `warnings`, for a pipeline to check without reading the messages (docs/outputs.md):
+// "no_contact", "rejected_registrations", "lost_frames", "unconverged_registrations" (more than
+// half the contact frames), "unregistered_frames" (no registration held the pose in more than
+// half), "contact_not_found" (in fewer than half the frames the datasets mark as in contact),
+// "sensor_pose_jumps", "overridden_registrations", "rejected_normals", "reference_mismatch",
+// "disagreeing_registrations" (in more than a quarter of the frames where both held, at least
+// 10), "saturated", "invalid_input", "turn_unseen" (two to five free directions in more than a
+// quarter of the contact frames: the rotation can drift with nothing failing).
+std::vector<std::string> track_warnings(const TrackSummary& s);
 
 // OUT/poses.csv (the dataset's pose columns, estimated; the primary's with several sensors),
 // OUT/errors.csv, OUT/summary.json, OUT/patch.ply (every sensor's patch, object frame), the
