@@ -1908,6 +1908,12 @@ TEST_F(PatchgraphCli, ARecordingsReferenceIsTheMedianOfItsNoContactImages) {
   EXPECT_NE(t.out.find("warning: 1 run(s) without any contact frame (runs/still_gel_constvel)"),
             std::string::npos)
       << t.out;
+  // ... and results.csv and summary.md name the warning.
+  EXPECT_EQ(read_csv_table(out("still_eval") + "/results.csv").cell(0, "warnings"), "no_contact");
+  EXPECT_NE(testing_support::file_text(out("still_eval") + "/summary.md")
+                .find("| constvel | no_contact | 1 of 1: runs/still_gel_constvel |\n"),
+            std::string::npos)
+      << testing_support::file_text(out("still_eval") + "/summary.md");
 
   t = patchgraph(track + out("rec_five_references") + " --out " + out("rec_five_track"));
   ASSERT_EQ(t.code, 0) << t.out;

@@ -16,6 +16,7 @@
 #include "../common/progress.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/graph/track_dataset.h"
 
 namespace pg {
 
@@ -87,14 +88,17 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
   out.precision(9);
   out << "dataset,object,method,frames,contact_frames,final_translation_error_m,"
          "final_rotation_error_rad,translation_rmse_m,rotation_rmse_rad,median_frame_ms,hz,"
-         "lost_frames,degenerate_frames,seed,run,eval_seed\n";
+         "lost_frames,degenerate_frames,seed,run,eval_seed,warnings\n";
   for (const auto& r : rows) {
     out << csv_field(r.dataset) << "," << csv_field(r.object) << "," << r.method << ","
         << r.s.frames << "," << r.s.contact_frames << "," << r.s.final_translation_error_m << ","
         << r.s.final_rotation_error_rad << "," << r.s.translation_rmse_m << ","
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
-        << csv_field(r.run) << "," << r.eval_seed << "\n";
+        << csv_field(r.run) << "," << r.eval_seed << ",";
+    const std::vector<std::string> warnings = track_warnings(r.s);
+    for (std::size_t k = 0; k < warnings.size(); ++k) out << (k ? ";" : "") << warnings[k];
+    out << "\n";
   }
   write_text_atomically(path, out.str());
 }
@@ -214,6 +218,42 @@ std::string seed_medians_markdown(const std::vector<Group>& groups,
       md << cell;
     }
     md << "\n";
+  }
+  return md.str();
+}
+
+// The runs the tracker warned about (track_warnings), by object, method and warning, with the
+// first three runs' folders: which sequences to look at; empty when no run warned.
+std::string warnings_markdown(const std::vector<Row>& rows,
+                              const std::vector<std::string>& methods) {
+  struct Warned {
+    int runs = 0;
+    std::string names;
+  };
+  std::map<std::string, std::map<std::string, int>> runs;  // object -> method -> runs
+  // object -> method -> warning -> its runs
+  std::map<std::string, std::map<std::string, std::map<std::string, Warned>>> by;
+  for (const Row& r : rows) {
+    ++runs[r.object][r.method];
+    for (const std::string& warning : track_warnings(r.s)) {
+      Warned& w = by[r.object][r.method][warning];
+      if (++w.runs <= 3) w.names += (w.names.empty() ? "" : ", ") + markdown_cell(r.run);
+    }
+  }
+  if (by.empty()) return {};
+  std::ostringstream md;
+  md << "\nRuns the tracker warned about (each run's summary.json `warnings`, results.csv "
+        "`warnings`; docs/outputs.md):\n\n| object | method | warning | runs "
+        "|\n|---|---|---|---|\n";
+  for (const auto& [object, per_method] : by) {
+    for (const std::string& m : methods) {
+      const auto it = per_method.find(m);
+      if (it == per_method.end()) continue;
+      for (const auto& [warning, w] : it->second) {
+        md << "| " << markdown_cell(object) << " | " << m << " | " << warning << " | " << w.runs
+           << " of " << runs[object][m] << ": " << w.names << (w.runs > 3 ? ", ..." : "") << " |\n";
+      }
+    }
   }
   return md.str();
 }
@@ -400,7 +440,7 @@ int run_eval(const EvalArgs& args) {
                  untouched_runs, untouched.c_str(), untouched_runs > 3 ? ", ..." : "");
   }
   const std::vector<Group> groups = group_runs(rows, methods);
-  const std::string md = summary_markdown(groups, seeds);
+  const std::string md = summary_markdown(groups, seeds) + warnings_markdown(rows, methods);
   write_text_atomically((fs::path(args.out) / "summary.md").string(), md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());
