@@ -3290,5 +3290,59 @@ TEST_F(PatchgraphCli, EvalPoolsSeveralNoiseSeeds) {
   EXPECT_FALSE(fs::exists(refused_out));
 }
 
+// --jobs tracks several runs at once: results.csv lists the same runs in the same order with the
+// same errors, to the last digit, as one at a time; only the update times may differ, and
+// summary.md says they shared the cores. A run that fails keeps the others' results.
+TEST_F(PatchgraphCli, EvalRunsSeveralAtOnceWithTheSameResults) {
+  const std::string copy = data_copy("data_jobs");
+  const std::string matrix = "eval --datasets " + data() + " " + copy +
+                             " --methods patchgraph gtpatch --seeds 0 7 -q --no-plots";
+  const CliRun one = patchgraph(matrix + " --out " + out("jobs1"));
+  ASSERT_EQ(one.code, 0) << one.out;
+  const CliRun three = patchgraph(matrix + " --jobs 3 --out " + out("jobs3"));
+  ASSERT_EQ(three.code, 0) << three.out;
+  const auto a = read_csv_table(out("jobs1") + "/results.csv");
+  const auto b = read_csv_table(out("jobs3") + "/results.csv");
+  ASSERT_EQ(a.rows.size(), 8u);
+  ASSERT_EQ(b.rows.size(), 8u);
+  ASSERT_EQ(a.column, b.column);
+  for (std::size_t i = 0; i < a.rows.size(); ++i) {
+    std::vector<std::string> row_a = a.rows[i], row_b = b.rows[i];
+    for (const char* time : {"median_frame_ms", "hz"}) {
+      EXPECT_NE(row_a.at(a.column.at(time)), "");
+      row_a[a.column.at(time)] = row_b.at(b.column.at(time)) = "";
+    }
+    EXPECT_EQ(row_a, row_b) << "row " << i;
+    EXPECT_EQ(testing_support::file_text(out("jobs1") + "/" + a.cell(i, "run") + "/poses.csv"),
+              testing_support::file_text(out("jobs3") + "/" + b.cell(i, "run") + "/poses.csv"))
+        << a.cell(i, "run");
+  }
+  const std::string shared = "Runs tracked 3 at once (--jobs)";
+  EXPECT_NE(testing_support::file_text(out("jobs3") + "/summary.md").find(shared),
+            std::string::npos);
+  EXPECT_EQ(testing_support::file_text(out("jobs1") + "/summary.md").find("at once"),
+            std::string::npos);
+  // One core's worth or all cores (0) are settings too; more jobs than runs run each run once.
+  const CliRun all = patchgraph("eval --datasets " + data() +
+                                " --methods constvel -q --no-plots --jobs 0 --out " + out("jobs0"));
+  ASSERT_EQ(all.code, 0) << all.out;
+  EXPECT_EQ(read_csv_table(out("jobs0") + "/results.csv").rows.size(), 1u);
+  expect_refused("eval --datasets " + data() + " --jobs -1 --out " + out("jobs_refused"), 2,
+                 "--jobs");
+  // The damaged sequence fails; the run beside it (or before it, whichever job took it) finishes
+  // and is kept.
+  fs::copy_file(copy + "/background.png", copy + "/normal/000050.exr",
+                fs::copy_options::overwrite_existing);
+  const CliRun failed = patchgraph("eval --methods constvel --no-plots -q --jobs 2 --datasets " +
+                                   data() + " " + copy + " --out " + out("jobs_failed"));
+  EXPECT_EQ(failed.code, 1);
+  EXPECT_NE(failed.out.find("normal/000050.exr: is a png file"), std::string::npos) << failed.out;
+  EXPECT_NE(failed.out.find("results.csv holds the 1 run(s) finished before it"), std::string::npos)
+      << failed.out;
+  const auto kept = read_csv_table(out("jobs_failed") + "/results.csv");
+  ASSERT_EQ(kept.rows.size(), 1u);
+  EXPECT_EQ(kept.cell(0, "dataset"), data());
+}
+
 }  // namespace
 }  // namespace pg

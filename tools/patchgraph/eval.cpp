@@ -3,13 +3,19 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <climits>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <sstream>
+#include <system_error>
+#include <thread>
 
 #include "../common/cli_main.h"
 #include "../common/plot_script.h"
@@ -352,65 +358,117 @@ int run_eval(const EvalArgs& args) {
   check_runs_folder_is_evals(args.out);
   const OutputFolder out(
       args.out, {"results.csv", "summary.md", "runs", "boxplots.png", "trajectories_*.png"});
-  std::vector<Row> rows;
-  int done = 0;
-  const int total = int(datasets.size() * methods.size() * seeds.size());
+  // The runs in the order results.csv lists them: seed by seed, so that a matrix stopped
+  // part-way holds whole seeds first, then dataset by dataset and method by method.
+  struct Task {
+    std::size_t seed;  // index into seeds
+    std::size_t sequence;
+    std::string method;
+  };
+  std::vector<Task> tasks;
+  for (std::size_t s = 0; s < seeds.size(); ++s)
+    for (std::size_t k = 0; k < opened.size(); ++k)
+      for (const auto& m : methods) tasks.push_back({s, k, m});
+  const int jobs = int(std::min<std::size_t>(
+      args.jobs > 0 ? std::size_t(args.jobs) : std::max(1u, std::thread::hardware_concurrency()),
+      tasks.size()));
+  // A model per job beyond the first: each job runs its own network.
+  std::vector<NormalsModels> job_models{models};
+  for (int j = 1; j < jobs && !models.empty(); ++j)
+    job_models.push_back(load_normals_models(args.track));
+  const int total = int(tasks.size());
   const std::string results = (fs::path(args.out) / "results.csv").string();
   // Progress over every run's frames: a long sequence is minutes of tracking between two of the
   // per-run lines. On a terminal each per-run line first clears the progress line it follows.
   long total_frames = 0, frames_done = 0;
-  for (const auto& sensors : opened)
-    total_frames += long(sensors[0].frames()) * long(methods.size() * seeds.size());
+  for (const Task& t : tasks) total_frames += long(opened[t.sequence][0].frames());
   Progress progress("tracking", int(std::min<long>(total_frames, INT_MAX)), !args.track.quiet);
   const bool tty = isatty(fileno(stderr));
-  try {
-    const StopOnSignals stop;
-    // Seed by seed, so that a matrix stopped part-way holds whole seeds first.
-    for (std::size_t run_seed = 0; run_seed < seeds.size(); ++run_seed) {
-      for (std::size_t k = 0; k < opened.size(); ++k) {
-        const std::vector<const Dataset*> sensors = dataset_pointers(opened[k]);
-        const Dataset& dataset = *sensors[0];
-        const std::string& dir = datasets[k];
-        // The seed: the dataset's folder name, whatever other datasets run with it (the run's
-        // name adds the parent folder's where two datasets share a name).
-        const std::uint64_t seed =
-            sequence_seed(seeds[run_seed], fs::weakly_canonical(dir).filename().string());
-        for (const auto& m : methods) {
-          TrackArgs a = args.track;
-          a.method = m;
-          a.seed = seed;
-          const TrackRun run =
-              track_dataset(sensors, make_track_options(a, sensors, models), [&](int frame, int) {
-                progress.update(int(std::min<long>(frames_done + frame, INT_MAX)));
-              });
-          frames_done += dataset.frames();
-          const std::string name =
-              names[k] + "_" + m +
-              (several_seeds ? "_seed" + std::to_string(seeds[run_seed]) : std::string());
-          const fs::path run_dir = fs::path(args.out) / "runs" / name;
-          try {
-            write_track_outputs(run, sensors, run_dir.string());
-          } catch (const InputError&) {
-            // A run whose outputs could not all be written (a full disk) leaves none of them, and
-            // no empty runs folder (eval's own: it replaces them).
-            std::error_code ec;
-            fs::remove_all(run_dir, ec);
-            if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
-            throw;
-          }
-          rows.push_back(
-              {dir, dataset.info().object_name, m, "runs/" + name, seeds[run_seed], run.summary});
-          ++done;
-          if (!args.track.quiet) {
-            std::fprintf(stderr, "%s[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n",
-                         tty ? "\r\033[K" : "", done, total, name.c_str(),
-                         dataset.info().object_name.c_str(),
-                         run.summary.final_translation_error_m * 1e3,
-                         run.summary.final_rotation_error_rad, run.summary.hz);
-          }
-        }
+  // The jobs take the runs in order; the progress, the lines and the first failure under one
+  // lock. A run's row lands in its own slot, so results.csv's order is the tasks' whatever the
+  // order the runs end in.
+  std::vector<std::optional<Row>> finished(tasks.size());
+  std::vector<long> run_frames(tasks.size(), 0);
+  std::mutex lock;
+  std::atomic<std::size_t> next{0};
+  std::atomic<bool> failed{false};
+  std::exception_ptr failure;
+  int done = 0;
+  auto run_task = [&](std::size_t i, const NormalsModels& job_model) {
+    const Task& task = tasks[i];
+    const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
+    const Dataset& dataset = *sensors[0];
+    const std::string& dir = datasets[task.sequence];
+    // The seed: the dataset's folder name, whatever other datasets run with it (the run's name
+    // adds the parent folder's where two datasets share a name).
+    TrackArgs a = args.track;
+    a.method = task.method;
+    a.seed = sequence_seed(seeds[task.seed], fs::weakly_canonical(dir).filename().string());
+    const TrackRun run =
+        track_dataset(sensors, make_track_options(a, sensors, job_model), [&](int frame, int) {
+          const std::lock_guard<std::mutex> hold(lock);
+          frames_done += frame - run_frames[i];
+          run_frames[i] = frame;
+          progress.update(int(std::min<long>(frames_done, INT_MAX)));
+        });
+    const std::string name =
+        names[task.sequence] + "_" + task.method +
+        (several_seeds ? "_seed" + std::to_string(seeds[task.seed]) : std::string());
+    const fs::path run_dir = fs::path(args.out) / "runs" / name;
+    try {
+      write_track_outputs(run, sensors, run_dir.string());
+    } catch (const InputError&) {
+      // A run whose outputs could not all be written (a full disk) leaves none of them, and no
+      // empty runs folder (eval's own: it replaces them).
+      std::error_code ec;
+      fs::remove_all(run_dir, ec);
+      if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
+      throw;
+    }
+    finished[i] =
+        Row{dir,        dataset.info().object_name, task.method, "runs/" + name, seeds[task.seed],
+            run.summary};
+    const std::lock_guard<std::mutex> hold(lock);
+    frames_done += dataset.frames() - run_frames[i];
+    run_frames[i] = dataset.frames();
+    ++done;
+    if (!args.track.quiet) {
+      std::fprintf(stderr, "%s[%d/%d] %s %s: final %.3f mm %.4f rad, %.0f Hz\n",
+                   tty ? "\r\033[K" : "", done, total, name.c_str(),
+                   dataset.info().object_name.c_str(), run.summary.final_translation_error_m * 1e3,
+                   run.summary.final_rotation_error_rad, run.summary.hz);
+    }
+  };
+  // A failure (a damaged frame file, Ctrl-C) stops every job from starting another run; the
+  // runs already going finish (or stop at the signal too).
+  auto work = [&](const NormalsModels& job_model) {
+    while (!failed) {
+      const std::size_t i = next++;
+      if (i >= tasks.size()) return;
+      try {
+        run_task(i, job_model);
+      } catch (...) {
+        const std::lock_guard<std::mutex> hold(lock);
+        if (!failure) failure = std::current_exception();
+        failed = true;
       }
     }
+  };
+  std::vector<Row> rows;
+  try {
+    const StopOnSignals stop;
+    std::vector<std::thread> threads;
+    try {
+      for (int j = 0; j < jobs && jobs > 1; ++j)
+        threads.emplace_back(work, std::cref(job_models[std::size_t(j) % job_models.size()]));
+    } catch (const std::system_error&) {
+      // The system gave fewer threads than asked for: those made share the runs.
+    }
+    if (threads.empty()) work(job_models[0]);
+    for (std::thread& t : threads) t.join();
+    for (auto& row : finished)
+      if (row) rows.push_back(std::move(*row));
+    if (failure) std::rethrow_exception(failure);
   } catch (const InputError& e) {
     // A dataset that fails half-way (a damaged frame file) keeps the runs finished before it.
     if (rows.empty()) throw;
@@ -418,7 +476,7 @@ int run_eval(const EvalArgs& args) {
     throw InputError(std::string(e.what()) + "\n(eval stopped there; " + results + " holds the " +
                      std::to_string(rows.size()) + " run(s) finished before it)");
   } catch (const Stopped& e) {
-    // Ctrl-C on a long matrix keeps what it measured; the run cut short is not among them.
+    // Ctrl-C on a long matrix keeps what it measured; the runs cut short are not among them.
     if (rows.empty()) throw e.with_note("no run finished; nothing written");
     write_results_csv(results, rows);
     throw e.with_note(results + " holds the " + std::to_string(rows.size()) +
@@ -430,7 +488,8 @@ int run_eval(const EvalArgs& args) {
   std::string untouched;
   int untouched_runs = 0;
   for (const Row& r : rows) {
-    if (r.s.contact_frames > 0) continue;
+    const std::vector<std::string> warnings = track_warnings(r.s);
+    if (std::find(warnings.begin(), warnings.end(), "no_contact") == warnings.end()) continue;
     if (++untouched_runs <= 3) untouched += (untouched.empty() ? "" : ", ") + r.run;
   }
   if (untouched_runs > 0) {
@@ -440,7 +499,12 @@ int run_eval(const EvalArgs& args) {
                  untouched_runs, untouched.c_str(), untouched_runs > 3 ? ", ..." : "");
   }
   const std::vector<Group> groups = group_runs(rows, methods);
-  const std::string md = summary_markdown(groups, seeds) + warnings_markdown(rows, methods);
+  std::string md = summary_markdown(groups, seeds) + warnings_markdown(rows, methods);
+  if (jobs > 1) {
+    md += "\nRuns tracked " + std::to_string(jobs) +
+          " at once (--jobs): their update times shared the machine's cores, so the median "
+          "update and Hz read slower than one run alone; the errors do not change.\n";
+  }
   write_text_atomically((fs::path(args.out) / "summary.md").string(), md);
   std::printf("%s", md.c_str());
   std::printf("wrote %s and %s\n", results.c_str(), (fs::path(args.out) / "summary.md").c_str());

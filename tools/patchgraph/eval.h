@@ -15,6 +15,9 @@ struct EvalArgs {
   // --seeds: every dataset and method once per seed (each mixed with the dataset's name, as
   // track.seed is), the summary's medians over all of them; empty: track.seed alone.
   std::vector<std::uint64_t> seeds;
+  // Runs tracked at once, each on its own thread (0: one per core). 1 keeps the update times
+  // those of a run alone.
+  int jobs = 1;
   bool no_plots = false;
 };
 

@@ -336,6 +336,12 @@ int main(int argc, char** argv) {
                    "all of them and seed by seed")
       ->check(kSeed)
       ->excludes("--seed");
+  cmd_eval
+      ->add_option("--jobs,-j", eval.jobs,
+                   "Runs tracked at once (default 1; 0: one per core). The errors are the same "
+                   "bits; the update times (median update, Hz) then share the cores and read "
+                   "slower, so time a method with 1")
+      ->check(kThreads);
   cmd_eval->add_flag("--no-plots,--no-plot", eval.no_plots, "Skip the matplotlib plots");
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 
