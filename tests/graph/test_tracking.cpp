@@ -135,6 +135,77 @@ TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
   }
 }
 
+// Frames kept for later runs (TrackOptions::prepared_frames, eval's methods and seeds): the first
+// run decodes them and runs the model, the next take them from memory, and every pose, the
+// model's time included, is the same as without. A run of another dataset or normals source is
+// refused.
+TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
+  TempDir tmp;
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
+  scene["frames"] = 30;
+  const Dataset d =
+      render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark", {"normal", "color"});
+  int calls = 0;
+  TrackOptions learned;
+  learned.normals_name = "colour stand-in";
+  learned.normals = [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
+    ++calls;
+    ImageF n(color.width, color.height, 3);
+    for (std::size_t p = 0; p < n.data.size(); p += 3) {
+      const float dx = (float(color.data[p]) - float(reference.data[p])) / 255.0f;
+      const float length = std::sqrt(dx * dx + 1.0f);
+      n.data[p] = dx / length;
+      n.data[p + 2] = 1.0f / length;
+    }
+    return n;
+  };
+  TrackOptions other_method;
+  other_method.graph.method = Method::kImageToImage;
+  const auto same_poses = [](const TrackRun& a, const TrackRun& b) {
+    ASSERT_EQ(a.frames.size(), b.frames.size());
+    for (std::size_t i = 0; i < a.frames.size(); ++i) {
+      EXPECT_EQ(a.frames[i].T_world_object.matrix(), b.frames[i].T_world_object.matrix())
+          << "frame " << i;
+    }
+  };
+  for (const TrackOptions& options : {TrackOptions(), other_method, learned}) {
+    SCOPED_TRACE(options.normals_name);
+    TrackOptions kept = options;
+    kept.prepared_frames = make_prepared_frames();
+    calls = 0;
+    const TrackRun alone = track_dataset(d, options);
+    const int calls_alone = calls;
+    calls = 0;
+    const TrackRun first = track_dataset(d, kept);
+    EXPECT_EQ(calls, calls_alone);
+    calls = 0;
+    const TrackRun again = track_dataset(d, kept);
+    EXPECT_EQ(calls, 0) << "the model ran again";
+    EXPECT_GT(first.summary.contact_frames, 20);
+    same_poses(alone, first);
+    same_poses(alone, again);
+    for (std::size_t i = 0; i < first.frames.size(); ++i) {
+      EXPECT_EQ(first.frames[i].normals_ms, again.frames[i].normals_ms) << "frame " << i;
+    }
+    if (options.normals) {
+      EXPECT_GT(calls_alone, 20);
+      EXPECT_GT(again.summary.median_normals_ms, 0.0) << "the model's time is still counted";
+      TrackOptions ground_truth;
+      ground_truth.prepared_frames = kept.prepared_frames;
+      EXPECT_THROW(track_dataset(d, ground_truth), std::logic_error);
+    }
+  }
+  // Without its normal images the dataset still tracks from the frames kept, and not without.
+  TrackOptions kept;
+  kept.prepared_frames = make_prepared_frames();
+  const TrackRun first = track_dataset(d, kept);
+  fs::remove_all(tmp.path / "cube" / "normal");
+  same_poses(first, track_dataset(d, kept));
+  EXPECT_THROW(track_dataset(d, TrackOptions()), InputError);
+  const Dataset other = render(scene, tmp.path / "cube_again", kRepo + "/scenes/benchmark");
+  EXPECT_THROW(track_dataset(other, kept), std::logic_error);
+}
+
 // An error on either thread ends the run with it, whether the next frame is read ahead or not:
 // a damaged frame file (read on the second thread) names the file; an error on the tracking
 // thread (here from the progress callback) while the next frame is being read comes out as it

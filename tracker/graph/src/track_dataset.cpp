@@ -9,11 +9,13 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -297,8 +299,75 @@ double ms_since(std::chrono::steady_clock::time_point start) {
       .count();
 }
 
+// One sensor's image of its frame image.frame: decoded and, for learned normals, tested against
+// the reference and read by the model (sensor k's).
+void prepare_image(const SensorFeed& feed, const TrackOptions& options, std::size_t k,
+                   SensorImage& image) {
+  if (!options.normals) {
+    image.normals = feed.dataset->normal(image.frame);
+    return;
+  }
+  image.color = feed.dataset->color(image.frame);  // decoding is not part of the timed update
+  const auto start = std::chrono::steady_clock::now();
+  image.dropout = is_dropout(image.color);
+  if (!image.dropout) {
+    // Where the frame differs from the reference beyond the camera's noise: in specks only
+    // (the noise of a noisy reference), in regions of a contact's size, or over more than half
+    // the image (more than a press changes).
+    const ChangedRegions changes = changed_regions(image.color, feed.background);
+    image.changed = changes.changed;
+    image.in_regions = pixels_beyond_specks(changes, feed.min_contact_pixels);
+  }
+  // A frame no different from the reference beyond the camera's noise, or only in specks:
+  // nothing pressed, no normals to estimate.
+  image.estimated = !image.dropout && image.in_regions >= feed.min_contact_pixels;
+  if (image.estimated) {
+    const auto model_start = std::chrono::steady_clock::now();
+    image.normals = options.normals(k, image.color, feed.background);
+    image.normals_ms = ms_since(model_start);
+  }
+  image.tests_ms = ms_since(start);
+}
+
+}  // namespace
+
+class PreparedFrames {
+ public:
+  // The key of the sequence and normals source the first run gave; later runs must give the same.
+  void check_key(const std::string& key) {
+    const std::lock_guard<std::mutex> hold(mutex_);
+    if (key_.empty()) key_ = key;
+    if (key != key_) {
+      throw std::logic_error("PreparedFrames: kept for " + key_ + ", asked for " + key);
+    }
+  }
+  bool find(std::size_t sensor, int frame, SensorImage& image) {
+    const std::lock_guard<std::mutex> hold(mutex_);
+    const auto it = images_.find({sensor, frame});
+    if (it == images_.end()) return false;
+    image = it->second;
+    return true;
+  }
+  void keep(std::size_t sensor, int frame, const SensorImage& image) {
+    const std::lock_guard<std::mutex> hold(mutex_);
+    images_.emplace(std::make_pair(sensor, frame), image);
+  }
+
+ private:
+  std::mutex mutex_;
+  std::string key_;
+  std::map<std::pair<std::size_t, int>, SensorImage> images_;
+};
+
+std::shared_ptr<PreparedFrames> make_prepared_frames() {
+  return std::make_shared<PreparedFrames>();
+}
+
+namespace {
+
 // Decodes the feeds' images of the primary's frame `i` (sequence_frames' row) and, for learned
-// normals, tests them and reads them with the model (TrackOptions::normals).
+// normals, tests them and reads them with the model (TrackOptions::normals); or takes them from
+// TrackOptions::prepared_frames, which keeps those it had not.
 std::vector<SensorImage> prepare_frame(const std::deque<SensorFeed>& feeds,
                                        const std::vector<std::vector<int>>& frames, int i,
                                        const TrackOptions& options) {
@@ -308,30 +377,9 @@ std::vector<SensorImage> prepare_frame(const std::deque<SensorFeed>& feeds,
     SensorImage& image = images[k];
     image.frame = frames[k][std::size_t(i)];
     if (image.frame < 0) continue;
-    if (!options.normals) {
-      image.normals = feed.dataset->normal(image.frame);
-      continue;
-    }
-    image.color = feed.dataset->color(image.frame);  // decoding is not part of the timed update
-    const auto start = std::chrono::steady_clock::now();
-    image.dropout = is_dropout(image.color);
-    if (!image.dropout) {
-      // Where the frame differs from the reference beyond the camera's noise: in specks only
-      // (the noise of a noisy reference), in regions of a contact's size, or over more than half
-      // the image (more than a press changes).
-      const ChangedRegions changes = changed_regions(image.color, feed.background);
-      image.changed = changes.changed;
-      image.in_regions = pixels_beyond_specks(changes, feed.min_contact_pixels);
-    }
-    // A frame no different from the reference beyond the camera's noise, or only in specks:
-    // nothing pressed, no normals to estimate.
-    image.estimated = !image.dropout && image.in_regions >= feed.min_contact_pixels;
-    if (image.estimated) {
-      const auto model_start = std::chrono::steady_clock::now();
-      image.normals = options.normals(k, image.color, feed.background);
-      image.normals_ms = ms_since(model_start);
-    }
-    image.tests_ms = ms_since(start);
+    if (options.prepared_frames && options.prepared_frames->find(k, image.frame, image)) continue;
+    prepare_image(feed, options, k, image);
+    if (options.prepared_frames) options.prepared_frames->keep(k, image.frame, image);
   }
   return images;
 }
@@ -419,6 +467,11 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   const bool learned = bool(options.normals);
   for (const Dataset* d : datasets) check_normals_source(*d, learned ? options.normals_name : "gt");
   check_same_sequence(datasets);
+  if (options.prepared_frames) {
+    std::string key = "normals " + (learned ? options.normals_name : std::string("gt"));
+    for (const Dataset* d : datasets) key += ", " + d->dir();
+    options.prepared_frames->check_key(key);
+  }
   check_in_range("track option end_effector_noise", options.end_effector_noise, 0, kMaxPoseNoise);
   check_in_range("track option vision_noise", options.vision_noise, 0, kMaxPoseNoise);
   const Dataset& dataset = *datasets[0];

@@ -19,6 +19,15 @@ namespace pg {
 // Simulated pose noise above this sigma (1 m, 1 rad: a pose anywhere) is refused.
 inline constexpr double kMaxPoseNoise = 1.0;
 
+// Frames that one run has prepared (its images decoded and, with learned normals, read by the
+// model), kept for later runs of the same datasets with the same normals source: eval's other
+// methods and seeds, which then neither decode nor run the model again. Safe for runs on several
+// threads at once; a frame prepared by two of them at the same time is kept once (the same either
+// way). A run of other datasets or another normals source than the first run's is refused
+// (std::logic_error): the cache belongs to one sequence and source.
+class PreparedFrames;
+std::shared_ptr<PreparedFrames> make_prepared_frames();
+
 struct TrackOptions {
   GraphOptions graph;
   TrackerConfig front_end;  // depth, mask and ICP options (the ICP options go to graph.icp)
@@ -43,6 +52,9 @@ struct TrackOptions {
   // time); false: all on the calling thread, one frame after the other. The same results either
   // way.
   bool prefetch = true;
+  // Null: every frame prepared by this run. Else frames already there are taken from it (with the
+  // model's time, measured when it ran, still counted in the update's) and new ones kept in it.
+  std::shared_ptr<PreparedFrames> prepared_frames;
 };
 
 struct FrameResult {
