@@ -81,6 +81,20 @@ Dataset recorded(const Dataset& from, const std::vector<int>& kept, double fps, 
   return Dataset::open(dir.string());
 }
 
+// A stand-in for a normals model: the colour's change against the reference read as a slope.
+ImageF colour_stand_in(const ImageU8& color, const ImageU8& reference) {
+  ImageF n(color.width, color.height, 3);
+  for (std::size_t p = 0; p < n.data.size(); p += 3) {
+    const float dx = (float(color.data[p]) - float(reference.data[p])) / 255.0f;
+    const float dy = (float(color.data[p + 1]) - float(reference.data[p + 1])) / 255.0f;
+    const float length = std::sqrt(dx * dx + dy * dy + 1.0f);
+    n.data[p] = dx / length;
+    n.data[p + 1] = dy / length;
+    n.data[p + 2] = 1.0f / length;
+  }
+  return n;
+}
+
 // Reading the next frame ahead on a second thread (TrackOptions::prefetch) changes no result,
 // from the dataset's normals or from a model's (a stand-in reading the colour's change against
 // the reference), and the model then runs on that thread.
@@ -97,16 +111,7 @@ TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
   learned.normals = [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
     ++calls;
     calls_elsewhere += std::this_thread::get_id() != caller;
-    ImageF n(color.width, color.height, 3);
-    for (std::size_t p = 0; p < n.data.size(); p += 3) {
-      const float dx = (float(color.data[p]) - float(reference.data[p])) / 255.0f;
-      const float dy = (float(color.data[p + 1]) - float(reference.data[p + 1])) / 255.0f;
-      const float length = std::sqrt(dx * dx + dy * dy + 1.0f);
-      n.data[p] = dx / length;
-      n.data[p + 1] = dy / length;
-      n.data[p + 2] = 1.0f / length;
-    }
-    return n;
+    return colour_stand_in(color, reference);
   };
   for (const TrackOptions& options : {TrackOptions(), learned}) {
     SCOPED_TRACE(options.normals_name);
@@ -150,14 +155,7 @@ TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
   learned.normals_name = "colour stand-in";
   learned.normals = [&](std::size_t, const ImageU8& color, const ImageU8& reference) {
     ++calls;
-    ImageF n(color.width, color.height, 3);
-    for (std::size_t p = 0; p < n.data.size(); p += 3) {
-      const float dx = (float(color.data[p]) - float(reference.data[p])) / 255.0f;
-      const float length = std::sqrt(dx * dx + 1.0f);
-      n.data[p] = dx / length;
-      n.data[p + 2] = 1.0f / length;
-    }
-    return n;
+    return colour_stand_in(color, reference);
   };
   TrackOptions other_method;
   other_method.graph.method = Method::kImageToImage;
