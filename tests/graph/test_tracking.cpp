@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -202,6 +203,63 @@ TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
   EXPECT_THROW(track_dataset(d, TrackOptions()), InputError);
   const Dataset other = render(scene, tmp.path / "cube_again", kRepo + "/scenes/benchmark");
   EXPECT_THROW(track_dataset(other, kept), std::logic_error);
+}
+
+// An earlier run's outputs are kept (eval --resume) only when its summary.json records the
+// settings the new run would: the same datasets, method, seed, normals, options and noise, every
+// output file there and whole; the summary and warnings kept are the ones written.
+TEST(Tracking, AnEarlierRunIsKeptOnlyWithTheSameSettings) {
+  TempDir tmp;
+  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
+  scene["frames"] = 20;
+  const Dataset d = render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark");
+  const std::vector<const Dataset*> datasets = {&d};
+  TrackOptions options;
+  options.seed = 7;
+  const TrackRun run = track_dataset(d, options);
+  const std::string out = (tmp.path / "run").string();
+  EXPECT_FALSE(kept_track_run(datasets, options, out)) << "nothing written yet";
+  write_track_outputs(run, datasets, out);
+  const std::optional<KeptRun> kept = kept_track_run(datasets, options, out);
+  ASSERT_TRUE(kept);
+  const TrackSummary& a = run.summary;
+  const TrackSummary& b = kept->summary;
+  EXPECT_EQ(b.final_translation_error_m, a.final_translation_error_m);
+  EXPECT_EQ(b.final_rotation_error_rad, a.final_rotation_error_rad);
+  EXPECT_EQ(b.translation_rmse_m, a.translation_rmse_m);
+  EXPECT_EQ(b.median_frame_ms, a.median_frame_ms);
+  EXPECT_EQ(b.contact_frames, a.contact_frames);
+  EXPECT_EQ(b.lost_frames, a.lost_frames);
+  EXPECT_EQ(b.seed, 7u);
+  EXPECT_EQ(b.unconstrained_direction_frames, a.unconstrained_direction_frames);
+  EXPECT_EQ(kept->warnings, track_warnings(a));
+  // Any setting changed: not the same run.
+  std::vector<std::pair<std::string, TrackOptions>> others(6, {"", options});
+  others[0].first = "seed";
+  others[0].second.seed = 8;
+  others[1].first = "method";
+  others[1].second.graph.method = Method::kImageToImage;
+  others[2].first = "velocity sigma";
+  others[2].second.graph.sigma_velocity *= 2;
+  others[3].first = "front end";
+  others[3].second.front_end.icp.max_iterations += 1;
+  others[4].first = "noise";
+  others[4].second.vision_noise = 0;
+  others[5].first = "batch comparison asked for";
+  others[5].second.compare_batch = true;
+  for (const auto& [what, other] : others) {
+    EXPECT_FALSE(kept_track_run(datasets, other, out)) << what;
+  }
+  const Dataset copy = render(scene, tmp.path / "cube_copy", kRepo + "/scenes/benchmark");
+  EXPECT_FALSE(kept_track_run({&copy}, options, out)) << "another dataset";
+  // A file missing or a summary cut short: the run again.
+  fs::rename(fs::path(out) / "patch.ply", tmp.path / "patch.ply");
+  EXPECT_FALSE(kept_track_run(datasets, options, out));
+  fs::rename(tmp.path / "patch.ply", fs::path(out) / "patch.ply");
+  EXPECT_TRUE(kept_track_run(datasets, options, out));
+  const fs::path summary = fs::path(out) / "summary.json";
+  fs::resize_file(summary, fs::file_size(summary) / 2);
+  EXPECT_FALSE(kept_track_run(datasets, options, out));
 }
 
 // An error on either thread ends the run with it, whether the next frame is read ahead or not:

@@ -3344,5 +3344,51 @@ TEST_F(PatchgraphCli, EvalRunsSeveralAtOnceWithTheSameResults) {
   EXPECT_EQ(kept.cell(0, "dataset"), data());
 }
 
+// An eval stopped part-way (here by a damaged frame in its second sequence) goes on with
+// --resume: the runs it finished are kept as they are, the others tracked, and results.csv is the
+// one a whole eval writes. Other settings keep nothing.
+TEST_F(PatchgraphCli, EvalResumesWhereAnEarlierEvalStopped) {
+  const std::string copy = data_copy("data_resume");
+  const std::string damaged = copy + "/normal/000050.exr";
+  fs::copy_file(copy + "/background.png", damaged, fs::copy_options::overwrite_existing);
+  const std::string matrix = "eval --datasets " + data() + " " + copy +
+                             " --methods constvel patchgraph --no-plots --out " + out("resume");
+  const CliRun stopped = patchgraph(matrix + " -q");
+  ASSERT_EQ(stopped.code, 1) << stopped.out;
+  ASSERT_EQ(read_csv_table(out("resume") + "/results.csv").rows.size(), 2u);
+  const fs::path kept_summary = out("resume") + "/runs/data_patchgraph/summary.json";
+  const auto written = fs::last_write_time(kept_summary);
+  fs::copy_file(data() + "/normal/000050.exr", damaged, fs::copy_options::overwrite_existing);
+  const CliRun resumed = patchgraph(matrix + " --resume");
+  ASSERT_EQ(resumed.code, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find("--resume: 2 of 4 runs kept from the earlier eval"), std::string::npos)
+      << resumed.out;
+  EXPECT_NE(resumed.out.find("[2/2] data_resume_patchgraph"), std::string::npos) << resumed.out;
+  EXPECT_EQ(resumed.out.find("] data_patchgraph"), std::string::npos) << resumed.out;
+  EXPECT_EQ(fs::last_write_time(kept_summary), written) << "a kept run was written again";
+  EXPECT_NE(testing_support::file_text(out("resume") + "/summary.md")
+                .find("2 of the 4 runs kept from an earlier eval"),
+            std::string::npos);
+  // The whole matrix at once gives the same rows but for their timings.
+  const CliRun whole =
+      patchgraph("eval --datasets " + data() + " " + copy +
+                 " --methods constvel patchgraph -q --no-plots --out " + out("resume_whole"));
+  ASSERT_EQ(whole.code, 0) << whole.out;
+  const auto a = read_csv_table(out("resume") + "/results.csv");
+  const auto b = read_csv_table(out("resume_whole") + "/results.csv");
+  ASSERT_EQ(a.rows.size(), 4u);
+  ASSERT_EQ(b.rows.size(), 4u);
+  for (std::size_t i = 0; i < 4; ++i) {
+    for (const char* column : {"dataset", "method", "seed", "final_translation_error_m",
+                               "final_rotation_error_rad", "rotation_rmse_rad", "contact_frames"}) {
+      EXPECT_EQ(a.cell(i, column), b.cell(i, column)) << "row " << i << ", " << column;
+    }
+  }
+  // Another sigma: every run tracked again.
+  const CliRun other = patchgraph(matrix + " --resume --velocity-sigma 0.02");
+  ASSERT_EQ(other.code, 0) << other.out;
+  EXPECT_NE(other.out.find("--resume: 0 of 4 runs kept"), std::string::npos) << other.out;
+}
+
 }  // namespace
 }  // namespace pg

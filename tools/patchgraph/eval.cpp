@@ -87,6 +87,8 @@ struct Row {
   std::string dataset, object, method, run;
   std::uint64_t eval_seed;  // the --seed (or --seeds value) that s.seed was mixed from
   TrackSummary s;
+  std::vector<std::string> warnings;  // track_warnings(s), or as an earlier eval wrote them
+  bool kept = false;                  // an earlier eval's run (--resume)
 };
 
 void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
@@ -102,8 +104,7 @@ void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
         << r.s.rotation_rmse_rad << "," << r.s.median_frame_ms << "," << r.s.hz << ","
         << r.s.lost_frames << "," << r.s.degenerate_frames << "," << r.s.seed << ","
         << csv_field(r.run) << "," << r.eval_seed << ",";
-    const std::vector<std::string> warnings = track_warnings(r.s);
-    for (std::size_t k = 0; k < warnings.size(); ++k) out << (k ? ";" : "") << warnings[k];
+    for (std::size_t k = 0; k < r.warnings.size(); ++k) out << (k ? ";" : "") << r.warnings[k];
     out << "\n";
   }
   write_text_atomically(path, out.str());
@@ -241,7 +242,7 @@ std::string warnings_markdown(const std::vector<Row>& rows,
   std::map<std::string, std::map<std::string, std::map<std::string, Warned>>> by;
   for (const Row& r : rows) {
     ++runs[r.object][r.method];
-    for (const std::string& warning : track_warnings(r.s)) {
+    for (const std::string& warning : r.warnings) {
       Warned& w = by[r.object][r.method][warning];
       if (++w.runs <= 3) w.names += (w.names.empty() ? "" : ", ") + markdown_cell(r.run);
     }
@@ -356,8 +357,11 @@ int run_eval(const EvalArgs& args) {
     }
   }
   check_runs_folder_is_evals(args.out);
-  const OutputFolder out(
-      args.out, {"results.csv", "summary.md", "runs", "boxplots.png", "trajectories_*.png"});
+  // With --resume the earlier runs stay; the rest is written again at the end.
+  std::vector<std::string> outputs = {"results.csv", "summary.md", "boxplots.png",
+                                      "trajectories_*.png"};
+  if (!args.resume) outputs.push_back("runs");
+  const OutputFolder out(args.out, outputs);
   // The runs in the order results.csv lists them: seed by seed, then dataset by dataset and
   // method by method. They run sequence by sequence, so that its runs (methods and seeds) take
   // its frames, decoded and read by the model once, from memory (PreparedFrames), which is let
@@ -371,45 +375,85 @@ int run_eval(const EvalArgs& args) {
   for (std::size_t s = 0; s < seeds.size(); ++s)
     for (std::size_t k = 0; k < opened.size(); ++k)
       for (const auto& m : methods) tasks.push_back({s, k, m});
-  std::vector<std::size_t> order(tasks.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  const auto run_name = [&](const Task& task) {
+    return names[task.sequence] + "_" + task.method +
+           (several_seeds ? "_seed" + std::to_string(seeds[task.seed]) : std::string());
+  };
+  // A task's tracking options; the seed mixed with the dataset's folder name, whatever other
+  // datasets run with it (the run's name adds the parent folder's where two share a name).
+  const auto task_options = [&](const Task& task, const NormalsModels& job_model) {
+    const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
+    TrackArgs a = args.track;
+    a.method = task.method;
+    a.seed = sequence_seed(seeds[task.seed],
+                           fs::weakly_canonical(datasets[task.sequence]).filename().string());
+    return make_track_options(a, sensors, job_model);
+  };
+  std::vector<std::optional<Row>> finished(tasks.size());
+  // --resume: an earlier eval's run of the same settings is kept (kept_track_run).
+  int kept = 0;
+  for (std::size_t i = 0; i < tasks.size() && args.resume; ++i) {
+    const Task& task = tasks[i];
+    const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
+    const std::optional<KeptRun> earlier =
+        kept_track_run(sensors, task_options(task, models),
+                       (fs::path(args.out) / "runs" / run_name(task)).string());
+    if (!earlier) continue;
+    finished[i] = Row{datasets[task.sequence],
+                      sensors[0]->info().object_name,
+                      task.method,
+                      "runs/" + run_name(task),
+                      seeds[task.seed],
+                      earlier->summary,
+                      earlier->warnings,
+                      true};
+    ++kept;
+  }
+  std::vector<std::size_t> order;  // the runs to track
+  for (std::size_t i = 0; i < tasks.size(); ++i)
+    if (!finished[i]) order.push_back(i);
   std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
     return tasks[a].sequence < tasks[b].sequence;
   });
-  const int jobs = int(std::min<std::size_t>(
-      args.jobs > 0 ? std::size_t(args.jobs) : std::max(1u, std::thread::hardware_concurrency()),
-      tasks.size()));
-  // A sequence's frames are kept while its runs last when it has more than one run and its frames
-  // fit a share of kPreparedFramesBytes (as many sequences as jobs, and one more, may be kept at
-  // once): a 300-frame 120x160 sequence takes about 70 MB, 85 MB with colour for a model.
+  if (args.resume && !args.track.quiet) {
+    std::fprintf(stderr,
+                 "--resume: %d of %zu runs kept from the earlier eval in %s, %zu to track\n", kept,
+                 tasks.size(), args.out.c_str(), order.size());
+  }
+  const int jobs = int(std::clamp<std::size_t>(
+      args.jobs > 0 ? std::size_t(args.jobs) : std::max(1u, std::thread::hardware_concurrency()), 1,
+      std::max<std::size_t>(1, order.size())));
+  // A sequence's frames are kept while its runs last when it has more than one run to track and
+  // its frames fit a share of kPreparedFramesBytes (as many sequences as jobs, and one more, may
+  // be kept at once): a 300-frame 120x160 sequence takes about 70 MB, 85 MB with colour for a
+  // model.
   constexpr double kPreparedFramesBytes = 1024.0 * 1024 * 1024;
-  const std::size_t runs_per_sequence = methods.size() * seeds.size();
   std::vector<std::shared_ptr<PreparedFrames>> prepared(opened.size());
-  std::vector<std::size_t> runs_left(opened.size(), runs_per_sequence);
+  std::vector<std::size_t> runs_left(opened.size(), 0);
+  for (const std::size_t i : order) ++runs_left[tasks[i].sequence];
   for (std::size_t k = 0; k < opened.size(); ++k) {
     double bytes = 0;
     for (const Dataset& d : opened[k])
       bytes += double(d.frames()) * d.info().width() * d.info().height() *
                (3 * sizeof(float) + (args.track.normals == "gt" ? 0 : 3));
-    if (runs_per_sequence > 1 && bytes <= kPreparedFramesBytes / (jobs + 1))
+    if (runs_left[k] > 1 && bytes <= kPreparedFramesBytes / (jobs + 1))
       prepared[k] = make_prepared_frames();
   }
   // A model per job beyond the first: each job runs its own network.
   std::vector<NormalsModels> job_models{models};
   for (int j = 1; j < jobs && !models.empty(); ++j)
     job_models.push_back(load_normals_models(args.track));
-  const int total = int(tasks.size());
+  const int total = int(order.size());
   const std::string results = (fs::path(args.out) / "results.csv").string();
   // Progress over every run's frames: a long sequence is minutes of tracking between two of the
   // per-run lines. On a terminal each per-run line first clears the progress line it follows.
   long total_frames = 0, frames_done = 0;
-  for (const Task& t : tasks) total_frames += long(opened[t.sequence][0].frames());
+  for (const std::size_t i : order) total_frames += long(opened[tasks[i].sequence][0].frames());
   Progress progress("tracking", int(std::min<long>(total_frames, INT_MAX)), !args.track.quiet);
   const bool tty = isatty(fileno(stderr));
   // The jobs take the runs in order; the progress, the lines and the first failure under one
   // lock. A run's row lands in its own slot, so results.csv's order is the tasks' whatever the
   // order the runs end in.
-  std::vector<std::optional<Row>> finished(tasks.size());
   std::vector<long> run_frames(tasks.size(), 0);
   std::mutex lock;
   std::atomic<std::size_t> next{0};
@@ -436,13 +480,7 @@ int run_eval(const EvalArgs& args) {
     const LastRunLetsGo let_go{lock, runs_left[task.sequence], prepared[task.sequence]};
     const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
     const Dataset& dataset = *sensors[0];
-    const std::string& dir = datasets[task.sequence];
-    // The seed: the dataset's folder name, whatever other datasets run with it (the run's name
-    // adds the parent folder's where two datasets share a name).
-    TrackArgs a = args.track;
-    a.method = task.method;
-    a.seed = sequence_seed(seeds[task.seed], fs::weakly_canonical(dir).filename().string());
-    TrackOptions options = make_track_options(a, sensors, job_model);
+    TrackOptions options = task_options(task, job_model);
     options.prepared_frames = frames;
     const TrackRun run = track_dataset(sensors, options, [&](int frame, int) {
       const std::lock_guard<std::mutex> hold(lock);
@@ -450,9 +488,7 @@ int run_eval(const EvalArgs& args) {
       run_frames[i] = frame;
       progress.update(int(std::min<long>(frames_done, INT_MAX)));
     });
-    const std::string name =
-        names[task.sequence] + "_" + task.method +
-        (several_seeds ? "_seed" + std::to_string(seeds[task.seed]) : std::string());
+    const std::string name = run_name(task);
     const fs::path run_dir = fs::path(args.out) / "runs" / name;
     try {
       write_track_outputs(run, sensors, run_dir.string());
@@ -464,9 +500,13 @@ int run_eval(const EvalArgs& args) {
       if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
       throw;
     }
-    finished[i] =
-        Row{dir,        dataset.info().object_name, task.method, "runs/" + name, seeds[task.seed],
-            run.summary};
+    finished[i] = Row{datasets[task.sequence],
+                      dataset.info().object_name,
+                      task.method,
+                      "runs/" + name,
+                      seeds[task.seed],
+                      run.summary,
+                      track_warnings(run.summary)};
     const std::lock_guard<std::mutex> hold(lock);
     frames_done += dataset.frames() - run_frames[i];
     run_frames[i] = dataset.frames();
@@ -527,8 +567,7 @@ int run_eval(const EvalArgs& args) {
   std::string untouched;
   int untouched_runs = 0;
   for (const Row& r : rows) {
-    const std::vector<std::string> warnings = track_warnings(r.s);
-    if (std::find(warnings.begin(), warnings.end(), "no_contact") == warnings.end()) continue;
+    if (std::find(r.warnings.begin(), r.warnings.end(), "no_contact") == r.warnings.end()) continue;
     if (++untouched_runs <= 3) untouched += (untouched.empty() ? "" : ", ") + r.run;
   }
   if (untouched_runs > 0) {
@@ -539,6 +578,11 @@ int run_eval(const EvalArgs& args) {
   }
   const std::vector<Group> groups = group_runs(rows, methods);
   std::string md = summary_markdown(groups, seeds) + warnings_markdown(rows, methods);
+  if (kept > 0) {
+    md += "\n" + std::to_string(kept) + " of the " + std::to_string(tasks.size()) +
+          " runs kept from an earlier eval into this folder (--resume): their update times are "
+          "that eval's.\n";
+  }
   if (jobs > 1) {
     md += "\nRuns tracked " + std::to_string(jobs) +
           " at once (--jobs): their update times shared the machine's cores, so the median "

@@ -18,6 +18,9 @@ struct EvalArgs {
   // Runs tracked at once, each on its own thread (0: one per core). 1 keeps the update times
   // those of a run alone.
   int jobs = 1;
+  // Keep the runs an earlier eval left in OUT/runs that were made with the same settings
+  // (kept_track_run) and track only the others.
+  bool resume = false;
   bool no_plots = false;
 };
 

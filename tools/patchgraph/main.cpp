@@ -342,6 +342,10 @@ int main(int argc, char** argv) {
                    "bits; the update times (median update, Hz) then share the cores and read "
                    "slower, so time a method with 1")
       ->check(kThreads);
+  cmd_eval->add_flag("--resume", eval.resume,
+                     "Keep the runs that an earlier eval into --out finished with the same "
+                     "settings (their summary.json) and track only the others: an eval stopped "
+                     "part-way, or one given more datasets, methods or seeds");
   cmd_eval->add_flag("--no-plots,--no-plot", eval.no_plots, "Skip the matplotlib plots");
   cmd_eval->add_flag("--quiet,-q", eval.track.quiet, "No progress lines");
 

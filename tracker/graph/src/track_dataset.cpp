@@ -1,6 +1,7 @@
 #include "pg/graph/track_dataset.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -9,6 +10,7 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
+#include <initializer_list>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -24,6 +26,7 @@
 #include "pg/core/file_io.h"
 #include "pg/core/image.h"
 #include "pg/core/image_change.h"
+#include "pg/core/json_fields.h"
 #include "pg/core/point_io.h"
 #include "pg/core/random.h"
 #include "pg/core/statistics.h"
@@ -716,6 +719,133 @@ std::vector<std::string> track_warnings(const TrackSummary& s) {
   return names;
 }
 
+namespace {
+
+// What summary.json records of how a run was made: the datasets, the method, the noise's seed and
+// sigmas, the normals source and the graph's and front end's options (`graph` as the tracker
+// holds it, its ICP options the front end's). A run is repeated by these.
+nlohmann::json settings_json(const std::vector<const Dataset*>& datasets, const std::string& method,
+                             std::uint64_t seed, const std::string& normals,
+                             const GraphOptions& graph, const TrackerConfig& front_end,
+                             double end_effector_noise, double vision_noise) {
+  std::vector<std::string> dirs;
+  for (const Dataset* d : datasets) dirs.push_back(d->dir());
+  return {
+      {"dataset", datasets.at(0)->dir()},
+      {"datasets", dirs},
+      {"sensors", int(datasets.size())},
+      {"object", datasets[0]->info().object_name},
+      {"method", method},
+      {"seed", seed},
+      {"normals", normals},
+      {"frames", datasets[0]->frames()},
+      {"window", graph.window},
+      {"keyframe_interval", graph.patch.keyframe_interval},
+      {"keyframe_settle_frames", graph.patch.keyframe_settle_frames},
+      {"motion_frame", to_string(graph.motion_frame)},
+      {"registration_information", graph.registration_information},
+      {"image_to_image_gate_rad", graph.image_to_image_gate_rad},
+      {"icp_symmetric", graph.icp.symmetric},
+      {"sigmas",
+       {{"image_to_image", graph.sigma_image_to_image},
+        {"image_to_patch", graph.sigma_image_to_patch},
+        {"velocity", graph.sigma_velocity},
+        {"end_effector", graph.sigma_end_effector},
+        {"vision", graph.sigma_vision},
+        {"damping", graph.sigma_damping},
+        {"unconstrained", graph.sigma_unconstrained}}},
+      {"ee_noise", end_effector_noise},
+      {"vision_noise", vision_noise},
+      // The front end's options in --config's format: `--config` with this object as the file
+      // reruns with them (with learned normals they are not the built-in defaults).
+      {"config", tracker_config_to_json(front_end)},
+  };
+}
+
+// summary.json's number at `key`: null (NaN written) as NaN.
+double number_or_nan(const nlohmann::json& j, const char* key) {
+  const nlohmann::json& v = j.at(key);
+  return v.is_null() ? std::nan("") : v.get<double>();
+}
+
+}  // namespace
+
+std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& datasets,
+                                      const TrackOptions& options, const std::string& out_dir) {
+  std::error_code ec;
+  for (const std::string& file : kTrackOutputFiles) {
+    if (!fs::is_regular_file(fs::path(out_dir) / file, ec)) return std::nullopt;
+  }
+  GraphOptions graph = options.graph;
+  graph.icp = options.front_end.icp;
+  const nlohmann::json wanted =
+      settings_json(datasets, to_string(graph.method), options.seed, options.normals_name, graph,
+                    options.front_end, options.end_effector_noise, options.vision_noise);
+  try {
+    const nlohmann::json j = parse_json_file((fs::path(out_dir) / "summary.json").string());
+    for (const auto& [key, value] : wanted.items()) {
+      if (!j.contains(key) || j.at(key) != value) return std::nullopt;
+    }
+    if (options.compare_batch && !j.contains("window_vs_batch_translation_rms_m"))
+      return std::nullopt;
+    KeptRun kept;
+    TrackSummary& s = kept.summary;
+    s.method = j.at("method").get<std::string>();
+    s.seed = j.at("seed").get<std::uint64_t>();
+    s.frames = j.at("frames").get<int>();
+    s.sensors = j.at("sensors").get<int>();
+    s.normals = j.at("normals").get<std::string>();
+    s.front_end = options.front_end;
+    s.end_effector_noise = options.end_effector_noise;
+    s.vision_noise = options.vision_noise;
+    s.object_frame = j.at("object_frame").get<std::string>();
+    for (const auto& [key, field] :
+         std::initializer_list<std::pair<const char*, int TrackSummary::*>>{
+             {"ground_truth_frames", &TrackSummary::ground_truth_frames},
+             {"contact_frames", &TrackSummary::contact_frames},
+             {"episodes", &TrackSummary::episodes},
+             {"rejected_registrations", &TrackSummary::rejected_registrations},
+             {"lost_frames", &TrackSummary::lost_frames},
+             {"unconverged_registrations", &TrackSummary::unconverged_registrations},
+             {"overridden_registrations", &TrackSummary::overridden_registrations},
+             {"invalid_input_frames", &TrackSummary::invalid_input_frames},
+             {"rejected_normal_frames", &TrackSummary::rejected_normal_frames},
+             {"reference_mismatch_frames", &TrackSummary::reference_mismatch_frames},
+             {"saturated_frames", &TrackSummary::saturated_frames},
+             {"two_registration_frames", &TrackSummary::two_registration_frames},
+             {"disagreeing_registration_frames", &TrackSummary::disagreeing_registration_frames},
+             {"image_to_image_dropped", &TrackSummary::image_to_image_dropped},
+             {"degenerate_frames", &TrackSummary::degenerate_frames}}) {
+      s.*field = j.at(key).get<int>();
+    }
+    s.unconstrained_direction_frames =
+        j.at("unconstrained_direction_frames").get<std::array<int, 7>>();
+    for (const auto& [key, field] :
+         std::initializer_list<std::pair<const char*, double TrackSummary::*>>{
+             {"translation_rmse_m", &TrackSummary::translation_rmse_m},
+             {"rotation_rmse_rad", &TrackSummary::rotation_rmse_rad},
+             {"final_translation_error_m", &TrackSummary::final_translation_error_m},
+             {"final_rotation_error_rad", &TrackSummary::final_rotation_error_rad},
+             {"mean_frame_ms", &TrackSummary::mean_frame_ms},
+             {"median_frame_ms", &TrackSummary::median_frame_ms},
+             {"hz", &TrackSummary::hz},
+             {"throughput_fps", &TrackSummary::throughput_fps},
+             {"median_normals_ms", &TrackSummary::median_normals_ms}}) {
+      s.*field = number_or_nan(j, key);
+    }
+    if (j.contains("window_vs_batch_translation_rms_m")) {
+      s.batch_translation_rmse_m = number_or_nan(j, "batch_translation_rmse_m");
+      s.batch_rotation_rmse_rad = number_or_nan(j, "batch_rotation_rmse_rad");
+      s.window_vs_batch_translation_rms_m = number_or_nan(j, "window_vs_batch_translation_rms_m");
+      s.window_vs_batch_rotation_rms_rad = number_or_nan(j, "window_vs_batch_rotation_rms_rad");
+    }
+    kept.warnings = j.at("warnings").get<std::vector<std::string>>();
+    return kept;
+  } catch (const std::exception&) {
+    return std::nullopt;  // a summary.json cut short or of another version: the run again
+  }
+}
+
 void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir) {
   write_track_outputs(run, std::vector<const Dataset*>{&dataset}, out_dir);
 }
@@ -766,17 +896,9 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
     const PointCloud& more = tracker.patch(k).cloud_object();
     for (std::size_t i = 0; i < more.size(); ++i) patch.push_back(more.points[i], more.normals[i]);
   }
-  std::vector<std::string> dirs;
-  for (const Dataset* d : datasets) dirs.push_back(d->dir());
-  nlohmann::json summary = {
-      {"dataset", dataset.dir()},
-      {"datasets", dirs},
-      {"sensors", s.sensors},
-      {"object", dataset.info().object_name},
-      {"method", s.method},
-      {"seed", s.seed},
-      {"normals", s.normals},
-      {"frames", s.frames},
+  nlohmann::json summary = settings_json(datasets, s.method, s.seed, s.normals, graph, s.front_end,
+                                         s.end_effector_noise, s.vision_noise);
+  const nlohmann::json results = {
       {"object_frame", s.object_frame},
       {"ground_truth_frames", s.ground_truth_frames},
       {"contact_frames", s.contact_frames},
@@ -804,28 +926,9 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
       {"hz", s.hz},
       {"throughput_fps", s.throughput_fps},
       {"median_normals_ms", s.median_normals_ms},
-      {"window", graph.window},
-      {"keyframe_interval", graph.patch.keyframe_interval},
-      {"keyframe_settle_frames", graph.patch.keyframe_settle_frames},
-      {"motion_frame", to_string(graph.motion_frame)},
-      {"registration_information", graph.registration_information},
-      {"image_to_image_gate_rad", graph.image_to_image_gate_rad},
-      {"icp_symmetric", graph.icp.symmetric},
-      {"sigmas",
-       {{"image_to_image", graph.sigma_image_to_image},
-        {"image_to_patch", graph.sigma_image_to_patch},
-        {"velocity", graph.sigma_velocity},
-        {"end_effector", graph.sigma_end_effector},
-        {"vision", graph.sigma_vision},
-        {"damping", graph.sigma_damping},
-        {"unconstrained", graph.sigma_unconstrained}}},
-      {"ee_noise", s.end_effector_noise},
-      {"vision_noise", s.vision_noise},
-      // The front end's options in --config's format: `--config` with this object as the file
-      // reruns with them (with learned normals they are not the built-in defaults).
-      {"config", tracker_config_to_json(s.front_end)},
       {"patch_points", patch.size()},
   };
+  summary.update(results);
   if (s.window_vs_batch_translation_rms_m >= 0) {
     summary["batch_translation_rmse_m"] = s.batch_translation_rmse_m;
     summary["batch_rotation_rmse_rad"] = s.batch_rotation_rmse_rad;

@@ -23,8 +23,10 @@ inline constexpr double kMaxPoseNoise = 1.0;
 // model), kept for later runs of the same datasets with the same normals source: eval's other
 // methods and seeds, which then neither decode nor run the model again. Safe for runs on several
 // threads at once; a frame prepared by two of them at the same time is kept once (the same either
-// way). A run of other datasets or another normals source than the first run's is refused
-// (std::logic_error): the cache belongs to one sequence and source.
+// way). A run of other datasets or another normals_name than the first run's is refused
+// (std::logic_error): the cache belongs to one sequence and source. What else shapes a model's
+// normals and is not in its name (its phases, a blend's weight where the name leaves it out) is
+// the caller's to keep the same.
 class PreparedFrames;
 std::shared_ptr<PreparedFrames> make_prepared_frames();
 
@@ -254,5 +256,18 @@ inline const std::vector<std::string> kTrackOutputFiles = {"poses.csv", "errors.
 void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>& datasets,
                          const std::string& out_dir);
 void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std::string& out_dir);
+
+// A run's outputs that an earlier run left in out_dir (eval --resume): when every file of
+// kTrackOutputFiles is there and its summary.json records the settings that a run of `datasets`
+// with `options` would record (the datasets, method, seed, normals source, the graph's and the
+// front end's options and the noise; with compare_batch, the batch's results), the summary and
+// the warnings it records; else none (a summary.json that does not parse too). What shapes the
+// normals beyond their name (a model's phases) is the caller's to keep the same.
+struct KeptRun {
+  TrackSummary summary;  // as written (marked_contact_frames and sensor_pose_jumps are not)
+  std::vector<std::string> warnings;
+};
+std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& datasets,
+                                      const TrackOptions& options, const std::string& out_dir);
 
 }  // namespace pg
