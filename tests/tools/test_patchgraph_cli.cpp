@@ -889,6 +889,10 @@ TEST_F(PatchgraphCli, BlendShadingAveragesTheModelWithTheShadingsInverse) {
   const auto whole = summary_of(kDefaultModel + " --blend-shading 1", "blend_whole");
   const auto half = summary_of(kDefaultModel + " --blend-shading 0.5", "blend_half");
   EXPECT_EQ(half["normals"], kDefaultModel + "+shading:0.5");
+  // --normals-phases changes the normals, and the summary says so.
+  const auto phases = summary_of(kDefaultModel + " --normals-phases 2", "phases_two");
+  EXPECT_EQ(phases["normals"], kDefaultModel + "+phases:2");
+  EXPECT_NE(phases["rotation_rmse_rad"], model["rotation_rmse_rad"]);
   for (const char* error : {"translation_rmse_m", "rotation_rmse_rad"}) {
     // (The same normals renormalised: the last bits differ, 1e-5 of the run's errors.)
     const double a = alone[error].get<double>(), m = model[error].get<double>();

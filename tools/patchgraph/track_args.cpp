@@ -366,6 +366,8 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
       return normals_model_for(models, sensor)->predict(color, reference);
     };
     o.normals_name = a.normals;
+    // Phase averaging changes the normals: the summary (and eval --resume) tell the runs apart.
+    if (a.normals_phases > 1) o.normals_name += "+phases:" + std::to_string(a.normals_phases);
     if (a.blend_shading > 0) {
       o.normals = [models, inversions, w = float(a.blend_shading)](
                       std::size_t sensor, const ImageU8& color, const ImageU8& reference) {

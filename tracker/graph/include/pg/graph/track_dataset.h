@@ -24,9 +24,9 @@ inline constexpr double kMaxPoseNoise = 1.0;
 // methods and seeds, which then neither decode nor run the model again. Safe for runs on several
 // threads at once; a frame prepared by two of them at the same time is kept once (the same either
 // way). A run of other datasets or another normals_name than the first run's is refused
-// (std::logic_error): the cache belongs to one sequence and source. What else shapes a model's
-// normals and is not in its name (its phases, a blend's weight where the name leaves it out) is
-// the caller's to keep the same.
+// (std::logic_error): the cache belongs to one sequence and source. Whatever shapes the normals
+// should be in normals_name (patchgraph's names a model's phases and blend); anything that is
+// not is the caller's to keep the same.
 class PreparedFrames;
 std::shared_ptr<PreparedFrames> make_prepared_frames();
 
@@ -261,8 +261,8 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
 // kTrackOutputFiles is there and its summary.json records the settings that a run of `datasets`
 // with `options` would record (the datasets, method, seed, normals source, the graph's and the
 // front end's options and the noise; with compare_batch, the batch's results), the summary and
-// the warnings it records; else none (a summary.json that does not parse too). What shapes the
-// normals beyond their name (a model's phases) is the caller's to keep the same.
+// the warnings it records; else none (a summary.json that does not parse too). The normals
+// source is compared by its name (TrackOptions::normals_name).
 struct KeptRun {
   TrackSummary summary;  // as written (marked_contact_frames and sensor_pose_jumps are not)
   std::vector<std::string> warnings;
