@@ -88,7 +88,6 @@ struct Row {
   std::uint64_t eval_seed;  // the --seed (or --seeds value) that s.seed was mixed from
   TrackSummary s;
   std::vector<std::string> warnings;  // track_warnings(s), or as an earlier eval wrote them
-  bool kept = false;                  // an earlier eval's run (--resume)
 };
 
 void write_results_csv(const std::string& path, const std::vector<Row>& rows) {
@@ -405,8 +404,7 @@ int run_eval(const EvalArgs& args) {
                       "runs/" + run_name(task),
                       seeds[task.seed],
                       earlier->summary,
-                      earlier->warnings,
-                      true};
+                      earlier->warnings};
     ++kept;
   }
   std::vector<std::size_t> order;  // the runs to track
