@@ -142,9 +142,9 @@ TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
 }
 
 // Frames kept for later runs (TrackOptions::prepared_frames, eval's methods and seeds): the first
-// run decodes them and runs the model, the next take them from memory, and every pose, the
-// model's time included, is the same as without. A run of another dataset or normals source is
-// refused.
+// run decodes them and runs the model, the next take them from memory: every pose the same as
+// without, and each frame's model time the one measured when it ran. A run of another dataset or
+// normals source is refused.
 TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
   TempDir tmp;
   nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
