@@ -42,10 +42,11 @@ Dataset render(nlohmann::json scene, const fs::path& dir,
 }
 
 // The first `frames` frames of the benchmark scene `name` (e.g. "cube_01"), rendered into dir.
-Dataset render_benchmark(const std::string& name, int frames, const fs::path& dir) {
+Dataset render_benchmark(const std::string& name, int frames, const fs::path& dir,
+                         const std::vector<std::string>& outputs = {"normal"}) {
   nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/" + name + ".json");
   scene["frames"] = frames;
-  return render(scene, dir, kRepo + "/scenes/benchmark");
+  return render(scene, dir, kRepo + "/scenes/benchmark", outputs);
 }
 
 // scenes/examples/two_digits_regrasp.json rendered with normals only into dir: its datasets of
@@ -101,10 +102,7 @@ ImageF colour_stand_in(const ImageU8& color, const ImageU8& reference) {
 // the reference), and the model then runs on that thread.
 TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
-  scene["frames"] = 40;
-  const Dataset d =
-      render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark", {"normal", "color"});
+  const Dataset d = render_benchmark("cube_00", 40, tmp.path / "cube", {"normal", "color"});
   const std::thread::id caller = std::this_thread::get_id();
   int calls = 0, calls_elsewhere = 0;
   TrackOptions learned;
@@ -147,10 +145,7 @@ TEST(Tracking, ReadingTheNextFrameAheadChangesNoResult) {
 // normals source is refused.
 TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
-  scene["frames"] = 30;
-  const Dataset d =
-      render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark", {"normal", "color"});
+  const Dataset d = render_benchmark("cube_00", 30, tmp.path / "cube", {"normal", "color"});
   int calls = 0;
   TrackOptions learned;
   learned.normals_name = "colour stand-in";
@@ -201,7 +196,7 @@ TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
   fs::remove_all(tmp.path / "cube" / "normal");
   same_poses(first, track_dataset(d, kept));
   EXPECT_THROW(track_dataset(d, TrackOptions()), InputError);
-  const Dataset other = render(scene, tmp.path / "cube_again", kRepo + "/scenes/benchmark");
+  const Dataset other = render_benchmark("cube_00", 30, tmp.path / "cube_again");
   EXPECT_THROW(track_dataset(other, kept), std::logic_error);
 }
 
@@ -210,9 +205,7 @@ TEST(Tracking, PreparedFramesAreReadOnceForEveryRun) {
 // output file there and whole; the summary and warnings kept are the ones written.
 TEST(Tracking, AnEarlierRunIsKeptOnlyWithTheSameSettings) {
   TempDir tmp;
-  nlohmann::json scene = parse_json_file(kRepo + "/scenes/benchmark/cube_00.json");
-  scene["frames"] = 20;
-  const Dataset d = render(scene, tmp.path / "cube", kRepo + "/scenes/benchmark");
+  const Dataset d = render_benchmark("cube_00", 20, tmp.path / "cube");
   const std::vector<const Dataset*> datasets = {&d};
   TrackOptions options;
   options.seed = 7;
@@ -250,7 +243,7 @@ TEST(Tracking, AnEarlierRunIsKeptOnlyWithTheSameSettings) {
   for (const auto& [what, other] : others) {
     EXPECT_FALSE(kept_track_run(datasets, other, out)) << what;
   }
-  const Dataset copy = render(scene, tmp.path / "cube_copy", kRepo + "/scenes/benchmark");
+  const Dataset copy = render_benchmark("cube_00", 20, tmp.path / "cube_copy");
   EXPECT_FALSE(kept_track_run({&copy}, options, out)) << "another dataset";
   // A file missing or a summary cut short: the run again.
   fs::rename(fs::path(out) / "patch.ply", tmp.path / "patch.ply");
