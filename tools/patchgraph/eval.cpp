@@ -388,6 +388,17 @@ int run_eval(const EvalArgs& args) {
                            fs::weakly_canonical(datasets[task.sequence]).filename().string());
     return make_track_options(a, sensors, job_model);
   };
+  // A task's row in results.csv.
+  const auto row_for = [&](const Task& task, const TrackSummary& summary,
+                           std::vector<std::string> warnings) {
+    return Row{datasets[task.sequence],
+               opened[task.sequence][0].info().object_name,
+               task.method,
+               "runs/" + run_name(task),
+               seeds[task.seed],
+               summary,
+               std::move(warnings)};
+  };
   std::vector<std::optional<Row>> finished(tasks.size());
   // --resume: an earlier eval's run of the same settings is kept (kept_track_run).
   int kept = 0;
@@ -398,13 +409,7 @@ int run_eval(const EvalArgs& args) {
         kept_track_run(sensors, task_options(task, models),
                        (fs::path(args.out) / "runs" / run_name(task)).string());
     if (!earlier) continue;
-    finished[i] = Row{datasets[task.sequence],
-                      sensors[0]->info().object_name,
-                      task.method,
-                      "runs/" + run_name(task),
-                      seeds[task.seed],
-                      earlier->summary,
-                      earlier->warnings};
+    finished[i] = row_for(task, earlier->summary, earlier->warnings);
     ++kept;
   }
   std::vector<std::size_t> order;  // the runs to track
@@ -498,13 +503,7 @@ int run_eval(const EvalArgs& args) {
       if (fs::is_empty(run_dir.parent_path(), ec)) fs::remove(run_dir.parent_path(), ec);
       throw;
     }
-    finished[i] = Row{datasets[task.sequence],
-                      dataset.info().object_name,
-                      task.method,
-                      "runs/" + name,
-                      seeds[task.seed],
-                      run.summary,
-                      track_warnings(run.summary)};
+    finished[i] = row_for(task, run.summary, track_warnings(run.summary));
     const std::lock_guard<std::mutex> hold(lock);
     frames_done += dataset.frames() - run_frames[i];
     run_frames[i] = dataset.frames();

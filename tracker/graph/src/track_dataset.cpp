@@ -10,7 +10,6 @@
 #include <deque>
 #include <exception>
 #include <filesystem>
-#include <initializer_list>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -762,6 +761,41 @@ nlohmann::json settings_json(const std::vector<const Dataset*>& datasets, const 
   };
 }
 
+// summary.json's results that are counts and numbers, by key: write_track_outputs writes them
+// and kept_track_run reads them back from these same lists.
+const std::pair<const char*, int TrackSummary::*> kSummaryCounts[] = {
+    {"ground_truth_frames", &TrackSummary::ground_truth_frames},
+    {"contact_frames", &TrackSummary::contact_frames},
+    {"episodes", &TrackSummary::episodes},
+    {"rejected_registrations", &TrackSummary::rejected_registrations},
+    {"lost_frames", &TrackSummary::lost_frames},
+    {"unconverged_registrations", &TrackSummary::unconverged_registrations},
+    {"overridden_registrations", &TrackSummary::overridden_registrations},
+    {"invalid_input_frames", &TrackSummary::invalid_input_frames},
+    {"rejected_normal_frames", &TrackSummary::rejected_normal_frames},
+    {"reference_mismatch_frames", &TrackSummary::reference_mismatch_frames},
+    {"saturated_frames", &TrackSummary::saturated_frames},
+    {"two_registration_frames", &TrackSummary::two_registration_frames},
+    {"disagreeing_registration_frames", &TrackSummary::disagreeing_registration_frames},
+    {"image_to_image_dropped", &TrackSummary::image_to_image_dropped},
+    {"degenerate_frames", &TrackSummary::degenerate_frames}};
+const std::pair<const char*, double TrackSummary::*> kSummaryNumbers[] = {
+    {"translation_rmse_m", &TrackSummary::translation_rmse_m},
+    {"rotation_rmse_rad", &TrackSummary::rotation_rmse_rad},
+    {"final_translation_error_m", &TrackSummary::final_translation_error_m},
+    {"final_rotation_error_rad", &TrackSummary::final_rotation_error_rad},
+    {"mean_frame_ms", &TrackSummary::mean_frame_ms},
+    {"median_frame_ms", &TrackSummary::median_frame_ms},
+    {"hz", &TrackSummary::hz},
+    {"throughput_fps", &TrackSummary::throughput_fps},
+    {"median_normals_ms", &TrackSummary::median_normals_ms}};
+// Only with compare_batch (TrackSummary's -1 otherwise).
+const std::pair<const char*, double TrackSummary::*> kSummaryBatchNumbers[] = {
+    {"batch_translation_rmse_m", &TrackSummary::batch_translation_rmse_m},
+    {"batch_rotation_rmse_rad", &TrackSummary::batch_rotation_rmse_rad},
+    {"window_vs_batch_translation_rms_m", &TrackSummary::window_vs_batch_translation_rms_m},
+    {"window_vs_batch_rotation_rms_rad", &TrackSummary::window_vs_batch_rotation_rms_rad}};
+
 // summary.json's number at `key`: null (NaN written) as NaN.
 double number_or_nan(const nlohmann::json& j, const char* key) {
   const nlohmann::json& v = j.at(key);
@@ -799,45 +833,12 @@ std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& dataset
     s.end_effector_noise = options.end_effector_noise;
     s.vision_noise = options.vision_noise;
     s.object_frame = j.at("object_frame").get<std::string>();
-    for (const auto& [key, field] :
-         std::initializer_list<std::pair<const char*, int TrackSummary::*>>{
-             {"ground_truth_frames", &TrackSummary::ground_truth_frames},
-             {"contact_frames", &TrackSummary::contact_frames},
-             {"episodes", &TrackSummary::episodes},
-             {"rejected_registrations", &TrackSummary::rejected_registrations},
-             {"lost_frames", &TrackSummary::lost_frames},
-             {"unconverged_registrations", &TrackSummary::unconverged_registrations},
-             {"overridden_registrations", &TrackSummary::overridden_registrations},
-             {"invalid_input_frames", &TrackSummary::invalid_input_frames},
-             {"rejected_normal_frames", &TrackSummary::rejected_normal_frames},
-             {"reference_mismatch_frames", &TrackSummary::reference_mismatch_frames},
-             {"saturated_frames", &TrackSummary::saturated_frames},
-             {"two_registration_frames", &TrackSummary::two_registration_frames},
-             {"disagreeing_registration_frames", &TrackSummary::disagreeing_registration_frames},
-             {"image_to_image_dropped", &TrackSummary::image_to_image_dropped},
-             {"degenerate_frames", &TrackSummary::degenerate_frames}}) {
-      s.*field = j.at(key).get<int>();
-    }
+    for (const auto& [key, field] : kSummaryCounts) s.*field = j.at(key).get<int>();
     s.unconstrained_direction_frames =
         j.at("unconstrained_direction_frames").get<std::array<int, 7>>();
-    for (const auto& [key, field] :
-         std::initializer_list<std::pair<const char*, double TrackSummary::*>>{
-             {"translation_rmse_m", &TrackSummary::translation_rmse_m},
-             {"rotation_rmse_rad", &TrackSummary::rotation_rmse_rad},
-             {"final_translation_error_m", &TrackSummary::final_translation_error_m},
-             {"final_rotation_error_rad", &TrackSummary::final_rotation_error_rad},
-             {"mean_frame_ms", &TrackSummary::mean_frame_ms},
-             {"median_frame_ms", &TrackSummary::median_frame_ms},
-             {"hz", &TrackSummary::hz},
-             {"throughput_fps", &TrackSummary::throughput_fps},
-             {"median_normals_ms", &TrackSummary::median_normals_ms}}) {
-      s.*field = number_or_nan(j, key);
-    }
+    for (const auto& [key, field] : kSummaryNumbers) s.*field = number_or_nan(j, key);
     if (j.contains("window_vs_batch_translation_rms_m")) {
-      s.batch_translation_rmse_m = number_or_nan(j, "batch_translation_rmse_m");
-      s.batch_rotation_rmse_rad = number_or_nan(j, "batch_rotation_rmse_rad");
-      s.window_vs_batch_translation_rms_m = number_or_nan(j, "window_vs_batch_translation_rms_m");
-      s.window_vs_batch_rotation_rms_rad = number_or_nan(j, "window_vs_batch_rotation_rms_rad");
+      for (const auto& [key, field] : kSummaryBatchNumbers) s.*field = number_or_nan(j, key);
     }
     kept.warnings = j.at("warnings").get<std::vector<std::string>>();
     return kept;
@@ -898,42 +899,14 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
   }
   nlohmann::json summary = settings_json(datasets, s.method, s.seed, s.normals, graph, s.front_end,
                                          s.end_effector_noise, s.vision_noise);
-  const nlohmann::json results = {
-      {"object_frame", s.object_frame},
-      {"ground_truth_frames", s.ground_truth_frames},
-      {"contact_frames", s.contact_frames},
-      {"episodes", s.episodes},
-      {"rejected_registrations", s.rejected_registrations},
-      {"lost_frames", s.lost_frames},
-      {"unconverged_registrations", s.unconverged_registrations},
-      {"overridden_registrations", s.overridden_registrations},
-      {"invalid_input_frames", s.invalid_input_frames},
-      {"rejected_normal_frames", s.rejected_normal_frames},
-      {"reference_mismatch_frames", s.reference_mismatch_frames},
-      {"saturated_frames", s.saturated_frames},
-      {"two_registration_frames", s.two_registration_frames},
-      {"disagreeing_registration_frames", s.disagreeing_registration_frames},
-      {"image_to_image_dropped", s.image_to_image_dropped},
-      {"degenerate_frames", s.degenerate_frames},
-      {"unconstrained_direction_frames", s.unconstrained_direction_frames},
-      {"warnings", track_warnings(s)},
-      {"translation_rmse_m", s.translation_rmse_m},
-      {"rotation_rmse_rad", s.rotation_rmse_rad},
-      {"final_translation_error_m", s.final_translation_error_m},
-      {"final_rotation_error_rad", s.final_rotation_error_rad},
-      {"mean_frame_ms", s.mean_frame_ms},
-      {"median_frame_ms", s.median_frame_ms},
-      {"hz", s.hz},
-      {"throughput_fps", s.throughput_fps},
-      {"median_normals_ms", s.median_normals_ms},
-      {"patch_points", patch.size()},
-  };
-  summary.update(results);
+  summary["object_frame"] = s.object_frame;
+  for (const auto& [key, field] : kSummaryCounts) summary[key] = s.*field;
+  summary["unconstrained_direction_frames"] = s.unconstrained_direction_frames;
+  summary["warnings"] = track_warnings(s);
+  for (const auto& [key, field] : kSummaryNumbers) summary[key] = s.*field;
+  summary["patch_points"] = patch.size();
   if (s.window_vs_batch_translation_rms_m >= 0) {
-    summary["batch_translation_rmse_m"] = s.batch_translation_rmse_m;
-    summary["batch_rotation_rmse_rad"] = s.batch_rotation_rmse_rad;
-    summary["window_vs_batch_translation_rms_m"] = s.window_vs_batch_translation_rms_m;
-    summary["window_vs_batch_rotation_rms_rad"] = s.window_vs_batch_rotation_rms_rad;
+    for (const auto& [key, field] : kSummaryBatchNumbers) summary[key] = s.*field;
   }
   const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
   write_text_atomically(summary_path, summary.dump(2) + "\n");
