@@ -24,6 +24,7 @@
 #include "common/cli_main.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/hash.h"
 #include "pg/core/json_fields.h"
 #include "pg/core/random.h"
 #include "pg/core/se3.h"
@@ -56,11 +57,7 @@ constexpr double kVisibleY = 10.0 * kMm;  // and |y| < this (the camera sees ~19
 // ------------------------------------------------------------------------- random numbers
 
 // FNV-1a of the scene name, cut to 53 bits so that any JSON reader keeps it exact.
-std::uint64_t scene_seed(const std::string& name) {
-  std::uint64_t h = 0xcbf29ce484222325ull;
-  for (const unsigned char c : name) h = (h ^ c) * 0x100000001b3ull;
-  return h >> 11;
-}
+std::uint64_t scene_seed(const std::string& name) { return pg::fnv1a(name) >> 11; }
 
 // ------------------------------------------------------------------------- motions
 

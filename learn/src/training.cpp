@@ -16,6 +16,7 @@
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
+#include "pg/core/hash.h"
 
 namespace pg {
 
@@ -65,22 +66,20 @@ void add_frame(FrameSet& set, const Dataset& d, const ImageU8& background,
   set.mask.push_back(learn::mask_tensor(d.mask(i)));
 }
 
-// FNV-1a over the bytes of the training targets and masks, in hex.
+// FNV-1a over the bytes of the training targets and masks, in hex. Its start is not FNV's offset
+// (a digit short of it) but stays, so that checkpoints written before still resume.
+constexpr std::uint64_t kLabelsHashStart = 1469598103934665603ull;
 std::string labels_hash(const FrameSet& set) {
-  std::uint64_t h = 1469598103934665603ull;
+  std::uint64_t h = kLabelsHashStart;
   const auto add = [&h](const torch::Tensor& t) {
     const torch::Tensor c = t.contiguous();
-    const auto* bytes = static_cast<const unsigned char*>(c.data_ptr());
-    const std::size_t n = std::size_t(c.numel()) * c.element_size();
-    for (std::size_t i = 0; i < n; ++i) h = (h ^ bytes[i]) * 1099511628211ull;
+    h = fnv1a(c.data_ptr(), std::size_t(c.numel()) * c.element_size(), h);
   };
   for (std::size_t i = 0; i < set.size(); ++i) {
     add(set.target[i]);
     add(set.mask[i]);
   }
-  char text[17];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(h));
-  return text;
+  return hex64(h);
 }
 
 // Reads the datasets; every `hold_out_every`-th frame (0: none) goes to `held_out`.

@@ -12,6 +12,7 @@
 
 #include "../common/cli_main.h"
 #include "pg/core/error.h"
+#include "pg/core/hash.h"
 #include "pg/learn/normal_model.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/mesh_sampling.h"
@@ -477,9 +478,7 @@ TriangleMesh load_object_mesh(const Dataset& dataset) {
 }
 
 std::uint64_t sequence_seed(std::uint64_t base, const std::string& name) {
-  std::uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a over the name
-  for (unsigned char c : name) h = (h ^ c) * 0x100000001b3ull;
-  std::uint64_t z = h ^ (base + 0x9e3779b97f4a7c15ull);  // then SplitMix64's finaliser
+  std::uint64_t z = fnv1a(name) ^ (base + 0x9e3779b97f4a7c15ull);  // then SplitMix64's finaliser
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
   z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
   return z ^ (z >> 31);
