@@ -6,9 +6,12 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <optional>
+#include <vector>
 
 #include "pg/core/error.h"
+#include "pg/core/hash.h"
 
 namespace pg {
 
@@ -21,6 +24,20 @@ std::uintmax_t folder_bytes(const std::string& folder) {
     if (entry.is_regular_file(ec)) bytes += entry.file_size(ec);
   }
   return bytes;
+}
+
+std::string file_digest(const std::string& path) {
+  require_regular_file(path, "a file to digest");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path + ": cannot read (" + std::strerror(errno) + ")");
+  std::uint64_t h = kFnvOffset;
+  std::vector<char> chunk(1 << 16);
+  while (in) {
+    in.read(chunk.data(), std::streamsize(chunk.size()));
+    h = fnv1a(chunk.data(), std::size_t(in.gcount()), h);
+  }
+  if (in.bad()) throw InputError(path + ": cannot read (a read failed)");
+  return hex64(h);
 }
 
 std::string write_failure_cause(const std::string& path, int error_number) {

@@ -433,6 +433,7 @@ NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->generator = learn::load_model(path, impl->info);
+  impl->info.file_digest = file_digest(path);
   if (impl->info.gel_relative) {
     impl->gel = learn::gel_normals(impl->info.sensor);
     if (!impl->gel.same_shape(impl->info.width, impl->info.height, 3)) {

@@ -3394,5 +3394,37 @@ TEST_F(PatchgraphCli, EvalResumesWhereAnEarlierEvalStopped) {
   EXPECT_NE(other.out.find("--resume: 0 of 4 runs kept"), std::string::npos) << other.out;
 }
 
+// A model is known by its file's bytes, not its path: a model trained again into the same file
+// makes --resume track its runs again. summary.json records the digest that model-info prints.
+TEST_F(PatchgraphCli, EvalResumeTellsAModelFromAnotherInTheSameFile) {
+  const std::string model = out("resume_model.pt");
+  fs::copy_file(kDefaultModel, model, fs::copy_options::overwrite_existing);
+  const std::string matrix = "eval --no-plots --methods constvel --datasets " + data() +
+                             " --normals " + model + " --out " + out("resume_model");
+  ASSERT_EQ(patchgraph(matrix + " -q").code, 0);
+  const CliRun info = patchgraph("model-info " + model);
+  ASSERT_EQ(info.code, 0) << info.out;
+  const auto summary = parse_json_file(out("resume_model") + "/runs/data_constvel/summary.json");
+  const std::string digest = summary.at("normals_digest").get<std::string>();
+  EXPECT_EQ(digest.size(), 16u) << digest;
+  EXPECT_NE(info.out.find("digest " + digest + ")"), std::string::npos) << info.out;
+
+  CliRun resumed = patchgraph(matrix + " --resume");
+  ASSERT_EQ(resumed.code, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find("--resume: 1 of 1 runs kept"), std::string::npos) << resumed.out;
+  // Another model in the same file: tracked again, and the new digest recorded.
+  fs::copy_file(std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt", model,
+                fs::copy_options::overwrite_existing);
+  resumed = patchgraph(matrix + " --resume");
+  ASSERT_EQ(resumed.code, 0) << resumed.out;
+  EXPECT_NE(resumed.out.find("--resume: 0 of 1 runs kept"), std::string::npos) << resumed.out;
+  const auto again = parse_json_file(out("resume_model") + "/runs/data_constvel/summary.json");
+  EXPECT_NE(again.at("normals_digest").get<std::string>(), digest);
+  // Ground-truth normals have no file to digest.
+  ASSERT_EQ(patchgraph("track -q --method constvel " + data() + " --out " + out("gt_digest")).code,
+            0);
+  EXPECT_FALSE(parse_json_file(out("gt_digest") + "/summary.json").contains("normals_digest"));
+}
+
 }  // namespace
 }  // namespace pg

@@ -299,9 +299,10 @@ int run_model_info(const ModelInfoArgs& a) {
   const NormalModelInfo& i = model.info();
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(a.model, ec);
-  std::printf("model     %s (%s, checksums and weights ok)\n", a.model.c_str(),
+  std::printf("model     %s (%s, checksums and weights ok; digest %s)\n", a.model.c_str(),
               bytes < 1'000'000 ? format_number(double(bytes) / 1e3, "%.0f kB").c_str()
-                                : format_number(double(bytes) / 1e6, "%.1f MB").c_str());
+                                : format_number(double(bytes) / 1e6, "%.1f MB").c_str(),
+              i.file_digest.c_str());
   std::printf("network   %s, %ld parameters, normals in the %s frame\n", describe(i.spec).c_str(),
               model.parameter_count(), i.gel_relative ? "undeformed gel's" : "sensor");
   std::printf(

@@ -367,6 +367,9 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
       return normals_model_for(models, sensor)->predict(color, reference);
     };
     o.normals_name = a.normals;
+    for (const auto& model : models) {
+      o.normals_digest += (o.normals_digest.empty() ? "" : ",") + model->info().file_digest;
+    }
     // Phase averaging changes the normals: the summary (and eval --resume) tell the runs apart.
     if (a.normals_phases > 1) o.normals_name += "+phases:" + std::to_string(a.normals_phases);
     if (a.blend_shading > 0) {

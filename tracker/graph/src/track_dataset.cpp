@@ -594,6 +594,7 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   run.summary.throughput_fps = loop_ms > 0 ? 1000.0 * double(run.frames.size()) / loop_ms : 0.0;
   run.summary.sensors = int(datasets.size());
   run.summary.normals = options.normals_name;
+  run.summary.normals_digest = options.normals_digest;
   run.summary.seed = options.seed;
   run.summary.front_end = options.front_end;
   run.summary.end_effector_noise = options.end_effector_noise;
@@ -725,11 +726,11 @@ namespace {
 // holds it, its ICP options the front end's). A run is repeated by these.
 nlohmann::json settings_json(const std::vector<const Dataset*>& datasets, const std::string& method,
                              std::uint64_t seed, const std::string& normals,
-                             const GraphOptions& graph, const TrackerConfig& front_end,
+                             const std::string& normals_digest, const GraphOptions& graph, const TrackerConfig& front_end,
                              double end_effector_noise, double vision_noise) {
   std::vector<std::string> dirs;
   for (const Dataset* d : datasets) dirs.push_back(d->dir());
-  return {
+  nlohmann::json settings = {
       {"dataset", datasets.at(0)->dir()},
       {"datasets", dirs},
       {"sensors", int(datasets.size())},
@@ -759,6 +760,8 @@ nlohmann::json settings_json(const std::vector<const Dataset*>& datasets, const 
       // reruns with them (with learned normals they are not the built-in defaults).
       {"config", tracker_config_to_json(front_end)},
   };
+  if (!normals_digest.empty()) settings["normals_digest"] = normals_digest;
+  return settings;
 }
 
 // summary.json's results that are counts and numbers, by key: write_track_outputs writes them
@@ -813,8 +816,8 @@ std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& dataset
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;
   const nlohmann::json wanted =
-      settings_json(datasets, to_string(graph.method), options.seed, options.normals_name, graph,
-                    options.front_end, options.end_effector_noise, options.vision_noise);
+      settings_json(datasets, to_string(graph.method), options.seed, options.normals_name,
+                    options.normals_digest, graph, options.front_end, options.end_effector_noise, options.vision_noise);
   try {
     const nlohmann::json j = parse_json_file((fs::path(out_dir) / "summary.json").string());
     for (const auto& [key, value] : wanted.items()) {
@@ -829,6 +832,7 @@ std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& dataset
     s.frames = j.at("frames").get<int>();
     s.sensors = j.at("sensors").get<int>();
     s.normals = j.at("normals").get<std::string>();
+    s.normals_digest = j.value("normals_digest", std::string());
     s.front_end = options.front_end;
     s.end_effector_noise = options.end_effector_noise;
     s.vision_noise = options.vision_noise;
@@ -897,8 +901,9 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
     const PointCloud& more = tracker.patch(k).cloud_object();
     for (std::size_t i = 0; i < more.size(); ++i) patch.push_back(more.points[i], more.normals[i]);
   }
-  nlohmann::json summary = settings_json(datasets, s.method, s.seed, s.normals, graph, s.front_end,
-                                         s.end_effector_noise, s.vision_noise);
+  nlohmann::json summary =
+      settings_json(datasets, s.method, s.seed, s.normals, s.normals_digest, graph, s.front_end,
+                    s.end_effector_noise, s.vision_noise);
   summary["object_frame"] = s.object_frame;
   for (const auto& [key, field] : kSummaryCounts) summary[key] = s.*field;
   summary["unconstrained_direction_frames"] = s.unconstrained_direction_frames;

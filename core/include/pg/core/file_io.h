@@ -21,6 +21,11 @@ inline std::string lower_extension(const std::string& path) {
 // The bytes of the files in `folder` and below it (0 for none, or no such folder).
 std::uintmax_t folder_bytes(const std::string& folder);
 
+// The FNV-1a of the file's bytes as 16 hex digits (pg/core/hash.h): tells a file rewritten in
+// place (a model trained again into the same path) from the one before. InputError naming `path`
+// when it cannot be read.
+std::string file_digest(const std::string& path);
+
 // Free space below which a failed write is put down to a full disk [bytes].
 inline constexpr unsigned long long kLowDiskSpace = 1ull << 20;
 

@@ -64,6 +64,10 @@ struct NormalModelInfo {
   // training dataset did not say (and in a file from before 2026-11-29, which did not record
   // them). With --init, the starting model's too.
   std::vector<std::string> backgrounds;
+  // Not stored in the file: the FNV-1a of its bytes as NormalEstimator::load read them
+  // (file_digest), which summary.json records and eval --resume compares, so that a model trained
+  // again into the same path is told from the one before. Empty when not loaded from a file.
+  std::string file_digest;
 };
 
 // What lies behind a dataset's imprints, as a network that reads the frame minus the no-contact

@@ -49,6 +49,10 @@ struct TrackOptions {
   // (Dataset::background; a learned model), timed as part of the frame.
   std::function<ImageF(std::size_t sensor, const ImageU8& color, const ImageU8& reference)> normals;
   std::string normals_name = "gt";  // for the summary (with a model per sensor, their list)
+  // The model files' digests (file_digest), in normals_name's order, joined with commas; empty
+  // for ground-truth normals and the shading's inverse. summary.json records it and eval
+  // --resume compares it: a model trained again into the same file is another source.
+  std::string normals_digest;
   // Decode the next frame's images, and read them with `normals`, on a second thread while the
   // tracker updates with this frame's (`normals` is then called from that thread, one call at a
   // time); false: all on the calling thread, one frame after the other. The same results either
@@ -163,6 +167,7 @@ struct TrackSummary {
   // next frame's decoding and model overlapped with this one's update, TrackOptions::prefetch).
   double throughput_fps = 0;
   std::string normals = "gt";
+  std::string normals_digest;  // TrackOptions::normals_digest
   double median_normals_ms = 0;
   // The settings the run used beyond the graph's own (PatchGraphTracker::options()): the front
   // end's depth, mask and ICP options (what --config takes) and the simulated pose noise.
@@ -262,7 +267,8 @@ void write_track_outputs(const TrackRun& run, const Dataset& dataset, const std:
 // with `options` would record (the datasets, method, seed, normals source, the graph's and the
 // front end's options and the noise; with compare_batch, the batch's results), the summary and
 // the warnings it records; else none (a summary.json that does not parse too). The normals
-// source is compared by its name (TrackOptions::normals_name).
+// source is compared by its name and its model files' digest (TrackOptions::normals_name and
+// normals_digest).
 struct KeptRun {
   TrackSummary summary;  // as written (marked_contact_frames and sensor_pose_jumps are not)
   std::vector<std::string> warnings;
