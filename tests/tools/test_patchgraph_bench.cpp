@@ -11,6 +11,8 @@
 #include <tuple>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "../common/test_support.h"
 
 namespace pg {
@@ -138,8 +140,38 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
   EXPECT_EQ(settings, expected);
   EXPECT_GE(on_front, 1);
   EXPECT_TRUE(fs::exists(tmp.str("b/bench.md")));
-  EXPECT_TRUE(fs::exists(tmp.str("b/runs.csv")));
   EXPECT_TRUE(fs::exists(tmp.str("b/bench.png"))) << r.out;
+
+  // Every run names the render and seed it tracked, and `track` of them with the setting's option
+  // gives its errors: the settings of one resolution read its frames once (the first decodes
+  // them, the rest take them from memory) and each tracks as a run of its own.
+  const auto runs = read_csv_table(tmp.str("b/runs.csv"));
+  ASSERT_EQ(runs.rows.size(), 12u);
+  const std::map<std::string, std::string> option = {
+      {"default", ""},
+      {"window 3", " --window 3"},
+      {"registration information off", " --no-registration-information"},
+      {"method constvel", " --method constvel"}};
+  int checked = 0;
+  for (std::size_t i = 0; i < runs.rows.size(); ++i) {
+    const auto it = option.find(runs.cell(i, "setting"));
+    if (it == option.end() || runs.cell(i, "scene") != "cube_00") continue;
+    SCOPED_TRACE(it->first);
+    const std::string dataset = runs.cell(i, "dataset");
+    EXPECT_NE(dataset.find("cube_00_"), std::string::npos) << dataset;
+    const auto t = testing_support::run_command(
+        PATCHGRAPH_PATH, "track -q " + dataset + " --seed " + runs.cell(i, "seed") + it->second +
+                             " --out " + tmp.str("track_" + std::to_string(i)));
+    ASSERT_EQ(t.code, 0) << t.out;
+    std::ifstream in(tmp.str("track_" + std::to_string(i)) + "/summary.json");
+    const auto summary = nlohmann::json::parse(in);
+    for (const char* c : {"final_translation_error_m", "final_rotation_error_rad"}) {
+      const double expected = std::stod(runs.cell(i, c));
+      EXPECT_NEAR(summary.at(c).get<double>(), expected, 1e-8 * std::abs(expected) + 1e-15) << c;
+    }
+    ++checked;
+  }
+  EXPECT_EQ(checked, 4);
 }
 
 // (--no-plots, eval's spelling, is bench's --no-plot too.)

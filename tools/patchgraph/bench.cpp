@@ -124,6 +124,7 @@ std::vector<std::string> default_scenes(bool quick) {
 
 struct RunResult {
   std::string scene, object;
+  std::string dataset;  // the render in the cache that was tracked
   TrackSummary summary;
 };
 
@@ -267,14 +268,16 @@ void write_runs_csv(const std::string& path, const std::vector<Row>& rows) {
   std::ofstream out = open_for_writing(path);
   out.precision(9);
   out << "setting,scene,object,frames,final_translation_error_m,final_rotation_error_rad,"
-         "translation_rmse_m,rotation_rmse_rad,median_frame_ms,rejected_registrations\n";
+         "translation_rmse_m,rotation_rmse_rad,median_frame_ms,rejected_registrations,dataset,"
+         "seed\n";
   for (const Row& r : rows) {
     for (const RunResult& run : r.runs) {
       const TrackSummary& s = run.summary;
       out << csv_field(r.setting.name()) << "," << csv_field(run.scene) << ","
           << csv_field(run.object) << "," << s.frames << "," << s.final_translation_error_m << ","
           << s.final_rotation_error_rad << "," << s.translation_rmse_m << "," << s.rotation_rmse_rad
-          << "," << s.median_frame_ms << "," << s.rejected_registrations << "\n";
+          << "," << s.median_frame_ms << "," << s.rejected_registrations << ","
+          << csv_field(run.dataset) << "," << s.seed << "\n";
     }
   }
   close_checked(out, path);
@@ -404,22 +407,37 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (std::size_t i = 0; i < settings.size(); ++i) rows[i].setting = settings[i];
   const int total = int(args.scenes.size() * settings.size());
   int done = 0;
+  // The settings that read the same frames (one resolution and normals source) share them within
+  // a scene: decoded, and read by a model, by the first and taken from memory by the rest (the
+  // model's time as the first measured it, in each one's update). Let go after the last of them.
+  const auto frames_key = [](const Setting& s) {
+    return std::to_string(s.width) + "x" + std::to_string(s.height) + " " + s.normals;
+  };
   for (const BenchScene& scene : scenes) {
     const std::string scene_name = fs::path(scene.path).stem().string();
+    std::map<std::string, std::pair<std::shared_ptr<PreparedFrames>, int>> prepared;
+    for (const Row& row : rows) ++prepared[frames_key(row.setting)].second;
     for (Row& row : rows) {
       const Setting& s = row.setting;
+      auto& shared = prepared.at(frames_key(s));  // the frames, and the runs still to read them
+      std::shared_ptr<PreparedFrames>& frames = shared.first;
+      if (!frames && shared.second > 1) frames = make_prepared_frames();
+      std::string dataset_dir;
       const TrackRun run = [&] {
         try {
           const Dataset dataset = dataset_for(scene, s);
-          return track_cached(dataset,
-                              options_for(s, dataset, sequence_seed(0, scene_name), models));
+          dataset_dir = dataset.dir();
+          TrackOptions options = options_for(s, dataset, sequence_seed(0, scene_name), models);
+          options.prepared_frames = frames;
+          return track_cached(dataset, options);
         } catch (const Stopped& e) {
           throw e.with_note("nothing written to " + args.out + " (after " + std::to_string(done) +
                             " of " + std::to_string(total) + " runs)");
         }
       }();
+      if (--shared.second == 0) frames.reset();
       const SceneObject& object = scene.scene.objects.at(std::size_t(scene.scene.tracked_object));
-      row.runs.push_back({scene_name, object.name, run.summary});
+      row.runs.push_back({scene_name, object.name, dataset_dir, run.summary});
       ++done;
       if (!args.quiet) {
         std::fprintf(stderr, "[%d/%d] %s, %s: final %.3f mm %.4f rad, median %.2f ms\n", done,
