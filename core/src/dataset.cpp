@@ -148,13 +148,13 @@ const std::vector<std::string>& dataset_output_names() {
 
 void check_output_names(const std::vector<std::string>& names, const std::string& where) {
   const auto& known = dataset_output_names();
+  std::string list;  // the names, as the messages give them
+  for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
   if (names.empty()) {  // a dataset of poses alone, which nothing can track
-    throw InputError(where + ": empty; name at least one of color, normal, depth, mask, points");
+    throw InputError(where + ": empty; name at least one of " + list);
   }
   for (auto name = names.begin(); name != names.end(); ++name) {
     if (std::find(known.begin(), known.end(), *name) == known.end()) {
-      std::string list;
-      for (const auto& n : known) list += (list.empty() ? "" : ", ") + n;
       throw InputError(where + ": unknown output '" + *name + "' (known: " + list + ")");
     }
     if (std::find(names.begin(), name, *name) != name) {

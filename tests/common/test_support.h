@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <csignal>
@@ -52,17 +53,18 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
   return r;
 }
 
-// Every whole-number option of `binary subcommand` (those its --help types INT or UINT) given
-// values that are no whole number it takes: a fraction, exponents, numbers past an int's or a
-// 64-bit seed's range, a word, hex; `per_option` of them each, in turn, so that the options
-// together meet every value (a run of patchgraph takes 0.7 s, LibTorch's loading). Returns what
-// went wrong ("--epochs 1.5: exit 0, ..."), empty when each was refused as a usage error (exit
-// 2) in the tools' own words, naming the option. Fails also when the help shows fewer than
-// `at_least` such options, so that a changed help layout cannot pass unchecked.
-inline std::vector<std::string> whole_number_options_refused(const std::string& binary,
-                                                             const std::string& subcommand,
-                                                             std::size_t at_least,
-                                                             std::size_t per_option = 2) {
+// The options of `binary subcommand` whose --help type starts with one of `types` ("INT",
+// "FLOAT"), each given `per_option` of `values` in turn, so that the options together meet every
+// value (a run of patchgraph takes 0.7 s, LibTorch's loading). Returns what went wrong
+// ("--epochs 1.5: exit 0, ..."), empty when each was refused as a usage error (exit 2) in the
+// tools' own words, naming the option. Fails also when the help shows fewer than `at_least` such
+// options, so that a changed help layout cannot pass unchecked.
+inline std::vector<std::string> typed_options_refused(const std::string& binary,
+                                                      const std::string& subcommand,
+                                                      const std::vector<std::string>& types,
+                                                      const std::vector<std::string>& values,
+                                                      std::size_t at_least,
+                                                      std::size_t per_option) {
   std::vector<std::string> problems;
   const CliRun help = run_command(binary, subcommand + " --help");
   std::istringstream lines(help.out);
@@ -71,18 +73,15 @@ inline std::vector<std::string> whole_number_options_refused(const std::string& 
     std::istringstream words(line);
     std::string names, type;
     words >> names >> type;  // "-o,--out TEXT", "--window INT:NONNEGATIVE"
-    if (names.rfind("-", 0) != 0 || (type.rfind("INT", 0) != 0 && type.rfind("UINT", 0) != 0)) {
-      continue;
-    }
-    options.push_back(names.substr(names.rfind(',') + 1));
+    const bool typed = std::any_of(types.begin(), types.end(),
+                                   [&](const std::string& t) { return type.rfind(t, 0) == 0; });
+    if (names.rfind("-", 0) == 0 && typed) options.push_back(names.substr(names.rfind(',') + 1));
   }
   if (options.size() < at_least) {
     problems.push_back(subcommand + ": " + std::to_string(options.size()) +
-                       " whole-number options in its --help, expected at least " +
+                       " such options in its --help, expected at least " +
                        std::to_string(at_least) + ":\n" + help.out);
   }
-  const std::vector<std::string> values = {
-      "1.5", "1e300", "18446744073709551616", "abc", "-99999999999", "0x10", "1e-12"};
   std::size_t next = 0;
   for (const std::string& option : options) {
     for (std::size_t k = 0; k < per_option; ++k) {
@@ -98,6 +97,26 @@ inline std::vector<std::string> whole_number_options_refused(const std::string& 
     }
   }
   return problems;
+}
+
+// Every whole-number option (--help's INT or UINT) given values that are no whole number it
+// takes: a fraction, exponents, numbers past an int's or a 64-bit seed's range, a word, hex.
+inline std::vector<std::string> whole_number_options_refused(const std::string& binary,
+                                                             const std::string& subcommand,
+                                                             std::size_t at_least,
+                                                             std::size_t per_option = 2) {
+  return typed_options_refused(
+      binary, subcommand, {"INT", "UINT"},
+      {"1.5", "1e300", "18446744073709551616", "abc", "-99999999999", "0x10", "1e-12"}, at_least,
+      per_option);
+}
+
+// Every real-number option (--help's FLOAT) given what is no number: NaN, which compares false
+// with any bound (CLI11's own range check let it through), and a word.
+inline std::vector<std::string> real_number_options_refused(const std::string& binary,
+                                                            const std::string& subcommand,
+                                                            std::size_t at_least) {
+  return typed_options_refused(binary, subcommand, {"FLOAT"}, {"nan", "abc"}, at_least, 1);
 }
 
 // The whole text of a file ("" when it cannot be read).

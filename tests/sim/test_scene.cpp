@@ -274,7 +274,8 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
        [](json& j) {
          j["render"] = {{"outputs", json::array()}};
        },
-       {"render.outputs", "empty; name at least one"}},
+       {"render.outputs",
+        "empty; name at least one of color, normal, normal_png, depth, mask, points"}},
       {"unknown tracked object",
        [](json& j) { j["tracked_object"] = "ghost"; },
        {": tracked_object", "'ghost'"}},

@@ -332,6 +332,25 @@ TEST(PatchgraphOptions, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
       << r.out;
 }
 
+// A real-number option given NaN or a word is refused naming it: --blend-shading nan had run as
+// no blend (CLI11's range check compares, and NaN passes every comparison's "not outside").
+TEST(PatchgraphOptions, EveryRealNumberOptionRefusesWhatIsNoNumber) {
+  for (const auto& [sub, options] :
+       std::vector<std::pair<std::string, std::size_t>>{{"track", 11},
+                                                        {"eval", 11},
+                                                        {"train-normals", 7},
+                                                        {"eval-normals", 1},
+                                                        {"recording", 1},
+                                                        {"label-ball", 1}}) {
+    for (const std::string& problem :
+         testing_support::real_number_options_refused(PATCHGRAPH_PATH, sub, options)) {
+      ADD_FAILURE() << problem;
+    }
+  }
+  const CliRun r = patchgraph("track x --blend-shading nan --out y");
+  EXPECT_EQ(r.out.rfind("error: --blend-shading: must be from 0 to 1, got nan\n", 0), 0u) << r.out;
+}
+
 TEST_F(PatchgraphCli, GtpatchRefusesAnObjectTooLargeToModel) {
   const std::string copy = data_copy("huge_object");
   nlohmann::json info = parse_json_file(copy + "/dataset.json");

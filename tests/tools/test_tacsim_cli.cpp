@@ -232,6 +232,17 @@ TEST(TacsimCli, WholeNumbersAreDecimal) {
 // refused naming the option and what it takes. CLI11 had said "Value 1.5 not in range 1 to
 // 10000000" of --frames, and "Could not convert: --repeats = 1e300" where its range check had
 // passed the value as a floating-point number.
+// A real-number option given NaN or a word is refused naming it.
+TEST(TacsimCli, EveryRealNumberOptionRefusesWhatIsNoNumber) {
+  for (const auto& [sub, options] :
+       std::vector<std::pair<std::string, std::size_t>>{{"presses", 3}, {"sensitivity", 2}}) {
+    for (const std::string& problem :
+         testing_support::real_number_options_refused(TACSIM_PATH, sub, options)) {
+      ADD_FAILURE() << problem;
+    }
+  }
+}
+
 TEST(TacsimCli, EveryWholeNumberOptionRefusesWhatIsNoWholeNumber) {
   for (const auto& [sub, options] : std::vector<std::pair<std::string, std::size_t>>{
            {"render", 4}, {"bench", 3}, {"sheet", 3}, {"presses", 2}}) {
@@ -990,6 +1001,44 @@ TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {
 
 // `tacsim presses` writes a scene of random presses that renders one press per frame, of the
 // asked depth and inside the image; one seed writes one file; bad options are named.
+// A file output inside a dataset (a contact sheet over one of its frames, a presses scene over its
+// poses.csv) is refused before anything is written, as patchgraph refuses one: it had replaced
+// the dataset's file with exit 0. A presses scene is a .json.
+TEST(TacsimCli, AFileOutputInsideADatasetIsRefused) {
+  TempDir tmp;
+  ASSERT_EQ(tacsim("render " + kScenes + "default.json -q --frames 3 --out " + tmp.str("d")).code,
+            0);
+  const std::string mesh = std::string(PG_SOURCE_DIR) + "/meshes/cube.glb";
+  const auto bytes = [&](const std::string& file) {
+    return testing_support::file_text(tmp.str("d/" + file));
+  };
+  const std::string poses = bytes("poses.csv"), frame = bytes("color/000001.png"),
+                    normal = bytes("normal/000001.exr");
+  for (const auto& [args, where] : std::vector<std::pair<std::string, std::string>>{
+           {"presses " + mesh + " --frames 2 --out " + tmp.str("d/poses.json"),
+            " is in a folder that holds a dataset (dataset.json)"},
+           {"sheet " + kScenes + "examples/sphere_press.json --out " + tmp.str("d/color/000001.png"),
+            " is inside " + tmp.str("d") + ", which holds a dataset (dataset.json)"},
+           {"sensitivity --out " + tmp.str("d/normal/000001.exr"),
+            " is inside " + tmp.str("d") + ", which holds a dataset"}}) {
+    const CliRun r = tacsim(args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(where), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("write the outputs to another folder"), std::string::npos) << r.out;
+  }
+  EXPECT_EQ(bytes("poses.csv"), poses);
+  EXPECT_EQ(bytes("color/000001.png"), frame);
+  EXPECT_EQ(bytes("normal/000001.exr"), normal);
+  EXPECT_FALSE(fs::exists(tmp.str("d/poses.json")));
+  EXPECT_EQ(tacsim("info --check " + tmp.str("d")).code, 0);
+  const CliRun csv = tacsim("presses " + mesh + " --frames 2 --out " + tmp.str("p.csv"));
+  EXPECT_EQ(csv.code, 2) << csv.out;
+  EXPECT_NE(csv.out.find("a scene file is JSON; give a .json file"), std::string::npos) << csv.out;
+  EXPECT_FALSE(fs::exists(tmp.str("p.csv")));
+  // Beside a dataset, not in it: written.
+  EXPECT_EQ(tacsim("presses " + mesh + " --frames 2 --out " + tmp.str("p.json")).code, 0);
+}
+
 TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   TempDir tmp;
   // The mesh beside the scenes' folder, which does not exist yet: made, and the mesh named

@@ -160,21 +160,29 @@ inline void check_output_is_not_input(const std::string& out, const std::string&
 // Throws InputError when the output folder `out` holds a dataset (its dataset.json): a track's
 // poses.csv would replace the dataset's ground truth; or a render of several sensors (its
 // sensors.json), whose folder would mix a track's files with the sensors'. With `is_file`, `out` is
-// a file and its folder must hold none (a model or results saved as a dataset's poses.csv).
+// a file and neither its folder nor any folder above it may hold one (a model or results saved as
+// a dataset's poses.csv, an image over one of its frames in color/).
 inline void check_output_is_no_dataset(const std::string& out, bool is_file = false,
                                        const std::string& out_what = "--out") {
   namespace fs = std::filesystem;
   std::error_code ec;
-  const fs::path folder = is_file ? fs::absolute(out, ec).parent_path() : fs::path(out);
-  if (fs::exists(folder / "dataset.json", ec)) {
-    throw InputError(out_what + " " + out + (is_file ? " is in a folder that holds" : " holds") +
-                     " a dataset (dataset.json), whose files it could replace: write the outputs "
-                     "to another folder");
-  }
-  if (fs::exists(folder / "sensors.json", ec)) {
-    throw InputError(out_what + " " + out + (is_file ? " is in a folder that holds" : " holds") +
-                     " a render of several sensors (sensors.json): write the outputs to another "
-                     "folder");
+  const fs::path own =
+      is_file ? fs::absolute(out, ec).lexically_normal().parent_path() : fs::path(out);
+  for (fs::path folder = own;; folder = folder.parent_path()) {
+    const std::string where = folder != own ? " is inside " + folder.string() + ", which holds"
+                              : is_file     ? " is in a folder that holds"
+                                            : " holds";
+    if (fs::exists(folder / "dataset.json", ec)) {
+      throw InputError(out_what + " " + out + where +
+                       " a dataset (dataset.json), whose files it could replace: write the "
+                       "outputs to another folder");
+    }
+    if (fs::exists(folder / "sensors.json", ec)) {
+      throw InputError(out_what + " " + out + where +
+                       " a render of several sensors (sensors.json): write the outputs to "
+                       "another folder");
+    }
+    if (!is_file || folder.empty() || folder.parent_path() == folder) return;
   }
 }
 

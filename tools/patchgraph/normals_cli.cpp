@@ -135,7 +135,7 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   cmd->add_option("--blend-shading", a.blend_shading,
                   "Average the model's normals with the shading's inverse, this its weight from "
                   "0 (default: the model alone) to 1 (as track --blend-shading)")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(range_check(0, 1));
   cmd->add_flag("--quiet,-q", a.quiet, "No progress line");
   return cmd;
 }

@@ -45,7 +45,7 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  "Average --normals MODEL's normals with the shading's inverse (--normals "
                  "shading), this its weight from 0 (default: the model alone) to 1; for renders "
                  "of the dataset's sensor")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(range_check(0, 1));
   app.add_option(
       "--config", a.config,
       "Tracker config JSON (depth, mask, icp options): each key given replaces the "

@@ -61,6 +61,10 @@ int run_presses(const PressesArgs& a) {
   if (fs::equivalent(a.out, a.mesh, ec)) {
     throw InputError("--out " + a.out + ": is the mesh; give the scene file to write (a .json)");
   }
+  if (lower_extension(a.out) != ".json") {
+    throw UsageError("--out " + a.out + ": a scene file is JSON; give a .json file");
+  }
+  check_output_is_no_dataset(a.out, true);
 
   const TriangleMesh mesh = load_mesh(a.mesh, a.scale);
   const Bounds3 bounds = mesh_bounds(mesh);

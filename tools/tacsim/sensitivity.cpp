@@ -72,6 +72,7 @@ int run_sensitivity(const SensitivityArgs& a) {
       throw UsageError("--out " + a.out + ": the map holds radians as floats; give an .exr file");
     }
     check_image_output(a.out);
+    check_output_is_no_dataset(a.out, true);
   }
   const double tilt = a.tilt_deg * M_PI / 180.0;
   const NormalBounds bounds(sensor);
