@@ -59,12 +59,9 @@ inline CliRun run_command(const std::string& binary, const std::string& args) {
 // ("--epochs 1.5: exit 0, ..."), empty when each was refused as a usage error (exit 2) in the
 // tools' own words, naming the option. Fails also when the help shows fewer than `at_least` such
 // options, so that a changed help layout cannot pass unchecked.
-inline std::vector<std::string> typed_options_refused(const std::string& binary,
-                                                      const std::string& subcommand,
-                                                      const std::vector<std::string>& types,
-                                                      const std::vector<std::string>& values,
-                                                      std::size_t at_least,
-                                                      std::size_t per_option) {
+inline std::vector<std::string> typed_options_refused(
+    const std::string& binary, const std::string& subcommand, const std::vector<std::string>& types,
+    const std::vector<std::string>& values, std::size_t at_least, std::size_t per_option) {
   std::vector<std::string> problems;
   const CliRun help = run_command(binary, subcommand + " --help");
   std::istringstream lines(help.out);

@@ -1017,7 +1017,8 @@ TEST(TacsimCli, AFileOutputInsideADatasetIsRefused) {
   for (const auto& [args, where] : std::vector<std::pair<std::string, std::string>>{
            {"presses " + mesh + " --frames 2 --out " + tmp.str("d/poses.json"),
             " is in a folder that holds a dataset (dataset.json)"},
-           {"sheet " + kScenes + "examples/sphere_press.json --out " + tmp.str("d/color/000001.png"),
+           {"sheet " + kScenes + "examples/sphere_press.json --out " +
+                tmp.str("d/color/000001.png"),
             " is inside " + tmp.str("d") + ", which holds a dataset (dataset.json)"},
            {"sensitivity --out " + tmp.str("d/normal/000001.exr"),
             " is inside " + tmp.str("d") + ", which holds a dataset"}}) {

@@ -726,8 +726,9 @@ namespace {
 // holds it, its ICP options the front end's). A run is repeated by these.
 nlohmann::json settings_json(const std::vector<const Dataset*>& datasets, const std::string& method,
                              std::uint64_t seed, const std::string& normals,
-                             const std::string& normals_digest, const GraphOptions& graph, const TrackerConfig& front_end,
-                             double end_effector_noise, double vision_noise) {
+                             const std::string& normals_digest, const GraphOptions& graph,
+                             const TrackerConfig& front_end, double end_effector_noise,
+                             double vision_noise) {
   std::vector<std::string> dirs;
   for (const Dataset* d : datasets) dirs.push_back(d->dir());
   nlohmann::json settings = {
@@ -815,9 +816,9 @@ std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& dataset
   }
   GraphOptions graph = options.graph;
   graph.icp = options.front_end.icp;
-  const nlohmann::json wanted =
-      settings_json(datasets, to_string(graph.method), options.seed, options.normals_name,
-                    options.normals_digest, graph, options.front_end, options.end_effector_noise, options.vision_noise);
+  const nlohmann::json wanted = settings_json(
+      datasets, to_string(graph.method), options.seed, options.normals_name, options.normals_digest,
+      graph, options.front_end, options.end_effector_noise, options.vision_noise);
   try {
     const nlohmann::json j = parse_json_file((fs::path(out_dir) / "summary.json").string());
     for (const auto& [key, value] : wanted.items()) {
@@ -901,9 +902,8 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
     const PointCloud& more = tracker.patch(k).cloud_object();
     for (std::size_t i = 0; i < more.size(); ++i) patch.push_back(more.points[i], more.normals[i]);
   }
-  nlohmann::json summary =
-      settings_json(datasets, s.method, s.seed, s.normals, s.normals_digest, graph, s.front_end,
-                    s.end_effector_noise, s.vision_noise);
+  nlohmann::json summary = settings_json(datasets, s.method, s.seed, s.normals, s.normals_digest,
+                                         graph, s.front_end, s.end_effector_noise, s.vision_noise);
   summary["object_frame"] = s.object_frame;
   for (const auto& [key, field] : kSummaryCounts) summary[key] = s.*field;
   summary["unconstrained_direction_frames"] = s.unconstrained_direction_frames;
