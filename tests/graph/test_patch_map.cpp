@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -29,6 +30,29 @@ double distance_to_patch(const PatchMap& patch, const Eigen::Vector3f& p) {
   float distance_sq = 0;
   EXPECT_GE(patch.tree().nearest(p, 1e-3f, &distance_sq), 0) << "nothing within 1 mm";
   return std::sqrt(double(distance_sq));
+}
+
+// GroundtruthPatch's model is shared, not copied: the patches of every sensor (and run) given one
+// model hold its tree itself; a reset patch lets it go.
+TEST(PatchMap, AModelIsSharedNotCopied) {
+  const auto model = std::make_shared<const PointCloudTree>(square(0, 0, 0, 20, 1e-4));
+  PatchMap a, b;
+  a.set_model(model);
+  b.set_model(a.model());
+  for (const PatchMap* patch : {&a, &b}) {
+    EXPECT_FALSE(patch->empty());
+    EXPECT_EQ(&patch->tree(), model.get());
+    EXPECT_EQ(&patch->cloud_object(), &model->cloud());
+    EXPECT_NEAR(distance_to_patch(*patch, Eigen::Vector3f(5e-4f, 5e-4f, 2e-5f)), 2e-5, 1e-9);
+  }
+  a.reset();
+  EXPECT_TRUE(a.empty());
+  EXPECT_EQ(a.model(), nullptr);
+  EXPECT_TRUE(a.cloud_object().empty());
+  EXPECT_GT(model.use_count(), 1);  // b's
+  b.reset();
+  EXPECT_EQ(model.use_count(), 1);
+  EXPECT_THROW(a.set_model(nullptr), std::invalid_argument);
 }
 
 TEST(PatchMap, EachVoxelHoldsTheMeanOfEveryKeyFrame) {

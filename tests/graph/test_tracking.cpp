@@ -318,8 +318,10 @@ TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
       load_mesh((fs::path(d.dir()) / d.info().object_mesh).lexically_normal().string(),
                 d.info().object_scale),
       1e-4);
-  gt_options.model_object.points = model.points;
-  gt_options.model_object.normals = model.normals;
+  PointCloud model_cloud;
+  model_cloud.points = model.points;
+  model_cloud.normals = model.normals;
+  gt_options.model_object = std::make_shared<const PointCloudTree>(std::move(model_cloud));
   const TrackSummary gt = track_dataset(d, gt_options).summary;
 
   EXPECT_EQ(pg.contact_frames, d.frames());

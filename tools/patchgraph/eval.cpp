@@ -380,13 +380,15 @@ int run_eval(const EvalArgs& args) {
   };
   // A task's tracking options; the seed mixed with the dataset's folder name, whatever other
   // datasets run with it (the run's name adds the parent folder's where two share a name).
-  const auto task_options = [&](const Task& task, const NormalsModels& job_model) {
+  // `object`: gtpatch's object model (object_model), built once for the sequence's runs.
+  const auto task_options = [&](const Task& task, const NormalsModels& job_model,
+                                std::shared_ptr<const PointCloudTree> object) {
     const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
     TrackArgs a = args.track;
     a.method = task.method;
     a.seed = sequence_seed(seeds[task.seed],
                            fs::weakly_canonical(datasets[task.sequence]).filename().string());
-    return make_track_options(a, sensors, job_model);
+    return make_track_options(a, sensors, job_model, std::move(object));
   };
   // A task's row in results.csv.
   const auto row_for = [&](const Task& task, const TrackSummary& summary,
@@ -405,8 +407,11 @@ int run_eval(const EvalArgs& args) {
   for (std::size_t i = 0; i < tasks.size() && args.resume; ++i) {
     const Task& task = tasks[i];
     const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
+    // The settings compared do not hold gtpatch's object model: an empty stand-in instead of
+    // the mesh sampled.
+    static const auto kNoModel = std::make_shared<const PointCloudTree>(PointCloud());
     const std::optional<KeptRun> earlier =
-        kept_track_run(sensors, task_options(task, models),
+        kept_track_run(sensors, task_options(task, models, kNoModel),
                        (fs::path(args.out) / "runs" / run_name(task)).string());
     if (!earlier) continue;
     finished[i] = row_for(task, earlier->summary, earlier->warnings);
@@ -432,6 +437,7 @@ int run_eval(const EvalArgs& args) {
   // model.
   constexpr double kPreparedFramesBytes = 1024.0 * 1024 * 1024;
   std::vector<std::shared_ptr<PreparedFrames>> prepared(opened.size());
+  std::vector<std::shared_ptr<const PointCloudTree>> object_models(opened.size());
   std::vector<std::size_t> runs_left(opened.size(), 0);
   for (const std::size_t i : order) ++runs_left[tasks[i].sequence];
   for (std::size_t k = 0; k < opened.size(); ++k) {
@@ -466,24 +472,35 @@ int run_eval(const EvalArgs& args) {
   auto run_task = [&](std::size_t i, const NormalsModels& job_model) {
     const Task& task = tasks[i];
     // The sequence's kept frames let go after its last run, whether it ended well or not.
+    // The sequence's kept frames and object model let go after its last run, whether it ended
+    // well or not.
     struct LastRunLetsGo {
       std::mutex& lock;
       std::size_t& left;
       std::shared_ptr<PreparedFrames>& frames;
+      std::shared_ptr<const PointCloudTree>& object;
       ~LastRunLetsGo() {
         const std::lock_guard<std::mutex> hold(lock);
-        if (--left == 0) frames.reset();
+        if (--left == 0) frames.reset(), object.reset();
       }
     };
+    const LastRunLetsGo let_go{lock, runs_left[task.sequence], prepared[task.sequence],
+                               object_models[task.sequence]};
+    const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
+    const Dataset& dataset = *sensors[0];
     std::shared_ptr<PreparedFrames> frames;
+    std::shared_ptr<const PointCloudTree> object;
     {
       const std::lock_guard<std::mutex> hold(lock);
       frames = prepared[task.sequence];
+      // gtpatch's model built by the sequence's first gtpatch run (the others wait for it).
+      if (task.method == "gtpatch") {
+        std::shared_ptr<const PointCloudTree>& built = object_models[task.sequence];
+        if (!built) built = object_model(dataset);
+        object = built;
+      }
     }
-    const LastRunLetsGo let_go{lock, runs_left[task.sequence], prepared[task.sequence]};
-    const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
-    const Dataset& dataset = *sensors[0];
-    TrackOptions options = task_options(task, job_model);
+    TrackOptions options = task_options(task, job_model, object);
     options.prepared_frames = frames;
     const TrackRun run = track_dataset(sensors, options, [&](int frame, int) {
       const std::lock_guard<std::mutex> hold(lock);

@@ -339,8 +339,17 @@ int note_missing_frames(const std::vector<const Dataset*>& datasets) {
   return total;
 }
 
+std::shared_ptr<const PointCloudTree> object_model(const Dataset& dataset) {
+  const SurfaceSamples s = sample_surface(load_object_mesh(dataset), kModelSpacingM);
+  PointCloud cloud;
+  cloud.points = s.points;
+  cloud.normals = s.normals;
+  return std::make_shared<const PointCloudTree>(std::move(cloud));
+}
+
 TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Dataset*>& datasets,
-                                const NormalsModels& models) {
+                                const NormalsModels& models,
+                                std::shared_ptr<const PointCloudTree> object) {
   if (datasets.empty()) throw std::logic_error("make_track_options: no dataset");
   const Dataset& dataset = *datasets[0];
   TrackOptions o;
@@ -444,9 +453,7 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   o.compare_batch = a.compare_batch;
   o.prefetch = !a.no_prefetch;
   if (o.graph.method == Method::kGroundTruthPatch) {
-    const SurfaceSamples s = sample_surface(load_object_mesh(dataset), kModelSpacingM);
-    o.model_object.points = s.points;
-    o.model_object.normals = s.normals;
+    o.model_object = object ? std::move(object) : object_model(dataset);
   }
   return o;
 }

@@ -99,8 +99,10 @@ void note_long_batch(const TrackArgs& args, const Dataset& dataset);
 // Checks --method, loads --config and, for gtpatch, the primary dataset's object mesh. `models`:
 // --normals loaded (eval's runs share them; check_normals_models has held for the sequence
 // `datasets`, the primary first; --normals shading inverts each one's own sensor).
+// `object`: gtpatch's object model when the caller has built it (object_model), else built here.
 TrackOptions make_track_options(const TrackArgs& args, const std::vector<const Dataset*>& datasets,
-                                const NormalsModels& models);
+                                const NormalsModels& models,
+                                std::shared_ptr<const PointCloudTree> object = nullptr);
 // GroundtruthPatch's object model: the mesh's surface sampled every kModelSpacingM, at most
 // kMaxModelPoints points (about 0.1 m^2 of surface; points, normals and k-d tree some 350 MB).
 inline constexpr double kModelSpacingM = 1e-4;
@@ -109,6 +111,10 @@ inline constexpr double kMaxModelPoints = 1e7;
 // registers against it; InputError naming dataset.json's field when it is missing, bad, or too
 // large to sample as the model.
 TriangleMesh load_object_mesh(const Dataset& dataset);
+// gtpatch's object model of `dataset`: its mesh (load_object_mesh) sampled every kModelSpacingM,
+// built as the tree it registers against (286 k points for the benchmark's toy human). eval builds
+// it once for a sequence's runs, and --resume, which compares settings alone, none.
+std::shared_ptr<const PointCloudTree> object_model(const Dataset& dataset);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line
 // to stderr naming `what` and the bound for each bound it misses. True when within the gate.

@@ -10,6 +10,7 @@ void PatchMap::reset() {
   voxels_.clear();
   fused_.clear();
   tree_.reset();
+  model_.reset();
   keyframes_ = 0;
   next_own_cell_ = 0;
   movable_.clear();
@@ -76,14 +77,16 @@ void PatchMap::rebuild() {
     fused_.push_back((v.point_sum / v.count).cast<float>(),
                      Eigen::Vector3f((v.normal_sum / len).cast<float>()));
   }
-  tree_ = std::make_unique<PointCloudTree>(fused_);
+  tree_ = std::make_shared<const PointCloudTree>(fused_);
 }
 
-void PatchMap::set_model(const PointCloud& model_object) {
+void PatchMap::set_model(std::shared_ptr<const PointCloudTree> model_object) {
+  if (!model_object) throw std::invalid_argument("PatchMap::set_model: no model");
   voxels_.clear();
   movable_.clear();
-  fused_ = model_object;
-  tree_ = std::make_unique<PointCloudTree>(fused_);
+  fused_.clear();
+  model_ = std::move(model_object);
+  tree_ = model_;
   keyframes_ = 0;
 }
 

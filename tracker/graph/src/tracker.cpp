@@ -92,7 +92,8 @@ GraphOptions checked(GraphOptions o) {
 
 }  // namespace
 
-PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& model_object)
+PatchGraphTracker::PatchGraphTracker(GraphOptions options,
+                                     std::shared_ptr<const PointCloudTree> model_object)
     : options_(checked(std::move(options))), icp_(options_.icp), model_icp_(options_.icp) {
   // GroundtruthPatch: the mesh's face normals are exact, so its residuals are along them alone;
   // and it keeps every pair (with the pairs' normals limited its toy brick rotation was a fifth
@@ -108,10 +109,10 @@ PatchGraphTracker::PatchGraphTracker(GraphOptions options, const PointCloud& mod
   sensors_.resize(1);
   sensors_[0].patch = PatchMap(options_.patch);
   if (options_.method == Method::kGroundTruthPatch) {
-    if (model_object.empty()) {
+    if (!model_object || model_object->size() == 0) {
       throw std::invalid_argument("PatchGraphTracker: gtpatch needs the object model's points");
     }
-    sensors_[0].patch.set_model(model_object);
+    sensors_[0].patch.set_model(std::move(model_object));
   }
 }
 
@@ -120,7 +121,7 @@ void PatchGraphTracker::add_sensors(std::size_t count) {
     SensorTrack& s = sensors_.emplace_back();
     s.patch = PatchMap(options_.patch);
     if (options_.method == Method::kGroundTruthPatch) {
-      s.patch.set_model(sensors_[0].patch.cloud_object());
+      s.patch.set_model(sensors_[0].patch.model());
     }
   }
 }

@@ -44,12 +44,16 @@ class PatchMap {
   // T_object_sensor; rebuilds the tree. The key frame is no longer movable after. Throws
   // std::invalid_argument if `keyframe` is not a movable key frame of this patch.
   void move_keyframe(int keyframe, const SE3& T_object_sensor);
-  // A fixed model (object frame) instead of key frames: the GroundtruthPatch baseline.
-  void set_model(const PointCloud& model_object);
+  // A fixed model (object frame, built as its tree) instead of key frames: the GroundtruthPatch
+  // baseline. The tree is shared, not copied: every sensor's patch and every run of one object may
+  // hold the same one.
+  void set_model(std::shared_ptr<const PointCloudTree> model_object);
+  // The model set_model gave; null for a patch of key frames.
+  const std::shared_ptr<const PointCloudTree>& model() const { return model_; }
 
   bool empty() const { return !tree_; }
   const PointCloudTree& tree() const { return *tree_; }
-  const PointCloud& cloud_object() const { return fused_; }
+  const PointCloud& cloud_object() const { return model_ ? model_->cloud() : fused_; }
   int keyframes() const { return keyframes_; }
   const PatchMapOptions& options() const { return options_; }
 
@@ -83,7 +87,8 @@ class PatchMap {
   std::map<VoxelKey, VoxelSum> voxels_;  // ordered: a deterministic patch
   PatchMapOptions options_;
   PointCloud fused_;
-  std::unique_ptr<PointCloudTree> tree_;
+  std::shared_ptr<const PointCloudTree> tree_;  // fused_'s, or the model's
+  std::shared_ptr<const PointCloudTree> model_;
   int keyframes_ = 0;
   std::int64_t next_own_cell_ = 0;  // numbers the cells of points without one
   std::vector<MovableKeyframe> movable_;

@@ -39,7 +39,9 @@ struct TrackOptions {
   double end_effector_noise = 1e-5;
   double vision_noise = 1e-4;
   std::uint64_t seed = 0;
-  PointCloud model_object;  // the known object, for the GroundtruthPatch baseline
+  // The known object's surface points with normals (object frame), built as a tree, for the
+  // GroundtruthPatch baseline; one tree may serve every run of the object (eval's do).
+  std::shared_ptr<const PointCloudTree> model_object;
   // After tracking, re-solve the whole sequence with every factor (the batch reference) and
   // report how far the fixed-lag estimates are from it.
   bool compare_batch = false;

@@ -167,10 +167,12 @@ struct TrackerEstimate {
 
 class PatchGraphTracker {
  public:
-  // `model_object` (object frame) is required by kGroundTruthPatch and ignored otherwise.
-  // Throws InputError naming the option when a sigma is outside [kMinFactorSigma,
-  // kMaxFactorSigma] or not a number.
-  explicit PatchGraphTracker(GraphOptions options, const PointCloud& model_object = {});
+  // `model_object` (object frame, points with normals, built as its tree: shared by every
+  // sensor's patch, and by other trackers of the object) is required by kGroundTruthPatch and
+  // ignored otherwise. Throws InputError naming the option when a sigma is outside
+  // [kMinFactorSigma, kMaxFactorSigma] or not a number.
+  explicit PatchGraphTracker(GraphOptions options,
+                             std::shared_ptr<const PointCloudTree> model_object = nullptr);
   ~PatchGraphTracker();
 
   // The first frame fixes how many sensors there are; a later frame with another count throws
