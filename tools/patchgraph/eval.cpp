@@ -471,7 +471,6 @@ int run_eval(const EvalArgs& args) {
   int done = 0;
   auto run_task = [&](std::size_t i, const NormalsModels& job_model) {
     const Task& task = tasks[i];
-    // The sequence's kept frames let go after its last run, whether it ended well or not.
     // The sequence's kept frames and object model let go after its last run, whether it ended
     // well or not.
     struct LastRunLetsGo {
