@@ -308,9 +308,6 @@ TEST_F(PatchgraphCli, TheLauncherAnswersAsTheWholeProgram) {
   }
 }
 
-// gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
-// 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
-// (it had sampled gigabytes, and the per-triangle count overflowed further up).
 // A whole-number option given a fraction, an exponent, a number past its type or a word is
 // refused naming the option and what it takes (CLI11 had said "Could not convert: --epochs =
 // 1.5", its range checks having read the value as a floating-point number).
@@ -351,6 +348,9 @@ TEST(PatchgraphOptions, EveryRealNumberOptionRefusesWhatIsNoNumber) {
   EXPECT_EQ(r.out.rfind("error: --blend-shading: must be from 0 to 1, got nan\n", 0), 0u) << r.out;
 }
 
+// gtpatch samples the object's whole surface every 0.1 mm as its model: the default cube at scale
+// 50 (a metre wide: 574 M points) is refused by name before the run, by track and by eval
+// (it had sampled gigabytes, and the per-triangle count overflowed further up).
 TEST_F(PatchgraphCli, GtpatchRefusesAnObjectTooLargeToModel) {
   const std::string copy = data_copy("huge_object");
   nlohmann::json info = parse_json_file(copy + "/dataset.json");
