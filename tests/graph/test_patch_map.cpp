@@ -55,6 +55,59 @@ TEST(PatchMap, AModelIsSharedNotCopied) {
   EXPECT_THROW(a.set_model(nullptr), std::invalid_argument);
 }
 
+// Distance from p to the cloud's nearest point, by brute force [m].
+double distance_to(const PointCloud& cloud, const Eigen::Vector3f& p) {
+  double best = INFINITY;
+  for (const Eigen::Vector3f& q : cloud.points) best = std::fmin(best, double((q - p).norm()));
+  return best;
+}
+
+// GroundtruthPatch's patch.ply is the part of its model that its key frames touched: every model
+// point within a cell's edge of a touched point, none farther than two cells' diagonal, not the
+// whole sampled surface.
+TEST(PatchMap, AModelExportsThePartThatWasTouched) {
+  const PointCloud surface = square(0, 0, 0, 100, 1e-4);  // 10 x 10 mm
+  const auto model = std::make_shared<const PointCloudTree>(surface);
+  PatchMap patch;
+  EXPECT_THROW(patch.mark_touched(surface, SE3()), std::logic_error) << "no model";
+  patch.set_model(model);
+  EXPECT_TRUE(patch.exported().empty()) << "nothing touched yet";
+
+  const PointCloud contact = square(-5e-4, -5e-4, 0, 11, 1e-4);  // 1 x 1 mm about the sensor
+  const SE3 T_object_sensor(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ())),
+                            Eigen::Vector3d(3e-3, 4e-3, 0));
+  patch.mark_touched(contact, T_object_sensor);
+  const PointCloud touched = transform_cloud(T_object_sensor, contact);
+  const PointCloud part = patch.exported();
+  ASSERT_FALSE(part.empty());
+  EXPECT_LT(part.size(), surface.size() / 20);
+  const double cell = PatchMap::kTouchedCellM;
+  for (std::size_t i = 0; i < part.size(); ++i) {
+    EXPECT_LT(distance_to(touched, part.points[i]), 2 * std::sqrt(3.0) * cell);
+    EXPECT_EQ(distance_to(surface, part.points[i]), 0.0) << "a model point, as it is";
+    EXPECT_EQ(part.normals[i], Eigen::Vector3f::UnitZ());
+  }
+  std::size_t near = 0;
+  for (const Eigen::Vector3f& p : surface.points) {
+    if (distance_to(touched, p) > cell) continue;
+    ++near;
+    EXPECT_EQ(distance_to(part, p), 0.0) << "a model point near the touch left out";
+  }
+  EXPECT_GT(near, 100u);
+
+  // Marks add up: the same touch again adds nothing, one elsewhere adds its part.
+  patch.mark_touched(contact, T_object_sensor);
+  EXPECT_EQ(patch.exported().size(), part.size());
+  patch.mark_touched(contact, SE3::Translation({7e-3, 7e-3, 0}));
+  EXPECT_GT(patch.exported().size(), part.size() + part.size() / 2);
+  // A new model starts with none; a patch of key frames exports what it fused.
+  patch.set_model(model);
+  EXPECT_TRUE(patch.exported().empty());
+  PatchMap fused;
+  fused.add_keyframe(contact, T_object_sensor);
+  EXPECT_EQ(fused.exported().points, fused.cloud_object().points);
+}
+
 TEST(PatchMap, EachVoxelHoldsTheMeanOfEveryKeyFrame) {
   // Three key frames of one surface at heights 0, 30 and 30 um, in and out of order: every
   // voxel's point is at their mean, 20 um, however many key frames came before. (Re-voxelising

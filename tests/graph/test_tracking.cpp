@@ -309,7 +309,9 @@ TrackSummary track(const Dataset& d, Method method) {
 TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
   TempDir tmp;
   const Dataset d = render(parse_json_file(kRepo + "/scenes/default.json"), tmp.path / "cube");
-  const TrackSummary pg = track(d, Method::kPatchGraph);
+  TrackOptions pg_options;
+  const TrackRun pg_run = track_dataset(d, pg_options);
+  const TrackSummary& pg = pg_run.summary;
   const TrackSummary cv = track(d, Method::kConstVel);
   const TrackSummary i2i = track(d, Method::kImageToImage);
   TrackOptions gt_options;
@@ -322,7 +324,9 @@ TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
   model_cloud.points = model.points;
   model_cloud.normals = model.normals;
   gt_options.model_object = std::make_shared<const PointCloudTree>(std::move(model_cloud));
-  const TrackSummary gt = track_dataset(d, gt_options).summary;
+  const std::size_t model_points = gt_options.model_object->size();
+  const TrackRun gt_run = track_dataset(d, gt_options);
+  const TrackSummary& gt = gt_run.summary;
 
   EXPECT_EQ(pg.contact_frames, d.frames());
   EXPECT_LT(pg.final_translation_error_m, 1e-3);
@@ -342,6 +346,19 @@ TEST(Tracking, CubeCornerPatchGraphBeatsConstantVelocity) {
   EXPECT_LT(gt.translation_rmse_m, 0.5 * pg.translation_rmse_m);
   EXPECT_LT(gt.rotation_rmse_rad, 0.003);
   EXPECT_LT(gt.final_rotation_error_rad, 0.002);
+  // GroundtruthPatch's patch.ply is the part of the mesh its key frames touched: the corner
+  // PatchGraph's patch holds (both in the object's frame), not the whole cube.
+  const PointCloud touched = gt_run.tracker->patch(0).exported();
+  const PointCloud& fused = pg_run.tracker->patch(0).cloud_object();
+  ASSERT_GT(fused.size(), 100u);
+  EXPECT_GT(touched.size(), fused.size() / 2);
+  EXPECT_LT(touched.size(), model_points / 20);
+  const PointCloudTree touched_tree(touched), fused_tree(fused);
+  int fused_far = 0, touched_far = 0;
+  for (const Eigen::Vector3f& p : fused.points) fused_far += touched_tree.nearest(p, 3e-4f) < 0;
+  for (const Eigen::Vector3f& p : touched.points) touched_far += fused_tree.nearest(p, 1e-3f) < 0;
+  EXPECT_EQ(fused_far, 0) << "of " << fused.size() << " PatchGraph patch points";
+  EXPECT_LT(touched_far, int(touched.size()) / 10) << "of " << touched.size();
 }
 
 // The default scene's corner spun about the sensor's axis by 0.4 rad a frame, faster than the

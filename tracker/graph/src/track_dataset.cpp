@@ -895,11 +895,11 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
   write_text_atomically((fs::path(out_dir) / "errors.csv").string(), errors.str());
   const TrackSummary& s = run.summary;
   const GraphOptions& graph = run.tracker->options();
-  // Every sensor's patch, in the object frame (gtpatch's is the one model).
+  // Every sensor's patch, in the object frame (gtpatch's: the part of the model each touched).
   const PatchGraphTracker& tracker = *run.tracker;
-  PointCloud patch = tracker.patch(0).cloud_object();
-  for (int k = 1; k < tracker.sensors() && graph.method != Method::kGroundTruthPatch; ++k) {
-    const PointCloud& more = tracker.patch(k).cloud_object();
+  PointCloud patch = tracker.patch(0).exported();
+  for (int k = 1; k < tracker.sensors(); ++k) {
+    const PointCloud more = tracker.patch(k).exported();
     for (std::size_t i = 0; i < more.size(); ++i) patch.push_back(more.points[i], more.normals[i]);
   }
   nlohmann::json summary = settings_json(datasets, s.method, s.seed, s.normals, s.normals_digest,

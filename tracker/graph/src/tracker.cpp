@@ -517,6 +517,13 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
       track.last_keyframe = t;
       est.keyframe = true;
     }
+    // GroundtruthPatch fuses nothing; its key frames mark the part of the model they touched,
+    // which patch.ply exports instead of the whole model.
+    if (options_.method == Method::kGroundTruthPatch && contact && anchors[k] != Outcome::kFailed &&
+        (track.last_keyframe < 0 || t - track.last_keyframe >= options_.patch.keyframe_interval)) {
+      track.patch.mark_touched(track.cloud, T_object_sensor(solved));
+      track.last_keyframe = t;
+    }
     // This frame's cloud becomes the next frame's image-to-image target.
     if (contact &&
         (options_.method == Method::kImageToImage || options_.method == Method::kPatchGraph)) {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <set>
 #include <vector>
 
 #include "pg/tracker/kd_tree.h"
@@ -50,6 +51,14 @@ class PatchMap {
   void set_model(std::shared_ptr<const PointCloudTree> model_object);
   // The model set_model gave; null for a patch of key frames.
   const std::shared_ptr<const PointCloudTree>& model() const { return model_; }
+  // A model patch fuses no key frames: each marks the cells (of edge kTouchedCellM, on a grid
+  // fixed in the object frame) that its cloud lies in at T_object_sensor. Marks add up until
+  // reset or set_model. Throws std::logic_error on a patch without a model.
+  void mark_touched(const PointCloud& cloud_sensor, const SE3& T_object_sensor);
+  // What patch.ply holds: the fused key frames; of a model, the part that was touched (its
+  // points in the marked cells and their neighbours), not the whole sampled surface.
+  PointCloud exported() const;
+  static constexpr double kTouchedCellM = 2.5e-4;
 
   bool empty() const { return !tree_; }
   const PointCloudTree& tree() const { return *tree_; }
@@ -91,6 +100,7 @@ class PatchMap {
   std::shared_ptr<const PointCloudTree> model_;
   int keyframes_ = 0;
   std::int64_t next_own_cell_ = 0;  // numbers the cells of points without one
+  std::set<VoxelKey> touched_;      // a model's cells marked by mark_touched
   std::vector<MovableKeyframe> movable_;
 };
 
