@@ -13,6 +13,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <system_error>
 #include <thread>
@@ -317,6 +318,28 @@ void check_runs_folder_is_evals(const std::string& out) {
   }
 }
 
+// Lets go of what several runs share (a sequence's kept frames, an object's model) after the last
+// of them, whether it ended well or not: counts its run down under the lock. Without a count it
+// does nothing.
+template <class T>
+class LastRunLetsGo {
+ public:
+  LastRunLetsGo(std::mutex& lock, std::size_t* left, std::shared_ptr<T>* held)
+      : lock_(lock), left_(left), held_(held) {}
+  LastRunLetsGo(const LastRunLetsGo&) = delete;
+  LastRunLetsGo& operator=(const LastRunLetsGo&) = delete;
+  ~LastRunLetsGo() {
+    if (!left_) return;
+    const std::lock_guard<std::mutex> hold(lock_);
+    if (--*left_ == 0) held_->reset();
+  }
+
+ private:
+  std::mutex& lock_;
+  std::size_t* left_;
+  std::shared_ptr<T>* held_;
+};
+
 }  // namespace
 
 int run_eval(const EvalArgs& args) {
@@ -339,12 +362,18 @@ int run_eval(const EvalArgs& args) {
   // against them before any work.
   const NormalsModels models = load_normals_models(args.track);
   std::vector<std::vector<Dataset>> opened;
+  std::vector<std::string> model_keys;  // gtpatch's: each sequence's object_model_key
+  std::set<std::string> meshes_checked;
   for (const auto& dir : datasets) {
     check_output_is_not_input(args.out, dir, "the dataset");
     opened.push_back(open_sequence(dir));
     const std::vector<const Dataset*> sensors = dataset_pointers(opened.back());
     check_normals_models(args.track.normals, models, sensors, args.track.blend_shading > 0);
-    if (gtpatch) load_object_mesh(*sensors[0]);  // its mesh found before any run, not after
+    if (gtpatch) {
+      // Its mesh found before any run, not after; once for the sequences of one object.
+      model_keys.push_back(object_model_key(*sensors[0]));
+      if (meshes_checked.insert(model_keys.back()).second) load_object_mesh(*sensors[0]);
+    }
     note_missing_frames(sensors);
     note_long_batch(args.track, *sensors[0]);
     const std::vector<FramePose> truth = sequence_poses(sensors);
@@ -437,9 +466,18 @@ int run_eval(const EvalArgs& args) {
   // model.
   constexpr double kPreparedFramesBytes = 1024.0 * 1024 * 1024;
   std::vector<std::shared_ptr<PreparedFrames>> prepared(opened.size());
-  std::vector<std::shared_ptr<const PointCloudTree>> object_models(opened.size());
   std::vector<std::size_t> runs_left(opened.size(), 0);
   for (const std::size_t i : order) ++runs_left[tasks[i].sequence];
+  // gtpatch's object models by object_model_key: one for every sequence of an object, built by
+  // its first gtpatch run and let go after its last. Every key is in place before the jobs
+  // start, which change only the values, under the lock.
+  std::map<std::string, std::shared_ptr<const PointCloudTree>> object_models;
+  std::map<std::string, std::size_t> model_runs_left;
+  for (const std::size_t i : order) {
+    if (tasks[i].method != "gtpatch") continue;
+    ++model_runs_left[model_keys[tasks[i].sequence]];
+    object_models[model_keys[tasks[i].sequence]];
+  }
   for (std::size_t k = 0; k < opened.size(); ++k) {
     double bytes = 0;
     for (const Dataset& d : opened[k])
@@ -471,20 +509,16 @@ int run_eval(const EvalArgs& args) {
   int done = 0;
   auto run_task = [&](std::size_t i, const NormalsModels& job_model) {
     const Task& task = tasks[i];
-    // The sequence's kept frames and object model let go after its last run, whether it ended
-    // well or not.
-    struct LastRunLetsGo {
-      std::mutex& lock;
-      std::size_t& left;
-      std::shared_ptr<PreparedFrames>& frames;
-      std::shared_ptr<const PointCloudTree>& object;
-      ~LastRunLetsGo() {
-        const std::lock_guard<std::mutex> hold(lock);
-        if (--left == 0) frames.reset(), object.reset();
-      }
-    };
-    const LastRunLetsGo let_go{lock, runs_left[task.sequence], prepared[task.sequence],
-                               object_models[task.sequence]};
+    // A gtpatch run's object model, and its count of the runs that still need it.
+    std::shared_ptr<const PointCloudTree>* model = nullptr;
+    std::size_t* model_left = nullptr;
+    if (task.method == "gtpatch") {
+      model = &object_models.at(model_keys[task.sequence]);
+      model_left = &model_runs_left.at(model_keys[task.sequence]);
+    }
+    const LastRunLetsGo<PreparedFrames> let_frames_go(lock, &runs_left[task.sequence],
+                                                      &prepared[task.sequence]);
+    const LastRunLetsGo<const PointCloudTree> let_model_go(lock, model_left, model);
     const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
     const Dataset& dataset = *sensors[0];
     std::shared_ptr<PreparedFrames> frames;
@@ -492,11 +526,10 @@ int run_eval(const EvalArgs& args) {
     {
       const std::lock_guard<std::mutex> hold(lock);
       frames = prepared[task.sequence];
-      // gtpatch's model built by the sequence's first gtpatch run (the others wait for it).
-      if (task.method == "gtpatch") {
-        std::shared_ptr<const PointCloudTree>& built = object_models[task.sequence];
-        if (!built) built = object_model(dataset);
-        object = built;
+      // gtpatch's model built by the object's first gtpatch run (the others wait for it).
+      if (model) {
+        if (!*model) *model = object_model(dataset);
+        object = *model;
       }
     }
     TrackOptions options = task_options(task, job_model, object);

@@ -9,6 +9,7 @@
 #include <memory>
 #include <sstream>
 #include <stdexcept>
+#include <system_error>
 
 #include "../common/cli_main.h"
 #include "pg/core/error.h"
@@ -345,6 +346,17 @@ std::shared_ptr<const PointCloudTree> object_model(const Dataset& dataset) {
   cloud.points = s.points;
   cloud.normals = s.normals;
   return std::make_shared<const PointCloudTree>(std::move(cloud));
+}
+
+std::string object_model_key(const Dataset& dataset) {
+  const auto& info = dataset.info();
+  std::ostringstream key;
+  key.precision(17);
+  const std::filesystem::path mesh = std::filesystem::path(dataset.dir()) / info.object_mesh;
+  std::error_code ec;
+  const std::filesystem::path canonical = std::filesystem::weakly_canonical(mesh, ec);
+  key << (ec ? mesh.lexically_normal() : canonical).string() << "\n" << info.object_scale;
+  return key.str();
 }
 
 TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Dataset*>& datasets,

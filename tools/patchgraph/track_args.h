@@ -113,8 +113,12 @@ inline constexpr double kMaxModelPoints = 1e7;
 TriangleMesh load_object_mesh(const Dataset& dataset);
 // gtpatch's object model of `dataset`: its mesh (load_object_mesh) sampled every kModelSpacingM,
 // built as the tree it registers against (286 k points for the benchmark's toy human). eval builds
-// it once for a sequence's runs, and --resume, which compares settings alone, none.
+// it once for the runs of every sequence of one object (object_model_key), and --resume, which
+// compares settings alone, none.
 std::shared_ptr<const PointCloudTree> object_model(const Dataset& dataset);
+// What makes `dataset`'s object model: its mesh file (the canonical path) and scale. Sequences of
+// one object share it.
+std::string object_model_key(const Dataset& dataset);
 
 // Checks one final (or median final) error against the accuracy gate of `args`; prints a line
 // to stderr naming `what` and the bound for each bound it misses. True when within the gate.
