@@ -16,17 +16,23 @@ namespace {
 
 // Opens a file for reading; on failure `error` holds why.
 std::unique_ptr<OIIO::ImageInput> open_input(const std::string& path, std::string& error) {
+  // OpenImageIO 2.4 reads movies through FFmpeg (its reader's format: "FFmpeg movie"), and that
+  // reader writes past its frame buffer on 4:2:0 video (the process aborts, or worse); a
+  // container it has no reader for (Matroska) it calls an unknown format. Only `patchgraph
+  // recording --video` decodes video, with FFmpeg's own libraries.
+  const std::string video = path + ": is a video, not an image file (PNG, JPEG, TIFF, EXR); " +
+                            "`patchgraph recording --video` makes frames of a sensor's video";
+  if (has_video_extension(path)) {
+    error = video;
+    return nullptr;
+  }
   auto in = OIIO::ImageInput::open(path);
   if (!in) {
     error = path + ": cannot read image: " + first_line(OIIO::geterror());
     return nullptr;
   }
-  // OpenImageIO 2.4 reads movies through FFmpeg (its reader's format: "FFmpeg movie"), and that
-  // reader writes past its frame buffer on 4:2:0 video (the process aborts, or worse). Only
-  // `patchgraph recording --video` decodes video, with FFmpeg's own libraries.
   if (std::string(in->format_name()).find("FFmpeg") != std::string::npos) {
-    error = path + ": is a video, not an image file (PNG, JPEG, TIFF, EXR); " +
-            "`patchgraph recording --video` makes frames of a sensor's video";
+    error = video;  // a container whose extension the list lacks
     return nullptr;
   }
   return in;

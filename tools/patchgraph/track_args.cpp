@@ -50,7 +50,7 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
   app.add_option(
       "--config", a.config,
       "Tracker config JSON (depth, mask, icp options): each key given replaces the "
-      "default, the built-in options (for --normals MODEL with mask.relative_depth "
+      "default, the built-in options (for --normals MODEL or shading with mask.relative_depth "
       "0.2, icp.symmetric false, icp.flat_radius_m 0.02 and depth.integration averaged)");
   app.add_option("--window", a.window, "Frames in the fixed-lag window; 0 = batch (default 5)")
       ->check(kNonNegative);
@@ -102,7 +102,7 @@ void add_track_options(CLI::App& app, TrackArgs& a, bool with_method) {
                  std::string("Leave a frame's image-to-image factor out when it and the "
                              "image-to-patch registration turn the object this far apart [rad] "
                              "(default ") +
-                     gate + ", off for --normals MODEL; 0 = off)")
+                     gate + ", off for --normals MODEL or shading; 0 = off)")
       ->check(kNonNegative);
   app.add_option("--ee-noise", a.end_effector_noise,
                  "Sigma of the simulated sensor pose noise [m, rad] (default " +
@@ -405,7 +405,10 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   o.graph.method = method_from_string(a.method);
   o.graph.window = a.window;
   o.graph.patch.keyframe_interval = a.keyframe_interval;
-  o.graph.patch.keyframe_settle_frames = a.keyframe_settle;
+  // The tracker moves a key frame at most window - 1 frames later (the window's last solve of
+  // it): summary.json records what runs, not a larger value asked for.
+  o.graph.patch.keyframe_settle_frames =
+      a.window > 0 ? std::min(a.keyframe_settle, a.window - 1) : a.keyframe_settle;
   o.graph.motion_frame = motion_frame_from_string(a.motion_frame);
   o.graph.registration_information = !a.no_registration_information;
   if (a.registration_sigma > 0) {

@@ -60,8 +60,4 @@ class VideoReader {
 // start-up every image read later (OpenImageIO, also loaded when needed) took 0.2 s longer.
 std::unique_ptr<VideoReader> open_video(const std::string& path);
 
-// Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...), for options
-// that take images or videos.
-bool has_video_extension(const std::string& path);
-
 }  // namespace pg

@@ -18,6 +18,18 @@ inline std::string lower_extension(const std::string& path) {
   return ext;
 }
 
+// Whether the file's extension is a video container's (mp4, avi, mkv, mov, ...): for options
+// that take images or videos, and to refuse a video where an image is expected by name, whatever
+// the image reader makes of it.
+inline bool has_video_extension(const std::string& path) {
+  const std::string ext = lower_extension(path);
+  for (const char* video : {".mp4", ".m4v", ".mov", ".avi", ".mkv", ".webm", ".mpg", ".mpeg", ".ts",
+                            ".wmv", ".flv", ".ogv", ".h264", ".264"}) {
+    if (ext == video) return true;
+  }
+  return false;
+}
+
 // The bytes of the files in `folder` and below it (0 for none, or no such folder).
 std::uintmax_t folder_bytes(const std::string& folder);
 
