@@ -1122,7 +1122,8 @@ TEST_F(PatchgraphCli, EvalNormalsPrintsAndWritesTheMetrics) {
 }
 
 // eval-normals --model shading: the same metrics for the shading's inverse (no network); a model
-// averaged with it (--blend-shading); the refusals.
+// averaged with it (--blend-shading), or over shifted frames (--phases), as the JSON records;
+// the refusals.
 TEST_F(PatchgraphCli, EvalNormalsMeasuresTheShadingsInverse) {
   const CliRun r = patchgraph("eval-normals -q --model shading --data " + data() + " --json " +
                               out("shading_normals.json"));
@@ -1147,6 +1148,18 @@ TEST_F(PatchgraphCli, EvalNormalsMeasuresTheShadingsInverse) {
   ASSERT_EQ(model.code, 0) << model.out;
   const auto b = parse_json_file(out("blended_normals.json"));
   EXPECT_EQ(b["blend_shading"].get<double>(), 0.5);
+  EXPECT_EQ(b["phases"].get<int>(), 1);
+  EXPECT_EQ(j["phases"].get<int>(), 1);
+  // Two passes a frame (--phases) are recorded, and read the frames otherwise.
+  const CliRun phases =
+      patchgraph("eval-normals -q --model " + kDefaultModel + " --phases 2 --data " + data() +
+                 " --json " + out("phases_normals.json"));
+  ASSERT_EQ(phases.code, 0) << phases.out;
+  const auto p = parse_json_file(out("phases_normals.json"));
+  EXPECT_EQ(p["phases"].get<int>(), 2);
+  EXPECT_EQ(p["blend_shading"].get<double>(), 0.0);
+  EXPECT_NE(p["results"][0]["mse_contact"].get<double>(),
+            parse_json_file(out("model_normals.json"))["results"][0]["mse_contact"].get<double>());
   EXPECT_LT(b["results"][0]["angle_contact_deg"].get<double>(),
             0.8 * parse_json_file(out("model_normals.json"))["results"][0]["angle_contact_deg"]
                       .get<double>());

@@ -489,6 +489,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
         a.json, nlohmann::json{{"model", a.model},
                                {"arch", shading ? kShadingNormals : loaded->info().spec.arch},
                                {"blend_shading", a.blend_shading},
+                               {"phases", a.phases},
                                {"results", results}}
                         .dump(2) +
                     "\n");
