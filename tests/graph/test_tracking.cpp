@@ -538,6 +538,40 @@ nlohmann::json scene_with_a_gap() {
   return scene;
 }
 
+// A second sensor that never touches, whose camera stopped early (its frames missing from frame
+// 10 on), keeps no episode going: the lift-off still ends the first episode, and the second
+// starts with its vision prior and a fresh patch, as without it. (Its missing measurement held
+// the episode through the gap: one episode, the next contact registered against the old patch.)
+TEST(Tracking, ASensorThatNeverTouchedHoldsNoEpisodeWhileItsFramesAreMissing) {
+  TempDir tmp;
+  nlohmann::json scene = scene_with_a_gap();
+  nlohmann::json far = scene["sensors"][0];
+  far["name"] = "digit_far";
+  far["pose"] = {{"position", {0.2, 0.0, 0.0}}, {"rpy", {0.0, 0.0, 0.0}}};
+  scene["sensors"].push_back(far);
+  scene["render"]["outputs"] = {"normal"};
+  render_scene_to_dataset(SceneRenderer(scene_from_json(scene, "test scene", kRepo + "/scenes")),
+                          (tmp.path / "two").string());
+  const Dataset touching = Dataset::open((tmp.path / "two" / "digit").string());
+  const Dataset away = Dataset::open((tmp.path / "two" / "digit_far").string());
+  for (const auto& p : away.poses()) ASSERT_FALSE(p.contact);
+  std::vector<int> first_ten(10);
+  for (int j = 0; j < 10; ++j) first_ten[std::size_t(j)] = j;
+  const Dataset stopped = recorded(away, first_ten, away.info().fps, tmp.path / "far_stopped");
+  const TrackRun alone = track_dataset(touching, TrackOptions());
+  const TrackRun with_stopped = track_dataset({&touching, &stopped}, TrackOptions());
+  ASSERT_EQ(alone.summary.episodes, 2);
+  EXPECT_EQ(with_stopped.summary.episodes, 2);
+  EXPECT_GT(with_stopped.summary.invalid_input_frames, 40);
+  ASSERT_EQ(with_stopped.frames.size(), alone.frames.size());
+  for (std::size_t i = 0; i < alone.frames.size(); ++i) {
+    EXPECT_EQ(with_stopped.frames[i].new_episode, alone.frames[i].new_episode) << "frame " << i;
+  }
+  EXPECT_NEAR(with_stopped.summary.final_translation_error_m,
+              alone.summary.final_translation_error_m, 0.1e-3);
+  EXPECT_LT(with_stopped.summary.final_translation_error_m, 1e-3);
+}
+
 TEST(Tracking, ResumesAfterANoContactGap) {
   TempDir tmp;
   const Dataset d = render(scene_with_a_gap(), tmp.path / "gap");

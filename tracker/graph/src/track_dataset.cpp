@@ -600,14 +600,16 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   run.summary.end_effector_noise = options.end_effector_noise;
   run.summary.vision_noise = options.vision_noise;
   run.summary.object_frame = sensor_frame ? "sensor at frame 0" : "dataset";
+  // A frame is marked contact where any sensor's row paired with it by time says so.
   for (int i = 0; i < dataset.frames(); ++i) {
-    run.summary.marked_contact_frames +=
-        std::any_of(datasets.begin(), datasets.end(), [&](const Dataset* d) {
-          // (Another sensor's rows pair with the primary's by time and may be fewer.)
-          if (std::size_t(i) >= d->poses().size()) return false;
-          const FramePose& p = d->poses()[std::size_t(i)];
-          return p.contact_known && p.contact;
-        });
+    bool marked = false;
+    for (std::size_t k = 0; k < datasets.size() && !marked; ++k) {
+      const int row = frames[k][std::size_t(i)];
+      if (row < 0) continue;
+      const FramePose& p = datasets[k]->poses()[std::size_t(row)];
+      marked = p.contact_known && p.contact;
+    }
+    run.summary.marked_contact_frames += marked;
   }
   for (const Dataset* d : datasets) run.summary.sensor_pose_jumps += sensor_jumps(d->poses()).count;
   if (options.compare_batch) {
@@ -913,9 +915,11 @@ void write_track_outputs(const TrackRun& run, const std::vector<const Dataset*>&
   if (s.window_vs_batch_translation_rms_m >= 0) {
     for (const auto& [key, field] : kSummaryBatchNumbers) summary[key] = s.*field;
   }
+  // summary.json last: eval --resume keeps a run whose summary holds its settings, so a run cut
+  // short (killed) between two files must not leave a new summary beside an earlier run's files.
+  write_ply((fs::path(out_dir) / "patch.ply").string(), patch.points, &patch.normals);
   const std::string summary_path = (fs::path(out_dir) / "summary.json").string();
   write_text_atomically(summary_path, summary.dump(2) + "\n");
-  write_ply((fs::path(out_dir) / "patch.ply").string(), patch.points, &patch.normals);
 }
 
 }  // namespace pg

@@ -295,7 +295,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   Frame f;
   f.sensors.resize(n_sensors);
   std::vector<bool> sensor_ok(n_sensors);
-  bool missing = false;
+  bool missing = false;  // a measurement of a sensor in the episode (since its last frame)
   for (std::size_t k = 0; k < n_sensors; ++k) {
     const SensorInput& in = sensor_input(k);
     SensorTrack& track = sensors_[k];
@@ -313,9 +313,11 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     state.contact = !track.cloud.empty();
     f.contact = f.contact || state.contact;
     est.contact_sensors += state.contact;
-    missing = missing || in.measurement_missing;
+    missing = missing || (in.measurement_missing && track.in_episode);
   }
-  // A missing measurement says nothing about the contact: the episode goes on.
+  // A missing measurement of a sensor that held the object says nothing about its contact: the
+  // episode goes on. One of a sensor that did not (a camera started late or stopped early, away
+  // from the object) keeps no episode going once the others let go.
   f.held = f.contact || (missing && in_episode_);
   f.carrier = t >= 1 ? frames_[t - 1].carrier : 0;
   if (!f.sensors[std::size_t(f.carrier)].contact) {
