@@ -295,7 +295,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   Frame f;
   f.sensors.resize(n_sensors);
   std::vector<bool> sensor_ok(n_sensors);
-  bool missing = false;  // a measurement of a sensor in the episode (since its last frame)
+  bool missing = false;  // the measurement of a sensor in the episode (as of the frame before)
   for (std::size_t k = 0; k < n_sensors; ++k) {
     const SensorInput& in = sensor_input(k);
     SensorTrack& track = sensors_[k];
