@@ -510,19 +510,18 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     // loss. The next frame whose registration holds takes its place.
     const bool patch_too_small =
         track.patch.empty() || int(track.patch.tree().size()) < icp_.options().min_points;
-    if (options_.method == Method::kPatchGraph && contact && anchors[k] != Outcome::kFailed &&
-        (track.last_keyframe < 0 || patch_too_small ||
-         t - track.last_keyframe >= options_.patch.keyframe_interval)) {
+    const bool keyframe_due = contact && anchors[k] != Outcome::kFailed &&
+                              (track.last_keyframe < 0 || patch_too_small ||
+                               t - track.last_keyframe >= options_.patch.keyframe_interval);
+    if (keyframe_due && options_.method == Method::kPatchGraph) {
       const int keyframe =
           track.patch.add_keyframe(track.cloud, T_object_sensor(solved), settle_frames_ > 0);
       if (settle_frames_ > 0) track.unsettled.push_back({t, keyframe});
       track.last_keyframe = t;
       est.keyframe = true;
-    }
-    // GroundtruthPatch fuses nothing; its key frames mark the part of the model they touched,
-    // which patch.ply exports instead of the whole model.
-    if (options_.method == Method::kGroundTruthPatch && contact && anchors[k] != Outcome::kFailed &&
-        (track.last_keyframe < 0 || t - track.last_keyframe >= options_.patch.keyframe_interval)) {
+    } else if (keyframe_due && options_.method == Method::kGroundTruthPatch) {
+      // GroundtruthPatch fuses nothing; its key frames mark the part of the model they touched,
+      // which patch.ply exports instead of the whole model.
       track.patch.mark_touched(track.cloud, T_object_sensor(solved));
       track.last_keyframe = t;
     }
