@@ -18,6 +18,9 @@ namespace {
 // is smaller than a pixel, about 50 ns when it covers ten.
 constexpr double kTrianglesPerRay = 16.0;
 
+// Well above float rounding in the vertices and a ray's hit (nanometres) [m].
+constexpr double kMargin = 1e-5;
+
 // The image rectangle (plus a pixel) that the sensor-frame box [lo, hi] projects to, with z cut
 // to [z_lo, z_hi]; empty if the box lies outside that z range.
 PixelRect project_box(const CameraModel& cam, Eigen::Vector3d lo, Eigen::Vector3d hi, double z_lo,
@@ -89,10 +92,11 @@ __attribute__((noinline)) void clamp_row(int n, float slab, float* __restrict ri
 
 }  // namespace
 
-// Pixels whose rays could meet the object: its bounds, cut to the slab the gel can be indented
-// in, projected into the image (plus a pixel).
-PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object,
-                                           const ObjectShape& shape) const {
+// Pixels whose rays could meet the object in front of the gel: its bounds, cut to the slab
+// (`shallow`: the object reaches no deeper) or else to the camera's near plane, projected into
+// the image (plus a pixel).
+PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object, const ObjectShape& shape,
+                                           bool shallow) const {
   Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector3d hi = -lo;
   const Bounds3& b = shape.bounds();
@@ -103,8 +107,10 @@ PixelRect SensorRenderer::State::footprint(const SE3& T_sensor_object,
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  return project_box(sensor.camera, lo, hi, double(gel.z_gel_min) - slab_m() - margin_m,
-                     double(margin_m), width(), height());
+  const CameraModel& c = sensor.camera;
+  const double z_lo =
+      shallow ? double(gel.z_gel_min) - slab_m() - kMargin : c.near_m - c.distance_m;
+  return project_box(c, lo, hi, z_lo, kMargin, width(), height());
 }
 
 // About how many pixels the object's triangles near the gel cover: the projected bounds of
@@ -129,78 +135,77 @@ void SensorRenderer::State::record_hit(Workspace& ws, int i, int obj, float t, b
   ws.hit_object[i] = std::int16_t(obj);
 }
 
-// Casts the rays of `pixels` against the objects `objs`. Fine pass: records the rigid
-// indentation. Coarse pass: marks in ws.near the pixels where an object comes within margin_m
-// of the gel, and sets *deep where one reaches deeper than the gel allows.
+// Casts the rays of `pixels` against the objects `objs` and records the rigid indentation. An
+// object that reaches below the slab (SlabClusters::reach_m infinite) gets rays from the
+// camera's near plane: one started at the slab could start inside one closed part of it and
+// meet an overlapping part's front face first, which reads as outside. A ray can then start
+// inside an object only where the object reaches the near plane; elsewhere a first hit on a face
+// turned away is a rounding error where the ray grazes the object's outline, and no contact.
 void SensorRenderer::State::cast(const std::vector<int>& pixels, const std::vector<int>& objs,
-                                 const std::vector<SE3>& poses, bool coarse, Workspace& ws,
-                                 RenderStats& stats, bool* deep) const {
-  const float slab = slab_m();
-  const float extra = coarse ? margin_m : 0.0f;
+                                 const std::vector<SE3>& poses, Workspace& ws,
+                                 RenderStats& stats) const {
+  const float slab = slab_m(), near = float(sensor.camera.near_m);
   RayPacket rays;
   rays.origin_sensor = gel.origin_sensor;
   PacketHits hits;
   for (std::size_t start = 0; start < pixels.size(); start += kPacket) {
     rays.count = int(std::min<std::size_t>(kPacket, pixels.size() - start));
-    for (int k = 0; k < rays.count; ++k) {
-      const int i = pixels[start + k];
-      rays.dir_sensor[k] = gel.dir_sensor[i];
-      // Never before the camera's near plane: on a sensor of a few pixels (or a very wide field
-      // of view) a tile's margin is centimetres, more than the gel's distance.
-      rays.tnear[k] = settings.slab_limited_rays
-                          ? std::max(gel.t_gel[i] - slab - extra, float(sensor.camera.near_m))
-                          : float(sensor.camera.near_m);
-    }
+    for (int k = 0; k < rays.count; ++k) rays.dir_sensor[k] = gel.dir_sensor[pixels[start + k]];
     for (int obj : objs) {
-      const ObjectShape& shape = *objects[obj];
+      const SlabClusters& clusters = ws.slab[obj];
+      const bool from_slab = settings.slab_limited_rays && std::isfinite(clusters.reach_m);
+      const bool may_start_inside =
+          objects[obj]->any_part_closed() && clusters.triangles > 0 &&
+          double(clusters.lo.z()) <= sensor.camera.near_m - sensor.camera.distance_m;
       for (int k = 0; k < rays.count; ++k) {
-        // A closed surface needs its first hit beyond the gel too, to tell inside from outside.
-        rays.tfar_open[k] = gel.t_gel[pixels[start + k]] + extra;
-        rays.tfar[k] =
-            shape.any_part_closed() ? std::numeric_limits<float>::infinity() : rays.tfar_open[k];
+        const float t_gel = gel.t_gel[pixels[start + k]];
+        // Never before the near plane: on a sensor of a few pixels (or a very wide field of
+        // view) the slab can reach behind it.
+        rays.tnear[k] = from_slab ? std::max(t_gel - slab, near) : near;
+        rays.tfar_open[k] = t_gel;
+        // Where it may start inside a closed surface, a ray needs its first hit beyond the gel
+        // too, to tell inside from outside.
+        rays.tfar[k] = may_start_inside ? std::numeric_limits<float>::infinity() : t_gel;
       }
-      intersect(shape, poses[obj], rays, hits);
+      intersect(*objects[obj], poses[obj], rays, hits);
       stats.rays_cast += rays.count;
       for (int k = 0; k < rays.count; ++k) {
-        const int i = pixels[start + k];
-        if (!std::isfinite(hits.t[k])) continue;
-        if (!coarse) {
-          record_hit(ws, i, obj, hits.t[k], hits.inside[k]);
-          continue;
-        }
-        const bool inside = hits.inside[k];
-        const float pen = gel.t_gel[i] - hits.t[k];
-        if (inside || pen > -margin_m) ws.near[start + k] = 1;
-        if (inside || pen >= slab) *deep = true;
+        if (!std::isfinite(hits.t[k]) || (hits.inside[k] && !may_start_inside)) continue;
+        record_hit(ws, pixels[start + k], obj, hits.t[k], hits.inside[k]);
       }
     }
   }
 }
 
-// Coarse pass over `rect`'s tile corners for ws.coarse_objects; fills ws.pixels with every
-// pixel of the tiles near the gel, in 4x4 blocks so that each ray packet is coherent.
-void SensorRenderer::State::coarse_pass(const std::vector<SE3>& poses, const PixelRect& r,
-                                        Workspace& ws, RenderStats& stats, bool& deep) const {
-  const int nx = (r.width() + tile - 1) / tile, ny = (r.height() + tile - 1) / tile;
-  ws.corners.clear();
-  for (int b = 0; b <= ny; ++b)
-    for (int a = 0; a <= nx; ++a)
-      ws.corners.push_back(
-          gel.index(std::min(r.x0 + a * tile, r.x1 - 1), std::min(r.y0 + b * tile, r.y1 - 1)));
-  ws.near.assign(ws.corners.size(), 0);
-  cast(ws.corners, ws.coarse_objects, poses, true, ws, stats, &deep);
-  for (int b = 0; b < ny; ++b) {
-    for (int a = 0; a < nx; ++a) {
-      const int c = b * (nx + 1) + a;
-      if (!(ws.near[c] || ws.near[c + 1] || ws.near[c + nx + 1] || ws.near[c + nx + 2])) continue;
-      const PixelRect t =
-          PixelRect{r.x0 + a * tile, r.y0 + b * tile, r.x0 + (a + 1) * tile, r.y0 + (b + 1) * tile}
-              .clipped(r.x1, r.y1);
-      for (int by = t.y0; by < t.y1; by += 4)
-        for (int bx = t.x0; bx < t.x1; bx += 4)
-          for (int y = by; y < std::min(by + 4, t.y1); ++y)
-            for (int x = bx; x < std::min(bx + 4, t.x1); ++x) ws.pixels.push_back(gel.index(x, y));
-    }
+// Marks in ws.blocks the 4 x 4 pixel blocks that an object's rays must cover: those its clusters
+// in the slab (or, reaching below it, in front of the gel) project into, within its footprint.
+// Every triangle a ray can meet in front of the gel lies in one of those clusters' boxes, so no
+// contact is missed, however thin. Clusters that reach behind the camera (which would project
+// mirrored) mark the whole footprint.
+void SensorRenderer::State::mark_blocks(const SlabClusters& slab, const TriangleClusters& c,
+                                        const SE3& T_sensor_object, const PixelRect& fp,
+                                        Workspace& ws) const {
+  const auto mark = [&](const PixelRect& r) {
+    if (r.empty()) return;
+    const PixelRect b =
+        PixelRect{r.x0 / 4 * 4, r.y0 / 4 * 4, (r.x1 + 3) / 4 * 4, (r.y1 + 3) / 4 * 4}.clipped(
+            width(), height());
+    for (int by = b.y0 / 4; by < (b.y1 + 3) / 4; ++by)
+      for (int bx = b.x0 / 4; bx < (b.x1 + 3) / 4; ++bx)
+        ws.blocks[std::size_t(by) * blocks_x() + bx] = 1;
+    ws.marked = ws.marked.united(b);
+  };
+  if (!in_front_of_camera(slab)) return mark(fp);
+  const CameraModel& cam = sensor.camera;
+  const Eigen::Matrix3f R = T_sensor_object.rotation_matrix().cast<float>();
+  const Eigen::Matrix3f R_abs = R.cwiseAbs();
+  const Eigen::Vector3f t = T_sensor_object.translation().cast<float>();
+  for (int i : slab.clusters) {
+    const auto& cl = c.clusters[std::size_t(i)];
+    const Eigen::Vector3f centre = R * cl.centre + t, extent = R_abs * cl.half_extent;
+    mark(project_box(cam, (centre - extent).cast<double>(), (centre + extent).cast<double>(),
+                     cam.near_m - cam.distance_m, 0.0, width(), height())
+             .intersected(fp));
   }
 }
 
@@ -211,7 +216,7 @@ void SensorRenderer::State::rasterize_object(int obj, const SE3& T_sensor_object
   const SlabClusters& slab = ws.slab[obj];
   SlabRaster raster;
   raster.gel = &gel;
-  raster.slab_m = slab_m();
+  raster.slab_m = slab.reach_m;
   raster.front_faces_only = objects[obj]->closed();
   raster.rect = rect;
   raster.hit_t = ws.raster_t.data();
@@ -243,63 +248,55 @@ void SensorRenderer::State::find_contact(const std::vector<SE3>& poses, Workspac
                                          RenderStats& stats, FrameRegions& frame) const {
   const RenderSettings& opt = settings;
   const PixelRect all{0, 0, width(), height()};
-  // 1-2. Cull and footprint; rasterize right away the objects that need no rays: those that no
-  // ray can start inside (their lowest point is above every ray's start, the bottom of the
-  // slab) and whose triangles near the gel are cheaper to draw than the rays would be to cast.
-  ws.coarse_objects.clear();
-  PixelRect coarse_rect;
+  // 1-2. Cull and footprint. Per object, the clusters that can reach in front of the gel: within
+  // the slab, or, where the mesh reaches below the slab (where a pixel's ray could start inside
+  // it), all the way to the camera. Rasterize them when that is cheaper than the rays, else mark
+  // the pixel blocks they project into for rays (without the footprint skip, every pixel).
+  ws.ray_objects.clear();
+  ws.marked = {};
   for (int i = 0; i < int(objects.size()); ++i) {
-    const PixelRect fp = footprint(poses[i], *objects[i]);
+    SlabClusters& slab = ws.slab[i];
+    const TriangleClusters& clusters = triangle_clusters(*objects[i]);
+    clusters_in_slab(clusters, poses[i], gel, slab_m(), slab);
+    const bool shallow = slab.lowest_z > -slab_m();
+    const PixelRect fp = footprint(poses[i], *objects[i], shallow);
     if (opt.cull && fp.empty()) {
       ++stats.objects_culled;
       continue;
     }
-    if (opt.rasterize && opt.footprint) {
-      SlabClusters& slab = ws.slab[i];
-      clusters_in_slab(triangle_clusters(*objects[i]), poses[i], gel, slab_m(), slab);
-      const bool shallow = slab.lowest_z > -slab_m();
-      const long corners = long(fp.width() / tile + 2) * (fp.height() / tile + 2);
-      const long rays = corners + near_gel_pixels(slab, fp);
-      if (shallow && in_front_of_camera(slab) &&
-          double(slab.triangles) <= kTrianglesPerRay * double(rays)) {
-        rasterize_object(i, poses[i], fp, ws, stats, frame.touched);
-        continue;
-      }
+    if (!shallow) {
+      clusters_in_slab(clusters, poses[i], gel, std::numeric_limits<float>::infinity(), slab);
     }
-    ws.coarse_objects.push_back(i);
-    coarse_rect = coarse_rect.united(opt.footprint ? fp : all);
+    if (!opt.footprint) {
+      ws.ray_objects.push_back(i);
+      continue;
+    }
+    if (slab.clusters.empty()) continue;  // nothing of it in front of the gel
+    if (opt.rasterize && in_front_of_camera(slab) &&
+        double(slab.triangles) <= kTrianglesPerRay * double(near_gel_pixels(slab, fp))) {
+      rasterize_object(i, poses[i], fp, ws, stats, frame.touched);
+      continue;
+    }
+    ws.ray_objects.push_back(i);
+    mark_blocks(slab, clusters, poses[i], fp, ws);
   }
 
-  // 3. The rest by rays: a coarse pass over the footprint's tile corners, then every pixel of
-  // the tiles near the gel (without the footprint skip, every pixel). Per object, rasterize
-  // the triangles near the gel or cast the rays, whichever is cheaper; but rays where the
-  // coarse pass saw an object deeper than the gel allows: only a ray can tell that it starts
-  // inside the object where no surface crosses the slab.
-  if (!ws.coarse_objects.empty()) {
+  // 3. The rest by rays, every pixel of the marked blocks, in 4 x 4 blocks so that each ray
+  // packet is coherent.
+  if (!ws.ray_objects.empty()) {
     ws.pixels.clear();
-    bool deep = !opt.footprint;  // without the coarse pass, assume the worst
-    if (opt.footprint) {
-      coarse_pass(poses, coarse_rect, ws, stats, deep);
-    } else {
-      const PixelRect& r = coarse_rect;
-      for (int by = r.y0; by < r.y1; by += 4)
-        for (int bx = r.x0; bx < r.x1; bx += 4)
-          for (int y = by; y < std::min(by + 4, r.y1); ++y)
-            for (int x = bx; x < std::min(bx + 4, r.x1); ++x) ws.pixels.push_back(gel.index(x, y));
-    }
-    ws.ray_objects.clear();
-    for (int obj : ws.coarse_objects) {
-      if (opt.rasterize && opt.footprint && !deep && !ws.pixels.empty() &&
-          in_front_of_camera(ws.slab[obj]) &&
-          double(ws.slab[obj].triangles) <= kTrianglesPerRay * double(ws.pixels.size())) {
-        rasterize_object(obj, poses[obj], coarse_rect, ws, stats, frame.touched);
-      } else {
-        ws.ray_objects.push_back(obj);
+    const PixelRect r = opt.footprint ? ws.marked : all;
+    for (int by = r.y0 / 4 * 4; by < r.y1; by += 4) {
+      for (int bx = r.x0 / 4 * 4; bx < r.x1; bx += 4) {
+        if (opt.footprint && !ws.blocks[std::size_t(by / 4) * blocks_x() + bx / 4]) continue;
+        ws.blocks[std::size_t(by / 4) * blocks_x() + bx / 4] = 0;
+        for (int y = by; y < std::min(by + 4, height()); ++y)
+          for (int x = bx; x < std::min(bx + 4, width()); ++x) ws.pixels.push_back(gel.index(x, y));
       }
     }
-    if (!ws.ray_objects.empty() && !ws.pixels.empty()) {
-      cast(ws.pixels, ws.ray_objects, poses, false, ws, stats);
-      frame.touched = frame.touched.united(coarse_rect);
+    if (!ws.pixels.empty()) {
+      cast(ws.pixels, ws.ray_objects, poses, ws, stats);
+      frame.touched = frame.touched.united(r);
     }
   }
 

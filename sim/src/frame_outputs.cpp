@@ -340,9 +340,9 @@ void SensorRenderer::State::write_ground_truth(const std::vector<SE3>& T_sensor_
     for (int y = r.y0; y < r.y1; ++y)
       for (int x = r.x0; x < r.x1; ++x) {
         const int i = gel.index(x, y);
-        // Where the object reaches past the gel's maximum indentation the ray may start inside
-        // it (hit_t NaN): no surface point is known there.
-        if (ws.rigid[i] <= 0.0f || std::isnan(ws.hit_t[i])) continue;
+        // Where the object reaches past the gel's maximum indentation (a clamped pixel) the gel
+        // does not touch its surface; a ray that started inside it (hit_t NaN) met none.
+        if (ws.rigid[i] <= 0.0f || !(gel.t_gel[i] - ws.hit_t[i] <= slab_m())) continue;
         const int obj = ws.hit_object[i];
         const Eigen::Vector3d p_sensor =
             (gel.origin_sensor + gel.dir_sensor[i] * ws.hit_t[i]).cast<double>();

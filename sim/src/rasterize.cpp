@@ -106,9 +106,9 @@ TriangleClusters make_clusters(const TriangleMesh& mesh, int per_cluster) {
 }
 
 void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, const GelGeometry& gel,
-                      float slab_m, SlabClusters& out) {
+                      float reach_m, SlabClusters& out) {
   // The flat slab first: the gel's highest point is the origin of S.
-  const float z_lo = gel.z_gel_min - slab_m, z_hi = 0.0f;
+  const float z_lo = gel.z_gel_min - reach_m, z_hi = 0.0f;
   // Well above float rounding in the vertices, t_gel and a ray's hit (nanometres), and far below
   // a cluster's size.
   constexpr float kMargin = 1e-5f;  // [m]
@@ -121,6 +121,7 @@ void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, con
   out.lo = Eigen::Vector3f::Constant(INFINITY);
   out.hi = -out.lo;
   out.lowest_z = INFINITY;
+  out.reach_m = reach_m;
   // A box's extent along a direction r: |r| . half extent. A group wholly above the gel's top or
   // below the slab holds no cluster in the slab, and its lowest point bounds theirs.
   for (const auto& group : c.groups) {
@@ -377,12 +378,21 @@ void small_candidate_triangles(const TriangleClusters& c, const int* clusters, i
 }
 
 // A triangle ready to draw: its corners in pixel coordinates, edge-function sign and tolerance,
-// and its plane (a pixel's ray with direction d meets it at t = n_dot_p0 / (n . d)).
+// its plane (a pixel's ray with direction d meets it at t = n_dot_p0 / (n . d)) and its corners'
+// range of t (camera depth, as the rays' d.z = 1).
 struct TriangleSetup {
   float u[3], w[3];
   float s, eps;
   float nx, ny, nz, n_dot_p0;
+  float t_lo, t_hi;
 };
+
+// A pixel's hit on the triangle's plane, kept within the triangle's depth range (a NaN stays
+// NaN, for the tests after it to reject).
+inline float hit_in_range(const TriangleSetup& t, float t_hit) {
+  t_hit = t_hit < t.t_lo ? t.t_lo : t_hit;
+  return t_hit > t.t_hi ? t.t_hi : t_hit;
+}
 
 // c ? a : b by bit masks: a scalar compiler makes a branch of `?:` here, and a mispredicted one.
 inline float select(bool c, float a, float b) {
@@ -412,8 +422,9 @@ inline void rasterize_span(const TriangleSetup& t, int x0, int x1, float fy, flo
     const float e1 = s * ((u0 - u2) * (fy - w2) - (w0 - w2) * (fx - u2));
     const float e2 = s * ((u1 - u0) * (fy - w0) - (w1 - w0) * (fx - u0));
     const float n_dot_d = nx * dir_x[x] + ny * dir_y[x] + nz;
-    // Seen edge-on (n_dot_d = 0) the hit is +-inf or NaN, which the tests below reject.
-    const float t_hit = n_dot_p0 / n_dot_d;
+    // Seen edge-on (n_dot_d = 0) the hit is +-inf, held to the depth range, or NaN, which the
+    // tests below reject.
+    const float t_hit = hit_in_range(t, n_dot_p0 / n_dot_d);
     const bool covers = (e0 >= eps) & (e1 >= eps) & (e2 >= eps) & (t_hit >= t_gel[x] - slab);
     const bool hit = covers & (t_hit < hit_t[x]);
     hit_t[x] = select(hit, t_hit, hit_t[x]);
@@ -458,7 +469,7 @@ void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeom
     const float e1 = t.s * ((u0 - u2) * (fy[k] - w2) - (w0 - w2) * (fx[k] - u2));
     const float e2 = t.s * ((u1 - u0) * (fy[k] - w0) - (w1 - w0) * (fx[k] - u0));
     const float n_dot_d = t.nx * dir_x[k] + t.ny * dir_y[k] + t.nz;
-    const float t_hit = t.n_dot_p0 / n_dot_d;
+    const float t_hit = hit_in_range(t, t.n_dot_p0 / n_dot_d);
     const bool inside = (fx[k] < float(x1)) & (fy[k] < float(y1));
     const bool h = inside & (e0 >= t.eps) & (e1 >= t.eps) & (e2 >= t.eps) &
                    (t_hit >= t_gel[k] - slab) & (t_hit < old_t[k]);
@@ -470,7 +481,7 @@ void rasterize_small(const TriangleSetup& t, const PixelRect& box, const GelGeom
 // One triangle (corners a, b, d of v's vertices) into the raster, over the pixel centres of box.
 void rasterize_triangle(const ClusterInView& v, int a, int b, int d, const PixelRect& box,
                         const Eigen::Vector3f& o, SlabRaster& out) {
-  TriangleSetup t = {{v.u[a], v.u[b], v.u[d]}, {v.w[a], v.w[b], v.w[d]}, 0, 0, 0, 0, 0, 0};
+  TriangleSetup t = {{v.u[a], v.u[b], v.u[d]}, {v.w[a], v.w[b], v.w[d]}, 0, 0, 0, 0, 0, 0, 0, 0};
   const float area = (t.u[1] - t.u[0]) * (t.w[2] - t.w[0]) - (t.u[2] - t.u[0]) * (t.w[1] - t.w[0]);
   if (std::abs(area) < 1e-12f) return;  // seen edge-on: no pixel's ray meets it
   const Eigen::Vector3f p0(v.px[a], v.py[a], v.pz[a]), p1(v.px[b], v.py[b], v.pz[b]),
@@ -483,6 +494,8 @@ void rasterize_triangle(const ClusterInView& v, int a, int b, int d, const Pixel
   t.s = area > 0 ? 1.0f : -1.0f;
   t.eps = -1e-4f * std::abs(area);
   t.nx = n.x(), t.ny = n.y(), t.nz = n.z();
+  t.t_lo = std::min(std::min(p0.z(), p1.z()), p2.z()) - o.z();
+  t.t_hi = std::max(std::max(p0.z(), p1.z()), p2.z()) - o.z();
   const GelGeometry& g = *out.gel;
   if (box.width() <= 4 && box.height() <= 4 && box.area() > 2) {
     rasterize_small(t, box, g, out.slab_m, out.hit_t);

@@ -41,25 +41,31 @@ struct TriangleClusters {
 TriangleClusters make_clusters(const TriangleMesh& mesh, int per_cluster = 32);
 
 // The clusters whose triangles a pixel's ray may meet in front of the undeformed gel at this
-// pose, within slab_m of it (from the gel down to slab_m below its lowest point); their
-// triangle count and bounds; and how low the mesh may reach.
+// pose, within reach_m of it (from the gel down to reach_m below its lowest point: the slab, or
+// +inf for every cluster in front of the gel); their triangle count and bounds; and how low the
+// mesh may reach.
 struct SlabClusters {
   std::vector<int> clusters;
   long triangles = 0;
   Eigen::Vector3f lo, hi;  // bounds of those clusters' boxes in the sensor frame [m]
   // The lowest z of the clusters' boxes [m]; where that lies above the gel's top (z = 0) or
-  // below the slab, possibly a lower value on the same side.
+  // below the reach, possibly a lower value on the same side.
   float lowest_z = 0;
+  float reach_m = 0;
 };
 void clusters_in_slab(const TriangleClusters& c, const SE3& T_sensor_object, const GelGeometry& gel,
-                      float slab_m, SlabClusters& out);
+                      float reach_m, SlabClusters& out);
 
 // Per-pixel first hit along each pixel's ray, for t >= tnear = t_gel - slab_m, over `rect`.
 // hit_t must hold +inf (or an earlier object's hit) on rect. `touched` grows to cover every pixel
-// written. Used only where no pixel's ray starts inside the object: so on a closed mesh
-// (`front_faces_only`) the first face a ray meets faces the camera, and the faces turned away
-// are skipped (one can come first only by a rounding error where a ray grazes the object's
-// outline, and it would count as the ray starting inside).
+// written. Used only where no pixel's ray starts inside the object within the slab, or with
+// every cluster in front of the gel and slab_m = +inf (each ray then starts at the camera, which
+// is outside the object): so on a closed mesh (`front_faces_only`) the first face a ray meets
+// faces the camera, and the faces turned away are skipped (one can come first only by a
+// rounding error where a ray grazes the object's outline, and it would count as the ray
+// starting inside). A hit is kept within its triangle's depth range: a pixel centre that the
+// edges' tolerance takes in just outside a triangle seen nearly edge-on would otherwise read its
+// plane far beyond the triangle.
 struct SlabRaster {
   const GelGeometry* gel = nullptr;
   float slab_m = 0;

@@ -29,8 +29,9 @@ struct Workspace {
   std::vector<float> raster_t;    // first hit per pixel while rasterizing one object
   std::vector<std::int16_t> row;  // one row of fixed-point colour, for the noise pass
   // Per-frame lists, kept from frame to frame to save their allocations.
-  std::vector<int> coarse_objects, ray_objects, pixels, corners;
-  std::vector<char> near;
+  std::vector<int> ray_objects, pixels;
+  std::vector<char> blocks;        // per 4 x 4 pixel block: marked for rays (cleared when cast)
+  PixelRect marked;                // bounds of the marked blocks
   std::vector<SlabClusters> slab;  // per object
   RowRuns runs;
   RowRuns color_runs;         // runs, extended over the undeformed pixels the dent shadows
@@ -59,14 +60,12 @@ struct SensorRenderer::State {
   ElasticKernel kernel;
   Shader shader;
   std::optional<NoiseTable> noise;  // when noise is on
-  int tile = 4;                     // coarse-pass tile size [px], a multiple of the 4x4 ray packets
-  float margin_m = 0;    // a coarse ray within this of the gel marks its tiles for full casting
-  GaussianKernel blend_blur;  // the real background blend's blur (no weights: none)
+  GaussianKernel blend_blur;        // the real background blend's blur (no weights: none)
   // A real background: the shading is blended into it.
   bool background_blend() const { return !settings.background.empty(); }
-  ImageF normals0;       // undeformed gel normals
-  ImageF sim0;           // shading of the undeformed gel, linear [0, 1]
-  ImageF background;     // what a no-contact frame shows: sim0, or the real background
+  ImageF normals0;    // undeformed gel normals
+  ImageF sim0;        // shading of the undeformed gel, linear [0, 1]
+  ImageF background;  // what a no-contact frame shows: sim0, or the real background
   ImageU8 background_u8;
   std::vector<std::int16_t> background_fixed;  // the same in the noise table's fixed point
   std::uint64_t id = 0;                        // unique in the process: RenderedFrame::filled.by
@@ -76,13 +75,14 @@ struct SensorRenderer::State {
   void prepare();
   int width() const { return gel.width; }
   int height() const { return gel.height; }
+  int blocks_x() const { return (width() + 3) / 4; }  // 4 x 4 pixel blocks per row
   float slab_m() const { return float(sensor.gel.max_indentation_m); }
   bool noisy() const { return noise.has_value(); }
 
   // contact_pass.cpp: steps 1-3, the rigid indentation (ws.rigid, hit_t, hit_object).
   void find_contact(const std::vector<SE3>& T_sensor_objects, Workspace& ws, RenderStats& stats,
                     FrameRegions& frame) const;
-  PixelRect footprint(const SE3& T_sensor_object, const ObjectShape& shape) const;
+  PixelRect footprint(const SE3& T_sensor_object, const ObjectShape& shape, bool shallow) const;
 
   // renderer.cpp: step 4, the elastic deformation and the regions it moves.
   void deform(Workspace& ws, RenderStats& stats, FrameRegions& frame) const;
@@ -96,11 +96,10 @@ struct SensorRenderer::State {
                      FrameRegions& frame, Workspace& ws, RenderedFrame& out) const;
 
  private:
-  void coarse_pass(const std::vector<SE3>& poses, const PixelRect& rect, Workspace& ws,
-                   RenderStats& stats, bool& deep) const;
+  void mark_blocks(const SlabClusters& slab, const TriangleClusters& clusters,
+                   const SE3& T_sensor_object, const PixelRect& footprint, Workspace& ws) const;
   void cast(const std::vector<int>& pixels, const std::vector<int>& objs,
-            const std::vector<SE3>& poses, bool coarse, Workspace& ws, RenderStats& stats,
-            bool* deep = nullptr) const;
+            const std::vector<SE3>& poses, Workspace& ws, RenderStats& stats) const;
   void rasterize_object(int obj, const SE3& T_sensor_object, const PixelRect& rect, Workspace& ws,
                         RenderStats& stats, PixelRect& touched) const;
   long near_gel_pixels(const SlabClusters& slab, const PixelRect& footprint) const;

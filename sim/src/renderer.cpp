@@ -114,6 +114,7 @@ Workspace::Workspace(int w, int h, int objects, const ShadowCaster& caster)
       hit_object(std::size_t(w) * h, -1),
       raster_t(std::size_t(w) * h, INFINITY),
       row(std::size_t(w) * 3, 0),
+      blocks(std::size_t((w + 3) / 4) * std::size_t((h + 3) / 4), 0),
       slab(std::size_t(objects)),
       shadows(caster) {}
 
@@ -134,10 +135,6 @@ void SensorRenderer::State::prepare() {
   kernel = make_elastic_kernel(sensor.gel.elastic, float(gel.px_per_m), std::max(w, h) + 2);
   shader = make_shader(sensor);
   if (settings.noise && sensor.noise.sigma > 0) noise.emplace(float(sensor.noise.sigma));
-  // Tiles of about 0.3 mm; a coarse ray counts as near when the object is within two tile widths
-  // of the gel, which catches any contact whose surface rises slower than about 63 degrees.
-  tile = std::max(4, 4 * int(std::lround(0.0003 * float(gel.px_per_m) / 4.0)));
-  margin_m = 2.0f * float(tile) / float(gel.px_per_m);
   const PixelRect all{0, 0, w, h};
   std::vector<float> zero(std::size_t(w) * h, 0.0f);
   normals0 = ImageF(w, h, 3);
