@@ -55,7 +55,7 @@ GelRays make_gel_rays(const CameraModel& camera, const GelModel& gel) {
   rays.height = camera.height;
   rays.fx = camera.fx;
   rays.fy = camera.fy;
-  rays.px_per_m = camera.fy / camera.distance_m;
+  rays.px_per_m = camera.px_per_m_at_gel();
   rays.origin_sensor = Eigen::Vector3f(0.0f, 0.0f, float(-camera.distance_m));
   const std::size_t n = std::size_t(camera.width) * camera.height;
   rays.dir_sensor.resize(n);

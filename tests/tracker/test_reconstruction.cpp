@@ -138,6 +138,45 @@ TEST(RoundTrip, ParityIntegrationRecoversTheRenderedIndentation) {
   }
 }
 
+// A stud's rim on the rigid gel is a wall, which the rendered normals (central differences over
+// two pixels) show ever steeper as the pixels get finer. With the guard of eq. 4 fixed at n.d >=
+// 0.2 the rims' normals were clamped at 240x320 and 480x640 (this press: 6 and 441 pixels, the
+// depth 8 and 98 um off) and the integrated depth lost the wall's height (toy_brick_05 tracked
+// 0.009 and 0.036 rad off instead of 0.0004); the guard now widens with the resolution
+// (DepthFromNormals::min_normal_dot_ray), and holds as given at 120x160.
+TEST(RoundTrip, ParityIntegrationRecoversAStudsRimAtEveryResolution) {
+  const auto brick = mesh_shape("toy_brick.glb");
+  // Upside down, its studs pressed into the gel, as toy_brick_05 starts: at 120x160 no rim is
+  // steeper than the guard.
+  const SE3 pose = pose_from_position_rpy({0.00044, 0.00082, 0.0049}, {kPi, 0, 1.4036});
+  for (const int scale : {1, 2, 4}) {
+    SensorModel sensor = sensor_preset("digit");
+    sensor.camera = sensor.camera.resized(120 * scale, 160 * scale);
+    const RenderCase rc = make_render_case(sensor, brick);
+    const RenderedFrame f = render(rc, pose);
+    DepthFromNormals solver(rc.sensor, DepthOptions(), rc.renderer->undeformed_normals());
+    if (scale == 1) {
+      EXPECT_EQ(solver.min_normal_dot_ray(), float(DepthOptions().min_normal_dot_ray));
+    }
+    DepthResult out;
+    solver.compute(f.images.normal, out);
+    double max_err = 0;
+    int pixels = 0;
+    for (std::size_t i = 0; i < out.depth.data.size(); ++i) {
+      const double u = f.images.depth.data[i];
+      if (!(u > 0)) continue;
+      max_err = std::max(max_err, std::abs(double(out.depth.data[i]) - u));
+      ++pixels;
+    }
+    const std::string what = std::to_string(120 * scale) + "x" + std::to_string(160 * scale);
+    ASSERT_GT(pixels, 200 * scale * scale) << what;
+    EXPECT_EQ(out.clamped_normals, 0) << what;
+    EXPECT_LT(max_err, 0.5e-6) << what << ": largest error [m]";
+    std::printf("  %-8s %6d pixels, guard n.d >= %.3f: largest error %.3f um\n", what.c_str(),
+                pixels, solver.min_normal_dot_ray(), max_err * 1e6);
+  }
+}
+
 TEST(RoundTrip, ToyBrickCloudLiesOnTheBrick) {
   const auto brick = mesh_shape("toy_brick.glb");
   for (const char* preset : {"digit", "digit_240x320"}) {

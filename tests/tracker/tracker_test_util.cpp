@@ -65,8 +65,12 @@ AnalyticFrame analytic_sphere_frame(const SensorModel& sensor, const Eigen::Vect
 }
 
 RenderCase make_render_case(const std::string& preset, std::shared_ptr<const ObjectShape> shape) {
+  return make_render_case(sensor_preset(preset), std::move(shape));
+}
+
+RenderCase make_render_case(const SensorModel& sensor, std::shared_ptr<const ObjectShape> shape) {
   RenderCase rc;
-  rc.sensor = sensor_preset(preset);
+  rc.sensor = sensor;
   rc.sensor.gel.elastic.enabled = false;
   rc.sensor.gel.max_indentation_m = 0.004;
   rc.shape = shape;

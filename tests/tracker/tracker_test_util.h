@@ -54,6 +54,7 @@ struct RenderCase {
   std::unique_ptr<SensorRenderer> renderer;
 };
 RenderCase make_render_case(const std::string& preset, std::shared_ptr<const ObjectShape> shape);
+RenderCase make_render_case(const SensorModel& sensor, std::shared_ptr<const ObjectShape> shape);
 RenderedFrame render(const RenderCase& rc, const SE3& T_sensor_object);
 
 std::shared_ptr<const ObjectShape> mesh_shape(const std::string& file_in_meshes);

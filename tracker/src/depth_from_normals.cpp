@@ -128,6 +128,13 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
       rays_(make_gel_rays(sensor.camera, sensor.gel)),
       solver_(PoissonDstOptions{options.dst_backend, options.measure_fft_plans, 32}) {
   options_.crop_margin_px = std::max(options_.crop_margin_px, 1);
+  const double c = options_.min_normal_dot_ray;
+  const double widen = kGuardPitchM * rays_.px_per_m;  // over the pixel's size on the gel
+  min_dot_ = float(c);
+  if (widen > 1.0 && c < 1.0) {
+    const double slope = widen * std::sqrt(1.0 - c * c) / c;
+    min_dot_ = float(1.0 / std::sqrt(1.0 + slope * slope));
+  }
   const bool gel_model = reference_normals.empty();
   if (gel_model) {
     reference_normals_ = undeformed_gel_normals(rays_);
@@ -157,9 +164,8 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
     const float length = std::sqrt(nr[0] * nr[0] + nr[1] * nr[1] + nr[2] * nr[2]);
     if (std::abs(length - 1.0f) > 1e-6f)
       for (int c = 0; c < 3; ++c) nr[c] /= length;
-    log_depth_gradient(nr, rays_.dir_sensor[i], float(rays_.fx), float(rays_.fy),
-                       float(options_.min_normal_dot_ray), reference_gradient_[2 * i],
-                       reference_gradient_[2 * i + 1]);
+    log_depth_gradient(nr, rays_.dir_sensor[i], float(rays_.fx), float(rays_.fy), min_dot_,
+                       reference_gradient_[2 * i], reference_gradient_[2 * i + 1]);
   }
 }
 
@@ -233,7 +239,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out,
   std::vector<std::size_t> holes;  // grid indices; allocated only for a frame that has some
   const float* nimg = normals.data.data();
   const float fx = float(rays_.fx), fy = float(rays_.fy);
-  const float min_dot = float(options_.min_normal_dot_ray);
+  const float min_dot = min_dot_;
   for (int gy = 0; gy < gh; ++gy) {
     const int y = source_y_[std::size_t(gy)];
     if (y < 0) continue;

@@ -32,6 +32,8 @@ struct CameraModel {
   Eigen::Vector2d project(const Eigen::Vector3d& p_camera) const {
     return {fx * p_camera.x() / p_camera.z() + cx, fy * p_camera.y() / p_camera.z() + cy};
   }
+  // Image scale at the gel's centre [px / m]; its inverse is a pixel's size there.
+  double px_per_m_at_gel() const { return fy / distance_m; }
 };
 
 // How the gel's surface moves around a contact. With `enabled` false the gel is rigid (TACTO's

@@ -25,9 +25,15 @@ namespace pg {
 
 enum class DepthIntegration { kParity, kAveraged };
 
+// The pixel size on the gel at which DepthOptions::min_normal_dot_ray holds as given, about the
+// DIGIT's at 120x160 (0.159 mm at the gel's centre) [m].
+constexpr double kGuardPitchM = 0.15e-3;
+
 struct DepthOptions {
   // Guard of eq. 4: n.d (n_z for an orthographic camera) is clamped to at least this, so a
-  // normal nearly perpendicular to its ray cannot produce an unbounded slope [-].
+  // normal nearly perpendicular to its ray cannot produce an unbounded slope [-]. It holds for
+  // pixels of kGuardPitchM or more on the gel; on finer ones the slope it allows grows with the
+  // resolution (DepthFromNormals::min_normal_dot_ray()).
   double min_normal_dot_ray = 0.2;
   // A pixel is disturbed (deformed) when its normal differs from the reference normal by more
   // than this angle [rad]. Raise it above the normal estimator's noise on real data.
@@ -90,11 +96,18 @@ class DepthFromNormals {
 
   const GelRays& rays() const { return rays_; }
   const DepthOptions& options() const { return options_; }
+  // The guard in force: options().min_normal_dot_ray, with the slope it allows,
+  // tan(acos(n.d)), widened by kGuardPitchM over the pixel's size on the gel at the image's
+  // centre where that is above 1. A rendered normal is a central difference over two pixels, so
+  // a wall (a stud's rim on the rigid gel) shows a slope that grows with the resolution: at
+  // 480x640 the fixed guard flattened the rims and turned the toy brick's estimate 0.036 rad.
+  float min_normal_dot_ray() const { return min_dot_; }
   const PoissonDstSolver& solver() const { return solver_; }
 
  private:
   DepthOptions options_;
   GelRays rays_;
+  float min_dot_ = 0;
   ImageF reference_normals_;
   std::vector<float> reference_gradient_;  // g_ref per pixel: (d ln t / dx, d ln t / dy)
   std::vector<float> gx_, gy_;             // g - g_ref over the grid plus a 1-pixel ring
