@@ -477,9 +477,12 @@ TEST(Tracking, TrackWarningsNameWhatIsWrongAtTheirThresholds) {
   s.disagreeing_registration_frames = 11;
   s.lost_frames = 1;
   s.saturated_frames = 1;
+  s.coarsest_pixel_m = kCoarsePixelM;  // not coarser
   EXPECT_EQ(track_warnings(s), (std::vector<std::string>{
                                    "lost_frames", "unconverged_registrations", "contact_not_found",
                                    "disagreeing_registrations", "saturated", "turn_unseen"}));
+  s.coarsest_pixel_m = 1.01 * kCoarsePixelM;
+  EXPECT_EQ(track_warnings(s).back(), "coarse_pixels");
   TrackSummary none;  // nothing touched
   none.sensor_pose_jumps = 2;
   EXPECT_EQ(track_warnings(none), (std::vector<std::string>{"no_contact", "sensor_pose_jumps"}));

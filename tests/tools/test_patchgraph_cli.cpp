@@ -1498,6 +1498,36 @@ TEST_F(PatchgraphCli, APressPastTheGelsMaximumIndentationIsWarnedAbout) {
   EXPECT_EQ(parse_json_file(out("sphere_press_track") + "/summary.json")["saturated_frames"], 0);
 }
 
+// A sensor whose pixels are coarser on the gel than the tracker's settings were made for (the
+// DIGIT at 60x80: 0.32 mm) tracks with nothing failing but the rotation several times worse
+// (docs/tracker.md, "Other resolutions"), so `track` says so; at 120x160 it does not.
+TEST_F(PatchgraphCli, CoarsePixelsAreWarnedAbout) {
+  nlohmann::json scene =
+      parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json");
+  scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
+  scene["sensors"][0]["sensor"] = {{"preset", "digit"}, {"width", 60}, {"height", 80}};
+  ASSERT_EQ(render_scene_json(scene, "coarse", "-q --outputs normal").code, 0);
+  const CliRun coarse = patchgraph("track " + out("coarse") + " -q --out " + out("coarse_track"));
+  ASSERT_EQ(coarse.code, 0) << coarse.out;
+  EXPECT_NE(coarse.out.find("warning: the sensor's pixels are 0.32 mm on the gel, coarser than "
+                            "the 0.25 mm"),
+            std::string::npos)
+      << coarse.out;
+  const auto summary = parse_json_file(out("coarse_track") + "/summary.json");
+  EXPECT_NEAR(summary["coarsest_pixel_m"].get<double>(), 0.3175e-3, 0.001e-3);
+  const auto warnings = summary["warnings"].get<std::vector<std::string>>();
+  EXPECT_NE(std::find(warnings.begin(), warnings.end(), "coarse_pixels"), warnings.end());
+
+  const std::string digit = out("coarse_digit");
+  ASSERT_EQ(render_scene("examples/sphere_press.json", "-q --outputs normal --out " + digit).code,
+            0);
+  const CliRun fine = patchgraph("track " + digit + " -q --out " + out("coarse_digit_track"));
+  ASSERT_EQ(fine.code, 0) << fine.out;
+  EXPECT_EQ(fine.out.find("pixels are"), std::string::npos) << fine.out;
+  const auto fine_summary = parse_json_file(out("coarse_digit_track") + "/summary.json");
+  EXPECT_NEAR(fine_summary["coarsest_pixel_m"].get<double>(), 0.1588e-3, 0.001e-3);
+}
+
 // Each sensor may have its own normals model (--normals A,B in the sequence's order): sensors of
 // different image sizes, or real sensors each with its own illumination.
 TEST_F(PatchgraphCli, EachSensorCanHaveItsOwnNormalsModel) {

@@ -206,10 +206,14 @@ int run_track(const TrackArgs& a) {
   if (warned("saturated")) {
     std::fprintf(stderr,
                  "warning: in %d frame(s) the contact reached the gel's maximum indentation "
-                 "(%.2f mm, the dataset's sensor gel.max_indentation_m): the object pressed "
+                 "(%.2f mm, the dataset's sensor gel.max_indentation_m)%s: the object pressed "
                  "further than the gel can show, its shape there is cut flat, and those frames' "
-                 "registrations see a plateau, not the object\n",
-                 s.saturated_frames, dataset.info().sensor.gel.max_indentation_m * 1e3);
+                 "registrations see a plateau, not the object%s\n",
+                 s.saturated_frames, dataset.info().sensor.gel.max_indentation_m * 1e3,
+                 s.normals == "gt" ? "" : " in the depth integrated from the estimated normals",
+                 s.normals == "gt" ? ""
+                                   : "; or the estimated normals overstate the contact's slopes "
+                                     "and so its depth (compare with the press you expect)");
   }
   if (warned("invalid_input")) {
     std::fprintf(stderr,
@@ -249,6 +253,15 @@ int run_track(const TrackArgs& a) {
                    turn_unseen_frames(s));
     }
     std::fprintf(stderr, "\n");
+  }
+  if (warned("coarse_pixels")) {
+    std::fprintf(stderr,
+                 "warning: the sensor's pixels are %.2f mm on the gel, coarser than the %.2f mm "
+                 "the tracker's settings were made for (the DIGIT's are 0.16 mm at 120x160): a "
+                 "contact's rims and edges fall between too few pixels, and the rotation can be "
+                 "several times worse than at 120x160 with nothing else warned of "
+                 "(docs/tracker.md, \"Other resolutions\"; summary.json: coarsest_pixel_m)\n",
+                 s.coarsest_pixel_m * 1e3, kCoarsePixelM * 1e3);
   }
   if (s.object_frame != "dataset") {
     std::fprintf(

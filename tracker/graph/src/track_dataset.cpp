@@ -611,7 +611,11 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
     }
     run.summary.marked_contact_frames += marked;
   }
-  for (const Dataset* d : datasets) run.summary.sensor_pose_jumps += sensor_jumps(d->poses()).count;
+  for (const Dataset* d : datasets) {
+    run.summary.sensor_pose_jumps += sensor_jumps(d->poses()).count;
+    run.summary.coarsest_pixel_m =
+        std::max(run.summary.coarsest_pixel_m, 1.0 / d->info().sensor.camera.px_per_m_at_gel());
+  }
   if (options.compare_batch) {
     run.tracker->solve_batch();
     const std::vector<SE3> batch = run.tracker->object_trajectory();
@@ -713,6 +717,7 @@ std::vector<std::string> track_warnings(const TrackSummary& s) {
       // lost) and toy_human_11 at seed 2 (117 frames, 2.3 mm); the other cube and toy runs stay at
       // 40 frames or fewer.
       {"turn_unseen", turn_unseen_frames(s) > s.contact_frames / 4},
+      {"coarse_pixels", s.coarsest_pixel_m > kCoarsePixelM},
   };
   std::vector<std::string> names;
   for (const auto& [name, warned] : checks) {
@@ -794,7 +799,8 @@ const std::pair<const char*, double TrackSummary::*> kSummaryNumbers[] = {
     {"median_frame_ms", &TrackSummary::median_frame_ms},
     {"hz", &TrackSummary::hz},
     {"throughput_fps", &TrackSummary::throughput_fps},
-    {"median_normals_ms", &TrackSummary::median_normals_ms}};
+    {"median_normals_ms", &TrackSummary::median_normals_ms},
+    {"coarsest_pixel_m", &TrackSummary::coarsest_pixel_m}};
 // Only with compare_batch (TrackSummary's -1 otherwise).
 const std::pair<const char*, double TrackSummary::*> kSummaryBatchNumbers[] = {
     {"batch_translation_rmse_m", &TrackSummary::batch_translation_rmse_m},

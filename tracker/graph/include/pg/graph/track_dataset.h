@@ -115,6 +115,12 @@ struct FrameResult {
 // percentile on the cube and the toy brick (6.8 and 4.5 mrad; the toy human 27).
 constexpr double kDisagreeingRegistrationsRad = 0.01;
 
+// A sensor whose pixels are larger than this on the gel (at its centre) is coarser than the
+// tracker's settings were made for (TrackSummary::coarsest_pixel_m, the warning
+// "coarse_pixels"): 0.25 mm, between the DIGIT's 0.16 mm at 120x160, where the benchmark runs,
+// and its 0.32 mm at 60x80 (docs/tracker.md, "Other resolutions").
+constexpr double kCoarsePixelM = 0.25e-3;
+
 struct TrackSummary {
   std::string method;
   std::uint64_t seed = 0;  // of the simulated sensor-pose and vision-prior noise
@@ -156,6 +162,9 @@ struct TrackSummary {
   // pose jumps in the datasets' poses (sensor_jumps), for track_warnings.
   int marked_contact_frames = 0;
   int sensor_pose_jumps = 0;
+  // The largest of the sensors' pixels on the gel, at its centre [m] (for the warning
+  // "coarse_pixels", kCoarsePixelM).
+  double coarsest_pixel_m = 0;
   // Errors against ground truth: RMSE over the frames that have it, final = the last frame's;
   // NaN where there is none.
   double translation_rmse_m = 0;
@@ -252,7 +261,8 @@ int turn_unseen_frames(const TrackSummary& s);
 // "sensor_pose_jumps", "overridden_registrations", "rejected_normals", "reference_mismatch",
 // "disagreeing_registrations" (in more than a quarter of the frames where both held, at least
 // 10), "saturated", "invalid_input", "turn_unseen" (two to five free directions in more than a
-// quarter of the contact frames: the rotation can drift with nothing failing).
+// quarter of the contact frames: the rotation can drift with nothing failing), "coarse_pixels"
+// (a sensor's pixels larger than kCoarsePixelM on the gel).
 std::vector<std::string> track_warnings(const TrackSummary& s);
 
 // OUT/poses.csv (the dataset's pose columns, estimated; the primary's with several sensors),
