@@ -3,11 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#ifdef __GLIBC__
-#include <malloc.h>
-#endif
 #include <limits>
-#include <mutex>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -17,6 +13,7 @@
 #include "pg/core/file_io.h"
 #include "pg/core/gel_rays.h"
 #include "pg/core/json_fields.h"
+#include "pg/core/memory.h"
 #include "pg/core/statistics.h"
 #include "zip_check.h"
 
@@ -409,24 +406,10 @@ NormalEstimator::NormalEstimator(NormalEstimator&&) noexcept = default;
 NormalEstimator& NormalEstimator::operator=(NormalEstimator&&) noexcept = default;
 NormalEstimator::~NormalEstimator() = default;
 
-namespace {
-// A forward pass allocates and frees a few MB of tensors. By default glibc gives such blocks back
-// to the kernel when they are freed (large ones are mapped on their own, and the top of a heap is
-// trimmed past 128 kB at first), so every frame faulted them in again: about 540 page faults a
-// frame at 120x160, a fifth to a quarter of the U-Net's inference time and more than half of the
-// MLP's on a 2-core AMD EPYC (docs/learned_normals.md, "Freed memory kept"). Kept in the heap,
-// they are reused. The process then holds on to up to kKeptFreeBytes of freed memory.
-constexpr int kKeptFreeBytes = 256 << 20;
-void keep_freed_memory() {
-#ifdef __GLIBC__
-  static std::once_flag once;
-  std::call_once(once, [] {
-    mallopt(M_MMAP_THRESHOLD, 32 << 20);  // glibc's largest on 64-bit
-    mallopt(M_TRIM_THRESHOLD, kKeptFreeBytes);
-  });
-#endif
-}
-}  // namespace
+// A forward pass allocates and frees a few MB of tensors; kept in the heap (keep_freed_memory)
+// they are reused, where every frame had faulted them in again: about 540 page faults a frame at
+// 120x160, a fifth to a quarter of the U-Net's inference time and more than half of the MLP's on
+// a 2-core AMD EPYC (docs/learned_normals.md, "Freed memory kept").
 
 NormalEstimator NormalEstimator::load(const std::string& path, int threads) {
   keep_freed_memory();
