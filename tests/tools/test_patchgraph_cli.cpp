@@ -1505,27 +1505,28 @@ TEST_F(PatchgraphCli, CoarsePixelsAreWarnedAbout) {
   nlohmann::json scene =
       parse_json_file(std::string(PG_SOURCE_DIR) + "/scenes/examples/sphere_press.json");
   scene["objects"][0]["mesh"] = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
-  scene["sensors"][0]["sensor"] = {{"preset", "digit"}, {"width", 60}, {"height", 80}};
-  ASSERT_EQ(render_scene_json(scene, "coarse", "-q --outputs normal").code, 0);
-  const CliRun coarse = patchgraph("track " + out("coarse") + " -q --out " + out("coarse_track"));
-  ASSERT_EQ(coarse.code, 0) << coarse.out;
-  EXPECT_NE(coarse.out.find("warning: the sensor's pixels are 0.32 mm on the gel, coarser than "
-                            "the 0.25 mm"),
-            std::string::npos)
-      << coarse.out;
-  const auto summary = parse_json_file(out("coarse_track") + "/summary.json");
-  EXPECT_NEAR(summary["coarsest_pixel_m"].get<double>(), 0.3175e-3, 0.001e-3);
-  const auto warnings = summary["warnings"].get<std::vector<std::string>>();
-  EXPECT_NE(std::find(warnings.begin(), warnings.end(), "coarse_pixels"), warnings.end());
-
-  const std::string digit = out("coarse_digit");
-  ASSERT_EQ(render_scene("examples/sphere_press.json", "-q --outputs normal --out " + digit).code,
-            0);
-  const CliRun fine = patchgraph("track " + digit + " -q --out " + out("coarse_digit_track"));
-  ASSERT_EQ(fine.code, 0) << fine.out;
-  EXPECT_EQ(fine.out.find("pixels are"), std::string::npos) << fine.out;
-  const auto fine_summary = parse_json_file(out("coarse_digit_track") + "/summary.json");
-  EXPECT_NEAR(fine_summary["coarsest_pixel_m"].get<double>(), 0.1588e-3, 0.001e-3);
+  struct Case {
+    int width, height;
+    double pixel_m;
+    bool warned;
+  };
+  for (const Case& c : {Case{60, 80, 0.3175e-3, true}, Case{120, 160, 0.1588e-3, false}}) {
+    const std::string name = "pixels_" + std::to_string(c.width);
+    scene["sensors"][0]["sensor"] = {{"preset", "digit"}, {"width", c.width}, {"height", c.height}};
+    ASSERT_EQ(render_scene_json(scene, name, "-q --outputs normal").code, 0);
+    const CliRun run = patchgraph("track " + out(name) + " -q --out " + out(name + "_track"));
+    ASSERT_EQ(run.code, 0) << run.out;
+    EXPECT_EQ(run.out.find("warning: the sensor's pixels are") != std::string::npos, c.warned)
+        << run.out;
+    if (c.warned) {
+      EXPECT_NE(run.out.find("pixels are 0.32 mm on the gel, coarser than the 0.25 mm"),
+                std::string::npos);
+    }
+    const auto summary = parse_json_file(out(name + "_track") + "/summary.json");
+    EXPECT_NEAR(summary["coarsest_pixel_m"].get<double>(), c.pixel_m, 0.001e-3) << name;
+    const auto warnings = summary["warnings"].get<std::vector<std::string>>();
+    EXPECT_EQ(std::count(warnings.begin(), warnings.end(), "coarse_pixels"), int(c.warned)) << name;
+  }
 }
 
 // Each sensor may have its own normals model (--normals A,B in the sequence's order): sensors of
