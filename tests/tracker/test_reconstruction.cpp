@@ -177,6 +177,41 @@ TEST(RoundTrip, ParityIntegrationRecoversAStudsRimAtEveryResolution) {
   }
 }
 
+// Off the camera's axis a pixel sees walls that lean past the vertical (n.z <= 0) and still face
+// its ray (n.d > 0): the toy brick's stud rims on the GelSight Mini, whose camera is close and
+// wide. Such normals are the surface's, not a broken pixel's: they are used (clamped by the
+// guard where steeper than it), where the test n.z > 0 had rejected 459 in this frame. A normal
+// seen from behind (n.d <= 0) is still rejected.
+TEST(RoundTrip, WallsLeaningPastTheVerticalOffAxisAreUsed) {
+  const auto brick = mesh_shape("toy_brick.glb");
+  const SE3 pose = pose_from_position_rpy({0.00044, 0.00082, 0.0046}, {kPi, 0, 1.4036});
+  const RenderCase rc = make_render_case("gelsight_mini", brick);
+  RenderedFrame f = render(rc, pose);
+  const GelRays rays = make_gel_rays(rc.sensor.camera, rc.sensor.gel);
+  int leaning = 0, behind = 0;
+  std::size_t last_leaning = 0;
+  for (std::size_t i = 0; i < rays.dir_sensor.size(); ++i) {
+    const Eigen::Vector3f n(&f.images.normal.data[3 * i]);
+    if (n.z() <= 0) {
+      ++leaning;
+      last_leaning = i;
+    }
+    behind += n.dot(rays.dir_sensor[i]) <= 0;
+  }
+  ASSERT_GT(leaning, 100);
+  ASSERT_EQ(behind, 0);
+  DepthFromNormals solver(rc.sensor, DepthOptions(), rc.renderer->undeformed_normals());
+  DepthResult out;
+  solver.compute(f.images.normal, out);
+  EXPECT_EQ(out.invalid_normals, 0);
+  std::printf("  %d pixels leaning past the vertical, %d clamped by the guard\n", leaning,
+              out.clamped_normals);
+  const Eigen::Vector3f flipped = -rays.dir_sensor[last_leaning].normalized();
+  for (int c = 0; c < 3; ++c) f.images.normal.data[3 * last_leaning + c] = flipped[c];
+  solver.compute(f.images.normal, out);
+  EXPECT_EQ(out.invalid_normals, 1);
+}
+
 TEST(RoundTrip, ToyBrickCloudLiesOnTheBrick) {
   const auto brick = mesh_shape("toy_brick.glb");
   for (const char* preset : {"digit", "digit_240x320"}) {

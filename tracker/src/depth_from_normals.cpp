@@ -24,11 +24,14 @@ inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float f
 }
 
 // A usable normal: finite, roughly unit length (a learned estimator's output need not be
-// exactly unit; the gradient does not depend on the length) and pointing out of the gel (+z):
-// the camera cannot see a surface that faces it from the object's side.
-inline bool valid_normal(const float* n) {
+// exactly unit; the gradient does not depend on the length) and facing away from the camera
+// along the pixel's ray d (n.d > 0; the normals point out of the gel, away from the camera): the
+// camera cannot see a surface from its far side. Not n.z > 0: off the axis a pixel sees walls
+// that lean past the vertical, such as a stud's rim on the GelSight Mini (2026-12-03: hundreds of
+// rendered pixels a frame had been rejected so).
+inline bool valid_normal(const float* n, const float* d) {
   const float sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f && n[2] > 0.0f;
+  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f && n[0] * d[0] + n[1] * d[1] + n[2] > 0.0f;
 }
 
 // Fills the gradient at invalid normals (grid indices `holes`, ascending) by linear
@@ -60,7 +63,9 @@ void fill_holes(const std::vector<std::size_t>& holes, int gw, std::vector<float
 // One image row: flags[x] = 1 where the normal is valid and more than the threshold angle from
 // the reference (n.r < cos(angle) |n|, without a square root), else 0. Returns the number of
 // invalid normals and adds the flagged ones to `disturbed`. Branch-free, so it vectorises.
-int classify_row(const float* n, const float* ref, int width, float cos_threshold,
+// `ray` reads a row of GelRays::dir_sensor as packed floats.
+static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float));
+int classify_row(const float* n, const float* ref, const float* ray, int width, float cos_threshold,
                  std::uint8_t* flags, int& disturbed) {
   const float c2 = cos_threshold * cos_threshold;
   int invalid = 0, count = 0;
@@ -68,7 +73,8 @@ int classify_row(const float* n, const float* ref, int width, float cos_threshol
     const float nx = n[3 * x], ny = n[3 * x + 1], nz = n[3 * x + 2];
     const float sq = nx * nx + ny * ny + nz * nz;
     const float dot = nx * ref[3 * x] + ny * ref[3 * x + 1] + nz * ref[3 * x + 2];
-    const bool valid = (sq > 0.25f) & (sq < 2.25f) & (nz > 0.0f);  // false for NaN and inf
+    const float facing = nx * ray[3 * x] + ny * ray[3 * x + 1] + nz;   // valid_normal's n.d
+    const bool valid = (sq > 0.25f) & (sq < 2.25f) & (facing > 0.0f);  // false for NaN and inf
     const bool far = (dot <= 0.0f) | (dot * dot < c2 * sq);
     const bool flag = valid & far;
     flags[x] = flag;
@@ -146,7 +152,7 @@ DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions
   reference_gradient_.resize(2 * n);
   for (std::size_t i = 0; i < n; ++i) {
     float* nr = &reference_normals_.data[3 * i];
-    if (!valid_normal(nr)) {
+    if (!valid_normal(nr, rays_.dir_sensor[i].data())) {
       const std::string pixel = "pixel (" + std::to_string(i % rays_.width) + ", " +
                                 std::to_string(i / rays_.width) + ")";
       if (gel_model) {  // the sensor's own gel model, which names no file (an audit's 2.5 rad)
@@ -195,9 +201,9 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out,
   for (int y = 0; y < H; ++y) {
     const std::size_t row = 3 * std::size_t(y) * W;
     int disturbed = 0;
-    out.invalid_normals +=
-        classify_row(normals.data.data() + row, reference_normals_.data.data() + row, W,
-                     cos_threshold, flags_.data(), disturbed);
+    out.invalid_normals += classify_row(
+        normals.data.data() + row, reference_normals_.data.data() + row,
+        rays_.dir_sensor[std::size_t(y) * W].data(), W, cos_threshold, flags_.data(), disturbed);
     if (disturbed == 0) continue;
     out.disturbed_pixels += disturbed;
     int first = 0, last = W - 1;
@@ -250,7 +256,7 @@ void DepthFromNormals::compute(const ImageF& normals, DepthResult& out,
       const std::size_t i = std::size_t(y) * W + x;
       const std::size_t j = std::size_t(gy) * gw + gx;
       const float* n = nimg + 3 * i;
-      if (!valid_normal(n)) {
+      if (!valid_normal(n, rays_.dir_sensor[i].data())) {
         holes.push_back(j);
         continue;
       }

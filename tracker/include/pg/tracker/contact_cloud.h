@@ -39,9 +39,9 @@ struct ContactFrame {
   // cloud_sensor holds the contact's core only (MaskOptions::core_relative_depth): the core
   // constrains as many pose directions as the whole contact.
   bool core = false;
-  // Normals rejected anywhere in the image (NaN, inf, far from unit length, or n.z <= 0: facing
-  // the camera, which a gel surface cannot); the integration fills their gradient from their
-  // neighbours, and they give no point.
+  // Normals rejected anywhere in the image (NaN, inf, far from unit length, or n.d <= 0 along
+  // the pixel's ray d: facing the camera, which a gel surface it sees cannot); the integration
+  // fills their gradient from their neighbours, and they give no point.
   int rejected_normals = 0;
 };
 

@@ -65,8 +65,9 @@ struct DepthResult {
   std::array<bool, 4> mirrored{};
   PixelRect disturbed_box;  // bounding box of the disturbed pixels (empty: none)
   int disturbed_pixels = 0;
-  // NaN, inf, far from unit length or n.z <= 0: their gradient is interpolated from the valid
-  // pixels beside them in the row (a dead pixel inside a contact leaves no dent).
+  // NaN, inf, far from unit length or n.d <= 0 (seen from behind along the pixel's ray d): their
+  // gradient is interpolated from the valid pixels beside them in the row (a dead pixel inside
+  // a contact leaves no dent).
   int invalid_normals = 0;
   int clamped_normals = 0;  // n.d below min_normal_dot_ray inside the grid, clamped
 };
