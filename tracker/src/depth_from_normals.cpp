@@ -28,10 +28,12 @@ inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float f
 // along the pixel's ray d (n.d > 0; the normals point out of the gel, away from the camera): the
 // camera cannot see a surface from its far side. Not n.z > 0: off the axis a pixel sees walls
 // that lean past the vertical, such as a stud's rim on the GelSight Mini (2026-12-03: hundreds of
-// rendered pixels a frame had been rejected so).
+// rendered pixels a frame had been rejected so). False for NaN and inf (|n|^2 is then NaN or inf);
+// branch-free, so that classify_row's loop vectorises.
 inline bool valid_normal(const float* n, const float* d) {
   const float sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-  return std::isfinite(sq) && sq > 0.25f && sq < 2.25f && n[0] * d[0] + n[1] * d[1] + n[2] > 0.0f;
+  const float facing = n[0] * d[0] + n[1] * d[1] + n[2];
+  return (sq > 0.25f) & (sq < 2.25f) & (facing > 0.0f);
 }
 
 // Fills the gradient at invalid normals (grid indices `holes`, ascending) by linear
@@ -73,8 +75,7 @@ int classify_row(const float* n, const float* ref, const float* ray, int width, 
     const float nx = n[3 * x], ny = n[3 * x + 1], nz = n[3 * x + 2];
     const float sq = nx * nx + ny * ny + nz * nz;
     const float dot = nx * ref[3 * x] + ny * ref[3 * x + 1] + nz * ref[3 * x + 2];
-    const float facing = nx * ray[3 * x] + ny * ray[3 * x + 1] + nz;   // valid_normal's n.d
-    const bool valid = (sq > 0.25f) & (sq < 2.25f) & (facing > 0.0f);  // false for NaN and inf
+    const bool valid = valid_normal(n + 3 * x, ray + 3 * x);
     const bool far = (dot <= 0.0f) | (dot * dot < c2 * sq);
     const bool flag = valid & far;
     flags[x] = flag;
