@@ -204,16 +204,17 @@ int run_track(const TrackArgs& a) {
                  kDisagreeingRegistrationsRad * 1e3);
   }
   if (warned("saturated")) {
+    const bool estimated = s.normals != "gt";  // the depth is then the normals' integral
     std::fprintf(stderr,
                  "warning: in %d frame(s) the contact reached the gel's maximum indentation "
                  "(%.2f mm, the dataset's sensor gel.max_indentation_m)%s: the object pressed "
                  "further than the gel can show, its shape there is cut flat, and those frames' "
                  "registrations see a plateau, not the object%s\n",
                  s.saturated_frames, dataset.info().sensor.gel.max_indentation_m * 1e3,
-                 s.normals == "gt" ? "" : " in the depth integrated from the estimated normals",
-                 s.normals == "gt" ? ""
-                                   : "; or the estimated normals overstate the contact's slopes "
-                                     "and so its depth (compare with the press you expect)");
+                 estimated ? " in the depth integrated from the estimated normals" : "",
+                 estimated ? "; or the estimated normals overstate the contact's slopes and so "
+                             "its depth (compare with the press you expect)"
+                           : "");
   }
   if (warned("invalid_input")) {
     std::fprintf(stderr,
