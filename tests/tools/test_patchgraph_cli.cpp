@@ -934,7 +934,16 @@ TEST_F(PatchgraphCli, BlendShadingAveragesTheModelWithTheShadingsInverse) {
         "track " + data() + " --normals " + normals + " --blend-shading 0.5 --out " + out("x"), 2,
         "--blend-shading 0.5: averages a model's normals with the shading's inverse; "
         "give --normals MODEL");
+    // Nor are a model's shifted passes: the option was read and ignored.
+    for (const std::string& command :
+         {std::string("track ") + data(), std::string("eval --datasets ") + data()}) {
+      expect_refused(command + " --normals " + normals + " --normals-phases 4 --out " + out("x"), 2,
+                     "--normals-phases 4: averages a model's passes over shifted frames; "
+                     "--normals " +
+                         normals + " reads each pixel once");
+    }
   }
+  EXPECT_FALSE(fs::exists(out("x")));
 }
 
 // A sensor pose that jumps 1 m for one frame (a glitch in poses.csv) is warned about, naming the
@@ -3221,6 +3230,19 @@ TEST_F(PatchgraphCli, FitSensorMeasuresARecordedSensorsLights) {
   refused("fit-sensor " + out("fit_train_labels") + " --iterations 0 --out " + out("x.json"), 2,
           "--iterations");
   refused("fit-sensor --out " + out("x.json"), 2, "datasets is required");
+  // The sensor file is written neither into a dataset nor over the start it is fitted from.
+  const std::string labels_json = out("fit_train_labels") + "/dataset.json";
+  const std::string labels_text = testing_support::file_text(labels_json);
+  const std::string fitted_text = testing_support::file_text(out("fitted.json"));
+  refused("fit-sensor " + out("fit_train_labels") + " -q --out " + labels_json, 1,
+          labels_json + " is inside the dataset " + out("fit_train_labels"));
+  refused("fit-sensor " + out("fit_val_labels") + " -q --out " + labels_json, 1,
+          labels_json + " is in a folder that holds a dataset (dataset.json)");
+  refused("fit-sensor " + out("fit_train_labels") + " -q --sensor-file " + out("fitted.json") +
+              " --out " + out("fitted.json"),
+          1, "--out " + out("fitted.json") + " is --sensor-file " + out("fitted.json"));
+  EXPECT_EQ(testing_support::file_text(labels_json), labels_text);
+  EXPECT_EQ(testing_support::file_text(out("fitted.json")), fitted_text);
   ASSERT_EQ(render_scene("examples/no_contact.json",
                          "-q --outputs color,normal --out " + out("fit_no_contact"))
                 .code,

@@ -133,6 +133,13 @@ CLI::App* add_fit_sensor_command(CLI::App& app, FitSensorArgs& a) {
 }
 
 int run_fit_sensor(const FitSensorArgs& a) {
+  // The sensor file goes neither into a dataset (over its dataset.json or poses.csv) nor over the
+  // start it is fitted from.
+  for (const auto* datasets : {&a.datasets, &a.val}) {
+    for (const std::string& dir : *datasets) check_output_is_not_input(a.out, dir, "the dataset");
+  }
+  check_output_is_no_dataset(a.out, true);
+  if (!a.sensor_file.empty()) check_output_is_not_input(a.out, a.sensor_file, "--sensor-file");
   check_can_write(a.out);
   const std::vector<Dataset> data = open_labelled(a.datasets);
   const std::vector<Dataset> val = open_labelled(a.val);

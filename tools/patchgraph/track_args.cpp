@@ -204,6 +204,11 @@ NormalsModels load_normals_models(const TrackArgs& a) {
                      ": averages a model's normals with the shading's inverse; give --normals "
                      "MODEL (--normals shading is the inverse alone)");
   }
+  if (a.normals_phases > 1 && (a.normals == "gt" || a.normals == kShadingNormals)) {
+    throw UsageError("--normals-phases " + std::to_string(a.normals_phases) +
+                     ": averages a model's passes over shifted frames; --normals " + a.normals +
+                     " reads each pixel once (give --normals MODEL, or leave the option out)");
+  }
   if (a.normals == "gt" || a.normals == kShadingNormals) return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   const std::vector<std::string> paths = comma_items(a.normals);
