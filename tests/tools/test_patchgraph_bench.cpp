@@ -101,7 +101,7 @@ TEST(PatchgraphBench, QuickSweepWritesTableCsvAndPlot) {
     settings.push_back(cell("setting"));
     SCOPED_TRACE(settings.back());
     EXPECT_EQ(cell("runs"), "2");
-    EXPECT_EQ(cell("icp_symmetric"), "1");           // ground-truth normals throughout
+    EXPECT_EQ(cell("icp_symmetric"), "1");                // ground-truth normals throughout
     EXPECT_EQ(cell("icp_max_normal_angle_rad"), "0.25");  // the quick sweep does not turn it off
     EXPECT_EQ(cell("keyframe_settle"), "0");         // the default; the full sweep's row sets 4
     EXPECT_EQ(cell("depth_integration"), "parity");  // the quick sweep: default
@@ -262,6 +262,25 @@ TEST(PatchgraphBench, ABadSceneOrModelFailsBeforeAnyRender) {
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("no_such_model.pt"), std::string::npos) << r.out;
   EXPECT_FALSE(fs::exists(tmp.str("b")));
+  // More frames than a scene has were cut to its length without a word, the table's head still
+  // reading --frames 301.
+  r = testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --frames 301 --scenes " +
+                                                        scene + " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("--frames 301: " + scene + " has 300 frames"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+  // A cache in a dataset's folder would put the renders among its files.
+  fs::create_directories(tmp.str("dataset"));
+  std::ofstream(tmp.str("dataset/dataset.json")) << "{}";
+  r = testing_support::run_command(PATCHGRAPH_PATH, "bench -q --no-plot --frames 10 --scenes " +
+                                                        scene + " --cache " + tmp.str("dataset") +
+                                                        " --out " + tmp.str("b"));
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("--cache " + tmp.str("dataset") + " holds a dataset (dataset.json)"),
+            std::string::npos)
+      << r.out;
+  EXPECT_FALSE(fs::exists(tmp.str("b")));
+  EXPECT_EQ(std::vector<fs::path>(fs::directory_iterator(tmp.str("dataset")), {}).size(), 1u);
 }
 
 // A learned-normals row records the settings `track` gives a model (no image-to-image gate, the

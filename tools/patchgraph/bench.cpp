@@ -336,8 +336,11 @@ int run_track_bench(const TrackBenchArgs& in) {
       if (!fresh) throw InputError("--normals: " + n + " given twice (also as " + it->second + ")");
     }
   });
+  const int given_frames = args.frames;  // --quick's 60 cuts a shorter scene to its own length
   if (args.quick && args.frames == 0) args.frames = 60;
   if (args.cache.empty()) args.cache = (fs::path(args.out) / "cache").string();
+  // The cache's entries are datasets of their own, not files to mix into another's folder.
+  check_output_is_no_dataset(args.cache, false, "--cache");
   std::unique_ptr<tbb::global_control> limit;
   if (args.threads > 0) {
     limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
@@ -360,7 +363,13 @@ int run_track_bench(const TrackBenchArgs& in) {
   // other option) fails now rather than after the sweep's first scene.
   const StopOnSignals stop;
   std::vector<BenchScene> scenes;
-  for (const auto& path : args.scenes) scenes.push_back(check_bench_scene(path));
+  for (const auto& path : args.scenes) {
+    scenes.push_back(check_bench_scene(path));
+    if (given_frames > scenes.back().scene.frames) {  // as tacsim render --frames says it
+      throw UsageError("--frames " + std::to_string(given_frames) + ": " + path + " has " +
+                       std::to_string(scenes.back().scene.frames) + " frames");
+    }
+  }
   Models models;
   for (const auto& s : settings) {
     if (!models.count(s.normals)) models[s.normals] = load_normals_models(args_for(s, 0));
