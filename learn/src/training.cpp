@@ -308,6 +308,13 @@ void train_normals(const TrainOptions& options,
   val.gel = train.gel;
   if (!o.val_data.empty()) load_frames(o.val_data, val, nullptr, 0);
   if (train.size() == 0) throw InputError("--data: the datasets hold no frames");
+  // Without a contact pixel the network would learn the flat gel alone.
+  if (std::none_of(train.mask.begin(), train.mask.end(),
+                   [](const torch::Tensor& m) { return m.any().item<bool>(); })) {
+    throw InputError(
+        "--data: no training frame has a contact pixel (every mask is empty): "
+        "there is nothing to learn the normals of a press from");
+  }
   if (val.size() > 0 && (val.width != train.width || val.height != train.height)) {
     std::string folders;
     for (const std::string& dir : o.val_data) folders += " " + dir;

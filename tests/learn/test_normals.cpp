@@ -667,6 +667,22 @@ TEST_F(NormalsTraining, WrongImagesAndBadModelFilesAreClearErrors) {
   msg = input_error_message([&] { model.check_sensor(sensor, "wide"); });
   EXPECT_NE(msg.find("takes 40x30 images; wide has 80x30"), std::string::npos) << msg;
 
+  // Training data without a single contact pixel is refused before an epoch, no model written.
+  {
+    RenderOverrides overrides;
+    overrides.width = 40;
+    overrides.height = 30;
+    overrides.outputs = {"color", "normal", "mask"};
+    const SceneRenderer untouched(load_scene(kSource + "/scenes/examples/no_contact.json"),
+                                  overrides);
+    render_scene_to_dataset(untouched, tmp_->str("untouched"));
+    TrainOptions none = tiny_options(tmp_->str("untouched"), val_, tmp_->str("none.pt"));
+    msg = input_error_message([&] { train_normals(none); });
+    EXPECT_NE(msg.find("--data: no training frame has a contact pixel"), std::string::npos) << msg;
+    EXPECT_FALSE(fs::exists(none.out));
+    EXPECT_FALSE(fs::exists(none.out + ".ckpt"));
+  }
+
   ASSERT_TRUE(fs::exists(o.out + ".ckpt"));
   msg = input_error_message([&] { NormalEstimator::load(o.out + ".ckpt"); });
   EXPECT_NE(msg.find(".pt.ckpt: is a training checkpoint, not a model"), std::string::npos) << msg;
