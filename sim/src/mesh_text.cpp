@@ -116,6 +116,13 @@ RawMesh parse_obj(std::string_view text) {
         Token index_token = tokens[k];
         index_token.text = index_token.text.substr(0, index_token.text.find('/'));
         const std::int64_t index = parse_int(index_token, "a face's vertex index");
+        // A negative index counts back from the last vertex read: named here, as the file gives
+        // it, when it reaches before the first.
+        if (index < 0 && -index > static_cast<std::int64_t>(mesh.vertices.size())) {
+          throw FormatError("line " + std::to_string(line) + ": face vertex index " +
+                            std::to_string(index) + " counts back from the last vertex read, but " +
+                            std::to_string(mesh.vertices.size()) + " have been read");
+        }
         // 1-based; 0 is invalid and becomes -1, which validation reports as out of range.
         polygon.push_back(index < 0 ? static_cast<std::int64_t>(mesh.vertices.size()) + index
                                     : index - 1);

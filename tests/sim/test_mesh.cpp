@@ -496,8 +496,15 @@ TEST_F(MeshIoTest, OutOfRangeIndicesNameTheTriangleAndIndex) {
   EXPECT_TRUE(Contains(message, "3 vertices"));
   EXPECT_TRUE(Contains(load_error(write("zero.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n")),
                        "vertex index 0"));
-  EXPECT_TRUE(Contains(load_error(write("neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n")),
-                       "triangle 0"));
+  // A negative index counts back from the last vertex read; one reaching before the first is
+  // quoted as the file gives it (it had been quoted resolved: -9 as -5).
+  message = load_error(write("neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9\n"));
+  EXPECT_TRUE(Contains(message,
+                       "neg.obj: line 4: face vertex index -9 counts back from the last "
+                       "vertex read, but 3 have been read"))
+      << message;
+  EXPECT_TRUE(Contains(load_error(write("neg4.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -4 1 2\n")),
+                       "index -4 counts back"));
 
   message = load_error(write("bad.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 7\n"));
   EXPECT_TRUE(Contains(message, "triangle 1 (line 7)"));
