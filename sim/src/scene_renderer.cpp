@@ -2,6 +2,7 @@
 
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -42,6 +43,44 @@ RenderSettings settings_for(const SceneRender& render, const std::vector<std::st
   return s;
 }
 
+// The pixels of all of a scene's sensors.
+std::uintmax_t sensor_pixels(const Scene& scene) {
+  std::uintmax_t pixels = 0;
+  for (const auto& sensor : scene.sensors) {
+    pixels +=
+        std::uintmax_t(sensor.model.camera.width) * std::uintmax_t(sensor.model.camera.height);
+  }
+  return pixels;
+}
+
+// The memory the system can still give (/proc/meminfo's MemAvailable); nullopt where it does not
+// say.
+std::optional<std::uintmax_t> available_memory_bytes() {
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key, unit;
+  std::uintmax_t kb = 0;
+  while (meminfo >> key >> kb >> unit) {
+    if (key == "MemAvailable:") return kb * 1024;
+  }
+  return std::nullopt;
+}
+
+std::string size_text(std::uintmax_t bytes) {
+  char text[32];
+  if (bytes >= 1'000'000'000'000) {
+    std::snprintf(text, sizeof text, "%.1f TB", bytes / 1e12);
+  } else if (bytes >= 1'000'000'000) {
+    std::snprintf(text, sizeof text, "%.1f GB", bytes / 1e9);
+  } else if (bytes >= 1'000'000) {
+    std::snprintf(text, sizeof text, "%.1f MB", bytes / 1e6);
+  } else if (bytes >= 1'000) {
+    std::snprintf(text, sizeof text, "%.1f kB", bytes / 1e3);
+  } else {
+    std::snprintf(text, sizeof text, "%ju bytes", std::uintmax_t(bytes));
+  }
+  return text;
+}
+
 }  // namespace
 
 SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
@@ -69,6 +108,17 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
       sensor.model.camera = cam.resized(overrides.width > 0 ? overrides.width : cam.width,
                                         overrides.height > 0 ? overrides.height : cam.height);
     }
+  }
+  // The renderer's own buffers and a frame's images must fit the memory the machine has left:
+  // refused now, before they are made (at 8192 x 8192 px, 8 GB of them a sensor, minutes of it),
+  // rather than killed later with nothing said.
+  const std::uintmax_t pixels = sensor_pixels(scene_);
+  const std::uintmax_t needed = pixels * (kRendererBytesPerPixel + kFrameBytesPerPixel);
+  if (const auto memory = available_memory_bytes(); memory && needed > *memory) {
+    throw InputError(scene_.path + ": rendering " + std::to_string(scene_.sensors.size()) +
+                     " sensor(s) of " + std::to_string(pixels) + " px in all needs about " +
+                     size_text(needed) + " of memory and the machine has " + size_text(*memory) +
+                     " available; render smaller images (--width, --height)");
   }
   // A mesh file at one scale is loaded (and repaired, and warned about) once, however many
   // objects use it: the shapes are geometry only, shared by the objects' poses.
@@ -212,23 +262,15 @@ std::optional<std::uintmax_t> free_bytes(fs::path path) {
   return space.available;
 }
 
-std::string size_text(std::uintmax_t bytes) {
-  char text[32];
-  if (bytes >= 1'000'000'000'000) {
-    std::snprintf(text, sizeof text, "%.1f TB", bytes / 1e12);
-  } else if (bytes >= 1'000'000'000) {
-    std::snprintf(text, sizeof text, "%.1f GB", bytes / 1e9);
-  } else if (bytes >= 1'000'000) {
-    std::snprintf(text, sizeof text, "%.1f MB", bytes / 1e6);
-  } else if (bytes >= 1'000) {
-    std::snprintf(text, sizeof text, "%.1f kB", bytes / 1e3);
-  } else {
-    std::snprintf(text, sizeof text, "%ju bytes", std::uintmax_t(bytes));
-  }
-  return text;
-}
-
 }  // namespace
+
+int frames_in_flight(std::uintmax_t pixels, int frames, int concurrency,
+                     std::optional<std::uintmax_t> available_bytes) {
+  const int wanted = std::max(1, std::min(frames, concurrency));
+  if (!available_bytes) return wanted;
+  const std::uintmax_t frame = std::max<std::uintmax_t>(1, pixels * kFrameBytesPerPixel);
+  return int(std::min<std::uintmax_t>(std::uintmax_t(wanted), *available_bytes / frame));
+}
 
 std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer) {
   static std::atomic<int> calls{0};
@@ -377,6 +419,25 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
     throw InputError(out_dir + ": cannot create the output folder" +
                      (ec ? ": " + ec.message() : std::string(": not a folder")));
   }
+  // Memory: each frame in flight holds its sensors' images. Fewer frames run at once when the
+  // machine's available memory holds fewer (an image of 8192 x 8192 px holds 8 GB a frame); a
+  // render with room for none is refused before it starts rather than killed when it runs out.
+  const std::uintmax_t pixels = sensor_pixels(scene);
+  summary.frame_memory_bytes = pixels * kFrameBytesPerPixel;
+  const int concurrency = int(std::min<std::size_t>(
+      std::size_t(tbb::this_task_arena::max_concurrency()),
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism)));
+  const std::optional<std::uintmax_t> memory = available_memory_bytes();
+  const int in_flight = frames_in_flight(pixels, scene.frames, concurrency, memory);
+  if (in_flight == 0) {
+    if (!first_made.empty()) fs::remove_all(first_made, ec);  // only folders made just now
+    throw InputError(out_dir + ": a frame of this render needs about " +
+                     size_text(summary.frame_memory_bytes) + " of memory (" +
+                     std::to_string(pixels) + " px over " +
+                     std::to_string(renderer.sensor_count()) + " sensor(s)) and the machine has " +
+                     size_text(*memory) + " available; render smaller images (--width, --height)");
+  }
+  if (in_flight < std::min(scene.frames, concurrency)) summary.frames_in_flight = in_flight;
   // And the disk's space, before an earlier dataset there is touched: a render that cannot fit
   // would stop half-way with a full disk.
   summary.bytes_estimate = estimate_dataset_bytes(renderer);
@@ -411,7 +472,7 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
   // already keep every core busy (set_image_codec_threads).
   const ScopedImageCodecThreads codec_threads(1);
   const auto start = std::chrono::steady_clock::now();
-  tbb::parallel_for(0, scene.frames, [&](int frame) {
+  const auto render_one = [&](int frame) {
     const auto frames = renderer.render_frame(frame);
     bool contact = false, clamped = false;
     for (int i = 0; i < renderer.sensor_count(); ++i) {
@@ -443,7 +504,13 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
       std::lock_guard<std::mutex> lock(progress_mutex);
       progress(n, scene.frames);
     }
-  });
+  };
+  if (summary.frames_in_flight > 0) {  // an arena of that many threads (a frame's own loops too)
+    tbb::task_arena arena(summary.frames_in_flight);
+    arena.execute([&] { tbb::parallel_for(0, scene.frames, render_one); });
+  } else {
+    tbb::parallel_for(0, scene.frames, render_one);
+  }
   for (auto& w : writers) w->finish();
   if (renderer.sensor_count() > 1) {
     // The earlier render's list, read leniently: it is replaced below, whatever it holds.

@@ -676,5 +676,21 @@ TEST(SceneRendering, TheSizeEstimateIsNearWhatARenderWrites) {
   fs::remove_all(dir);
 }
 
+// The memory check before a render: as many frames at once as the threads and the available
+// memory allow (kFrameBytesPerPixel a pixel over the sensors), none when one does not fit, all
+// wanted when the system does not say.
+TEST(SceneRendering, FramesInFlightFitTheAvailableMemory) {
+  const std::uintmax_t px = 8192u * 8192u, frame = px * kFrameBytesPerPixel;  // 8 GB
+  EXPECT_EQ(frames_in_flight(px, 300, 4, std::nullopt), 4);
+  EXPECT_EQ(frames_in_flight(px, 2, 4, std::nullopt), 2);
+  EXPECT_EQ(frames_in_flight(px, 300, 4, 10 * frame), 4);
+  EXPECT_EQ(frames_in_flight(px, 300, 4, 2 * frame + 1), 2);
+  EXPECT_EQ(frames_in_flight(px, 300, 4, frame), 1);
+  EXPECT_EQ(frames_in_flight(px, 300, 4, frame - 1), 0);
+  EXPECT_EQ(frames_in_flight(2 * px, 300, 4, 3 * frame), 1);  // two sensors' images a frame
+  EXPECT_EQ(frames_in_flight(120 * 160, 300, 2, std::uintmax_t(1) << 30), 2);
+  EXPECT_EQ(frames_in_flight(0, 300, 2, 0), 0);
+}
+
 }  // namespace
 }  // namespace pg

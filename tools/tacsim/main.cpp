@@ -153,6 +153,12 @@ int run_render(const RenderArgs& a) {
       s.frames, renderer.sensor_count(), sizes.c_str(), s.seconds,
       s.frames / std::max(s.seconds, 1e-9), a.out.c_str(), bytes / 1e6);
   std::printf("contact in %d of %d frames\n", s.contact_frames, s.frames);
+  if (s.frames_in_flight > 0) {
+    std::fprintf(stderr,
+                 "note: rendered %d frame(s) at a time, fewer than the threads, for the memory "
+                 "available (about %.2f GB a frame)\n",
+                 s.frames_in_flight, 1e-9 * double(s.frame_memory_bytes));
+  }
   for (const std::string& earlier : s.earlier_sensor_dirs) {
     std::fprintf(stderr,
                  "note: %s, from an earlier render into %s, is not a sensor of this scene: left as "

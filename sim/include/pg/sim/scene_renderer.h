@@ -67,7 +67,26 @@ struct RenderSummary {
   // not have: left as they were, no longer listed.
   std::vector<std::string> earlier_sensor_dirs;
   std::uintmax_t bytes_estimate = 0;  // estimate_dataset_bytes (0: not known)
+  // Frames rendered at once when the available memory held fewer than the threads (0: not
+  // limited).
+  int frames_in_flight = 0;
+  std::uintmax_t frame_memory_bytes = 0;  // a frame in flight's, about (kFrameBytesPerPixel)
 };
+
+// The memory a frame in flight takes, a pixel of each sensor: its images, the renderer's buffers
+// and the files' encoding (measured with every output at 1024 x 1024 and 2048 x 2048 px: 112
+// bytes a pixel for each frame more at once).
+inline constexpr std::uintmax_t kFrameBytesPerPixel = 120;
+// And what the renderer holds for each pixel of its sensors (the same renders, and two sensors
+// of 8192 x 8192 px: 72-94 bytes); SceneRenderer refuses a scene whose renderer and one frame
+// would not fit the available memory.
+inline constexpr std::uintmax_t kRendererBytesPerPixel = 100;
+
+// How many of `frames` to render at once, at most `concurrency`: as many as `available_bytes` of
+// memory hold, at kFrameBytesPerPixel over the sensors' `pixels` each (0: not one; all that are
+// wanted when the memory is not known).
+int frames_in_flight(std::uintmax_t pixels, int frames, int concurrency,
+                     std::optional<std::uintmax_t> available_bytes);
 
 // Progress callback: (frames done, frames total).
 using ProgressFn = std::function<void(int, int)>;
@@ -78,9 +97,10 @@ using ProgressFn = std::function<void(int, int)>;
 std::uintmax_t estimate_dataset_bytes(const SceneRenderer& renderer);
 
 // Writes OUT (one sensor) or OUT/<sensor name>/ (several sensors) in the dataset format. Throws
-// InputError before writing anything when a folder holds something else than a dataset, or the
+// InputError before writing anything when a folder holds something else than a dataset, the
 // disk has less free space than estimate_dataset_bytes (counting the frames of an earlier
-// dataset the render replaces).
+// dataset the render replaces), or the available memory does not hold one frame
+// (frames_in_flight).
 RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::string& out_dir,
                                       const ProgressFn& progress = nullptr);
 
