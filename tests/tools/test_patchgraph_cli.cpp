@@ -591,6 +591,26 @@ TEST_F(PatchgraphCli, EvalQuotesOddNamesInResultsCsv) {
   EXPECT_EQ(row.rfind("\"" + out("odd/x,\"\"y\"\"") + "\",cube,constvel,", 0), 0u) << row;
 }
 
+// A folder of datasets: a subfolder without dataset.json (a render whose dataset.json was lost,
+// or anything else) is left out with a note, not without a word; a file beside is not named.
+TEST_F(PatchgraphCli, EvalNamesTheFoldersItLeavesOut) {
+  fs::remove_all(out("some"));
+  fs::create_directories(out("some/plots"));
+  fs::copy(data(), out("some/a"), fs::copy_options::recursive);
+  std::ofstream(out("some/notes.txt")) << "x";
+  const std::string note = "note: " + out("some") + ": 1 folder(s) without a dataset.json left out";
+  CliRun r = patchgraph("eval --datasets " + out("some") +
+                        " --methods constvel -q --no-plots --out " + out("some_eval"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find(note + " (plots)"), std::string::npos) << r.out;
+  EXPECT_EQ(read_csv_table(out("some_eval") + "/results.csv").rows.size(), 1u);
+  fs::remove_all(out("some/plots"));
+  r = patchgraph("eval --datasets " + out("some") + " --methods constvel -q --no-plots --out " +
+                 out("some_eval"));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_EQ(r.out.find("left out"), std::string::npos) << r.out;
+}
+
 TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {
   fs::create_directories(out("names/p1"));
   fs::create_directories(out("names/p2"));

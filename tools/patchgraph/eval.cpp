@@ -41,13 +41,21 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
       continue;
     }
     if (!fs::is_directory(root)) throw InputError(root + ": not a dataset or a folder of datasets");
-    std::vector<std::string> found;
+    std::vector<std::string> found, skipped;  // skipped: folders that hold no dataset
     for (const auto& entry : fs::directory_iterator(root)) {
       if (!sensor_dataset_dirs(entry.path().string()).empty()) {
         found.push_back(entry.path().string());
+      } else if (entry.is_directory()) {
+        skipped.push_back(entry.path().filename().string());
       }
     }
     if (found.empty()) throw InputError(root + ": holds no dataset (no */dataset.json)");
+    if (!skipped.empty()) {  // said, so that a dataset missing its dataset.json is not lost unseen
+      std::sort(skipped.begin(), skipped.end());
+      std::fprintf(stderr, "note: %s: %zu folder(s) without a dataset.json left out (%s%s)\n",
+                   root.c_str(), skipped.size(), skipped.front().c_str(),
+                   skipped.size() > 1 ? ", ..." : "");
+    }
     std::sort(found.begin(), found.end());
     out.insert(out.end(), found.begin(), found.end());
   }
