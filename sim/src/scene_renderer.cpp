@@ -437,7 +437,9 @@ RenderSummary render_scene_to_dataset(const SceneRenderer& renderer, const std::
                      std::to_string(renderer.sensor_count()) + " sensor(s)) and the machine has " +
                      size_text(*memory) + " available; render smaller images (--width, --height)");
   }
-  if (in_flight < std::min(scene.frames, concurrency)) summary.frames_in_flight = in_flight;
+  if (in_flight < frames_in_flight(pixels, scene.frames, concurrency, std::nullopt)) {
+    summary.frames_in_flight = in_flight;  // fewer than without the memory's bound
+  }
   // And the disk's space, before an earlier dataset there is touched: a render that cannot fit
   // would stop half-way with a full disk.
   summary.bytes_estimate = estimate_dataset_bytes(renderer);

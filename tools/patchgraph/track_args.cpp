@@ -199,17 +199,18 @@ ImageF blend_normals(ImageF a, const ImageF& b, float w) {
 }
 
 NormalsModels load_normals_models(const TrackArgs& a) {
-  if (a.blend_shading > 0 && (a.normals == "gt" || a.normals == kShadingNormals)) {
+  const bool no_model = a.normals == "gt" || a.normals == kShadingNormals;
+  if (a.blend_shading > 0 && no_model) {
     throw UsageError("--blend-shading " + format_number(a.blend_shading) +
                      ": averages a model's normals with the shading's inverse; give --normals "
                      "MODEL (--normals shading is the inverse alone)");
   }
-  if (a.normals_phases > 1 && (a.normals == "gt" || a.normals == kShadingNormals)) {
+  if (a.normals_phases > 1 && no_model) {
     throw UsageError("--normals-phases " + std::to_string(a.normals_phases) +
                      ": averages a model's passes over shifted frames; --normals " + a.normals +
                      " reads each pixel once (give --normals MODEL, or leave the option out)");
   }
-  if (a.normals == "gt" || a.normals == kShadingNormals) return {};
+  if (no_model) return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   const std::vector<std::string> paths = comma_items(a.normals);
   std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
