@@ -193,6 +193,13 @@ bool whole_number(const nlohmann::json& v, long long& out) {
   return true;
 }
 
+// A whole number written with a fraction or an exponent, at any size (1e20).
+bool whole_float(const nlohmann::json& v) {
+  if (!v.is_number_float()) return false;
+  const double d = v.get<double>();
+  return std::isfinite(d) && d == std::floor(d);
+}
+
 }  // namespace
 
 void JsonFields::integer_error(const std::string& key, const char* expected,
@@ -206,9 +213,13 @@ void JsonFields::integer_error(const std::string& key, const char* expected,
 template <>
 int JsonFields::convert<int>(const nlohmann::json& v, const std::string& key) const {
   long long i = 0;
-  if (!whole_number(v, i)) integer_error(key, "an integer", v);
+  if (!whole_number(v, i)) {
+    if (!whole_float(v)) integer_error(key, "an integer", v);
+    i = LLONG_MAX;  // beyond 2^53, so beyond an int
+  }
   if (i < -2147483647LL || i > 2147483647LL) {
-    throw InputError(field(key) + ": integer out of range, got " + v.dump());
+    throw InputError(field(key) + ": integer out of range (-2147483647 to 2147483647), got " +
+                     v.dump());
   }
   return static_cast<int>(i);
 }
@@ -218,6 +229,11 @@ std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
                                                  const std::string& key) const {
   if (v.is_number_unsigned()) return v.get<std::uint64_t>();
   long long i = 0;
+  if (whole_float(v) && v.get<double>() > 0 && !whole_number(v, i)) {
+    throw InputError(field(key) + ": got " + v.dump() +
+                     "; beyond 2^53 a number written with a fraction or an exponent does not "
+                     "hold every integer: write its digits");
+  }
   if (!whole_number(v, i) || i < 0) integer_error(key, "a non-negative integer", v);
   return static_cast<std::uint64_t>(i);
 }
