@@ -724,7 +724,9 @@ TEST(TacsimCli, CtrlCStopsARenderAndSaysWhatItLeaves) {
   TempDir tmp;
   const std::string d = tmp.str("d");
   const CliRun r = testing_support::run_and_signal(
-      TACSIM_PATH, "render " + kScenes + "benchmark/cube_00.json --outputs color,mask --out " + d,
+      TACSIM_PATH,
+      // One thread: the render lasts about a second after it starts, on a machine of any size.
+      "render " + kScenes + "benchmark/cube_00.json --threads 1 --outputs color,mask --out " + d,
       "rendering ", SIGINT, tmp.str("log"));
   EXPECT_EQ(r.code, 130) << r.out;
   EXPECT_NE(
@@ -744,10 +746,11 @@ TEST(TacsimCli, AStoppedBenchmarkLeavesTheEarlierReport) {
   TempDir tmp;
   const std::string md = tmp.str("bench.md");
   std::ofstream(md) << "the earlier report\n";
-  const std::string bench = "bench --quick --frames 100 --repeats 2 --markdown " + md;
+  const std::string bench = "bench --quick --frames 100 --repeats 2 --threads 1 --markdown " + md;
   const CliRun stopped =
       testing_support::run_and_signal(TACSIM_PATH, bench, "| (a)", SIGINT, tmp.str("log"));
   ASSERT_NE(stopped.out.find("| (a)"), std::string::npos) << stopped.out;
+  EXPECT_NE(stopped.code, 0) << "the benchmark ended before the signal came";
   EXPECT_EQ(testing_support::file_text(md), "the earlier report\n");
   const CliRun done = tacsim("bench --quick --frames 2 --repeats 1 --markdown " + md);
   ASSERT_EQ(done.code, 0) << done.out;
