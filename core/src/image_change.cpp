@@ -110,11 +110,14 @@ std::string noisy_reference_warning(const ImageU8& reference, const std::string&
 double saturated_fraction(const ImageU8& image) {
   const std::size_t pixels = std::size_t(image.width) * image.height;
   if (pixels == 0 || image.channels < 1) return 0.0;
+  // A normal has two tilts: a pixel needs two channels that can still change (one, in a grey
+  // image).
+  const auto needed = std::ptrdiff_t(std::min(image.channels, 2));
   std::size_t saturated = 0;
   for (std::size_t i = 0; i < pixels; ++i) {
     const std::uint8_t* p = &image.data[i * std::size_t(image.channels)];
-    saturated +=
-        std::all_of(p, p + image.channels, [](std::uint8_t v) { return v == 0 || v == 255; });
+    saturated += std::count_if(p, p + image.channels,
+                               [](std::uint8_t v) { return v != 0 && v != 255; }) < needed;
   }
   return double(saturated) / double(pixels);
 }
@@ -125,7 +128,7 @@ std::string saturated_reference_warning(const ImageU8& reference, const std::str
   char percent[32];
   std::snprintf(percent, sizeof percent, "%.0f %%", 100 * saturated);
   return what + ": " + percent +
-         " of its pixels are clipped white or black (every colour channel at 0 or 255), where a "
+         " of its pixels are clipped (at most one colour channel between 0 and 255), where a "
          "press cannot show: the sensor is over- or under-exposed (its exposure, or its lights)";
 }
 

@@ -50,8 +50,24 @@ TEST(ImageChange, ASaturatedReferenceIsWarnedAbout) {
   EXPECT_NEAR(saturated_fraction(image), 0.5, 0.01);
   const std::vector<std::string> warnings = reference_warnings(image, "bg.png");
   ASSERT_EQ(warnings.size(), 1u);
-  EXPECT_EQ(warnings[0].rfind("bg.png: 50 % of its pixels are clipped white or black", 0), 0u)
+  EXPECT_EQ(warnings[0].rfind("bg.png: 50 % of its pixels are clipped (at most one colour "
+                              "channel between 0 and 255)",
+                              0),
+            0u)
       << warnings[0];
+  // Two channels clipped leave one that changes, which cannot tell a normal's two tilts: one
+  // coloured light, its other channels black. One channel clipped leaves two, enough.
+  ImageU8 red = shaded(2.0, 4);
+  for (std::size_t i = 0; i < red.data.size(); i += 3) red.data[i + 1] = red.data[i + 2] = 0;
+  EXPECT_NEAR(saturated_fraction(red), 1.0, 1e-9);
+  ImageU8 one = shaded(2.0, 4);
+  for (std::size_t i = 0; i < one.data.size(); i += 3) one.data[i + 2] = 255;
+  EXPECT_EQ(saturated_fraction(one), 0.0);
+  // A grey image needs its one channel.
+  ImageU8 grey(10, 10, 1, 128);
+  EXPECT_EQ(saturated_fraction(grey), 0.0);
+  for (std::size_t i = 0; i < 30; ++i) grey.data[i] = 255;
+  EXPECT_NEAR(saturated_fraction(grey), 0.3, 1e-9);
 }
 
 // Changed pixels come in 4-connected regions: a press's disc is one, a touching corner another,

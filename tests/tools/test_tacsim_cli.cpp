@@ -357,16 +357,27 @@ TEST(TacsimCli, AnOverExposedOrWideSensorIsWarnedAbout) {
         << R"("]}})";
     return tacsim("render " + tmp.str(name + ".json") + " -q --out " + tmp.str(name));
   };
-  for (const auto& [exposure, warned] : {std::pair<double, bool>{0.9, false}, {5.0, true}}) {
-    const CliRun r = render_sensor(
-        "left", R"({"shading": {"exposure": )" + std::to_string(exposure) + "}}", "color");
+  // The presets, over-exposed, and one red light (a sensor file's `lights` replaces all three):
+  // its green and blue channels are black everywhere, which every channel clipped at once had not
+  // counted.
+  const std::vector<std::pair<std::string, bool>> sensors = {
+      {R"({"shading": {"exposure": 0.9}})", false},
+      {R"({"preset": "gelsight_mini"})", false},
+      {R"({"preset": "digit_240x320"})", false},
+      {R"({"shading": {"exposure": 5.0}})", true},
+      {R"({"lights": [{"position_m": [0, -0.02, -0.017], "color": [1, 0, 0], "intensity": 1}]})",
+       true}};
+  for (const auto& [sensor, warned] : sensors) {
+    const CliRun r = render_sensor("left", sensor, "color");
     ASSERT_EQ(r.code, 0) << r.out;
     EXPECT_EQ(r.out.find("warning: sensor left's no-contact image (background.png): ") !=
                   std::string::npos,
               warned)
-        << exposure << ": " << r.out;
-    EXPECT_EQ(r.out.find("of its pixels are clipped white or black") != std::string::npos, warned)
-        << r.out;
+        << sensor << ": " << r.out;
+    EXPECT_EQ(r.out.find("of its pixels are clipped (at most one colour channel between 0 and "
+                         "255)") != std::string::npos,
+              warned)
+        << sensor << ": " << r.out;
     EXPECT_EQ(r.out.find("past the gel"), std::string::npos) << r.out;
   }
   // A camera whose view reaches past the gel (a field of view of 1.4 rad, the DIGIT's 1.05):

@@ -200,9 +200,9 @@ int run_render(const RenderArgs& a) {
                    name.c_str(), 1e3 * beyond.x(), 1e3 * beyond.y(), 1e3 * gel.width_m,
                    1e3 * gel.height_m);
     }
-    // A sensor whose no-contact image is clipped white or black over much of it cannot show a
-    // press there (lights too bright or too dark): said, as recording and track say of a
-    // reference.
+    // A sensor whose no-contact image is clipped over much of it (at most one channel left to
+    // change) cannot show a press there (lights too bright or too dark): said, as recording and
+    // track say of a reference.
     if (!sensor.settings().color) continue;
     const std::string what = "sensor " + name + "'s no-contact image (background.png)";
     // (Not its noise: a real background's noise is in every frame, so no difference shows it.)

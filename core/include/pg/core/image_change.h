@@ -125,10 +125,13 @@ constexpr double kNoisyReferenceLevels = 4.0;
 // and how to get a quieter one.
 std::string noisy_reference_warning(const ImageU8& reference, const std::string& what);
 
-// The fraction of an image's pixels clipped in every channel (each at 0 or 255: white or black),
-// where a press cannot show. Measured: 0 % on the presets' synthetic backgrounds and the real
-// DIGIT background (which clip single channels in up to 41 % of their pixels), 74 % on a sensor
-// of two white lights whose presses label-ball mislabelled, 100 % with the light off.
+// The fraction of an image's pixels with at most one channel between 0 and 255 (the others
+// clipped: white, black, or a light's colour alone), where a press cannot show: a normal's two
+// tilts need two channels that can change (a grey image: its one channel). Measured: 0 % on the
+// presets' synthetic backgrounds and the real DIGIT background (which clip single channels in up
+// to 41 % of their pixels), 74 % or more on a sensor of two white lights whose presses label-ball
+// mislabelled, 100 % with the light off or with one coloured light (a sensor file's `lights`
+// replaces all three; that had counted 0 % when every channel had to be clipped).
 double saturated_fraction(const ImageU8& image);
 constexpr double kSaturatedReferenceFraction = 0.2;
 // "" unless `reference` is saturated over more than kSaturatedReferenceFraction of it; else a
