@@ -424,36 +424,10 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   if (a.end_effector_sigma > 0) o.graph.sigma_end_effector = a.end_effector_sigma;
   if (a.vision_sigma > 0) o.graph.sigma_vision = a.vision_sigma;
   if (a.damping_sigma >= 0) o.graph.sigma_damping = a.damping_sigma;
-  if (a.image_to_image_gate >= 0) {
-    o.graph.image_to_image_gate_rad = a.image_to_image_gate;
-  } else if (o.normals) {
-    // The network's per-frame errors are milliradians: the gate would drop the image-to-image
-    // factor in many frames, and on the benchmark that tracked the cube worse and the toy brick
-    // better (docs/learned_normals.md); off unless asked for.
-    o.graph.image_to_image_gate_rad = 0;
-  }
-  if (o.normals) {
-    // Learned normals are off by a degree or so everywhere; integrated over the gel that is a
-    // shallow false indentation around the contact. Keeping only pixels deeper than a fifth of
-    // the frame's deepest drops it (docs/learned_normals.md): the contact points then lie within
-    // 0.05 mm (median) of the ground-truth ones instead of 0.15 mm.
-    o.front_end.mask.relative_depth = 0.2;
-    // (So the contact's core, at the same fraction by default, is the whole cloud; a deeper core,
-    // 0.35, tracked the cube worse: docs/learned_normals.md.)
-    // The symmetric objective leans on the source's normals, which are the network's here: on
-    // the benchmark it tracked the cube better and the toy human worse than the target's normals
-    // alone (docs/learned_normals.md).
-    o.front_end.icp.symmetric = false;
-    // The parity integration inverts the renderer's central-difference normals exactly; on the
-    // network's, whose errors it integrates on four decoupled sub-grids, it tracked the cube and
-    // the toy brick a little better and the toy human worse (docs/learned_normals.md).
-    o.front_end.depth.integration = DepthIntegration::kAveraged;
-    // The network bends a flat face into a dome of 5 cm to 1 m radius and tilts it by a few
-    // milliradians from frame to frame; as the dome's rolls that tilt became slides of up to
-    // 5 mm a frame, and the two-sensor regrasp was lost (docs/tracker.md). Read as flat, its
-    // slides and spin are free, as they are from the rendered normals.
-    o.front_end.icp.flat_radius_m = 0.02;
-  }
+  // Normals estimated from the colour images (a network's, the shading's inverse) have their own
+  // front-end settings and no image-to-image gate (track_dataset.h).
+  if (o.normals) use_estimated_normals(o);
+  if (a.image_to_image_gate >= 0) o.graph.image_to_image_gate_rad = a.image_to_image_gate;
   // A config file sets the keys it names on top of these (a file naming another key keeps the
   // learned normals' settings).
   if (!a.config.empty()) o.front_end = load_tracker_config(a.config, o.front_end);

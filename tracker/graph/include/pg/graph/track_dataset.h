@@ -196,6 +196,14 @@ struct TrackRun {
   std::unique_ptr<PatchGraphTracker> tracker;
 };
 
+// Sets what tracking normals estimated from colour images (a network's, the shading's inverse)
+// needs instead of rendered ones (`patchgraph track --normals MODEL|shading` does the same; each
+// measured in docs/learned_normals.md): a contact mask of the pixels deeper than a fifth of the
+// frame's deepest, the ICP's residual along the target's normal alone, the averaged integration,
+// three free directions rolling about a centre beyond 2 cm read as a flat face's, and no
+// image-to-image gate. A program tracking a live sensor calls it once on its options.
+void use_estimated_normals(TrackOptions& options);
+
 // Where the object's frame comes from: the pose at frame 0 (false), or, in a recording with no
 // object pose at all, the sensor's frame at frame 0 (true). Poses that begin after frame 0 cannot
 // start a track consistently: InputError naming `poses_csv`.
