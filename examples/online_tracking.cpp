@@ -16,7 +16,6 @@
 #include <exception>
 #include <string>
 
-#include "pg/core/error.h"
 #include "pg/graph/track_dataset.h"
 #include "pg/graph/tracker.h"
 #include "pg/sim/scene.h"
@@ -43,9 +42,8 @@ int run(const std::string& scene_path) {
   // The front end and the graph, set up as `patchgraph track --normals shading` sets them.
   TrackOptions options;
   use_estimated_normals(options);
-  options.graph.icp = options.front_end.icp;
   ContactCloudBuilder front_end(sensor, options.front_end.contact_cloud());
-  PatchGraphTracker tracker(options.graph);
+  PatchGraphTracker tracker(tracker_graph_options(options));
 
   ContactFrame contact;
   double sum_sq_m = 0, sum_sq_rad = 0, translation_m = 0, rotation_rad = 0;
@@ -92,10 +90,7 @@ int main(int argc, char** argv) {
   }
   try {
     return run(argc > 1 ? argv[1] : std::string(PG_SOURCE_DIR) + "/scenes/default.json");
-  } catch (const pg::InputError& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
-  } catch (const std::exception& e) {
+  } catch (const std::exception& e) {  // pg::InputError (a scene or mesh that cannot be read) too
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
   }

@@ -482,6 +482,12 @@ void use_estimated_normals(TrackOptions& options) {
   options.graph.image_to_image_gate_rad = 0;
 }
 
+GraphOptions tracker_graph_options(const TrackOptions& options) {
+  GraphOptions graph = options.graph;
+  graph.icp = options.front_end.icp;
+  return graph;
+}
+
 TrackRun track_dataset(const Dataset& dataset, const TrackOptions& options,
                        const std::function<void(int, int)>& progress) {
   return track_dataset(std::vector<const Dataset*>{&dataset}, options, progress);
@@ -501,8 +507,7 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   check_in_range("track option end_effector_noise", options.end_effector_noise, 0, kMaxPoseNoise);
   check_in_range("track option vision_noise", options.vision_noise, 0, kMaxPoseNoise);
   const Dataset& dataset = *datasets[0];
-  GraphOptions graph = options.graph;
-  graph.icp = options.front_end.icp;
+  const GraphOptions graph = tracker_graph_options(options);
   TrackRun run;
   run.tracker = std::make_unique<PatchGraphTracker>(graph, options.model_object);
   std::deque<SensorFeed> feeds;  // (a builder does not move)
@@ -846,8 +851,7 @@ std::optional<KeptRun> kept_track_run(const std::vector<const Dataset*>& dataset
   for (const std::string& file : kTrackOutputFiles) {
     if (!fs::is_regular_file(fs::path(out_dir) / file, ec)) return std::nullopt;
   }
-  GraphOptions graph = options.graph;
-  graph.icp = options.front_end.icp;
+  const GraphOptions graph = tracker_graph_options(options);
   const nlohmann::json wanted = settings_json(
       datasets, to_string(graph.method), options.seed, options.normals_name, options.normals_digest,
       graph, options.front_end, options.end_effector_noise, options.vision_noise);

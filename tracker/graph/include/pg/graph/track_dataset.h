@@ -204,6 +204,10 @@ struct TrackRun {
 // image-to-image gate. A program tracking a live sensor calls it once on its options.
 void use_estimated_normals(TrackOptions& options);
 
+// The graph's options as a tracker of `options` runs with them: options.graph with the front
+// end's ICP options (TrackOptions::front_end), which its registrations use.
+GraphOptions tracker_graph_options(const TrackOptions& options);
+
 // Where the object's frame comes from: the pose at frame 0 (false), or, in a recording with no
 // object pose at all, the sensor's frame at frame 0 (true). Poses that begin after frame 0 cannot
 // start a track consistently: InputError naming `poses_csv`.
