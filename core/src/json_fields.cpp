@@ -229,12 +229,13 @@ std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
                                                  const std::string& key) const {
   if (v.is_number_unsigned()) return v.get<std::uint64_t>();
   long long i = 0;
-  if (whole_float(v) && v.get<double>() > 0 && !whole_number(v, i)) {
+  const bool whole = whole_number(v, i);
+  if (!whole && whole_float(v) && v.get<double>() > 0) {
     throw InputError(field(key) + ": got " + v.dump() +
                      "; beyond 2^53 a number written with a fraction or an exponent does not "
                      "hold every integer: write its digits");
   }
-  if (!whole_number(v, i) || i < 0) integer_error(key, "a non-negative integer", v);
+  if (!whole || i < 0) integer_error(key, "a non-negative integer", v);
   return static_cast<std::uint64_t>(i);
 }
 
