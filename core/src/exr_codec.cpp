@@ -103,10 +103,10 @@ std::string read_float(const std::string& path, Stored stored, ImageF& image) {
     const auto integer = std::find_if(channels.begin(), channels.end(),
                                       [](const auto& c) { return c.second == Imf::UINT; });
     if (stored == Stored::kFloat && integer != channels.end()) {
-      return path + ": is a openexr file of uint pixels, not floating-point data";
+      return path + ": is an OpenEXR file of uint pixels, not floating-point data";
     }
     if (stored == Stored::kUInt16) {
-      return path + ": is a openexr file of " +
+      return path + ": is an OpenEXR file of " +
              type_name(channels.empty() ? Imf::FLOAT : channels.front().second) +
              " pixels, not 16-bit ones";
     }

@@ -60,6 +60,12 @@ const image_codec::Table& writer_of(const std::string& path) {
 void check_readable(const std::string& path) {
   require_regular_file(path, "an image file");
   if (!std::filesystem::is_regular_file(path)) throw InputError(path + ": image file not found");
+  // One that cannot be opened (no permission) said so, not as a file of another format.
+  errno = 0;
+  if (!std::ifstream(path, std::ios::binary)) {
+    throw InputError(path + ": cannot read" +
+                     (errno ? std::string(": ") + std::strerror(errno) : std::string()));
+  }
 }
 
 void throw_if_error(const std::string& error) {
@@ -161,6 +167,11 @@ void check_image_output(const std::string& path) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
     throw InputError(path + ": is a folder; give the image file's name");
+  }
+  if (std::filesystem::path(path).extension().string().size() < 2) {
+    throw InputError(path +
+                     ": no file extension to choose the image format by; give the "
+                     "file's name with one (.png, .exr, .jpg)");
   }
   throw_if_error(writer_of(path).check_writer(path));
   const std::filesystem::path folder = std::filesystem::absolute(path, ec).parent_path();

@@ -202,6 +202,52 @@ bool whole_float(const nlohmann::json& v) {
 
 }  // namespace
 
+JsonFileKind json_file_kind(const nlohmann::json& j) {
+  if (!j.is_object()) return JsonFileKind::kOther;
+  const auto has = [&](const char* key) { return j.contains(key); };
+  const auto format = j.find("format");
+  if (format != j.end() && *format == "patchgraph-dataset") return JsonFileKind::kDataset;
+  if (has("method") && has("translation_rmse_m")) return JsonFileKind::kTrackSummary;
+  if (has("objects") || (has("sensors") && j.at("sensors").is_array())) return JsonFileKind::kScene;
+  if (has("camera") || has("gel") || has("lights") || has("shading") || has("preset")) {
+    return JsonFileKind::kSensor;
+  }
+  bool config = !j.empty();
+  for (const auto& item : j.items()) {
+    config = config && (item.key() == "depth" || item.key() == "mask" || item.key() == "icp");
+  }
+  if (config) return JsonFileKind::kTrackerConfig;
+  return JsonFileKind::kOther;
+}
+
+namespace {
+
+const char* describe(JsonFileKind kind) {
+  switch (kind) {
+    case JsonFileKind::kScene:
+      return "a scene file";
+    case JsonFileKind::kSensor:
+      return "a sensor file";
+    case JsonFileKind::kTrackerConfig:
+      return "a tracker config (--config)";
+    case JsonFileKind::kDataset:
+      return "a dataset's description (dataset.json)";
+    case JsonFileKind::kTrackSummary:
+      return "a track run's summary.json";
+    case JsonFileKind::kOther:
+      break;
+  }
+  return "a JSON file of another kind";
+}
+
+}  // namespace
+
+void check_json_file_kind(const nlohmann::json& j, const std::string& path, JsonFileKind wanted) {
+  const JsonFileKind kind = json_file_kind(j);
+  if (kind == JsonFileKind::kOther || kind == wanted) return;
+  throw InputError(path + ": is " + describe(kind) + ", not " + describe(wanted));
+}
+
 void JsonFields::integer_error(const std::string& key, const char* expected,
                                const nlohmann::json& v) const {
   if (v.is_number()) {
@@ -230,6 +276,10 @@ std::uint64_t JsonFields::convert<std::uint64_t>(const nlohmann::json& v,
   if (v.is_number_unsigned()) return v.get<std::uint64_t>();
   long long i = 0;
   const bool whole = whole_number(v, i);
+  if (!whole && whole_float(v) && v.get<double>() >= 18446744073709551616.0) {  // 2^64
+    throw InputError(field(key) + ": integer out of range (0 to 18446744073709551615), got " +
+                     v.dump());
+  }
   if (!whole && whole_float(v) && v.get<double>() > 0) {
     throw InputError(field(key) + ": got " + v.dump() +
                      "; beyond 2^53 a number written with a fraction or an exponent does not "

@@ -329,7 +329,9 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
 }
 
 SensorModel load_sensor_file(const std::string& path) {
-  return sensor_from_json(parse_json_file(path), path);
+  const nlohmann::json j = parse_json_file(path);
+  check_json_file_kind(j, path, JsonFileKind::kSensor);
+  return sensor_from_json(j, path);
 }
 
 }  // namespace pg

@@ -58,6 +58,7 @@ std::string read_file(const std::string& path) {
 RawMesh read_raw(const std::string& path) {
   const std::string bytes = read_file(path);  // first, so a missing file is reported as such
   const std::string ext = lowercase_extension(path);
+  if (bytes.empty()) throw InputError(path + ": empty file, not a mesh");
   try {
     if (ext == ".glb" || ext == ".gltf") {
       // Trust the content over the name: a GLB starts with the magic "glTF".

@@ -142,8 +142,12 @@ SceneSensor read_sensor(const nlohmann::json& j, const std::string& where,
     throw InputError(where + ": give either sensor or sensor_file, not both");
   }
   if (f.has("sensor_file")) {
+    const std::string file = f.required<std::string>("sensor_file");
+    if (file.empty()) {
+      throw InputError(f.field("sensor_file") + ": empty; give the sensor file's path");
+    }
     try {
-      s.model = load_sensor_file(resolve(base_dir, f.required<std::string>("sensor_file")));
+      s.model = load_sensor_file(resolve(base_dir, file));
     } catch (const InputError& e) {  // the sensor file's own error, and where the scene names it
       throw InputError(f.field("sensor_file") + ": " + e.what());
     }
@@ -170,7 +174,10 @@ SceneObject read_object(const nlohmann::json& j, const std::string& where,
   JsonFields f(j, where);
   SceneObject o;
   o.name = f.optional<std::string>("name", "object" + std::to_string(index));
-  o.mesh_path = resolve(base_dir, f.required<std::string>("mesh"));
+  if (o.name.empty()) throw InputError(f.field("name") + ": empty; give the object a name");
+  const std::string mesh = f.required<std::string>("mesh");
+  if (mesh.empty()) throw InputError(f.field("mesh") + ": empty; give the mesh file's path");
+  o.mesh_path = resolve(base_dir, mesh);
   o.scale = f.number_in("scale", 1e-6, 1e6, 1.0);
   o.T_world_object = read_motion(f);
   if (f.has("held_by")) {
@@ -284,7 +291,9 @@ Scene scene_from_json(const nlohmann::json& j, const std::string& name,
 
 Scene load_scene(const std::string& path) {
   const std::string base = fs::path(path).parent_path().string();
-  return scene_from_json(parse_json_file(path), path, base.empty() ? "." : base);
+  const nlohmann::json j = parse_json_file(path);
+  check_json_file_kind(j, path, JsonFileKind::kScene);
+  return scene_from_json(j, path, base.empty() ? "." : base);
 }
 
 }  // namespace pg

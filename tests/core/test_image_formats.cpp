@@ -299,7 +299,7 @@ TEST(ImageFormats, DamagedFilesAreRefusedNamingThem) {
                      {"png.exr: is a png file of uint8 pixels, not floating-point data"});
   EXPECT_EQ(read_image_u8(tmp.str("png.exr")).data[0], 1);
   expect_input_error([&] { read_u16_file(tmp.str("whole.exr")); },
-                     {"whole.exr: is a openexr file of float pixels, not 16-bit ones"});
+                     {"whole.exr: is an OpenEXR file of float pixels, not 16-bit ones"});
   // A header that claims more pixels than may be read (and has none).
   std::ofstream(tmp.str("huge.png"), std::ios::binary)
       << handmade_png(60000, 60000, 8, 2, "", "", {});

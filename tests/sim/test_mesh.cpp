@@ -449,7 +449,14 @@ TEST_F(MeshIoTest, UnknownExtensionListsSupportedOnes) {
 }
 
 TEST_F(MeshIoTest, EmptyMeshes) {
-  EXPECT_TRUE(Contains(load_error(write("empty.obj", "")), "no vertices"));
+  // An empty file of any format is said to be one, its path once (tinygltf's own message had
+  // named it three times).
+  for (const char* name : {"empty.obj", "empty.glb", "empty.stl"}) {
+    const std::string message = load_error(write(name, ""));
+    EXPECT_TRUE(Contains(message, "empty file, not a mesh")) << message;
+    EXPECT_EQ(message.find(name), message.rfind(name)) << message;
+  }
+  EXPECT_TRUE(Contains(load_error(write("blank.obj", "\n")), "no vertices"));
   EXPECT_TRUE(Contains(load_error(write("points.obj", "v 0 0 0\nv 1 0 0\n")), "no triangles"));
   EXPECT_TRUE(Contains(load_error(write("empty.off", "OFF\n0 0 0\n")), "no vertices"));
   EXPECT_TRUE(Contains(load_error(write("empty.stl", "solid x\nendsolid x\n")), "no vertices"));

@@ -250,6 +250,20 @@ TEST_F(SceneFileTest, ErrorsNameTheFileAndTheField) {
       {"a seed with an exponent, beyond what a double holds exactly",
        [](json& j) { j["render"]["seed"] = 1e17; },
        {": render.seed", "got 1e+17; beyond 2^53", "write its digits"}},
+      {"a seed of 2^64, past the largest",  // had read "write its digits", which it was
+       [](json& j) { j["render"]["seed"] = 18446744073709551616.0; },
+       {": render.seed", "integer out of range (0 to 18446744073709551615)"}},
+      {"an empty mesh path",  // had read "scenes/: is a directory"
+       [](json& j) { j["objects"][0]["mesh"] = ""; },
+       {": objects[0].mesh: empty; give the mesh file's path"}},
+      {"an empty object name",  // had read "tracked_object: no object is named ..."
+       [](json& j) { j["objects"][0]["name"] = ""; },
+       {": objects[0].name: empty"}},
+      {"a scene given for a dataset's description",
+       [](json& j) {
+         j = {{"format", "patchgraph-dataset"}, {"frames", 3}};
+       },
+       {": is a dataset's description (dataset.json), not a scene file"}},
       {"a seed below zero",
        [](json& j) { j["render"]["seed"] = -3; },
        {": render.seed", "expected a non-negative integer, got -3"}},
@@ -454,6 +468,13 @@ TEST_F(SceneFileTest, NumbersBeyondADoubleAndWrongTypedPresetsNameTheFileOnce) {
   // Where the scene names the sensor file, then the sensor file's own error.
   EXPECT_EQ(message.rfind(scene + ": sensors[0].sensor_file: " + sensor + ": ", 0), 0u) << message;
   EXPECT_NE(message.find("number overflow"), std::string::npos) << message;
+
+  // A scene given as the sensor file is named as one (it had read "fps: unknown key").
+  j["sensors"][0] = {{"sensor_file", "uses_sensor.json"}};
+  const std::string self = write("scene_as_sensor.json", j);
+  message = load_error(self);
+  EXPECT_NE(message.find("uses_sensor.json: is a scene file, not a sensor file"), std::string::npos)
+      << message;
 
   j["sensors"][0] = {{"sensor", {{"preset", 5}}}};
   path = write("preset.json", j);

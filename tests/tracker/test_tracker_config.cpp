@@ -81,6 +81,15 @@ TEST(TrackerConfig, ErrorsNameTheFileAndField) {
             std::string::npos)
       << error_of(R"({"depth": {"integration": "poisson"}})");
   EXPECT_THROW(load_tracker_config("/nonexistent/tracker.json"), InputError);
+  // A JSON file of another of the project's kinds is named as what it is (it had read as its
+  // first key: "format: unknown key").
+  EXPECT_NE(error_of(R"({"format": "patchgraph-dataset", "frames": 3})")
+                .find("cfg.json: is a dataset's description (dataset.json), not a tracker config"),
+            std::string::npos)
+      << error_of(R"({"format": "patchgraph-dataset", "frames": 3})");
+  EXPECT_NE(error_of(R"({"preset": "digit", "noise": {"sigma": 2}})")
+                .find("cfg.json: is a sensor file, not a tracker config"),
+            std::string::npos);
   // Below a micrometre the voxel grid's keys overflowed: tracking lost, with no error.
   EXPECT_NE(error_of(R"({"icp": {"voxel_size_m": 1e-20}})")
                 .find("icp.voxel_size_m: must be 0 (off) or from 1e-6 to 1 m"),

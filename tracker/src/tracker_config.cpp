@@ -108,6 +108,7 @@ const char* to_string(RobustKernel kernel) {
 
 TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::string& where,
                                        const TrackerConfig& base) {
+  check_json_file_kind(j, where, JsonFileKind::kTrackerConfig);
   JsonFields f(j, where);
   TrackerConfig c = base;
   if (f.has("depth")) read_depth(f.at("depth"), f.field("depth"), c.depth);

@@ -39,6 +39,14 @@ std::string without_json_tag(const std::string& what);
 
 std::string json_type_name(const nlohmann::json& j);
 
+// The project's kinds of JSON file, told apart by their top-level keys, so that one given where
+// another is read is named as what it is rather than by its first unexpected key.
+enum class JsonFileKind { kOther, kScene, kSensor, kTrackerConfig, kDataset, kTrackSummary };
+JsonFileKind json_file_kind(const nlohmann::json& j);
+// Throws InputError "PATH: is a dataset's description (dataset.json), not a scene file" when `j`,
+// read from `path`, is a file of a kind other than `wanted` (one of no known kind passes).
+void check_json_file_kind(const nlohmann::json& j, const std::string& path, JsonFileKind wanted);
+
 // JSON text as the repository's scene files read: one line per array element or object member,
 // indented by two, unless the whole value fits in `width` columns (so a waypoint or a pose is
 // one line). Keys keep their order.
