@@ -346,7 +346,7 @@ std::string describe(const SensorJumps& jumps, int first_row_line) {
   return out + text;
 }
 
-void DatasetWriter::check_folder(const std::string& dir) {
+void DatasetWriter::check_folder(const std::string& dir, DatasetMaker maker) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;
   if (!fs::is_directory(dir, ec)) {
@@ -379,14 +379,31 @@ void DatasetWriter::check_folder(const std::string& dir) {
                      "patchgraph-dataset format), so writing one there could replace your files; "
                      "give a new or empty folder, or an earlier dataset's folder to replace it");
   }
+  const DatasetMaker made = fs::exists(fs::path(dir) / "circles.csv", ec) ? DatasetMaker::kLabelBall
+                            : fs::exists(fs::path(dir) / "sources.csv", ec)
+                                ? DatasetMaker::kRecording
+                                : DatasetMaker::kRender;
+  if (made != DatasetMaker::kRender && made != maker) {
+    const char* writer = maker == DatasetMaker::kRender      ? "a render"
+                         : maker == DatasetMaker::kRecording ? "a recording"
+                                                             : "label-ball";
+    throw InputError(dir +
+                     (made == DatasetMaker::kRecording
+                          ? ": holds a recording of a real sensor (sources.csv), whose frames "
+                          : ": holds presses labelled by label-ball (circles.csv, perhaps "
+                            "corrected by hand), whose labels ") +
+                     writer +
+                     " there would replace; give a new or empty folder, or remove that dataset "
+                     "first");
+  }
 }
 
-DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info)
+DatasetWriter::DatasetWriter(std::string dir, DatasetInfo info, DatasetMaker maker)
     : dir_(std::move(dir)),
       info_(std::move(info)),
       poses_(info_.frames),
       written_(info_.frames, 0) {
-  check_folder(dir_);
+  check_folder(dir_, maker);
   std::error_code ec;
   const fs::path earlier_poses = fs::path(dir_) / "poses.csv";
   if (fs::exists(earlier_poses, ec) && !fs::remove(earlier_poses, ec)) {

@@ -198,7 +198,19 @@ TEST(Dataset, WriterRemovesAnEarlierDatasetsStaleFrames) {
   std::ofstream(dir + "/background.png") << "the earlier dataset's";
   DatasetInfo info = small_info(2);
   info.outputs = {"color"};
-  DatasetWriter writer(dir, info);
+  // Labelled presses are label-ball's to replace (a render's writer is refused: the labels may
+  // have been corrected by hand), and with them the recording's list of its files.
+  try {
+    DatasetWriter render(dir, info);
+    ADD_FAILURE() << "a render's writer replaced labelled presses";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(dir + ": holds presses labelled by label-ball"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(fs::exists(dir + "/circles.csv"));
+  EXPECT_TRUE(fs::exists(dir + "/color/000004.png"));
+  DatasetWriter writer(dir, info, DatasetMaker::kLabelBall);
   for (int i = 0; i < 2; ++i) {
     FramePose p;
     p.frame = i;

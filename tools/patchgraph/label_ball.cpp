@@ -311,7 +311,7 @@ CLI::App* add_label_ball_command(CLI::App& app, LabelBallArgs& a) {
 int run_label_ball(const LabelBallArgs& a) {
   check_output_is_not_input(a.out, a.dataset, "the dataset");
   // Before the search for presses (minutes on a long recording), not after it.
-  DatasetWriter::check_folder(a.out);
+  DatasetWriter::check_folder(a.out, DatasetMaker::kLabelBall);
   const Dataset d = Dataset::open(a.dataset);
   if (!d.info().has_output("color")) {
     throw InputError(a.dataset + "/dataset.json: outputs: no colour images to find presses in");
@@ -427,7 +427,7 @@ int run_label_ball(const LabelBallArgs& a) {
   const bool out_existed = fs::exists(a.out);
   try {
     const StopOnSignals stop;
-    DatasetWriter writer(a.out, info);
+    DatasetWriter writer(a.out, info, DatasetMaker::kLabelBall);
     writer.write_background(reference);
     const ImageF flat = undeformed_gel_normals(rays);
     Progress progress("labelling", info.frames, !a.quiet);

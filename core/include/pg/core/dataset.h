@@ -79,18 +79,25 @@ struct FrameImages {
 // Path of one frame's image for an output, e.g. DIR/color/000042.png.
 std::string dataset_frame_path(const std::string& dir, const std::string& output, int frame);
 
+// Which command made a dataset, as its folder tells: `patchgraph recording` (a real sensor's
+// frames, listed in its sources.csv), `patchgraph label-ball` (presses labelled in circles.csv,
+// perhaps corrected by hand), or a render (anything else: it can be made again).
+enum class DatasetMaker { kRender, kRecording, kLabelBall };
+
 // Writes a dataset. Frames may be written from several threads, in any order.
 class DatasetWriter {
  public:
   // Creates DIR and the output folders and writes dataset.json. An earlier dataset in DIR is
   // replaced: its poses.csv goes first, so that a run that stops before finish() leaves a folder
   // that does not open as a dataset (rather than the new dataset.json over the old frames).
-  // Throws InputError naming the path, or check_folder's.
-  DatasetWriter(std::string dir, DatasetInfo info);
-  // Throws InputError unless DIR can take a new dataset: it does not exist, or is an empty folder,
-  // or holds a dataset (its dataset.json says so; finished or not). Writing into any other folder
-  // would replace and remove the user's own files of the dataset's names (poses.csv, 000007.png).
-  static void check_folder(const std::string& dir);
+  // Throws InputError naming the path, or check_folder's (for a dataset `maker` writes).
+  DatasetWriter(std::string dir, DatasetInfo info, DatasetMaker maker = DatasetMaker::kRender);
+  // Throws InputError unless DIR can take a new dataset from `maker`: it does not exist, or is an
+  // empty folder, or holds a dataset (its dataset.json says so; finished or not) that is a render
+  // or `maker`'s own. Writing into any other folder would replace and remove the user's own files
+  // of the dataset's names (poses.csv, 000007.png); over a recording or a labelled dataset, its
+  // frames or circles, which no render makes again.
+  static void check_folder(const std::string& dir, DatasetMaker maker = DatasetMaker::kRender);
   // Writes the requested outputs (each must be present and of the sensor's image size).
   void write_frame(const FramePose& pose, const FrameImages& images);
   // Writes DIR/background.png: what the sensor shows without contact (the reference frame a
