@@ -87,7 +87,8 @@ Eigen::Vector3d extreme_centroid(const std::vector<Eigen::Vector3d>& points,
 }
 
 std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_object,
-                                     const GelModel& gel, const RandomPressOptions& options) {
+                                     const GelModel& gel, const RandomPressOptions& options,
+                                     const std::function<void(int done)>& on_frame) {
   if (p_object.empty()) throw InputError("random presses: the object has no surface points");
   const double inf = std::numeric_limits<double>::infinity();
   Random rng(options.seed);
@@ -135,6 +136,7 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
       presses.push_back({f, t, rpy});
       break;
     }
+    if (on_frame) on_frame(f + 1);
   }
   return presses;
 }

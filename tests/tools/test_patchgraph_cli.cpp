@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -121,6 +122,9 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_EQ(version.out.rfind("patchgraph 0.", 0), 0u) << version.out;
   // An option's value forgotten: the next option had been taken as it (a folder named --quiet).
   refused(track + "--out --quiet", 2, "--out: '--quiet' is an option, not a value");
+  // An option of one value given twice (CLI11 had said "At Most 1 required but received 2").
+  refused(track + "--out " + out("x") + " --out " + out("y"), 2,
+          "--out: given 2 times; it takes one value (give it once)");
   // ... said so before the option's own checks, a number's too (they had said "must be a whole
   // number ..., got --out" and "not a number: --out"), short names included.
   refused(track + "--seed --out " + out("x"), 2,
@@ -732,7 +736,7 @@ TEST_F(PatchgraphCli, DampingSigmaWeighsTheDampingPrior) {
 
 // Key frames may settle: move to the pose the window settled on for them, N frames after they
 // were fused (off by default). Either way the default scene tracks, and the patches differ: the
-// option reaches the tracker. A negative count is a usage error.
+// option reaches the tracker. A negative count, or one past the window, is a usage error.
 TEST_F(PatchgraphCli, KeyFrameSettlingIsAnOptionInTheSummary) {
   ASSERT_NO_FATAL_FAILURE(track_each("settle_", "--keyframe-settle", {"", "4"}));
   const auto summary = [&](const std::string& settle) {
@@ -750,17 +754,18 @@ TEST_F(PatchgraphCli, KeyFrameSettlingIsAnOptionInTheSummary) {
   };
   ASSERT_FALSE(bytes("").empty());
   EXPECT_NE(bytes(""), bytes("4"));
-  // Past window - 1 (4 with the default window) nothing moves later: 10 runs and reads as 4.
-  ASSERT_EQ(
-      patchgraph("track " + data() + " -q --keyframe-settle 10 --out " + out("settle_10")).code, 0);
-  EXPECT_EQ(summary("10")["keyframe_settle_frames"].get<int>(), 4);
-  EXPECT_EQ(testing_support::file_text(out("settle_10") + "/poses.csv"),
-            testing_support::file_text(out("settle_4") + "/poses.csv"));
-  const CliRun bad =
-      patchgraph("track " + data() + " -q --keyframe-settle -1 --out " + out("settle_bad"));
-  EXPECT_EQ(bad.code, 2);
-  EXPECT_NE(bad.out.find("--keyframe-settle"), std::string::npos) << bad.out;
-  EXPECT_FALSE(fs::exists(out("settle_bad")));
+  // Past window - 1 (4 with the default window) nothing would move later: a usage error that
+  // says so, as is a negative count.
+  for (const char* settle : {"10 --window 5", "-1"}) {
+    const CliRun bad = patchgraph("track " + data() + " -q --keyframe-settle " + settle +
+                                  " --out " + out("settle_bad"));
+    EXPECT_EQ(bad.code, 2) << settle;
+    EXPECT_NE(bad.out.find("--keyframe-settle"), std::string::npos) << bad.out;
+    EXPECT_FALSE(fs::exists(out("settle_bad")));
+  }
+  EXPECT_NE(patchgraph("track " + data() + " -q --keyframe-settle 10 --out " + out("settle_bad"))
+                .out.find("at most --window - 1 = 4"),
+            std::string::npos);
 }
 
 // The motion priors' frame is an option, recorded in the summary; on the default scene's still
@@ -2879,6 +2884,96 @@ TEST_F(PatchgraphCli, ARunThatFailsLeavesNoEarlierOutputsBehind) {
   EXPECT_TRUE(fs::exists(stopped + "/runs/data_constvel/summary.json"));
 }
 
+// A folder of the user's that holds files of an output's name is no earlier run's: nothing in it
+// is removed or replaced, and the run is refused before it starts (track had replaced a
+// recording's poses.csv given as --out's neighbour, and removed a folder named poses.csv with
+// what it held). A single output file over a file of another kind is refused likewise.
+TEST_F(PatchgraphCli, AnOutputFolderOfTheUsersFilesIsLeftAsItIs) {
+  const std::string mine = out("users_folder");
+  fs::remove_all(mine);
+  fs::create_directories(mine + "/patch.ply");
+  std::ofstream(mine + "/patch.ply/notes.txt") << "mine";
+  const auto refused_keeping = [&](const std::string& args, const std::string& says) {
+    const CliRun r = patchgraph(args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(says), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("left as it is"), std::string::npos) << r.out;
+  };
+  refused_keeping("track -q " + data() + " --out " + mine,
+                  mine + "/patch.ply: a folder of an output file's name");
+  EXPECT_EQ(testing_support::file_text(mine + "/patch.ply/notes.txt"), "mine");
+  fs::remove_all(mine + "/patch.ply");
+  std::ofstream(mine + "/poses.csv") << "my robot's poses\n";
+  refused_keeping("track -q " + data() + " --out " + mine,
+                  mine + "/poses.csv: not an earlier run's output (" + mine +
+                      " holds no summary.json of an earlier track)");
+  std::ofstream(mine + "/summary.md") << "my notes\n";
+  refused_keeping("eval -q --no-plots --methods constvel --datasets " + data() + " --out " + mine,
+                  mine + "/summary.md: not an earlier run's output (" + mine +
+                      " holds no results.csv or runs/ of an earlier eval)");
+  EXPECT_EQ(testing_support::file_text(mine + "/poses.csv"), "my robot's poses\n");
+  EXPECT_EQ(testing_support::file_text(mine + "/summary.md"), "my notes\n");
+  EXPECT_FALSE(fs::exists(mine + "/summary.json") || fs::exists(mine + "/results.csv"));
+  // An earlier track's folder, by its summary.json, is replaced: the run goes ahead.
+  const std::string earlier = out("earlier_track_folder");
+  fs::remove_all(earlier);
+  ASSERT_EQ(patchgraph("track -q --method constvel " + data() + " --out " + earlier).code, 0);
+  const CliRun again = patchgraph("track -q --method constvel " + data() + " --out " + earlier);
+  EXPECT_EQ(again.code, 0) << again.out;
+  // Single output files: a model's checkpoint, a CSV of the user's.
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
+  fs::copy_file(model, mine + "/model.pt", fs::copy_options::overwrite_existing);
+  refused_keeping(
+      "eval-normals --model " + model + " --data " + data() + " --json " + mine + "/model.pt",
+      "--json " + mine +
+          "/model.pt: holds a zip archive (a trained model or "
+          "checkpoint); this command would replace it with JSON");
+  refused_keeping("fit-sensor " + data() + " --out " + mine + "/model.pt",
+                  "--out " + mine + "/model.pt: holds a zip archive");
+  refused_keeping("train-normals --data " + data() + " --epochs 1 --out " + mine + "/poses.csv",
+                  "--out " + mine +
+                      "/poses.csv: holds text; this command would replace it with "
+                      "a zip archive");
+  EXPECT_EQ(testing_support::file_text(mine + "/model.pt"), testing_support::file_text(model));
+  EXPECT_EQ(testing_support::file_text(mine + "/poses.csv"), "my robot's poses\n");
+}
+
+// A dataset or frame the user running the tool may not read is said so, with the path and the
+// cause (the library's "filesystem error: status: Permission denied [...]", and an EXR said to be
+// "not an OpenEXR file", had been printed). Run as the user nobody, which needs root and setpriv.
+TEST_F(PatchgraphCli, AFileThatMayNotBeReadIsSaidSo) {
+  if (::geteuid() != 0 || std::system("command -v setpriv > /dev/null 2>&1") != 0) {
+    GTEST_SKIP() << "needs root and setpriv to run the tool as another user";
+  }
+  const std::string as_nobody = "setpriv --reuid=65534 --regid=65534 --clear-groups ";
+  const CliRun probe = testing_support::run_command(as_nobody + PATCHGRAPH_PATH, "--version");
+  if (probe.code != 0) GTEST_SKIP() << "the user nobody cannot run the tool here: " << probe.out;
+  const std::string base = "/tmp/pg_nobody_" + std::to_string(::getpid());
+  fs::remove_all(base);
+  fs::create_directories(base + "/out");
+  fs::copy(data(), base + "/data", fs::copy_options::recursive);
+  fs::permissions(base, fs::perms::all);
+  fs::permissions(base + "/out", fs::perms::all);
+  const auto track = [&](const std::string& name) {
+    return testing_support::run_command(
+        as_nobody + PATCHGRAPH_PATH, "track -q " + base + "/data --out " + base + "/out/" + name);
+  };
+  fs::permissions(base + "/data/normal/000004.exr", fs::perms::owner_read | fs::perms::owner_write);
+  CliRun r = track("frame");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find(base + "/data/normal/000004.exr: cannot read: Permission denied"),
+            std::string::npos)
+      << r.out;
+  fs::permissions(base + "/data", fs::perms::owner_all);
+  r = track("folder");
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("error: " + base + "/data/dataset.json: Permission denied"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(r.out.find("filesystem error"), std::string::npos) << r.out;
+  fs::remove_all(base);
+}
+
 // Ball presses as a real sensor records them (colour only) become a training set: each frame's
 // circle found, labelled with the ball's normals, trainable; a circle given by hand replaces the
 // found one; a wrong diameter, no colour images and a malformed circles file are refused.
@@ -3252,6 +3347,13 @@ TEST_F(PatchgraphCli, FitSensorMeasuresARecordedSensorsLights) {
   refused("fit-sensor " + out("fit_train_labels") + " --iterations 0 --out " + out("x.json"), 2,
           "--iterations");
   refused("fit-sensor --out " + out("x.json"), 2, "datasets is required");
+  // A dataset twice would weigh twice in the fit; a preset name is checked as the other
+  // commands check it (it had been exit 1, without the option's name).
+  refused("fit-sensor " + out("fit_train_labels") + " " + out("fit_train_labels") + " --out " +
+              out("x.json"),
+          1, out("fit_train_labels") + ": given twice");
+  refused("fit-sensor " + out("fit_train_labels") + " --sensor foo --out " + out("x.json"), 2,
+          "--sensor: unknown sensor preset 'foo'");
   // The sensor file is written neither into a dataset nor over the start it is fitted from.
   const std::string labels_json = out("fit_train_labels") + "/dataset.json";
   const std::string labels_text = testing_support::file_text(labels_json);

@@ -700,6 +700,19 @@ TEST(TacsimCli, RenderReplacesOnlyADataset) {
   r = tacsim("render " + kScenes + "examples/no_contact.json -q --outputs mask --out " + d);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(Dataset::open(d).frames(), 5);
+  // A real sensor's recording (patchgraph recording's sources.csv) or presses labelled by
+  // label-ball (circles.csv) is no render's to replace: their frames or labels would be lost.
+  for (const auto& [file, what] : std::vector<std::pair<std::string, std::string>>{
+           {"sources.csv", "holds a recording of a real sensor (sources.csv)"},
+           {"circles.csv", "holds presses labelled by label-ball (circles.csv"}}) {
+    std::ofstream(d + "/" + file) << "frame,file\n";
+    r = tacsim("render " + kScenes + "examples/sphere_press.json -q --outputs mask --out " + d);
+    EXPECT_EQ(r.code, 1) << r.out;
+    EXPECT_NE(r.out.find(d + ": " + what), std::string::npos) << r.out;
+    EXPECT_EQ(Dataset::open(d).frames(), 5);
+    EXPECT_TRUE(fs::exists(d + "/" + file));
+    fs::remove(d + "/" + file);
+  }
 
   // A two-sensor scene into a folder of other files, one of them a sensors.json of its own
   // (the render's index has that name): refused, nothing written (it had been replaced).
@@ -1017,7 +1030,8 @@ TEST(TacsimCli, BackgroundThatIsADirectorySaysSo) {
 // asked depth and inside the image; one seed writes one file; bad options are named.
 // A file output inside a dataset (a contact sheet over one of its frames, a presses scene over its
 // poses.csv) is refused before anything is written, as patchgraph refuses one: it had replaced
-// the dataset's file with exit 0. A presses scene is a .json.
+// the dataset's file with exit 0. A presses scene is a .json. A file of another kind at the
+// output's path is left as it is.
 TEST(TacsimCli, AFileOutputInsideADatasetIsRefused) {
   TempDir tmp;
   ASSERT_EQ(tacsim("render " + kScenes + "default.json -q --frames 3 --out " + tmp.str("d")).code,
@@ -1050,8 +1064,41 @@ TEST(TacsimCli, AFileOutputInsideADatasetIsRefused) {
   EXPECT_EQ(csv.code, 2) << csv.out;
   EXPECT_NE(csv.out.find("a scene file is JSON; give a .json file"), std::string::npos) << csv.out;
   EXPECT_FALSE(fs::exists(tmp.str("p.csv")));
-  // Beside a dataset, not in it: written.
+  // Beside a dataset, not in it: written, and written again over itself.
   EXPECT_EQ(tacsim("presses " + mesh + " --frames 2 --out " + tmp.str("p.json")).code, 0);
+  EXPECT_EQ(tacsim("presses " + mesh + " --frames 3 --out " + tmp.str("p.json")).code, 0);
+  // The benchmark's report is a file output too (it had replaced a dataset's poses.csv).
+  const CliRun md =
+      tacsim("bench --quick --repeats 1 --frames 2 --markdown " + tmp.str("d/poses.csv"));
+  EXPECT_EQ(md.code, 1) << md.out;
+  EXPECT_NE(
+      md.out.find("--markdown " + tmp.str("d/poses.csv") + " is in a folder that holds a dataset"),
+      std::string::npos)
+      << md.out;
+  EXPECT_EQ(bytes("poses.csv"), poses);
+  // A file of another kind than the command writes is left as it is (a scene written over a
+  // trained model, a bound map over a PNG); one of its own kind is replaced (above).
+  fs::copy_file(std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt", tmp.str("model.json"));
+  fs::copy_file(tmp.str("d/color/000001.png"), tmp.str("frame.exr"));
+  for (const auto& [args, held] : std::vector<std::pair<std::string, std::string>>{
+           {"presses " + mesh + " --frames 2 --out " + tmp.str("model.json"), "a zip archive"},
+           {"sensitivity --out " + tmp.str("frame.exr"), "a PNG image"},
+           {"bench --quick --repeats 1 --frames 2 --markdown " + tmp.str("model.json"),
+            "a zip archive"}}) {
+    const CliRun r = tacsim(args);
+    EXPECT_EQ(r.code, 1) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(": holds " + held), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("It is left as it is"), std::string::npos) << r.out;
+  }
+  EXPECT_EQ(testing_support::file_text(tmp.str("model.json")),
+            testing_support::file_text(std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt"));
+  // A contact sheet's name without an extension, which chooses the format: said so (it had
+  // read as OpenImageIO's "could not find a format writer").
+  const CliRun sheet =
+      tacsim("sheet " + kScenes + "examples/sphere_press.json --out " + tmp.str("sheet"));
+  EXPECT_EQ(sheet.code, 1) << sheet.out;
+  EXPECT_NE(sheet.out.find("no file extension to choose the image format by"), std::string::npos)
+      << sheet.out;
 }
 
 TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
@@ -1066,6 +1113,9 @@ TEST(TacsimCli, PressesWriteASceneOfOnePressPerFrame) {
   CliRun r = tacsim(args + " --seed 3 --out " + tmp.str("scenes/brick.json"));
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("8 random presses"), std::string::npos) << r.out;
+  // A progress line (a million presses take about 90 minutes), which -q leaves out.
+  EXPECT_NE(r.out.find("presses 8/8 presses"), std::string::npos) << r.out;
+  EXPECT_EQ(tacsim(args + " -q --out " + tmp.str("quiet.json")).out.find("8/8"), std::string::npos);
   r = tacsim("render " + tmp.str("scenes/brick.json") +
              " -q --elastic off --outputs depth,mask --out " + tmp.str("d"));
   ASSERT_EQ(r.code, 0) << r.out;

@@ -12,6 +12,7 @@
 #include <exception>
 #include <filesystem>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <new>
 #include <string>
@@ -186,6 +187,78 @@ inline void check_output_is_no_dataset(const std::string& out, bool is_file = fa
   }
 }
 
+// What a file holds by its first bytes, for an output that would replace it.
+enum class FileKind { kNone, kZip, kPng, kExr, kJpeg, kPly, kJson, kText, kBinary };
+
+inline const char* describe(FileKind kind) {
+  switch (kind) {
+    case FileKind::kNone:
+      return "nothing";
+    case FileKind::kZip:
+      return "a zip archive (a trained model or checkpoint)";
+    case FileKind::kPng:
+      return "a PNG image";
+    case FileKind::kExr:
+      return "an OpenEXR image";
+    case FileKind::kJpeg:
+      return "a JPEG image";
+    case FileKind::kPly:
+      return "a PLY point cloud or mesh";
+    case FileKind::kJson:
+      return "JSON";
+    case FileKind::kText:
+      return "text";
+    case FileKind::kBinary:
+      return "binary data";
+  }
+  return "?";
+}
+
+// kNone for a path that is no regular file or an empty one.
+inline FileKind file_kind(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return FileKind::kNone;
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return FileKind::kNone;
+  unsigned char head[512];
+  const std::size_t n = std::fread(head, 1, sizeof head, f);
+  std::fclose(f);
+  const auto starts = [&](const char* magic, std::size_t size) {
+    return n >= size && std::memcmp(head, magic, size) == 0;
+  };
+  if (n == 0) return FileKind::kNone;
+  if (starts("PK\x03\x04", 4)) return FileKind::kZip;
+  if (starts("\x89PNG", 4)) return FileKind::kPng;
+  if (starts("\x76\x2f\x31\x01", 4)) return FileKind::kExr;
+  if (starts("\xff\xd8\xff", 3)) return FileKind::kJpeg;
+  if (starts("ply", 3)) return FileKind::kPly;
+  std::size_t i = 0;
+  while (i < n && std::isspace(head[i])) ++i;
+  if (i < n && (head[i] == '{' || head[i] == '[')) return FileKind::kJson;
+  for (std::size_t k = 0; k < n; ++k) {
+    if (head[k] == 0 || (head[k] < 32 && !std::isspace(head[k]))) return FileKind::kBinary;
+  }
+  return FileKind::kText;
+}
+
+// For a command's single output file `out`: throws InputError when it lies in a dataset's folder
+// (check_output_is_no_dataset) or already holds a file of none of the `kinds` this command writes
+// there (a JSON written over a trained model, a model over a CSV of the user's); a file of one
+// of them is replaced, as an earlier run's would be.
+inline void check_output_file(const std::string& out, std::initializer_list<FileKind> kinds,
+                              const std::string& out_what = "--out") {
+  check_output_is_no_dataset(out, true, out_what);
+  const FileKind held = file_kind(out);
+  if (held == FileKind::kNone || std::find(kinds.begin(), kinds.end(), held) != kinds.end()) {
+    return;
+  }
+  throw InputError(out_what + " " + out + ": holds " + describe(held) +
+                   "; this command would "
+                   "replace it with " +
+                   describe(*kinds.begin()) +
+                   ". It is left as it is: give another file name, or remove it first");
+}
+
 // The canonical paths of `dirs`; throws InputError when two are one folder however written
 // ("a/../b: given twice (also as b)"): a dataset counted twice would weigh twice in every mean
 // and median.
@@ -211,49 +284,91 @@ inline void check_names_given_once(const std::vector<std::string>& names,
   }
 }
 
+// Whether a folder holds an earlier run of a command, which OutputFolder may then replace: `found`
+// reads the file only that command writes (a track's summary.json, an eval's results.csv);
+// `what` names it for the refusal.
+struct EarlierRun {
+  std::string what;
+  std::function<bool(const std::filesystem::path& folder)> found;
+};
+
+// Whether `path` is a regular file whose first bytes are `prefix` (a CSV's header).
+inline bool file_starts_with(const std::filesystem::path& path, const std::string& prefix) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return false;
+  std::string head(prefix.size(), '\0');
+  const std::size_t got = std::fread(head.data(), 1, head.size(), f);
+  std::fclose(f);
+  return got == prefix.size() && head == prefix;
+}
+
 // The output folder, created before the work so that a path that cannot be one fails at once
 // rather than after a long run; removed again at the end of the scope if this created it and
-// nothing was written into it (the work failed first). An earlier run's `outputs` in it (file or
-// folder names; "a_*.png" matches by prefix and suffix) are removed first, so that a run that
-// fails or is stopped half-way leaves none that look like its own (one that cannot be removed is
-// an error, before the work).
+// nothing was written into it (the work failed first). An earlier run's `outputs` in it (file
+// names; "a_*.png" matches by prefix and suffix; "runs/" a folder) are removed first, so that a
+// run that fails or is stopped half-way leaves none that look like its own. Only an earlier
+// run's: when files of those names are there but `earlier_run` does not find that run (a
+// user's poses.csv in a folder of their own), or a folder has a file output's name, nothing is
+// removed and the run is refused before the work (InputError), as it is when one cannot be
+// removed.
 class OutputFolder {
  public:
-  explicit OutputFolder(std::string dir, const std::vector<std::string>& outputs = {})
+  explicit OutputFolder(std::string dir, const std::vector<std::string>& outputs = {},
+                        const EarlierRun& earlier_run = {})
       : dir_(std::move(dir)) {
+    namespace fs = std::filesystem;
     check_output_is_no_dataset(dir_);
     std::error_code ec;
     // The outermost folder of the path that does not exist yet: what this run creates.
-    std::filesystem::path folder = std::filesystem::absolute(dir_, ec).lexically_normal();
+    fs::path folder = fs::absolute(dir_, ec).lexically_normal();
     if (folder.filename().empty()) folder = folder.parent_path();  // "out/"
     outermost_created_ = folder;
     while (folder.has_parent_path() && folder.parent_path() != folder &&
-           !std::filesystem::exists(folder.parent_path(), ec)) {
+           !fs::exists(folder.parent_path(), ec)) {
       folder = folder.parent_path();
       outermost_created_ = folder;
     }
-    created_ = std::filesystem::create_directories(dir_, ec);
-    if (ec || !std::filesystem::is_directory(dir_)) {
+    created_ = fs::create_directories(dir_, ec);
+    if (ec || !fs::is_directory(dir_)) {
       throw InputError(dir_ + ": cannot create the output folder" +
                        (ec ? ": " + ec.message() : std::string(": not a folder")));
     }
-    std::vector<std::filesystem::path> earlier;
-    std::filesystem::directory_iterator entries(dir_, ec);
+    std::vector<fs::path> earlier;
+    fs::directory_iterator entries(dir_, ec);
     if (ec) throw InputError(dir_ + ": cannot list the output folder: " + ec.message());
     for (const auto& entry : entries) {
       const std::string name = entry.path().filename().string();
-      const bool matches = std::any_of(outputs.begin(), outputs.end(), [&](const std::string& o) {
+      for (std::string o : outputs) {
+        const bool is_folder = !o.empty() && o.back() == '/';
+        if (is_folder) o.pop_back();
         const std::size_t star = o.find('*');
-        if (star == std::string::npos) return name == o;
-        const std::size_t tail = o.size() - star - 1;
-        return name.size() >= o.size() - 1 && name.compare(0, star, o, 0, star) == 0 &&
-               name.compare(name.size() - tail, tail, o, star + 1, tail) == 0;
-      });
-      if (matches) earlier.push_back(entry.path());
+        const std::size_t tail = star == std::string::npos ? 0 : o.size() - star - 1;
+        const bool matches =
+            star == std::string::npos
+                ? name == o
+                : name.size() >= o.size() - 1 && name.compare(0, star, o, 0, star) == 0 &&
+                      name.compare(name.size() - tail, tail, o, star + 1, tail) == 0;
+        if (!matches) continue;
+        if (!is_folder && fs::is_directory(fs::symlink_status(entry.path(), ec))) {
+          throw InputError(entry.path().string() +
+                           ": a folder of an output file's name, which this run would replace; "
+                           "it is left as it is: move it or give another --out");
+        }
+        earlier.push_back(entry.path());
+        break;
+      }
+    }
+    if (!earlier.empty() && earlier_run.found && !earlier_run.found(fs::path(dir_))) {
+      throw InputError(earlier.front().string() + ": not an earlier run's output (" + dir_ +
+                       " holds no " + earlier_run.what +
+                       "), and this run would replace it; it is left as it is: move it or give "
+                       "another --out");
     }
     for (const auto& path : earlier) {
       // Left in place, an earlier run's file would pass for this run's if this one stops.
-      std::filesystem::remove_all(path, ec);
+      fs::remove_all(path, ec);
       if (ec) {
         throw InputError(path.string() +
                          ": cannot remove this output of an earlier run: " + ec.message());
@@ -440,6 +555,15 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
     return app.exit(e);
+  } catch (const CLI::ArgumentMismatch& e) {
+    // An option of one value given twice: CLI11 says "--out: At Most 1 required but received 2".
+    std::string what = e.what();
+    const std::size_t at = what.find(": At Most 1 required but received ");
+    if (at != std::string::npos) {
+      what = what.substr(0, at) + ": given " + what.substr(at + 34) +
+             " times; it takes one value (give it once)";
+    }
+    return usage_error(what.c_str());
   } catch (const CLI::ParseError& e) {  // said as the tools' own usage errors are
     return usage_error(e.what());
   }
@@ -453,6 +577,14 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
     return usage_error(e.what());
   } catch (const InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A folder that cannot be listed or a path that cannot be looked at (no permission): the path
+    // and the cause, not the library's "filesystem error: status: ..." wording.
+    if (e.path1().empty()) {
+      std::fprintf(stderr, "error: %s\n", e.code().message().c_str());
+    } else {
+      std::fprintf(stderr, "error: %s: %s\n", e.path1().c_str(), e.code().message().c_str());
+    }
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr,
                  "error: out of memory: the images, frames or threads asked for need more memory "

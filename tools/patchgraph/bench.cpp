@@ -352,7 +352,14 @@ int run_track_bench(const TrackBenchArgs& in) {
   for (const auto& s : settings) {
     if (s.normals != "gt" && outputs.size() == 1) outputs.push_back("color");
   }
-  const OutputFolder out(args.out, {"bench.csv", "bench.md", "runs.csv", "bench.png"});
+  // An earlier bench's folder: its bench.csv or runs.csv (their headers' start).
+  const EarlierRun earlier_bench = {
+      "bench.csv or runs.csv of an earlier bench", [](const fs::path& folder) {
+        return file_starts_with(folder / "bench.csv", "setting,knob,value,") ||
+               file_starts_with(folder / "runs.csv", "setting,scene,object,");
+      }};
+  const OutputFolder out(args.out, {"bench.csv", "bench.md", "runs.csv", "bench.png"},
+                         earlier_bench);
   const std::string head = "Command: `" + command(in, !own_scenes) + "`  \n" + machine_line() +
                            "  \nDate: " + utc_now() + "  \n" + std::to_string(args.scenes.size()) +
                            " scenes x " + std::to_string(settings.size()) +

@@ -396,8 +396,16 @@ int run_eval(const EvalArgs& args) {
   // With --resume the earlier runs stay; the rest is written again at the end.
   std::vector<std::string> outputs = {"results.csv", "summary.md", "boxplots.png",
                                       "trajectories_*.png"};
-  if (!args.resume) outputs.push_back("runs");
-  const OutputFolder out(args.out, outputs);
+  if (!args.resume) outputs.push_back("runs/");
+  // An earlier eval's folder: its results.csv (the header's start, which no version changed), or
+  // the runs/ (checked above) of one stopped before writing it.
+  const EarlierRun earlier_eval = {
+      "results.csv or runs/ of an earlier eval", [](const fs::path& folder) {
+        std::error_code ec;
+        return file_starts_with(folder / "results.csv", "dataset,object,method,") ||
+               fs::is_directory(fs::symlink_status(folder / "runs", ec));
+      }};
+  const OutputFolder out(args.out, outputs, earlier_eval);
   // The runs in the order results.csv lists them: seed by seed, then dataset by dataset and
   // method by method. They run sequence by sequence, so that its runs (methods and seeds) take
   // its frames, decoded and read by the model once, from memory (PreparedFrames), which is let

@@ -8,6 +8,7 @@
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
+#include "../common/sensor_choice.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
@@ -138,9 +139,23 @@ int run_fit_sensor(const FitSensorArgs& a) {
   for (const auto* datasets : {&a.datasets, &a.val}) {
     for (const std::string& dir : *datasets) check_output_is_not_input(a.out, dir, "the dataset");
   }
-  check_output_is_no_dataset(a.out, true);
+  check_output_file(a.out, {FileKind::kJson});
   if (!a.sensor_file.empty()) check_output_is_not_input(a.out, a.sensor_file, "--sensor-file");
   check_can_write(a.out);
+  // A dataset twice would weigh twice in the fit; one held out and fitted on validates nothing.
+  check_given_once(a.datasets);
+  check_given_once(a.val);
+  for (const std::string& val : a.val) {
+    for (const std::string& train : a.datasets) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(val, train, ec)) {
+        std::fprintf(stderr,
+                     "warning: --val %s is also fitted on (%s): its errors are on presses the "
+                     "fit has seen\n",
+                     val.c_str(), train.c_str());
+      }
+    }
+  }
   const std::vector<Dataset> data = open_labelled(a.datasets);
   const std::vector<Dataset> val = open_labelled(a.val);
   // The start's sensor: given, or the one the first dataset was recorded or rendered with.
@@ -150,7 +165,7 @@ int run_fit_sensor(const FitSensorArgs& a) {
     start = load_sensor_file(a.sensor_file);
     source = a.sensor_file;
   } else if (!a.sensor.empty()) {
-    start = sensor_preset(a.sensor);
+    start = preset_option(a.sensor);
     source = "--sensor " + a.sensor;
   } else {
     start = data.front().info().sensor;

@@ -23,6 +23,7 @@
 #include "label_ball.h"
 #include "normals_cli.h"
 #include "pg/core/image_change.h"
+#include "pg/core/json_fields.h"
 #include "recording.h"
 #include "sibling.h"
 #include "track_args.h"
@@ -40,6 +41,18 @@ void warn_about_sensor_jumps(const Dataset& dataset) {
                "given\n",
                describe(jumps).c_str(), dataset.dir().c_str());
 }
+
+// A folder that holds an earlier track run: its summary.json, a JSON object with a method and
+// the errors track writes (what eval's runs hold too).
+const EarlierRun kEarlierTrack = {
+    "summary.json of an earlier track", [](const std::filesystem::path& folder) {
+      try {
+        const nlohmann::json j = parse_json_file((folder / "summary.json").string());
+        return j.is_object() && j.contains("method") && j.contains("translation_rmse_m");
+      } catch (const std::exception&) {
+        return false;  // none, or not one
+      }
+    }};
 
 int run_track(const TrackArgs& a) {
   const NormalsModels models = load_normals_models(a);
@@ -102,7 +115,7 @@ int run_track(const TrackArgs& a) {
     }
   }
   note_long_batch(a, dataset);
-  const OutputFolder out(a.out, kTrackOutputFiles);
+  const OutputFolder out(a.out, kTrackOutputFiles, kEarlierTrack);
   Progress progress("tracking", dataset.frames(), !a.quiet);
   const TrackRun run = [&] {
     try {

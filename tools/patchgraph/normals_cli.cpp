@@ -152,7 +152,8 @@ int run_train_normals(const TrainNormalsArgs& a) {
       check_output_is_not_input(o.out + ".ckpt", dir, "the dataset", "--out's checkpoint");
     }
   }
-  check_output_is_no_dataset(o.out, true);
+  check_output_file(o.out, {FileKind::kZip});
+  check_output_file(o.out + ".ckpt", {FileKind::kZip}, "--out's checkpoint");
   if (std::filesystem::is_directory(o.out)) {  // found now, not after the training
     throw InputError("--out " + o.out + ": is a folder; give the model file's name");
   }
@@ -403,7 +404,7 @@ int run_eval_normals(const EvalNormalsArgs& a) {
       throw InputError("--json " + a.json + ": is a folder; give the JSON file's name");
     }
     if (!shading) check_output_is_not_input(a.json, a.model, "--model", "--json");
-    check_output_is_no_dataset(a.json, true, "--json");
+    check_output_file(a.json, {FileKind::kJson}, "--json");
     for (const std::string& dir : a.data)
       check_output_is_not_input(a.json, dir, "the dataset", "--json");
     check_can_write(a.json);  // now, not after the evaluation

@@ -10,6 +10,7 @@
 
 #include "../common/cli_main.h"
 #include "../common/progress.h"
+#include "../common/sensor_choice.h"
 #include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
@@ -773,9 +774,19 @@ int run_recording(const RecordingArgs& a) {
   const bool from_video = !a.video.empty();
   const std::string source = from_video ? a.video : a.images;
   if (!from_video) check_output_is_not_input(a.out, a.images, "--images");
+  // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
+  // output folders (DatasetWriter::finish): --images must be none of them.
+  for (const std::string& output : dataset_output_names()) {
+    std::error_code ec;
+    if (!from_video && fs::equivalent(a.images, fs::path(a.out) / output, ec)) {
+      throw InputError(a.out + ": its " + output +
+                       " folder is --images; the frames would be overwritten or removed");
+    }
+  }
+  DatasetWriter::check_folder(a.out, DatasetMaker::kRecording);  // before a video's decoding
   const std::vector<fs::path> references = background_files(a.backgrounds);
   const SensorModel sensor =
-      a.sensor_file.empty() ? sensor_preset(a.sensor) : load_sensor_file(a.sensor_file);
+      a.sensor_file.empty() ? preset_option(a.sensor) : load_sensor_file(a.sensor_file);
   const FrameReading reading{sensor.camera, a.downsample, a.rotate};
   // The frames: image files, or a video's frames (each decoded once here, so that a file cut
   // short or of another size fails before anything is written).
@@ -790,15 +801,6 @@ int run_recording(const RecordingArgs& a) {
   if (!keep.empty() && keep.last >= frames) {
     throw InputError("--background-frames " + a.background_frames + ": " + source + " holds " +
                      std::to_string(frames) + " frames (0-" + std::to_string(frames - 1) + ")");
-  }
-  // Writing the dataset fills OUT/color and removes an earlier dataset's frames from the other
-  // output folders (DatasetWriter::finish): --images must be none of them.
-  for (const std::string& output : dataset_output_names()) {
-    std::error_code ec;
-    if (!from_video && fs::equivalent(a.images, fs::path(a.out) / output, ec)) {
-      throw InputError(a.out + ": its " + output +
-                       " folder is --images; the frames would be overwritten or removed");
-    }
   }
   const RecordingPoses timing = recording_poses(a, frames, source, from_video ? video.fps : 0.0);
   const std::vector<FramePose>& poses = timing.poses;
@@ -848,7 +850,7 @@ int run_recording(const RecordingArgs& a) {
   // folder was there before: then it is not ours to delete).
   try {
     const StopOnSignals stop;
-    DatasetWriter writer(a.out, info);
+    DatasetWriter writer(a.out, info, DatasetMaker::kRecording);
     writer.write_background(background);
     Progress progress("importing", frames, !a.quiet);
     std::unique_ptr<VideoReader> reader;

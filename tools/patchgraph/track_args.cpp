@@ -10,6 +10,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
+#include <thread>
+#include <utility>
 
 #include "../common/cli_main.h"
 #include "pg/core/error.h"
@@ -199,6 +201,12 @@ ImageF blend_normals(ImageF a, const ImageF& b, float w) {
 }
 
 NormalsModels load_normals_models(const TrackArgs& a) {
+  // The first of the options' checks that track, eval and bench make: this one, of two options.
+  if (a.window > 0 && a.keyframe_settle > a.window - 1) {
+    throw UsageError("--keyframe-settle " + std::to_string(a.keyframe_settle) +
+                     ": at most --window - 1 = " + std::to_string(a.window - 1) +
+                     " (the window solves a frame for the last time that many frames after it)");
+  }
   const bool no_model = a.normals == "gt" || a.normals == kShadingNormals;
   if (a.blend_shading > 0 && no_model) {
     throw UsageError("--blend-shading " + format_number(a.blend_shading) +
@@ -213,6 +221,14 @@ NormalsModels load_normals_models(const TrackArgs& a) {
   if (no_model) return {};
   if (a.normals.empty()) throw InputError("--normals: empty; give gt or a model file");
   const std::vector<std::string> paths = comma_items(a.normals);
+  const unsigned cores = std::thread::hardware_concurrency();
+  static bool noted = false;  // once, though eval loads the models once per job
+  if (cores > 0 && a.normals_threads > int(cores) && !std::exchange(noted, true)) {
+    std::fprintf(stderr,
+                 "note: --normals-threads %d on %u cores: the network's threads share them and "
+                 "wait on each other, many times slower than one per core (0: all cores)\n",
+                 a.normals_threads, cores);
+  }
   std::map<std::string, std::shared_ptr<const NormalEstimator>> loaded;  // a file named twice
   NormalsModels models;
   for (const std::string& path : paths) {
@@ -413,8 +429,7 @@ TrackOptions make_track_options(const TrackArgs& a, const std::vector<const Data
   o.graph.patch.keyframe_interval = a.keyframe_interval;
   // The tracker moves a key frame at most window - 1 frames later (the window's last solve of
   // it): summary.json records what runs, not a larger value asked for.
-  o.graph.patch.keyframe_settle_frames =
-      a.window > 0 ? std::min(a.keyframe_settle, a.window - 1) : a.keyframe_settle;
+  o.graph.patch.keyframe_settle_frames = a.keyframe_settle;  // within the window (above)
   o.graph.motion_frame = motion_frame_from_string(a.motion_frame);
   o.graph.registration_information = !a.no_registration_information;
   if (a.registration_sigma > 0) {

@@ -65,7 +65,8 @@ void check_shading_readable(const Dataset& dataset);
 ImageF blend_normals(ImageF a, const ImageF& b, float w);
 // --normals of `args` loaded, with its threads and phases (none for gt and shading). Throws
 // InputError for an empty name in the list, "gt" or "shading" beside a model, --blend-shading
-// without a model, or a file that does not load (naming it).
+// without a model, or a file that does not load (naming it); UsageError for --keyframe-settle
+// beyond the window.
 NormalsModels load_normals_models(const TrackArgs& args);
 // The model that reads sensor `sensor`'s images: the one model, or that sensor's; null for none.
 const NormalEstimator* normals_model_for(const NormalsModels& models, std::size_t sensor);

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <thread>
 
+#include "../common/cli_main.h"
 #include "../common/machine_info.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
@@ -227,7 +228,10 @@ int run_bench(const BenchArgs& in) {
   }
   const int threads = int(tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
   // A path that cannot be written fails now, not after the whole benchmark.
-  if (!args.markdown.empty()) check_can_write(args.markdown);
+  if (!args.markdown.empty()) {
+    check_output_file(args.markdown, {FileKind::kText}, "--markdown");
+    check_can_write(args.markdown);
+  }
   const std::vector<Case> cases = bench_cases();
   if (args.ablation) return run_ablation(cases, args);
   std::ostringstream head, table;

@@ -456,6 +456,7 @@ int main(int argc, char** argv) {
   cmd_presses
       ->add_option("--seed", presses.seed, "Seeds the presses and the scene's noise (default 1)")
       ->check(kSeed);
+  cmd_presses->add_flag("--quiet,-q", presses.quiet, "No progress line");
 
   SensitivityArgs sensitivity;
   CLI::App* cmd_sensitivity = app.add_subcommand(

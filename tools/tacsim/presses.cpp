@@ -7,12 +7,13 @@
 #include <nlohmann/json.hpp>
 
 #include "../common/cli_main.h"
+#include "../common/progress.h"
+#include "../common/sensor_choice.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/json_fields.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/presses.h"
-#include "sensor_choice.h"
 
 namespace pg {
 namespace {
@@ -64,7 +65,7 @@ int run_presses(const PressesArgs& a) {
   if (lower_extension(a.out) != ".json") {
     throw UsageError("--out " + a.out + ": a scene file is JSON; give a .json file");
   }
-  check_output_is_no_dataset(a.out, true);
+  check_output_file(a.out, {FileKind::kJson});
 
   const TriangleMesh mesh = load_mesh(a.mesh, a.scale);
   const Bounds3 bounds = mesh_bounds(mesh);
@@ -110,7 +111,8 @@ int run_presses(const PressesArgs& a) {
   options.seed = a.seed;
   std::vector<Waypoint> presses;
   try {
-    presses = random_presses(points, sensor.gel, options);
+    Progress progress("presses", a.frames, !a.quiet, "presses");
+    presses = random_presses(points, sensor.gel, options, [&](int done) { progress.update(done); });
   } catch (const InputError& e) {
     throw InputError(a.mesh + (a.scale != 1.0 ? " at scale " + format_number(a.scale) : "") + ": " +
                      e.what());

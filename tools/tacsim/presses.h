@@ -16,6 +16,7 @@ struct PressesArgs {
   double min_depth_m = 0, max_depth_m = 0;
   double scale = 1.0;
   std::uint64_t seed = 1;
+  bool quiet = false;  // no progress line
 };
 
 // Writes a scene of independent random presses of a mesh into a sensor's gel, one per frame

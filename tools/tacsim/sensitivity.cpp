@@ -7,10 +7,10 @@
 #include <vector>
 
 #include "../common/cli_main.h"
+#include "../common/sensor_choice.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/sim/normal_bound.h"
-#include "sensor_choice.h"
 
 namespace pg {
 
@@ -72,7 +72,7 @@ int run_sensitivity(const SensitivityArgs& a) {
       throw UsageError("--out " + a.out + ": the map holds radians as floats; give an .exr file");
     }
     check_image_output(a.out);
-    check_output_is_no_dataset(a.out, true);
+    check_output_file(a.out, {FileKind::kExr});
   }
   const double tilt = a.tilt_deg * M_PI / 180.0;
   const NormalBounds bounds(sensor);

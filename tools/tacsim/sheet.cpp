@@ -36,7 +36,7 @@ ImageU8 to_u8(const ImageF& image, float scale, float offset) {
 
 int run_sheet(const SheetArgs& args) {
   check_image_output(args.out);  // before rendering every scene
-  check_output_is_no_dataset(args.out, true);
+  check_output_file(args.out, {FileKind::kPng, FileKind::kExr, FileKind::kJpeg, FileKind::kBinary});
   std::vector<std::vector<ImageU8>> columns;
   for (const auto& path : args.scenes) {
     Scene scene = load_scene(path);

@@ -4,6 +4,7 @@
 // model (scenes/normals/, written by make_scenes; `tacsim presses` for any mesh and sensor).
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -61,8 +62,11 @@ struct RandomPressOptions {
 // as a scene file shows them (positions to 0.1 um, roll, pitch and yaw to 1 urad) and measured
 // after rounding. Deterministic for the points, gel and options. Throws InputError when a frame
 // finds no such press in `attempts` draws (an object too large for the visible gel).
+// `on_frame`, if given, is called with the number of presses found after each (a progress line;
+// it may throw to stop).
 std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_object,
-                                     const GelModel& gel, const RandomPressOptions& options);
+                                     const GelModel& gel, const RandomPressOptions& options,
+                                     const std::function<void(int done)>& on_frame = {});
 
 // Where a sensor's camera sees its gel: the rectangle of the undeformed gel (in S, within the
 // gel's own size) that every row and column of the image reaches. Throws InputError when the
