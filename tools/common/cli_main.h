@@ -273,6 +273,24 @@ inline std::vector<std::filesystem::path> check_given_once(const std::vector<std
   return canonical;
 }
 
+// Warns of each dataset of `val` (held out) that is also one of `train` (trained or fitted on):
+// its metrics are then on data the model has seen. `trained_on` names `train`'s option.
+inline void warn_of_validation_in_training(const std::vector<std::string>& val,
+                                           const std::vector<std::string>& train,
+                                           const std::string& trained_on) {
+  for (const std::string& v : val) {
+    for (const std::string& t : train) {
+      std::error_code ec;
+      if (std::filesystem::equivalent(v, t, ec)) {
+        std::fprintf(stderr,
+                     "warning: --val %s is also one of %s (%s): its metrics are on data the "
+                     "model has seen\n",
+                     v.c_str(), trained_on.c_str(), t.c_str());
+      }
+    }
+  }
+}
+
 // Throws InputError when a name of the option `option` is given twice ("--methods: patchgraph
 // given twice"): its runs would count twice in every median.
 inline void check_names_given_once(const std::vector<std::string>& names,

@@ -145,17 +145,7 @@ int run_fit_sensor(const FitSensorArgs& a) {
   // A dataset twice would weigh twice in the fit; one held out and fitted on validates nothing.
   check_given_once(a.datasets);
   check_given_once(a.val);
-  for (const std::string& val : a.val) {
-    for (const std::string& train : a.datasets) {
-      std::error_code ec;
-      if (std::filesystem::equivalent(val, train, ec)) {
-        std::fprintf(stderr,
-                     "warning: --val %s is also fitted on (%s): its errors are on presses the "
-                     "fit has seen\n",
-                     val.c_str(), train.c_str());
-      }
-    }
-  }
+  warn_of_validation_in_training(a.val, a.datasets, "the datasets fitted on");
   const std::vector<Dataset> data = open_labelled(a.datasets);
   const std::vector<Dataset> val = open_labelled(a.val);
   // The start's sensor: given, or the one the first dataset was recorded or rendered with.

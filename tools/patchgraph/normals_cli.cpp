@@ -157,17 +157,7 @@ int run_train_normals(const TrainNormalsArgs& a) {
   if (std::filesystem::is_directory(o.out)) {  // found now, not after the training
     throw InputError("--out " + o.out + ": is a folder; give the model file's name");
   }
-  for (const std::string& val : o.val_data) {
-    for (const std::string& train : o.train_data) {
-      std::error_code ec;
-      if (std::filesystem::equivalent(val, train, ec)) {
-        std::fprintf(stderr,
-                     "warning: --val %s is also a training dataset (--data %s): its validation "
-                     "metrics are on frames the network trains on\n",
-                     val.c_str(), train.c_str());
-      }
-    }
-  }
+  warn_of_validation_in_training(o.val_data, o.train_data, "the training datasets, --data");
   // The model records the first dataset's sensor; another sensor's shading among the data is one
   // network learning two mappings, and track/eval-normals would warn of that sensor's datasets.
   {
