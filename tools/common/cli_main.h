@@ -252,10 +252,9 @@ inline void check_output_file(const std::string& out, std::initializer_list<File
   if (held == FileKind::kNone || std::find(kinds.begin(), kinds.end(), held) != kinds.end()) {
     return;
   }
+  const std::string written = describe(*kinds.begin());
   throw InputError(out_what + " " + out + ": holds " + describe(held) +
-                   "; this command would "
-                   "replace it with " +
-                   describe(*kinds.begin()) +
+                   "; this command would replace it with " + written +
                    ". It is left as it is: give another file name, or remove it first");
 }
 
@@ -576,9 +575,10 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
   } catch (const CLI::ArgumentMismatch& e) {
     // An option of one value given twice: CLI11 says "--out: At Most 1 required but received 2".
     std::string what = e.what();
-    const std::size_t at = what.find(": At Most 1 required but received ");
+    const std::string says = ": At Most 1 required but received ";
+    const std::size_t at = what.find(says);
     if (at != std::string::npos) {
-      what = what.substr(0, at) + ": given " + what.substr(at + 34) +
+      what = what.substr(0, at) + ": given " + what.substr(at + says.size()) +
              " times; it takes one value (give it once)";
     }
     return usage_error(what.c_str());
