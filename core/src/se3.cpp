@@ -1,6 +1,7 @@
 #include "pg/core/se3.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace pg {
 
@@ -43,7 +44,8 @@ SE3 interpolate(const SE3& A, const SE3& B, double s) {
 }
 
 bool is_finite(const SE3& T) {
-  return T.translation().allFinite() && T.rotation().coeffs().allFinite();
+  return T.translation().allFinite() && T.rotation().coeffs().allFinite() &&
+         std::abs(T.rotation().squaredNorm() - 1.0) < 1e-6;
 }
 
 }  // namespace pg

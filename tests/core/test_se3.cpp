@@ -160,6 +160,13 @@ TEST(SE3, ConstructorNormalisesQuaternion) {
   EXPECT_TRUE(is_finite(T));
   const SE3 bad(Eigen::Quaterniond::Identity(), Eigen::Vector3d(NAN, 0, 0));
   EXPECT_FALSE(is_finite(bad));
+  // A zero quaternion (ROS's unset pose) cannot be normalised: no rotation, so no usable pose;
+  // nor quaternions whose norm overflows or underflows.
+  for (const Eigen::Quaterniond& q :
+       {Eigen::Quaterniond(0, 0, 0, 0), Eigen::Quaterniond(1e200, 0, 0, 0),
+        Eigen::Quaterniond(1e-200, 1e-200, 0, 0)}) {
+    EXPECT_FALSE(is_finite(SE3(q, Eigen::Vector3d::Zero()))) << q.coeffs().transpose();
+  }
 }
 
 }  // namespace

@@ -34,6 +34,31 @@ double distance_to_patch(const PatchMap& patch, const Eigen::Vector3f& p) {
 
 // GroundtruthPatch's model is shared, not copied: the patches of every sensor (and run) given one
 // model hold its tree itself; a reset patch lets it go.
+// What the patch cannot fuse is refused with the reason: a cloud without a normal a point (it
+// had crashed), a NaN point or pose (fused, it had sent the tree's searches astray); and an empty
+// patch has no tree to give (it had dereferenced a null pointer).
+TEST(PatchMap, AKeyFrameItCannotFuseIsRefused) {
+  PatchMap patch;
+  EXPECT_THROW(patch.tree(), std::logic_error);
+  PointCloud no_normals = square(0, 0, 0, 5, 1e-4);
+  no_normals.normals.clear();
+  EXPECT_THROW(patch.add_keyframe(no_normals, SE3()), std::invalid_argument);
+  PointCloud few_normals = square(0, 0, 0, 5, 1e-4);
+  few_normals.normals.resize(3);
+  EXPECT_THROW(patch.add_keyframe(few_normals, SE3()), std::invalid_argument);
+  PointCloud nan_point = square(0, 0, 0, 5, 1e-4);
+  nan_point.points[4].x() = NAN;
+  EXPECT_THROW(patch.add_keyframe(nan_point, SE3()), std::invalid_argument);
+  EXPECT_THROW(patch.add_keyframe(square(0, 0, 0, 5, 1e-4),
+                                  SE3(Eigen::Quaterniond(0, 0, 0, 0), Eigen::Vector3d::Zero())),
+               std::invalid_argument);
+  EXPECT_TRUE(patch.empty());
+  const int k = patch.add_keyframe(square(0, 0, 0, 5, 1e-4), SE3(), true);
+  EXPECT_GT(patch.tree().size(), 0u);
+  EXPECT_THROW(patch.move_keyframe(k, SE3::Translation({NAN, 0, 0})), std::invalid_argument);
+  patch.move_keyframe(k, SE3::Translation({1e-3, 0, 0}));  // still movable after the refusal
+}
+
 TEST(PatchMap, AModelIsSharedNotCopied) {
   const auto model = std::make_shared<const PointCloudTree>(square(0, 0, 0, 20, 1e-4));
   PatchMap a, b;

@@ -1061,6 +1061,28 @@ TEST(TrackingBadInput, OutOfRangeSigmasAndNoiseAreRefused) {
   GraphOptions damping_off;
   damping_off.sigma_damping = 0;
   EXPECT_EQ(message([&] { PatchGraphTracker t(damping_off); }), "(accepted)");
+  // The other options as their command-line options and config file check them (a window of -1
+  // had run as a batch that grows for ever; no solver iterations never moved the estimate).
+  const auto refused = [&](const std::function<void(GraphOptions&)>& edit, const char* says) {
+    GraphOptions o;
+    edit(o);
+    EXPECT_NE(message([&] { PatchGraphTracker t(o); }).find(says), std::string::npos) << says;
+  };
+  refused([](GraphOptions& o) { o.window = -1; }, "tracker option window = -1");
+  refused([](GraphOptions& o) { o.solver_iterations = 0; }, "solver_iterations = 0");
+  refused([](GraphOptions& o) { o.method = Method(42); }, "tracker option method = 42");
+  refused([](GraphOptions& o) { o.patch.keyframe_interval = 0; }, "patch.keyframe_interval");
+  refused([](GraphOptions& o) { o.patch.voxel_m = std::nan(""); }, "patch.voxel_m");
+  refused([](GraphOptions& o) { o.max_registration_jump_m = -1; }, "max_registration_jump_m");
+  refused([](GraphOptions& o) { o.icp.max_iterations = 0; }, "icp.max_iterations");
+  refused([](GraphOptions& o) { o.icp.min_residual_sigma_m = 0; }, "icp.min_residual_sigma_m");
+  refused([](GraphOptions& o) { o.icp.min_eigenvalue_ratio = std::nan(""); },
+          "icp.min_eigenvalue_ratio");
+  // A sensor the tracker does not have has no patch (its patch(3) had read past the list).
+  PatchGraphTracker one(GraphOptions{});
+  EXPECT_THROW(one.patch(3), std::out_of_range);
+  EXPECT_THROW(one.patch(-1), std::out_of_range);
+  EXPECT_TRUE(one.patch(0).empty());
 
   TempDir tmp;
   nlohmann::json scene = parse_json_file(kRepo + "/scenes/default.json");

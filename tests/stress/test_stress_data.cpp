@@ -168,7 +168,8 @@ TEST(StressDataInMemory, WholeFrameOfNaN) {
   EXPECT_LT(run.last().translation_error_m, 1e-3);
 }
 
-// Non-finite sensor poses, vision priors and cloud points handed to the tracker directly (the
+// Non-finite sensor poses (and zero quaternions), vision priors and cloud points handed to the
+// tracker directly (the
 // dataset reader rejects them; a live pipeline might not): skipped and reported, never
 // propagated into the estimate.
 TEST(StressDataInMemory, NonFiniteTrackerInputs) {
@@ -180,6 +181,11 @@ TEST(StressDataInMemory, NonFiniteTrackerInputs) {
   hooks.corrupt_input = [&](int frame, TrackerInput& in) {
     if (frame >= 20 && frame < 23) in.T_world_sensor_measured = SE3::Translation({nan, 0, 0});
     if (frame == 60) in.T_world_object_prior = SE3::Translation({0, nan, 0});
+    // A zero quaternion, ROS's unset pose: finite, yet no rotation (it had been taken, and the
+    // estimate's quaternion was zero from there to the next episode).
+    if (frame == 25 || frame == 26) {
+      in.T_world_sensor_measured = SE3(Eigen::Quaterniond(0, 0, 0, 0), Eigen::Vector3d::Zero());
+    }
     if (frame >= 30 && frame < 33 && !in.cloud_sensor.empty()) {
       for (std::size_t i = 0; i < in.cloud_sensor.size(); i += 7)
         in.cloud_sensor.points[i].x() = NAN;
@@ -189,8 +195,8 @@ TEST(StressDataInMemory, NonFiniteTrackerInputs) {
   const StressRun run = loop.track(poses, {}, hooks);
   run.print("NonFiniteTrackerInputs");
   ASSERT_TRUE(run.all_finite) << "frame " << run.first_non_finite;
-  for (int f : {20, 21, 22, 30, 60}) EXPECT_TRUE(run.frames[f].estimate.invalid_input) << f;
-  EXPECT_FALSE(run.frames[25].estimate.invalid_input);
+  for (int f : {20, 21, 22, 25, 26, 30, 60}) EXPECT_TRUE(run.frames[f].estimate.invalid_input) << f;
+  EXPECT_FALSE(run.frames[27].estimate.invalid_input);
   EXPECT_LT(run.frames[45].translation_error_m, 1e-3);
   // The episode at frame 60 starts from the prediction instead of a prior: off by what the
   // object moved while out of contact, but tracked from there.

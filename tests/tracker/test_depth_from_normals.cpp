@@ -343,6 +343,31 @@ TEST(DepthBadInput, WrongImageSizeIsAnInputError) {
   DepthResult out;
   EXPECT_THROW(solver.compute(ImageF(10, 10, 3), out), InputError);
   EXPECT_THROW(DepthFromNormals(sensor, DepthOptions(), ImageF(120, 160, 1)), InputError);
+  // The right shape over a buffer of another size (a camera's, wrapped by hand without the
+  // channels): it had been read past its end.
+  ImageF short_buffer(sensor.camera.width, sensor.camera.height, 3);
+  short_buffer.data.resize(short_buffer.data.size() / 3);
+  try {
+    solver.compute(short_buffer, out);
+    ADD_FAILURE() << "read a buffer of a third of its shape";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("image holds 19200 values, not 57600"), std::string::npos)
+        << e.what();
+  }
+  // Options a config file could not give (a NaN threshold had read every press as no contact).
+  ContactCloudOptions nan_guard;
+  nan_guard.depth.min_normal_dot_ray = NAN;
+  EXPECT_THROW(ContactCloudBuilder(sensor, nan_guard), InputError);
+  ContactCloudOptions negative_area;
+  negative_area.mask.min_area_m2 = -1;
+  try {
+    ContactCloudBuilder builder(sensor, negative_area);
+    ADD_FAILURE() << "a negative contact area was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("ContactCloudOptions: mask.min_area_m2"),
+              std::string::npos)
+        << e.what();
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <random>
+#include <stdexcept>
 
 #include "pg/sim/primitives.h"
 #include "pg/tracker/contact_cloud.h"
@@ -93,6 +94,31 @@ TEST(KdTree, NearestAndTwoNearestMatchBruteForce) {
       }
     }
   }
+}
+
+// A point that is not finite is left out (it had put NaN points in the output and merged
+// others); a cloud wider than the keys can count is refused (they had wrapped, merging points
+// 21 m apart at 10 um voxels).
+TEST(VoxelDownsample, NonFinitePointsAreLeftOutAndAnOverwideCloudRefused) {
+  PointCloud in;
+  for (int i = 0; i < 10; ++i) {
+    in.push_back(Eigen::Vector3f(float(i) * 1e-3f, 0, 0), Eigen::Vector3f::UnitZ());
+  }
+  PointCloud with_nan = in;
+  with_nan.push_back(Eigen::Vector3f(NAN, 0, 0), Eigen::Vector3f::UnitZ());
+  with_nan.push_back(Eigen::Vector3f(INFINITY, 0, 0), Eigen::Vector3f::UnitZ());
+  PointCloud a, b;
+  voxel_downsample(in, 1e-4, a);
+  voxel_downsample(with_nan, 1e-4, b);
+  ASSERT_EQ(a.size(), 10u);
+  ASSERT_EQ(b.size(), a.size());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_EQ(a.points[i], b.points[i]);
+  PointCloud wide;
+  wide.push_back(Eigen::Vector3f::Zero(), Eigen::Vector3f::UnitZ());
+  wide.push_back(Eigen::Vector3f(21.0f, 0, 0), Eigen::Vector3f::UnitZ());
+  EXPECT_THROW(voxel_downsample(wide, 1e-5, a), std::invalid_argument);
+  voxel_downsample(wide, 1e-3, a);
+  EXPECT_EQ(a.size(), 2u);
 }
 
 TEST(VoxelDownsample, OnePointPerVoxelAtTheCentroidWithUnitNormals) {
@@ -711,6 +737,24 @@ TEST(IcpBadInput, TooFewPointsOrNoOverlapIsNotConverged) {
             IcpStatus::kTooFewPoints);
   EXPECT_EQ(PointToPlaneIcp().align(target, PointCloudTree(PointCloud()), guess).status,
             IcpStatus::kTooFewPoints);
+  // A NaN source point (or normal), from a caller's own front end, is left out: the answer is
+  // the cloud's without it (it had been NaN throughout).
+  PointCloud with_nan = target;
+  with_nan.points[7] = Eigen::Vector3f(NAN, 0, 0);
+  with_nan.normals[11] = Eigen::Vector3f(0, NAN, 1);
+  PointCloud without = target;
+  without.points.erase(without.points.begin() + 11);
+  without.normals.erase(without.normals.begin() + 11);
+  without.points.erase(without.points.begin() + 7);
+  without.normals.erase(without.normals.begin() + 7);
+  const IcpResult nan_run = PointToPlaneIcp().align(with_nan, tree, guess);
+  const IcpResult clean_run = PointToPlaneIcp().align(without, tree, guess);
+  EXPECT_TRUE(is_finite(nan_run.T_target_source));
+  EXPECT_EQ(nan_run.status, clean_run.status);
+  EXPECT_EQ(nan_run.source_points, clean_run.source_points);
+  EXPECT_LT(translation_distance(nan_run.T_target_source, clean_run.T_target_source), 1e-12);
+  // A target tree refuses a NaN point, which would send its searches astray.
+  EXPECT_THROW(PointCloudTree{with_nan}, std::invalid_argument);
   // Enough points, but 5 cm away: no correspondences.
   const IcpResult far = PointToPlaneIcp().align(target, tree, SE3::Translation({0.05, 0, 0}));
   EXPECT_FALSE(far.converged);

@@ -6,6 +6,7 @@
 #include <utility>
 
 #include "pg/tracker/degeneracy.h"
+#include "pg/tracker/tracker_config.h"
 
 namespace pg {
 
@@ -42,10 +43,25 @@ int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8
   return rejected;
 }
 
+namespace {
+
+// The options as a config file's would be checked (a NaN threshold had read every press as no
+// contact).
+const ContactCloudOptions& checked(const ContactCloudOptions& o) {
+  TrackerConfig config;
+  config.depth = o.depth;
+  config.mask = o.mask;
+  config.icp.min_eigenvalue_ratio = o.min_eigenvalue_ratio;
+  check_tracker_config(config, "ContactCloudOptions");
+  return o;
+}
+
+}  // namespace
+
 ContactCloudBuilder::ContactCloudBuilder(const SensorModel& sensor,
                                          const ContactCloudOptions& options,
                                          const ImageF& reference_normals)
-    : options_(options), depth_(sensor, options.depth, reference_normals) {}
+    : options_(checked(options)), depth_(sensor, options.depth, reference_normals) {}
 
 void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   depth_.compute(normals, frame.depth);

@@ -119,6 +119,15 @@ void map_grid_axis(int first, int count, int size, bool mirror_low, bool mirror_
 }
 
 void check_normal_image(const ImageF& image, const GelRays& rays, const char* what) {
+  const std::size_t values = std::size_t(std::max(image.width, 0)) *
+                             std::size_t(std::max(image.height, 0)) *
+                             std::size_t(std::max(image.channels, 0));
+  if (image.same_shape(rays.width, rays.height, 3) && image.data.size() != values) {
+    // A camera buffer wrapped by hand, its size not the shape's: it had been read past its end.
+    throw InputError(std::string(what) + ": " + std::to_string(image.width) + " x " +
+                     std::to_string(image.height) + " x 3 image holds " +
+                     std::to_string(image.data.size()) + " values, not " + std::to_string(values));
+  }
   if (!image.same_shape(rays.width, rays.height, 3)) {
     throw InputError(std::string(what) + ": expected a " + std::to_string(rays.width) + " x " +
                      std::to_string(rays.height) + " x 3 normal image, got " +

@@ -647,8 +647,24 @@ IcpResult PointToPlaneIcp::align(const PointCloud& source_in, const PointCloudTr
   last_queries_ = 0;
   const IcpOptions& o = options_;
   const PointCloud* source = &source_in;
+  // A NaN from the caller's front end would make the centroid and every step NaN: left out.
+  const bool with_normals = has_normals(source_in);
+  const auto finite = [&](std::size_t i) {
+    return source_in.points[i].allFinite() && (!with_normals || source_in.normals[i].allFinite());
+  };
+  std::size_t kept = 0;
+  while (kept < source_in.points.size() && finite(kept)) ++kept;
+  if (kept < source_in.points.size()) {
+    finite_.clear();
+    for (std::size_t i = 0; i < source_in.points.size(); ++i) {
+      if (!finite(i)) continue;
+      finite_.points.push_back(source_in.points[i]);
+      if (with_normals) finite_.normals.push_back(source_in.normals[i]);
+    }
+    source = &finite_;
+  }
   if (o.voxel_size_m > 0.0) {
-    voxel_downsample(source_in, o.voxel_size_m, downsampled_);
+    voxel_downsample(*source, o.voxel_size_m, downsampled_);
     source = &downsampled_;
   }
   const std::size_t n = source->points.size();

@@ -1,6 +1,8 @@
 #include "pg/tracker/kd_tree.h"
 
 #include <nanoflann.hpp>
+#include <stdexcept>
+#include <string>
 
 #include "voxel_grid.h"
 
@@ -88,8 +90,25 @@ struct PointCloudTree::Impl {
   }
 };
 
+namespace {
+
+// A NaN point splits no box: the tree's searches would then miss points, not only the NaN one.
+PointCloud without_nan(PointCloud cloud) {
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    if (cloud.points[i].hasNaN()) {
+      throw std::invalid_argument("PointCloudTree: point " + std::to_string(i) +
+                                  " is NaN; leave such points out (an organised cloud's invalid "
+                                  "pixels, say)");
+    }
+  }
+  return cloud;
+}
+
+}  // namespace
+
 PointCloudTree::PointCloudTree(PointCloud cloud, int leaf_size, bool voxel_grid)
-    : impl_(std::make_unique<Impl>(std::move(cloud), std::max(leaf_size, 1), voxel_grid)) {}
+    : impl_(std::make_unique<Impl>(without_nan(std::move(cloud)), std::max(leaf_size, 1),
+                                   voxel_grid)) {}
 PointCloudTree::~PointCloudTree() = default;
 PointCloudTree::PointCloudTree(PointCloudTree&&) noexcept = default;
 PointCloudTree& PointCloudTree::operator=(PointCloudTree&&) noexcept = default;

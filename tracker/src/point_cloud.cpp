@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace pg {
@@ -25,17 +27,29 @@ void voxel_downsample(const PointCloud& in, double voxel_m, PointCloud& out) {
     return;
   }
   // Sort (voxel key, point index) pairs; each run of equal keys is one voxel. Keys pack three
-  // 21-bit voxel coordinates (the cloud's extent must stay under 2^21 voxels per axis).
+  // 21-bit voxel coordinates: a cloud wider than 2^21 voxels along an axis is refused (it had
+  // wrapped, merging points metres apart). Points that are not finite are left out.
   const float inv = float(1.0 / voxel_m);
   thread_local std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
-  keys.resize(in.size());
-  Eigen::Vector3f lo = in.points[0];
-  for (const auto& p : in.points) lo = lo.cwiseMin(p);
+  keys.clear();
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
+  for (const auto& p : in.points) {
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  if (!(lo.x() <= hi.x())) return;  // no finite point
+  if (!(double((hi - lo).maxCoeff()) / voxel_m < 2097151.0)) {
+    throw std::invalid_argument(
+        "voxel_downsample: the cloud spans " + std::to_string((hi - lo).maxCoeff()) +
+        " m, more than 2^21 voxels of " + std::to_string(voxel_m) + " m along an axis");
+  }
   for (std::size_t i = 0; i < in.size(); ++i) {
+    if (!in.points[i].allFinite()) continue;
     const Eigen::Vector3f v = (in.points[i] - lo) * inv;
     const auto cx = std::uint64_t(v.x()) & 0x1FFFFF, cy = std::uint64_t(v.y()) & 0x1FFFFF,
                cz = std::uint64_t(v.z()) & 0x1FFFFF;
-    keys[i] = {(cx << 42) | (cy << 21) | cz, std::uint32_t(i)};
+    keys.push_back({(cx << 42) | (cy << 21) | cz, std::uint32_t(i)});
   }
   std::sort(keys.begin(), keys.end());
   const bool has_normals = in.normals.size() == in.points.size();

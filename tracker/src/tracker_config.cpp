@@ -122,6 +122,10 @@ TrackerConfig load_tracker_config(const std::string& path, const TrackerConfig& 
   return tracker_config_from_json(parse_json_file(path), path, base);
 }
 
+void check_tracker_config(const TrackerConfig& config, const std::string& where) {
+  tracker_config_from_json(tracker_config_to_json(config), where);  // the reader's ranges
+}
+
 nlohmann::json tracker_config_to_json(const TrackerConfig& c) {
   return {
       {"depth",

@@ -32,8 +32,32 @@ void PatchMap::reset() {
   movable_.clear();
 }
 
+namespace {
+
+// A key frame's cloud and pose as the patch can fuse them: a normal for every point (the
+// registrations' target needs them) and nothing non-finite (one NaN point had sent the patch's
+// tree's nearest neighbours astray).
+void check_keyframe(const PointCloud& cloud, const SE3& T, const char* what) {
+  if (cloud.normals.size() != cloud.points.size()) {
+    throw std::invalid_argument(std::string(what) + ": the cloud has " +
+                                std::to_string(cloud.points.size()) + " points and " +
+                                std::to_string(cloud.normals.size()) +
+                                " normals; the patch needs one normal a point");
+  }
+  if (!is_finite(T)) throw std::invalid_argument(std::string(what) + ": the pose is not finite");
+  for (std::size_t i = 0; i < cloud.points.size(); ++i) {
+    if (!cloud.points[i].allFinite() || !cloud.normals[i].allFinite()) {
+      throw std::invalid_argument(std::string(what) + ": point " + std::to_string(i) +
+                                  " or its normal is not finite");
+    }
+  }
+}
+
+}  // namespace
+
 int PatchMap::add_keyframe(const PointCloud& cloud_sensor, const SE3& T_object_sensor,
                            bool movable) {
+  check_keyframe(cloud_sensor, T_object_sensor, "PatchMap::add_keyframe");
   std::vector<VoxelKey> keys = accumulate(cloud_sensor, T_object_sensor);
   if (movable) movable_.push_back({keyframes_, cloud_sensor, T_object_sensor, std::move(keys)});
   rebuild();
@@ -46,6 +70,9 @@ void PatchMap::move_keyframe(int keyframe, const SE3& T_object_sensor) {
   if (it == movable_.end()) {
     throw std::invalid_argument("PatchMap::move_keyframe: key frame " + std::to_string(keyframe) +
                                 " is not a movable key frame of this patch");
+  }
+  if (!is_finite(T_object_sensor)) {
+    throw std::invalid_argument("PatchMap::move_keyframe: the pose is not finite");
   }
   accumulate(it->cloud_sensor, it->T_object_sensor, &it->keys);
   accumulate(it->cloud_sensor, T_object_sensor);

@@ -11,6 +11,7 @@
 
 #include "pg/core/error.h"
 #include "pg/graph/factors.h"
+#include "pg/tracker/tracker_config.h"
 
 namespace pg {
 
@@ -87,6 +88,29 @@ GraphOptions checked(GraphOptions o) {
     check_in_range(std::string("tracker option ") + s.name, s.value, kMinFactorSigma,
                    kMaxFactorSigma, s.may_be_zero ? " (or 0: off)" : "");
   }
+  // The rest as their command-line options and config file check them (a window of -1 had run
+  // as a batch that grows without end, solver_iterations -1 never moved the estimate).
+  const int method = int(o.method);
+  check_in_range("tracker option method", method, int(Method::kConstVel),
+                 int(Method::kGroundTruthPatch));
+  check_in_range("tracker option window", o.window, 0, 1e6, " (0: batch)");
+  check_in_range("tracker option solver_iterations", o.solver_iterations, 1, 1e6);
+  check_in_range("tracker option lost_after_frames", o.lost_after_frames, 0, 1e9, " (0: never)");
+  check_in_range("tracker option patch.keyframe_interval", o.patch.keyframe_interval, 1, 1e9);
+  check_in_range("tracker option patch.keyframe_settle_frames", o.patch.keyframe_settle_frames, 0,
+                 1e9);
+  check_in_range("tracker option patch.voxel_m", o.patch.voxel_m, 0, 1, " (0: every point)");
+  for (const auto& [name, value] :
+       {std::pair<const char*, double>{"max_registration_jump_m", o.max_registration_jump_m},
+        {"max_registration_jump_rad", o.max_registration_jump_rad},
+        {"max_registration_residual_m", o.max_registration_residual_m},
+        {"max_registration_residual_rad", o.max_registration_residual_rad},
+        {"image_to_image_gate_rad", o.image_to_image_gate_rad}}) {
+    check_in_range(std::string("tracker option ") + name, value, 0, 1e9);
+  }
+  TrackerConfig config;
+  config.icp = o.icp;
+  check_tracker_config(config, "tracker option");
   return o;
 }
 

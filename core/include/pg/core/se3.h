@@ -245,6 +245,8 @@ SE3 pose_from_position_rpy(const Eigen::Vector3d& position, const Eigen::Vector3
 // Linear in translation, slerp in rotation; s in [0, 1].
 SE3 interpolate(const SE3& A, const SE3& B, double s);
 
+// Finite, and a rotation: its quaternion of unit length (a zero quaternion, ROS's unset pose,
+// which the constructor cannot normalise, is not; nor one that overflowed or underflowed it).
 bool is_finite(const SE3& T);
 
 }  // namespace pg

@@ -106,7 +106,8 @@ class PointToPlaneIcp {
   PointToPlaneIcp& operator=(PointToPlaneIcp&&) noexcept;
 
   // Aligns source (points, normals optional) to target (points with normals) starting from the
-  // guess. The target tree is only read, so one tree serves many calls (and threads).
+  // guess. The target tree is only read, so one tree serves many calls (and threads). Source
+  // points (or normals) that are not finite are left out.
   IcpResult align(const PointCloud& source, const PointCloudTree& target,
                   const SE3& T_target_source_guess);
 
@@ -118,6 +119,7 @@ class PointToPlaneIcp {
 
  private:
   IcpOptions options_;
+  PointCloud finite_;  // the source's finite points, when it has others
   PointCloud downsampled_;
   std::unique_ptr<CorrespondenceCache> cache_;  // nearest neighbours kept between iterations
   long last_queries_ = 0;

@@ -16,7 +16,7 @@ class PointCloudTree {
  public:
   // Takes the cloud (normals optional for queries, required as an ICP target). Build cost is
   // O(n log n): about 5 ms for 50k points, plus about a third for the grid. voxel_grid = false:
-  // the k-d tree alone (same answers).
+  // the k-d tree alone (same answers). Throws std::invalid_argument for a NaN point.
   explicit PointCloudTree(PointCloud cloud, int leaf_size = 12, bool voxel_grid = true);
   ~PointCloudTree();
   PointCloudTree(PointCloudTree&&) noexcept;

@@ -33,7 +33,8 @@ PointCloud transform_cloud(const SE3& T_b_a, const PointCloud& cloud_a);
 
 // One point per occupied voxel of edge voxel_m: the centroid of the voxel's points, with their
 // mean normal re-normalised, in voxel-key order. `out` may not alias
-// `in`; its buffers are reused. voxel_m <= 0 copies.
+// `in`; its buffers are reused. voxel_m <= 0 copies. Points that are not finite are left out;
+// throws std::invalid_argument for a cloud wider than 2^21 voxels along an axis.
 void voxel_downsample(const PointCloud& in, double voxel_m, PointCloud& out);
 
 }  // namespace pg

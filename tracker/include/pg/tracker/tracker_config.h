@@ -36,6 +36,9 @@ TrackerConfig tracker_config_from_json(const nlohmann::json& j, const std::strin
 TrackerConfig load_tracker_config(const std::string& path,
                                   const TrackerConfig& base = TrackerConfig());
 nlohmann::json tracker_config_to_json(const TrackerConfig& config);
+// Throws InputError "WHERE: icp.max_iterations: ..." when a value of `config` is one a config
+// file may not give (the file's ranges, NaN too): options set in C++ are checked as a file's.
+void check_tracker_config(const TrackerConfig& config, const std::string& where);
 
 const char* to_string(RobustKernel kernel);
 

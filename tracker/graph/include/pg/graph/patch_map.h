@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <stdexcept>
 #include <vector>
 
 #include "pg/tracker/kd_tree.h"
@@ -38,7 +39,8 @@ class PatchMap {
   void reset();
   // Moves a key frame's cloud into the object frame and fuses it; rebuilds the tree. Returns the
   // key frame's number (0 for the first since the reset). With `movable` the patch keeps the
-  // cloud so that move_keyframe can place it again.
+  // cloud so that move_keyframe can place it again. Throws std::invalid_argument for a cloud
+  // without a normal for each point, or a point, normal or pose that is not finite.
   int add_keyframe(const PointCloud& cloud_sensor, const SE3& T_object_sensor,
                    bool movable = false);
   // Takes movable key frame `keyframe`'s points out of the patch and fuses them again at
@@ -61,7 +63,11 @@ class PatchMap {
   static constexpr double kTouchedCellM = 2.5e-4;
 
   bool empty() const { return !tree_; }
-  const PointCloudTree& tree() const { return *tree_; }
+  // Throws std::logic_error on an empty patch (no key frame or model yet).
+  const PointCloudTree& tree() const {
+    if (!tree_) throw std::logic_error("PatchMap::tree: the patch is empty");
+    return *tree_;
+  }
   const PointCloud& cloud_object() const { return model_ ? model_->cloud() : fused_; }
   int keyframes() const { return keyframes_; }
   const PatchMapOptions& options() const { return options_; }

@@ -8,6 +8,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -158,7 +159,8 @@ struct TrackerEstimate {
   int unconverged_registrations = 0;  // ICP failed (too few points or matches, iteration limit)
   int overridden_registrations = 0;   // accepted, but the solution disagrees (see GraphOptions)
   bool tracking_lost = false;         // see GraphOptions::lost_after_frames
-  // A non-finite sensor pose, vision prior or cloud point was given: it was left out (the sensor
+  // A non-finite sensor pose or vision prior (a zero quaternion too, ROS's unset pose) or cloud
+  // point was given: it was left out (the sensor
   // pose then holds the previous frame's, the object pose the prediction); or a measurement was
   // missing (SensorInput::measurement_missing).
   bool invalid_input = false;
@@ -170,7 +172,12 @@ class PatchGraphTracker {
   // `model_object` (object frame, points with normals, built as its tree: shared by every
   // sensor's patch, and by other trackers of the object) is required by kGroundTruthPatch and
   // ignored otherwise. Throws InputError naming the option when a sigma is outside
-  // [kMinFactorSigma, kMaxFactorSigma] or not a number.
+  // [kMinFactorSigma, kMaxFactorSigma] or not a number, or another option outside the range its
+  // command-line option or config file allows (a negative window, no solver iterations, ...).
+  // Memory: every frame's estimate and factors stay (for object_trajectory and solve_batch),
+  // about 2 kB a frame (0.4 GB an hour at 60 Hz, measured on 20 000 frames); the update's time
+  // does not grow with them. A long-running program starts a new tracker now and then (at the
+  // start of a contact episode, say).
   explicit PatchGraphTracker(GraphOptions options,
                              std::shared_ptr<const PointCloudTree> model_object = nullptr);
   ~PatchGraphTracker();
@@ -186,7 +193,14 @@ class PatchGraphTracker {
 
   int sensors() const { return int(sensors_.size()); }
   // Sensor k's local patch (object frame); for gtpatch, the object model.
-  const PatchMap& patch(int sensor = 0) const { return sensors_[std::size_t(sensor)].patch; }
+  // Throws std::out_of_range for a sensor the tracker does not have.
+  const PatchMap& patch(int sensor = 0) const {
+    if (sensor < 0 || std::size_t(sensor) >= sensors_.size()) {
+      throw std::out_of_range("PatchGraphTracker::patch: no sensor " + std::to_string(sensor) +
+                              " (the tracker has " + std::to_string(sensors_.size()) + ")");
+    }
+    return sensors_[std::size_t(sensor)].patch;
+  }
   const GraphOptions& options() const { return options_; }
   int frames() const { return int(frames_.size()); }
 
