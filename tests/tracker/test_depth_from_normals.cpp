@@ -310,6 +310,29 @@ TEST(DepthBadInput, BadNormalsThatCouldHideAContactMakeTheFrameUnreadable) {
   }
 }
 
+// A normal image left in a PNG's encoding, (n + 1) / 2, of a real press: its normals are 1.2
+// long on the flat gel, and the frame is unreadable (the band of 0.5-1.5 had read it as a
+// contact of 78 % of the image). A normal image 2 % off unit length reads as the unit one.
+TEST(DepthBadInput, NormalsLeftInAPngsEncodingAreRejected) {
+  const SensorModel sensor = sensor_preset("digit");
+  const auto frame = analytic_sphere_frame(sensor, {0, 0, 0.006 - 0.0008}, 0.006);
+  ContactCloudBuilder builder(sensor, ContactCloudOptions(), frame.reference);
+  const ContactFrame unit = builder.build(frame.normal);
+  ASSERT_EQ(unit.status, ContactStatus::kContact);
+  ImageF encoded = frame.normal;
+  for (float& v : encoded.data) v = 0.5f * (v + 1.0f);
+  const ContactFrame f = builder.build(encoded);
+  EXPECT_EQ(f.status, ContactStatus::kUnreadable);
+  EXPECT_GT(f.rejected_normals, int(0.9 * double(sensor.camera.width * sensor.camera.height)));
+  EXPECT_TRUE(f.cloud_sensor.empty());
+  ImageF longer = frame.normal;
+  for (float& v : longer.data) v *= 1.02f;
+  const ContactFrame near_unit = builder.build(longer);
+  EXPECT_EQ(near_unit.status, ContactStatus::kContact);
+  EXPECT_EQ(near_unit.rejected_normals, 0);
+  EXPECT_EQ(near_unit.cloud_sensor.size(), unit.cloud_sensor.size());
+}
+
 // A contact whose deep part has only bad normals: the row's valid neighbours (the shallow rim)
 // fill its depth in (row by row, from the rim's slopes), so the mask finds a contact there, but
 // no pixel of it can be back-projected. That frame is unreadable, not the end of the contact

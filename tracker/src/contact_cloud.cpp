@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <utility>
 
 #include "pg/tracker/degeneracy.h"
@@ -32,7 +33,8 @@ int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8
       const float* n = &normals.at(x, y, 0);
       const Eigen::Vector3f n_gel(n[0], n[1], n[2]);
       const float len = n_gel.norm();
-      if (!std::isfinite(len) || len < 0.5f || len > 1.5f || n_gel.z() <= 0.0f) {
+      if (!std::isfinite(len) || len < kMinNormalLength || len > kMaxNormalLength ||
+          n_gel.z() <= 0.0f) {
         ++rejected;
         continue;
       }
@@ -66,6 +68,12 @@ ContactCloudBuilder::ContactCloudBuilder(const SensorModel& sensor,
 void ContactCloudBuilder::build(const ImageF& normals, ContactFrame& frame) {
   depth_.compute(normals, frame.depth);
   frame.rejected_normals = frame.depth.invalid_normals;
+  if (2 * std::int64_t(frame.rejected_normals) > std::int64_t(rays().width) * rays().height) {
+    // Most normals unusable (a normal image left in a PNG's encoding, say): what the few usable
+    // ones show is no contact to trust.
+    set_without_normals(frame, ContactStatus::kUnreadable, frame.rejected_normals);
+    return;
+  }
   contact_mask(frame.depth.depth, frame.depth.window, options_.mask, rays().pixel_area_m2(),
                frame.mask);
   // A contact that reaches the image's edge: integrated again with the image mirrored across

@@ -23,8 +23,8 @@ inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float f
   return ok;
 }
 
-// A usable normal: finite, roughly unit length (a learned estimator's output need not be
-// exactly unit; the gradient does not depend on the length) and facing away from the camera
+// A usable normal: finite, of unit length within kMinNormalLength-kMaxNormalLength (the
+// gradient does not depend on the length) and facing away from the camera
 // along the pixel's ray d (n.d > 0; the normals point out of the gel, away from the camera): the
 // camera cannot see a surface from its far side. Not n.z > 0: off the axis a pixel sees walls
 // that lean past the vertical, such as a stud's rim on the GelSight Mini (2026-12-03: hundreds of
@@ -33,7 +33,8 @@ inline bool log_depth_gradient(const float* n, const Eigen::Vector3f& d, float f
 inline bool valid_normal(const float* n, const float* d) {
   const float sq = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
   const float facing = n[0] * d[0] + n[1] * d[1] + n[2];
-  return (sq > 0.25f) & (sq < 2.25f) & (facing > 0.0f);
+  return (sq > kMinNormalLength * kMinNormalLength) & (sq < kMaxNormalLength * kMaxNormalLength) &
+         (facing > 0.0f);
 }
 
 // Fills the gradient at invalid normals (grid indices `holes`, ascending) by linear

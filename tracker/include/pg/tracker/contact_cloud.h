@@ -22,7 +22,8 @@ enum class ContactStatus {
   kContact,    // cloud_sensor holds the contact's points
   kNoContact,  // nothing deformed, or less contact than mask.min_area_m2: the cloud is empty
   // No contact was found, but at least mask.min_area_m2 of the image held unusable normals
-  // (rejected_normals), or there was no usable image at all (build_unreadable): a contact may
+  // (rejected_normals), or more than half the image did whatever the rest shows (a normal image
+  // in another encoding), or there was no usable image at all (build_unreadable): a contact may
   // hide there, so whether the object touches is unknown. The cloud is empty; a tracker should
   // treat the frame as missing, not as the contact's end.
   kUnreadable,
@@ -47,7 +48,8 @@ struct ContactFrame {
 
 // Back-projects the contact pixels in `box` (mask > 0, and indented by more than
 // min_indentation_m) into S with their normals (see ContactFrame::cloud_sensor). Pixels whose
-// normal is not finite, roughly unit and +z are skipped and counted in the return value.
+// normal is not finite, unit (kMinNormalLength to kMaxNormalLength) and +z are skipped and
+// counted in the return value.
 // `cloud_sensor` is cleared first; its capacity is reused.
 int back_project_contact(const GelRays& rays, const ImageF& depth, const ImageU8& mask,
                          const PixelRect& box, const ImageF& normals, PointCloud& cloud_sensor,

@@ -29,6 +29,12 @@ enum class DepthIntegration { kParity, kAveraged };
 // DIGIT's at 120x160 (0.159 mm at the gel's centre) [m].
 constexpr double kGuardPitchM = 0.15e-3;
 
+// The lengths the front end takes a normal to be unit at (every source here gives unit normals,
+// a 16-bit PNG's to 3e-5, a network's normalised): a normal image left in a PNG's encoding,
+// (n + 1) / 2, is about 1.22 long on a flat gel and is rejected, rather than read as a contact
+// over most of the image (the band had been 0.5-1.5, which took it).
+constexpr float kMinNormalLength = 0.9f, kMaxNormalLength = 1.1f;
+
 struct DepthOptions {
   // Guard of eq. 4: n.d (n_z for an orthographic camera) is clamped to at least this, so a
   // normal nearly perpendicular to its ray cannot produce an unbounded slope [-]. It holds for
