@@ -93,7 +93,7 @@ struct PointCloudTree::Impl {
 namespace {
 
 // A NaN point splits no box: the tree's searches would then miss points, not only the NaN one.
-PointCloud without_nan(PointCloud cloud) {
+PointCloud checked_for_nan(PointCloud cloud) {
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
     if (cloud.points[i].hasNaN()) {
       throw std::invalid_argument("PointCloudTree: point " + std::to_string(i) +
@@ -107,7 +107,7 @@ PointCloud without_nan(PointCloud cloud) {
 }  // namespace
 
 PointCloudTree::PointCloudTree(PointCloud cloud, int leaf_size, bool voxel_grid)
-    : impl_(std::make_unique<Impl>(without_nan(std::move(cloud)), std::max(leaf_size, 1),
+    : impl_(std::make_unique<Impl>(checked_for_nan(std::move(cloud)), std::max(leaf_size, 1),
                                    voxel_grid)) {}
 PointCloudTree::~PointCloudTree() = default;
 PointCloudTree::PointCloudTree(PointCloudTree&&) noexcept = default;
