@@ -214,15 +214,24 @@ inline const char* describe(FileKind kind) {
   return "?";
 }
 
+// The first `bytes` bytes of a regular file (fewer if it is shorter); empty for a path that is no
+// regular file or cannot be read.
+inline std::string file_head(const std::filesystem::path& path, std::size_t bytes) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return {};
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) return {};
+  std::string head(bytes, '\0');
+  head.resize(std::fread(head.data(), 1, bytes, f));
+  std::fclose(f);
+  return head;
+}
+
 // kNone for a path that is no regular file or an empty one.
 inline FileKind file_kind(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return FileKind::kNone;
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) return FileKind::kNone;
-  unsigned char head[512];
-  const std::size_t n = std::fread(head, 1, sizeof head, f);
-  std::fclose(f);
+  const std::string text = file_head(path, 512);
+  const auto* head = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
   const auto starts = [&](const char* magic, std::size_t size) {
     return n >= size && std::memcmp(head, magic, size) == 0;
   };
@@ -311,14 +320,7 @@ struct EarlierRun {
 
 // Whether `path` is a regular file whose first bytes are `prefix` (a CSV's header).
 inline bool file_starts_with(const std::filesystem::path& path, const std::string& prefix) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) return false;
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) return false;
-  std::string head(prefix.size(), '\0');
-  const std::size_t got = std::fread(head.data(), 1, head.size(), f);
-  std::fclose(f);
-  return got == prefix.size() && head == prefix;
+  return file_head(path, prefix.size()) == prefix;
 }
 
 // The output folder, created before the work so that a path that cannot be one fails at once

@@ -37,6 +37,10 @@ namespace {
 // A key frame's cloud and pose as the patch can fuse them: a normal for every point (the
 // registrations' target needs them) and nothing non-finite (one NaN point had sent the patch's
 // tree's nearest neighbours astray).
+void check_pose(const SE3& T, const char* what) {
+  if (!is_finite(T)) throw std::invalid_argument(std::string(what) + ": the pose is not finite");
+}
+
 void check_keyframe(const PointCloud& cloud, const SE3& T, const char* what) {
   if (cloud.normals.size() != cloud.points.size()) {
     throw std::invalid_argument(std::string(what) + ": the cloud has " +
@@ -44,7 +48,7 @@ void check_keyframe(const PointCloud& cloud, const SE3& T, const char* what) {
                                 std::to_string(cloud.normals.size()) +
                                 " normals; the patch needs one normal a point");
   }
-  if (!is_finite(T)) throw std::invalid_argument(std::string(what) + ": the pose is not finite");
+  check_pose(T, what);
   for (std::size_t i = 0; i < cloud.points.size(); ++i) {
     if (!cloud.points[i].allFinite() || !cloud.normals[i].allFinite()) {
       throw std::invalid_argument(std::string(what) + ": point " + std::to_string(i) +
@@ -71,9 +75,7 @@ void PatchMap::move_keyframe(int keyframe, const SE3& T_object_sensor) {
     throw std::invalid_argument("PatchMap::move_keyframe: key frame " + std::to_string(keyframe) +
                                 " is not a movable key frame of this patch");
   }
-  if (!is_finite(T_object_sensor)) {
-    throw std::invalid_argument("PatchMap::move_keyframe: the pose is not finite");
-  }
+  check_pose(T_object_sensor, "PatchMap::move_keyframe");
   accumulate(it->cloud_sensor, it->T_object_sensor, &it->keys);
   accumulate(it->cloud_sensor, T_object_sensor);
   movable_.erase(it);

@@ -127,9 +127,10 @@ PatchGraphTracker::PatchGraphTracker(GraphOptions options,
   model_icp_.options().max_normal_angle_rad = 0.0;
   // The window solves a frame for the last time window - 1 frames after it: settling later
   // would move nothing, and keep key frames' clouds for nothing (0: the window holds every frame).
-  settle_frames_ = std::max(
-      0, options_.window > 0 ? std::min(options_.patch.keyframe_settle_frames, options_.window - 1)
-                             : options_.patch.keyframe_settle_frames);
+  // (Both are at least 0: checked.)
+  settle_frames_ = options_.window > 0
+                       ? std::min(options_.patch.keyframe_settle_frames, options_.window - 1)
+                       : options_.patch.keyframe_settle_frames;
   sensors_.resize(1);
   sensors_[0].patch = PatchMap(options_.patch);
   if (options_.method == Method::kGroundTruthPatch) {
