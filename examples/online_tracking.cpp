@@ -43,7 +43,11 @@ int run(const std::string& scene_path) {
   TrackOptions options;
   use_estimated_normals(options);
   ContactCloudBuilder front_end(sensor, options.front_end.contact_cloud());
-  PatchGraphTracker tracker(tracker_graph_options(options));
+  GraphOptions graph = tracker_graph_options(options);
+  // A live loop may run for hours: the tracker keeps only the last frames' estimates and factors
+  // (its memory then stays bounded; the estimates are the same).
+  graph.history_frames = 100;
+  PatchGraphTracker tracker(graph);
 
   ContactFrame contact;
   double sum_sq_m = 0, sum_sq_rad = 0, translation_m = 0, rotation_rad = 0;

@@ -595,6 +595,61 @@ TEST(Tracking, ResumesAfterANoContactGap) {
   EXPECT_LT(run.summary.final_rotation_error_rad, 0.05);
 }
 
+// A tracker that keeps only its last frames (GraphOptions::history_frames, for programs that run
+// for hours) gives the same estimates as one that keeps every frame, across a contact episode's
+// end and with key frames settled inside the window; what it keeps stays bounded.
+TEST(TrackingHistory, BoundedHistoryTracksTheSame) {
+  TempDir tmp;
+  const Dataset d = render(scene_with_a_gap(), tmp.path / "gap");
+  TrackOptions every;
+  every.graph.patch.keyframe_settle_frames = 3;
+  TrackOptions last = every;
+  last.graph.history_frames = last.graph.window + 2;
+  const TrackRun all = track_dataset(d, every);
+  const TrackRun kept = track_dataset(d, last);
+  ASSERT_EQ(all.summary.episodes, 2);
+  ASSERT_EQ(kept.frames.size(), all.frames.size());
+  for (std::size_t i = 0; i < all.frames.size(); ++i) {
+    EXPECT_LT(translation_distance(kept.frames[i].T_world_object, all.frames[i].T_world_object),
+              1e-12)
+        << "frame " << i;
+    EXPECT_LT(rotation_distance(kept.frames[i].T_world_object, all.frames[i].T_world_object), 1e-12)
+        << "frame " << i;
+  }
+  const int n = d.frames(), h = last.graph.history_frames;
+  EXPECT_EQ(kept.tracker->frames(), n);
+  EXPECT_EQ(kept.tracker->first_kept_frame(), n - h);
+  EXPECT_EQ(all.tracker->first_kept_frame(), 0);
+  // Each frame adds its end-effector, velocity and damping priors and up to two registrations.
+  EXPECT_LE(kept.tracker->factors(), 5 * h);
+  EXPECT_GT(all.tracker->factors(), 3 * n);
+  const std::vector<SE3> tail = kept.tracker->object_trajectory();
+  const std::vector<SE3> whole = all.tracker->object_trajectory();
+  ASSERT_EQ(tail.size(), std::size_t(h));
+  ASSERT_EQ(whole.size(), std::size_t(n));
+  for (int i = 0; i < h; ++i) {
+    EXPECT_LT(translation_distance(tail[std::size_t(i)], whole[std::size_t(n - h + i)]), 1e-12);
+  }
+  // The batch re-solve of the frames kept holds the two oldest (nothing before them is left)
+  // and stays with the truth.
+  kept.tracker->solve_batch();
+  const std::vector<SE3> solved = kept.tracker->object_trajectory();
+  ASSERT_EQ(solved.size(), std::size_t(h));
+  for (int i = 0; i < h; ++i) {
+    const FrameResult& f = kept.frames[std::size_t(n - h + i)];
+    if (i < 2) EXPECT_EQ(translation_distance(solved[std::size_t(i)], tail[std::size_t(i)]), 0.0);
+    EXPECT_LT(translation_distance(solved[std::size_t(i)], f.T_world_object_gt), 1e-3) << i;
+    EXPECT_LT(rotation_distance(solved[std::size_t(i)], f.T_world_object_gt), 0.05) << i;
+  }
+  // track_dataset's batch comparison takes the frames kept.
+  TrackOptions compared = last;
+  compared.compare_batch = true;
+  const TrackRun batch = track_dataset(d, compared);
+  EXPECT_GE(batch.summary.window_vs_batch_translation_rms_m, 0.0);
+  EXPECT_LT(batch.summary.window_vs_batch_translation_rms_m, 0.5e-3);
+  EXPECT_LT(batch.summary.batch_translation_rmse_m, 1e-3);
+}
+
 // A slow approach whose first contact is smaller than a registration needs (4 points here: the
 // mask's minimum area off, as a user may set it): the patch of that first key frame could not be
 // registered against, and since a failed patch registration takes no key frame, it never grew:
@@ -1078,6 +1133,15 @@ TEST(TrackingBadInput, OutOfRangeSigmasAndNoiseAreRefused) {
   refused([](GraphOptions& o) { o.icp.min_residual_sigma_m = 0; }, "icp.min_residual_sigma_m");
   refused([](GraphOptions& o) { o.icp.min_eigenvalue_ratio = std::nan(""); },
           "icp.min_eigenvalue_ratio");
+  // A history shorter than what the window's update reads, or one without a window.
+  refused([](GraphOptions& o) { o.history_frames = o.window + 1; }, "history_frames = 6");
+  refused([](GraphOptions& o) { o.history_frames = -1; }, "history_frames = -1");
+  refused(
+      [](GraphOptions& o) {
+        o.window = 0;
+        o.history_frames = 100;
+      },
+      "needs a fixed-lag window");
   // A sensor the tracker does not have has no patch (its patch(3) had read past the list).
   PatchGraphTracker one(GraphOptions{});
   EXPECT_THROW(one.patch(3), std::out_of_range);

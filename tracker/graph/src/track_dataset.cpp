@@ -647,16 +647,17 @@ TrackRun track_dataset(const std::vector<const Dataset*>& datasets, const TrackO
   }
   if (options.compare_batch) {
     run.tracker->solve_batch();
+    // The frames the tracker kept (graph.history_frames may have let the first ones go).
     const std::vector<SE3> batch = run.tracker->object_trajectory();
+    const std::size_t first = std::size_t(run.tracker->first_kept_frame());
     double bt = 0, br = 0, dt = 0, dr = 0, known = 0;
     for (std::size_t i = 0; i < batch.size(); ++i) {
-      const SE3& win = run.frames[i].T_world_object;
-      dt += std::pow(translation_distance(batch[i], win), 2);
-      dr += std::pow(rotation_distance(batch[i], win), 2);
-      if (!run.frames[i].ground_truth) continue;
-      const SE3& gt = run.frames[i].T_world_object_gt;
-      bt += std::pow(translation_distance(batch[i], gt), 2);
-      br += std::pow(rotation_distance(batch[i], gt), 2);
+      const FrameResult& frame = run.frames[first + i];
+      dt += std::pow(translation_distance(batch[i], frame.T_world_object), 2);
+      dr += std::pow(rotation_distance(batch[i], frame.T_world_object), 2);
+      if (!frame.ground_truth) continue;
+      bt += std::pow(translation_distance(batch[i], frame.T_world_object_gt), 2);
+      br += std::pow(rotation_distance(batch[i], frame.T_world_object_gt), 2);
       ++known;
     }
     const double n = double(std::max<std::size_t>(1, batch.size()));

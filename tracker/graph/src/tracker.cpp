@@ -95,6 +95,14 @@ GraphOptions checked(GraphOptions o) {
                  int(Method::kGroundTruthPatch));
   check_in_range("tracker option window", o.window, 0, 1e6, " (0: batch)");
   check_in_range("tracker option solver_iterations", o.solver_iterations, 1, 1e6);
+  if (o.history_frames != 0) {
+    if (o.window == 0) {
+      throw InputError("tracker option history_frames = " + std::to_string(o.history_frames) +
+                       ": needs a fixed-lag window (window is 0: a batch keeps every frame)");
+    }
+    check_in_range("tracker option history_frames", o.history_frames, o.window + 2, 1e9,
+                   " (window + 2 at least; or 0: every frame)");
+  }
   check_in_range("tracker option lost_after_frames", o.lost_after_frames, 0, 1e9, " (0: never)");
   check_in_range("tracker option patch.keyframe_interval", o.patch.keyframe_interval, 1, 1e9);
   check_in_range("tracker option patch.keyframe_settle_frames", o.patch.keyframe_settle_frames, 0,
@@ -187,7 +195,7 @@ double PatchGraphTracker::registration_disagreement(std::size_t first_registrati
   // The object in the current sensor frame, as each registration has it: the patch's answer
   // T_object_sensor inverted, and the previous frame's estimate carried by the image-to-image
   // answer T_previous_current.
-  const Frame& p = frames_[factors_[to_patch].frames[0] - 1];
+  const Frame& p = frame(factors_[to_patch].frames[0] - 1);
   const SE3 from_patch = factors_[to_patch].measured.inverse();
   const SE3 from_previous =
       factors_[to_previous].measured.inverse() *
@@ -214,11 +222,11 @@ bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
   // What the solved poses say the registration should have measured (eq. 5 and 6).
   SE3 solved;
   if (fac.kind == FactorKind::kImageToPatch) {
-    const Frame& f = frames_[fac.frames[0]];
+    const Frame& f = frame(fac.frames[0]);
     solved = pose_from_block(f.o).inverse() * pose_from_block(f.sensors[fac.sensor].e);
   } else {
-    const Frame& p = frames_[fac.frames[0]];
-    const Frame& c = frames_[fac.frames[1]];
+    const Frame& p = frame(fac.frames[0]);
+    const Frame& c = frame(fac.frames[1]);
     solved = (pose_from_block(p.sensors[fac.sensor].e).inverse() * pose_from_block(p.o)) *
              (pose_from_block(c.sensors[fac.sensor].e).inverse() * pose_from_block(c.o)).inverse();
   }
@@ -227,13 +235,13 @@ bool PatchGraphTracker::registration_disagrees(const Factor& fac) const {
 }
 
 PatchGraphTracker::Outcome PatchGraphTracker::register_to_previous(int k, TrackerEstimate& est) {
-  const int t = int(frames_.size()) - 1;
+  const int t = frames() - 1;
   const SensorTrack& s = sensors_[std::size_t(k)];
-  if (!s.previous_tree || t < 1 || !frames_[t - 1].sensors[k].contact) return Outcome::kNotTried;
+  if (!s.previous_tree || t < 1 || !frame(t - 1).sensors[k].contact) return Outcome::kNotTried;
   // A previous contact too small to register against is no failure of this frame's.
   if (int(s.previous_tree->size()) < icp_.options().min_points) return Outcome::kNotTried;
-  const Frame& p = frames_[t - 1];
-  const Frame& f = frames_[t];
+  const Frame& p = frame(t - 1);
+  const Frame& f = frame(t);
   // Guess from the current (predicted) estimates: T_prev_cur = (e_p^-1 o_p)(e_c^-1 o_c)^-1.
   const SE3 T_sp_o = pose_from_block(p.sensors[k].e).inverse() * pose_from_block(p.o);
   const SE3 T_sc_o = pose_from_block(f.sensors[k].e).inverse() * pose_from_block(f.o);
@@ -252,8 +260,8 @@ PatchGraphTracker::Outcome PatchGraphTracker::register_to_patch(int k, TrackerEs
   // not tried; it grows by a key frame each frame until it is large enough (add).
   if (s.patch.empty() || int(s.patch.tree().size()) < icp.options().min_points)
     return Outcome::kNotTried;
-  const int t = int(frames_.size()) - 1;
-  const Frame& f = frames_[t];
+  const int t = frames() - 1;
+  const Frame& f = frame(t);
   const SE3 guess = pose_from_block(f.o).inverse() * pose_from_block(f.sensors[k].e);
   const IcpResult r = icp.align(s.cloud, s.patch.tree(), guess);
   // What the contact let the registration see, whether or not its answer is used (a failed
@@ -302,7 +310,7 @@ void set_measurement(const ContactFrame& contact, SensorInput& input) {
 TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   const auto start = std::chrono::steady_clock::now();
   TrackerEstimate est;
-  const int t = int(frames_.size());
+  const int t = frames();
   const std::size_t n_sensors = 1 + input.other_sensors.size();
   if (t == 0) add_sensors(n_sensors);
   if (n_sensors != sensors_.size()) {
@@ -331,7 +339,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     est.invalid_input =
         est.invalid_input || !sensor_ok[k] || dropped_points > 0 || in.measurement_missing;
     pose_to_block(sensor_ok[k] ? in.T_world_sensor_measured
-                  : t >= 1     ? pose_from_block(frames_[t - 1].sensors[k].e)
+                  : t >= 1     ? pose_from_block(frame(t - 1).sensors[k].e)
                                : SE3(),
                   state.e);
     state.T_sensor_world = pose_from_block(state.e).inverse();
@@ -344,7 +352,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
   // episode goes on. One of a sensor that did not (a camera started late or stopped early, away
   // from the object) keeps no episode going once the others let go.
   f.held = f.contact || (missing && in_episode_);
-  f.carrier = t >= 1 ? frames_[t - 1].carrier : 0;
+  f.carrier = t >= 1 ? frame(t - 1).carrier : 0;
   if (!f.sensors[std::size_t(f.carrier)].contact) {
     for (std::size_t k = 0; k < n_sensors; ++k) {
       if (f.sensors[k].contact) {
@@ -354,22 +362,22 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     }
   }
   SE3 o_init = prior_ok ? input.T_world_object_prior : SE3();
-  if (t >= 1 && sensor_frame_motion(f, frames_[t - 1])) {
+  if (t >= 1 && sensor_frame_motion(f, frame(t - 1))) {
     // Held: the object's pose in the sensor's frame is predicted (the last relative motion
     // repeated, when there is one) and placed at this frame's sensor pose, so the hand's own
     // motion, accelerations included, is followed exactly.
     const auto in_sensor = [&f](const Frame& g) {
       return g.sensors[std::size_t(f.carrier)].T_sensor_world * pose_from_block(g.o);
     };
-    const Frame& p1 = frames_[t - 1];
-    const SE3 x = t >= 2 && sensor_frame_motion(p1, frames_[t - 2])
-                      ? predict(in_sensor(frames_[t - 2]), in_sensor(p1))
+    const Frame& p1 = frame(t - 1);
+    const SE3 x = t >= 2 && sensor_frame_motion(p1, frame(t - 2))
+                      ? predict(in_sensor(frame(t - 2)), in_sensor(p1))
                       : in_sensor(p1);
     o_init = f.sensors[std::size_t(f.carrier)].T_sensor_world.inverse() * x;
   } else if (t >= 2) {
-    o_init = predict(pose_from_block(frames_[t - 2].o), pose_from_block(frames_[t - 1].o));
+    o_init = predict(pose_from_block(frame(t - 2).o), pose_from_block(frame(t - 1).o));
   } else if (t == 1) {
-    o_init = pose_from_block(frames_[0].o);
+    o_init = pose_from_block(frame(0).o);
   }
   pose_to_block(o_init, f.o);
   frames_.push_back(std::move(f));
@@ -526,7 +534,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
     };
     while (!track.unsettled.empty() && t - track.unsettled.front()[0] >= settle_frames_) {
       track.patch.move_keyframe(track.unsettled.front()[1],
-                                T_object_sensor(frames_[std::size_t(track.unsettled.front()[0])]));
+                                T_object_sensor(frame(track.unsettled.front()[0])));
       track.unsettled.erase(track.unsettled.begin());
     }
     // Key frame: fuse the cloud into the sensor's patch with the solved pose, unless its patch
@@ -561,6 +569,7 @@ TrackerEstimate PatchGraphTracker::add(const TrackerInput& input) {
 
   est.T_world_object = pose_from_block(solved.o);
   est.T_world_sensor = pose_from_block(solved.sensors[0].e);
+  forget_old_frames();
   est.solve_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   return est;
@@ -580,9 +589,8 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
   // Factors are stored in the order of their newest frame: walk back to the window's start.
   for (auto it = factors_.rbegin(); it != factors_.rend(); ++it) {
     const Factor& fac = *it;
-    const int newest = std::max({fac.frames[0], fac.frames[1], fac.frames[2]});
-    if (newest < first_frame) break;
-    Frame& a = frames_[fac.frames[0]];
+    if (fac.newest_frame() < first_frame) break;
+    Frame& a = frame(fac.frames[0]);
     double* a_e = a.sensors[fac.sensor].e;
     switch (fac.kind) {
       case FactorKind::kEndEffector:
@@ -602,7 +610,7 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
                                  a.o, a_e);
         break;
       case FactorKind::kImageToImage: {
-        Frame& b = frames_[fac.frames[1]];
+        Frame& b = frame(fac.frames[1]);
         double* b_e = b.sensors[fac.sensor].e;
         add_block(a.o, fac.frames[0]);
         add_block(a_e, fac.frames[0]);
@@ -613,7 +621,7 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         break;
       }
       case FactorKind::kDamping: {
-        Frame& b = frames_[fac.frames[1]];
+        Frame& b = frame(fac.frames[1]);
         add_block(a.o, fac.frames[0]);
         add_block(b.o, fac.frames[1]);
         const bool in_sensor = sensor_frame_motion(b, a);
@@ -625,8 +633,8 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
         break;
       }
       case FactorKind::kVelocity: {
-        Frame& b = frames_[fac.frames[1]];
-        Frame& c = frames_[fac.frames[2]];
+        Frame& b = frame(fac.frames[1]);
+        Frame& c = frame(fac.frames[2]);
         add_block(a.o, fac.frames[0]);
         add_block(b.o, fac.frames[1]);
         add_block(c.o, fac.frames[2]);
@@ -645,13 +653,27 @@ void PatchGraphTracker::solve(int first_frame, int iterations) {
   solver_options.max_num_iterations = iterations;
   // Dense for a fixed-lag window's few frames, sparse for many (a batch solve of a whole
   // sequence, --compare-batch: dense, its normal matrix grew with the square of the frames).
-  const int solved_frames = int(frames_.size()) - first_frame;
+  const int solved_frames = frames() - first_frame;
   solver_options.linear_solver_type =
       solved_frames <= 40 ? ceres::DENSE_NORMAL_CHOLESKY : ceres::SPARSE_NORMAL_CHOLESKY;
   solver_options.num_threads = 1;
   solver_options.logging_type = ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(solver_options, &problem, &summary);
+}
+
+void PatchGraphTracker::forget_old_frames() {
+  if (options_.history_frames == 0 || int(frames_.size()) <= options_.history_frames) return;
+  while (int(frames_.size()) > options_.history_frames) {
+    frames_.pop_front();
+    ++first_kept_frame_;
+  }
+  // Every factor is added with the frame it ends at, so they go in that order. One ending before
+  // the second frame kept may reach a frame let go (a velocity prior spans three); those ending
+  // later reach the first frame kept at most. The window never reads further back.
+  while (!factors_.empty() && factors_.front().newest_frame() < first_kept_frame_ + 2) {
+    factors_.pop_front();
+  }
 }
 
 std::vector<SE3> PatchGraphTracker::object_trajectory() const {
@@ -661,6 +683,9 @@ std::vector<SE3> PatchGraphTracker::object_trajectory() const {
   return out;
 }
 
-void PatchGraphTracker::solve_batch(int iterations) { solve(0, iterations); }
+void PatchGraphTracker::solve_batch(int iterations) {
+  // Once frames were let go, the two oldest kept are what the factors left anchor to.
+  solve(first_kept_frame_ > 0 ? first_kept_frame_ + 2 : 0, iterations);
+}
 
 }  // namespace pg

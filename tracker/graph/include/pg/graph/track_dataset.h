@@ -43,7 +43,8 @@ struct TrackOptions {
   // GroundtruthPatch baseline; one tree may serve every run of the object (eval's do).
   std::shared_ptr<const PointCloudTree> model_object;
   // After tracking, re-solve the whole sequence with every factor (the batch reference) and
-  // report how far the fixed-lag estimates are from it.
+  // report how far the fixed-lag estimates are from it (over the frames the tracker kept, with
+  // graph.history_frames).
   bool compare_batch = false;
   // Where the normals come from: null = the dataset's ground-truth normal images ("gt"); else a
   // function of the sensor (its dataset's index in track_dataset's list: each sensor may have

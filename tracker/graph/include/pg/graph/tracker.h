@@ -3,6 +3,7 @@
 // graph (paper eq. 3): object poses o_t and sensor poses e_t, with image-to-image (eq. 5),
 // image-to-patch (eq. 6), constant-velocity (eq. 7), end-effector (eq. 8) and vision (eq. 9)
 // factors, solved by Ceres over a sliding window.
+#include <algorithm>
 #include <array>
 #include <deque>
 #include <limits>
@@ -99,6 +100,11 @@ struct GraphOptions {
   int lost_after_frames = 3;
   int window = 5;              // frames optimised at each update; 0 keeps every frame (batch)
   int solver_iterations = 10;  // Levenberg-Marquardt iterations per update
+  // Frames whose estimates and factors the tracker keeps (object_trajectory, solve_batch): 0
+  // keeps every frame (about 2 kB a frame); otherwise at least window + 2 (what the window's
+  // update reads: its frames and the two held before them), and the tracker's memory stays
+  // bounded however long it runs. The estimates do not depend on it. Needs a window (not 0).
+  int history_frames = 0;
   PatchMapOptions patch;
   IcpOptions icp;
 };
@@ -174,10 +180,10 @@ class PatchGraphTracker {
   // ignored otherwise. Throws InputError naming the option when a sigma is outside
   // [kMinFactorSigma, kMaxFactorSigma] or not a number, or another option outside the range its
   // command-line option or config file allows (a negative window, no solver iterations, ...).
-  // Memory: every frame's estimate and factors stay (for object_trajectory and solve_batch),
-  // about 2 kB a frame (0.4 GB an hour at 60 Hz, measured on 20 000 frames); the update's time
-  // does not grow with them. A long-running program starts a new tracker now and then (at the
-  // start of a contact episode, say).
+  // Memory: by default every frame's estimate and factors stay (for object_trajectory and
+  // solve_batch), about 2 kB a frame (0.4 GB an hour at 60 Hz, measured on 20 000 frames); the
+  // update's time does not grow with them. A long-running program sets
+  // GraphOptions::history_frames to keep only the last frames.
   explicit PatchGraphTracker(GraphOptions options,
                              std::shared_ptr<const PointCloudTree> model_object = nullptr);
   ~PatchGraphTracker();
@@ -186,9 +192,12 @@ class PatchGraphTracker {
   // std::invalid_argument.
   TrackerEstimate add(const TrackerInput& input);
 
-  // The estimate of every frame so far: the window's latest solution, frozen before it.
+  // The estimate of every frame kept (from first_kept_frame() on): the window's latest
+  // solution, frozen before it.
   std::vector<SE3> object_trajectory() const;
-  // Re-solves the whole sequence with every factor kept (the batch reference for the window).
+  // Re-solves the frames kept with all their factors (the batch reference for the window); with
+  // GraphOptions::history_frames, once frames were let go, the oldest two kept are held as they
+  // are (the factors that tied them to earlier frames are gone).
   void solve_batch(int iterations = 50);
 
   int sensors() const { return int(sensors_.size()); }
@@ -202,7 +211,12 @@ class PatchGraphTracker {
     return sensors_[std::size_t(sensor)].patch;
   }
   const GraphOptions& options() const { return options_; }
-  int frames() const { return int(frames_.size()); }
+  // Frames added so far, and the first whose estimate is still kept (GraphOptions::history_frames;
+  // 0 without it).
+  int frames() const { return first_kept_frame_ + int(frames_.size()); }
+  int first_kept_frame() const { return first_kept_frame_; }
+  // The factors kept (priors and registrations of the frames kept).
+  int factors() const { return int(factors_.size()); }
 
  private:
   struct SensorState {
@@ -242,6 +256,7 @@ class PatchGraphTracker {
     int sensor = 0;                // whose pose and measurement (registrations, end-effector prior)
     SE3 measured;
     Matrix6d sqrt_info;
+    int newest_frame() const { return std::max({frames[0], frames[1], frames[2]}); }
   };
   // What became of one registration.
   enum class Outcome {
@@ -273,6 +288,11 @@ class PatchGraphTracker {
   static SE3 motion_frame_inverse(const Frame& g, bool in_sensor, int carrier) {
     return in_sensor ? g.sensors[std::size_t(carrier)].T_sensor_world : SE3();
   }
+  // Frame t (absolute, from first_kept_frame_ on).
+  Frame& frame(int t) { return frames_[std::size_t(t - first_kept_frame_)]; }
+  const Frame& frame(int t) const { return frames_[std::size_t(t - first_kept_frame_)]; }
+  // Lets go of the frames before the last GraphOptions::history_frames, and of their factors.
+  void forget_old_frames();
   bool registration_disagrees(const Factor& factor) const;
   // How far apart this frame's image-to-image and image-to-patch factors of one sensor (from
   // first_registration on) turn the object in the current sensor frame [rad]: the patch's answer
@@ -293,8 +313,9 @@ class PatchGraphTracker {
   // neighbouring pixels), and the symmetric objective, which mixes the two, tracked worse with
   // them (docs/tracker.md).
   PointToPlaneIcp model_icp_;
-  std::vector<Frame> frames_;
-  std::vector<Factor> factors_;
+  std::deque<Frame> frames_;  // from first_kept_frame_ on
+  int first_kept_frame_ = 0;
+  std::deque<Factor> factors_;  // in the order of their newest frame
   bool in_episode_ = false;
   // The episode's last contact frames, newest last: whether each one's anchor failed
   // (GraphOptions::lost_after_frames).
