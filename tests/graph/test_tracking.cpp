@@ -637,7 +637,9 @@ TEST(TrackingHistory, BoundedHistoryTracksTheSame) {
   ASSERT_EQ(solved.size(), std::size_t(h));
   for (int i = 0; i < h; ++i) {
     const FrameResult& f = kept.frames[std::size_t(n - h + i)];
-    if (i < 2) EXPECT_EQ(translation_distance(solved[std::size_t(i)], tail[std::size_t(i)]), 0.0);
+    if (i < 2) {
+      EXPECT_EQ(translation_distance(solved[std::size_t(i)], tail[std::size_t(i)]), 0.0) << i;
+    }
     EXPECT_LT(translation_distance(solved[std::size_t(i)], f.T_world_object_gt), 1e-3) << i;
     EXPECT_LT(rotation_distance(solved[std::size_t(i)], f.T_world_object_gt), 0.05) << i;
   }

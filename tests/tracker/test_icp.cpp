@@ -6,6 +6,7 @@
 #include <tbb/global_control.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <stdexcept>
 
@@ -93,6 +94,14 @@ TEST(KdTree, NearestAndTwoNearestMatchBruteForce) {
         EXPECT_FLOAT_EQ(two.distance_sq[s], r * r);
       }
     }
+  }
+  // Nothing lies within a negative or NaN distance (a negative one, squared, had searched as far
+  // as its size).
+  for (const float bad : {-0.01f, std::nanf("")}) {
+    EXPECT_EQ(tree.nearest(cloud.points[0], bad), -1) << bad;
+    const auto none = tree.nearest_two(cloud.points[0], bad);
+    EXPECT_EQ(none.index[0], -1) << bad;
+    EXPECT_EQ(none.index[1], -1) << bad;
   }
 }
 

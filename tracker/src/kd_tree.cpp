@@ -118,7 +118,8 @@ std::size_t PointCloudTree::size() const { return impl_->cloud.points.size(); }
 
 int PointCloudTree::nearest(const Eigen::Vector3f& query, float max_distance_m,
                             float* distance_sq) const {
-  if (size() == 0) return -1;
+  // Nothing lies within a negative or NaN distance (squared, a negative one had searched as far).
+  if (size() == 0 || !(max_distance_m >= 0)) return -1;
   NearestWithin result(max_distance_m * max_distance_m);
   impl_->search(query, result);
   if (!result.found) return -1;
@@ -129,6 +130,8 @@ int PointCloudTree::nearest(const Eigen::Vector3f& query, float max_distance_m,
 PointCloudTree::TwoNearest PointCloudTree::nearest_two(const Eigen::Vector3f& query,
                                                        float radius_m, int hint0,
                                                        int hint1) const {
+  // Nothing lies within a negative or NaN radius (squared, a negative one had searched as far).
+  if (!(radius_m >= 0)) radius_m = 0;
   TwoNearestWithin result(radius_m * radius_m);
   if (size() == 0) return result.r;
   // Seeding the result with the hints shrinks the search ball from the start; any nearer point

@@ -25,13 +25,15 @@ class PointCloudTree {
   const PointCloud& cloud() const;
   std::size_t size() const;
 
-  // The nearest point within max_distance_m: its index, or -1. distance_sq [m^2] if given.
+  // The nearest point within max_distance_m: its index, or -1 (always for a negative or NaN
+  // distance). distance_sq [m^2] if given.
   int nearest(const Eigen::Vector3f& query, float max_distance_m,
               float* distance_sq = nullptr) const;
 
   // The two nearest points within radius_m. Unfound slots have index -1 and distance_sq =
   // radius_m^2 (every other point is at least that far), which is what a caller needs to decide
-  // later that a moved query still has the same nearest point (see icp.cpp).
+  // later that a moved query still has the same nearest point (see icp.cpp). A negative or NaN
+  // radius is 0: nothing found.
   struct TwoNearest {
     int index[2] = {-1, -1};
     float distance_sq[2] = {0, 0};  // [m^2], ascending
