@@ -229,6 +229,7 @@ SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where) 
     m.background_blur_m = sh.number_in("background_blur_m", 0.0, 0.01, m.background_blur_m);
     sh.finish();
   }
+  s.lights_measured = f.optional<bool>("lights_measured", false);
   if (f.has("noise")) {
     JsonFields n(f.at("noise"), f.field("noise"));
     s.noise.sigma = n.number_in("sigma", 0.0, 255.0, s.noise.sigma);
@@ -294,7 +295,7 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
   }
   const auto& c = s.camera;
   const auto& g = s.gel;
-  return {
+  nlohmann::json j = {
       {"name", s.name},
       {"width", c.width},
       {"height", c.height},
@@ -326,6 +327,9 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
         {"background_blur_m", s.shading.background_blur_m}}},
       {"noise", {{"sigma", s.noise.sigma}}},
   };
+  // Only where set: a preset's or render's sensor reads as it always did.
+  if (s.lights_measured) j["lights_measured"] = true;
+  return j;
 }
 
 SensorModel load_sensor_file(const std::string& path) {

@@ -257,3 +257,11 @@ int load_checkpoint(const TrainOptions& o, TrainingState& s) {
 }
 
 }  // namespace pg::learn
+
+namespace pg {
+
+std::string training_settings_json(const TrainOptions& options) {
+  return learn::run_settings(options).dump();
+}
+
+}  // namespace pg

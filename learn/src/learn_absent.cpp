@@ -56,6 +56,7 @@ NormalMetrics evaluate_normals(const NormalsReader&, const std::string&,
                                const std::function<void(int, int)>&) {
   absent("evaluate_normals");
 }
+std::string training_settings_json(const TrainOptions&) { absent("training_settings_json"); }
 void train_normals(const TrainOptions&, const std::function<void(const EpochReport&)>&,
                    const std::function<void(int, int, int)>&) {
   absent("train_normals");

@@ -136,8 +136,13 @@ TEST(SensorConfig, JsonRoundTripIsExact) {
   s.shading.background_gain = 0.4375;
   s.shading.background_blur_m = 0.00031;
   s.noise.sigma = 3.5;
+  s.lights_measured = true;
   const SensorModel b = sensor_from_json(sensor_to_json(s), "test");
   EXPECT_EQ(b.name, s.name);
+  EXPECT_TRUE(b.lights_measured);
+  // Written only where set: a preset's reads as it always did.
+  EXPECT_FALSE(sensor_to_json(sensor_preset("digit")).contains("lights_measured"));
+  EXPECT_FALSE(sensor_from_json(sensor_to_json(sensor_preset("digit")), "test").lights_measured);
   EXPECT_EQ(b.camera.width, s.camera.width);
   EXPECT_EQ(b.camera.height, s.camera.height);
   EXPECT_EQ(b.camera.fx, s.camera.fx);

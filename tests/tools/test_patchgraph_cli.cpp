@@ -106,6 +106,30 @@ class PatchgraphCli : public ::testing::Test {
 };
 fs::path PatchgraphCli::dir_;
 
+// Fine-tuning takes the --init model's network and weights, not the settings it was trained
+// with: a loss weight or augmentation it had that this run leaves at its default is said (the
+// default models' --contact-weight 4, the U-Net's --noise-augment 10); one given again is not.
+TEST_F(PatchgraphCli, FineTuningSaysWhichTrainingSettingsItDoesNotCarryOver) {
+  const std::string model = std::string(PG_SOURCE_DIR) + "/models/normals_mlp.pt";
+  const std::string tune =
+      "train-normals --data " + data() + " --init " + model + " --epochs 1 --threads 1 -q ";
+  const CliRun left = patchgraph(tune + "--out " + out("tuned_left.pt"));
+  ASSERT_EQ(left.code, 0) << left.out;
+  EXPECT_NE(left.out.find("warning: --init " + model +
+                          " was trained with --contact-weight 4; this run trains with "
+                          "--contact-weight 0 (fine-tuning takes the model's network and "
+                          "weights, not its training's settings): give them again"),
+            std::string::npos)
+      << left.out;
+  const CliRun kept = patchgraph(tune + "--contact-weight 4 --out " + out("tuned_kept.pt"));
+  ASSERT_EQ(kept.code, 0) << kept.out;
+  EXPECT_EQ(kept.out.find("was trained with"), std::string::npos) << kept.out;
+  // Given at another value, it is the user's choice: not warned of either.
+  const CliRun other = patchgraph(tune + "--contact-weight 2 --out " + out("tuned_other.pt"));
+  ASSERT_EQ(other.code, 0) << other.out;
+  EXPECT_EQ(other.out.find("was trained with"), std::string::npos) << other.out;
+}
+
 TEST_F(PatchgraphCli, UsageAndInputErrors) {
   EXPECT_EQ(patchgraph("").code, 2);
   EXPECT_EQ(patchgraph("track").code, 2);
@@ -117,6 +141,11 @@ TEST_F(PatchgraphCli, UsageAndInputErrors) {
   refused("track /no/such/data --out " + out("x"), 1, "/no/such/data");
   refused(track + "--method icpgraph --out " + out("x"), 2, "--method: icpgraph not in");
   refused("trak " + data(), 2, "unknown subcommand 'trak' (known: track, eval, bench,");
+  // An unknown option is named before a required one it may have stood for (a misspelt --out
+  // had been answered "--out is required").
+  refused(track + "--bogus", 2, "was not expected: --bogus");
+  refused(track + "--ot " + out("x"), 2, "--ot");
+  refused(track + "--out " + out("x") + " --bogus", 2, "was not expected: --bogus");
   const CliRun version = patchgraph("--version");  // had been "A subcommand is required"
   EXPECT_EQ(version.code, 0);
   EXPECT_EQ(version.out.rfind("patchgraph 0.", 0), 0u) << version.out;
@@ -643,6 +672,23 @@ TEST_F(PatchgraphCli, EvalKeepsTheRunsOfDatasetsOfOneName) {
   };
   EXPECT_EQ(seed_of(out("names_eval") + "/runs/p1_a_constvel"),
             seed_of(out("names_alone") + "/runs/a_constvel"));
+  // A link to a dataset is named (and seeded) as the user named it, not after its target (both
+  // links had been named after "a", and their seeds drawn from it).
+  fs::remove_all(out("names/links"));
+  fs::create_directories(out("names/links"));
+  fs::create_directory_symlink(out("names/p1/a"), out("names/links/first"));
+  const CliRun linked = patchgraph("eval --datasets " + out("names/links/first/") +
+                                   " --methods constvel -q --no-plots --out " + out("names_link"));
+  ASSERT_EQ(linked.code, 0) << linked.out;
+  EXPECT_TRUE(fs::exists(out("names_link") + "/runs/first_constvel/poses.csv"));
+  EXPECT_NE(seed_of(out("names_link") + "/runs/first_constvel"),
+            seed_of(out("names_alone") + "/runs/a_constvel"));
+  fs::create_directory_symlink(out("names/p1/a"), out("names/links/again"));
+  const CliRun same =
+      patchgraph("eval --datasets " + out("names/links/first") + " " + out("names/links/again") +
+                 " --methods constvel -q --no-plots " + "--out " + out("names_link2"));
+  EXPECT_EQ(same.code, 2) << "one dataset through two links counts once";
+  EXPECT_NE(same.out.find("given twice"), std::string::npos) << same.out;
 
   CliRun twice = patchgraph("eval --datasets " + data() + " " + data() +
                             " --methods constvel -q --no-plots --out " + out("twice"));
@@ -921,7 +967,8 @@ TEST_F(PatchgraphCli, TrackWithTheShadingsInverse) {
       patchgraph("track " + out("shading_rec") + " -q --normals shading --out " + out("x"));
   ASSERT_EQ(recorded.code, 0) << recorded.out;
   EXPECT_NE(recorded.out.find("warning: " + out("shading_rec") +
-                              ": no scene rendered it (a recording): the shading's inverse"),
+                              ": no scene rendered it (a recording), and its dataset.json's "
+                              "sensor model's lights were not measured"),
             std::string::npos)
       << recorded.out;
   EXPECT_EQ(r.out.find("no scene rendered it"), std::string::npos) << r.out;
@@ -3312,6 +3359,14 @@ TEST_F(PatchgraphCli, FitSensorMeasuresARecordedSensorsLights) {
             0);
   EXPECT_EQ(Dataset::open(out("fit_val_rec_fitted")).info().sensor.lights[1].position_m,
             fitted.lights[1].position_m);
+  // Its lights are measured: tracking the recording made with it does not warn that they may be
+  // a preset's (a recording under the preset is: PatchgraphCli.TrackWithTheShadingsInverse).
+  EXPECT_TRUE(fitted.lights_measured);
+  EXPECT_TRUE(Dataset::open(out("fit_val_rec_fitted")).info().sensor.lights_measured);
+  const CliRun tracked = patchgraph("track " + out("fit_val_rec_fitted") +
+                                    " -q --normals shading --out " + out("fit_val_rec_track"));
+  EXPECT_EQ(tracked.code, 0) << tracked.out;
+  EXPECT_EQ(tracked.out.find("no scene rendered it"), std::string::npos) << tracked.out;
   // eval-normals reads a recording's labelled presses through its sensor file's lights, as the
   // change from its no-contact image: with the fitted file far closer than with the preset
   // (measured 6.6 deg against 34.8; 7.9 before the change's filter).

@@ -584,6 +584,12 @@ inline int run_cli(CLI::App& app, int argc, char** argv, const std::function<int
              " times; it takes one value (give it once)";
     }
     return usage_error(what.c_str());
+  } catch (const CLI::RequiredError& e) {
+    // An option the tool does not know is the likelier mistake (a misspelt --out leaves --out
+    // unset): said first, as it is when nothing is missing.
+    const std::vector<std::string> unknown = app.remaining(true);
+    if (!unknown.empty()) return usage_error(CLI::ExtrasError(unknown).what());
+    return usage_error(e.what());
   } catch (const CLI::ParseError& e) {  // said as the tools' own usage errors are
     return usage_error(e.what());
   }

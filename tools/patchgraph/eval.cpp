@@ -62,18 +62,27 @@ std::vector<std::string> expand_datasets(const std::vector<std::string>& roots) 
   return out;
 }
 
+// A dataset's folder as given, made absolute and without "." or ".." (a symbolic link to a
+// dataset keeps its own name, not its target's: the runs are named as the user named them).
+fs::path as_given(const std::string& dir) {
+  fs::path p = fs::absolute(dir).lexically_normal();
+  return p.has_filename() ? p : p.parent_path();  // "x/" names x
+}
+
 // The folder under OUT/runs of each dataset's runs (before "_METHOD"): its own folder's name, or,
 // where two datasets share that name, with their parents' names before it (a/x and b/x become
-// a_x and b_x). A dataset given twice (also through a folder of datasets) is an error.
+// a_x and b_x). A dataset given twice (also through a folder of datasets, or a link) is an error.
 std::vector<std::string> run_names(const std::vector<std::string>& datasets) {
-  const std::vector<fs::path> canonical = check_given_once(datasets);
+  check_given_once(datasets);
+  std::vector<fs::path> given;
+  for (const std::string& dir : datasets) given.push_back(as_given(dir));
   std::map<std::string, int> uses;
-  for (const fs::path& path : canonical) ++uses[path.filename().string()];
+  for (const fs::path& path : given) ++uses[path.filename().string()];
   std::vector<std::string> names;
   for (std::size_t k = 0; k < datasets.size(); ++k) {
     const std::string& dir = datasets[k];
-    std::string name = canonical[k].filename().string();
-    if (uses[name] > 1) name = canonical[k].parent_path().filename().string() + "_" + name;
+    std::string name = given[k].filename().string();
+    if (uses[name] > 1) name = given[k].parent_path().filename().string() + "_" + name;
     if (std::find(names.begin(), names.end(), name) != names.end()) {
       throw InputError(dir + ": its runs would share OUT/runs/" + name +
                        "_* with another dataset's; rename one of the two folders");
@@ -431,8 +440,7 @@ int run_eval(const EvalArgs& args) {
     const std::vector<const Dataset*> sensors = dataset_pointers(opened[task.sequence]);
     TrackArgs a = args.track;
     a.method = task.method;
-    a.seed = sequence_seed(seeds[task.seed],
-                           fs::weakly_canonical(datasets[task.sequence]).filename().string());
+    a.seed = sequence_seed(seeds[task.seed], as_given(datasets[task.sequence]).filename().string());
     return make_track_options(a, sensors, job_model, std::move(object));
   };
   // A task's row in results.csv.

@@ -235,7 +235,9 @@ int run_fit_sensor(const FitSensorArgs& a) {
           joined(a.val).c_str(), m[0] * 180 / kPi, m[1] * 180 / kPi);
     }
   }
-  write_text_atomically(a.out, sensor_to_json(r.sensor).dump(2) + "\n", "sensor file");
+  SensorModel fitted = r.sensor;
+  fitted.lights_measured = true;  // a recording made with this file needs no warning about them
+  write_text_atomically(a.out, sensor_to_json(fitted).dump(2) + "\n", "sensor file");
   std::printf("wrote %s\n", a.out.c_str());
   if (!r.converged) {
     std::fprintf(stderr, "warning: the fit had not converged after %d iterations (--iterations)\n",

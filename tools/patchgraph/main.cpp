@@ -422,7 +422,9 @@ int main(int argc, char** argv) {
     }
 #endif
     if (cmd_train_normals->parsed()) {
-      for (const char* option : {"--l1-weight", "--gan-weight", "--depth", "--width", "--hidden"}) {
+      for (const char* option :
+           {"--l1-weight", "--gan-weight", "--depth", "--width", "--hidden", "--contact-weight",
+            "--shift", "--gain-jitter", "--offset-jitter", "--noise-augment"}) {
         if (cmd_train_normals->count(option) > 0)
           train_normals_args.options.given.push_back(option);
       }

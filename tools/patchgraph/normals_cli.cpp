@@ -140,6 +140,38 @@ CLI::App* add_eval_normals_command(CLI::App& app, EvalNormalsArgs& a) {
   return cmd;
 }
 
+namespace {
+
+// Fine-tuning takes the --init model's network and weights, not the settings it was trained with:
+// a loss weight or augmentation it had and this run leaves at its default (the default model's
+// --noise-augment, which its robustness to noise owes to) is said, with how to keep it.
+void warn_of_settings_not_carried_over(const TrainOptions& o) {
+  const auto recorded = nlohmann::json::parse(
+      NormalEstimator::load(o.init_model).info().settings_json, nullptr, false);
+  if (!recorded.is_object()) return;  // a model from before the settings were recorded
+  const nlohmann::json now = nlohmann::json::parse(training_settings_json(o));
+  std::string then_text, now_text;
+  for (const char* option :
+       {"--contact-weight", "--shift", "--gain-jitter", "--offset-jitter", "--noise-augment"}) {
+    const auto it = recorded.find(option);
+    if (it == recorded.end() || !it->is_number() || !now.at(option).is_number()) continue;
+    if (std::find(o.given.begin(), o.given.end(), option) != o.given.end()) continue;
+    const double was = it->get<double>(), is = now.at(option).get<double>();
+    if (was == is) continue;
+    then_text +=
+        (then_text.empty() ? "" : " ") + std::string(option) + " " + format_number(was, "%g");
+    now_text += (now_text.empty() ? "" : " ") + std::string(option) + " " + format_number(is, "%g");
+  }
+  if (then_text.empty()) return;
+  std::fprintf(stderr,
+               "warning: --init %s was trained with %s; this run trains with %s (fine-tuning "
+               "takes the model's network and weights, not its training's settings): give them "
+               "again to keep them\n",
+               o.init_model.c_str(), then_text.c_str(), now_text.c_str());
+}
+
+}  // namespace
+
 int run_train_normals(const TrainNormalsArgs& a) {
   TrainOptions o = a.options;
   as_usage_error([&] {
@@ -192,6 +224,7 @@ int run_train_normals(const TrainNormalsArgs& a) {
                      " is the --init model; write the fine-tuned model to "
                      "another file (the starting model would be replaced)");
   }
+  if (!o.init_model.empty()) warn_of_settings_not_carried_over(o);
   std::unique_ptr<Progress> progress;
   int epoch = 0;              // the one in progress
   int checkpoint_epoch = -1;  // what OUT.ckpt holds by this run: -1 none

@@ -294,14 +294,15 @@ void check_normals_models(const std::string& normals, const NormalsModels& model
     const bool shading = normals == kShadingNormals;
     check_normals_source(*datasets[k], model ? model->path() : shading ? normals : "gt");
     if (shading || blend_shading) check_shading_readable(*datasets[k]);
-    if ((shading || blend_shading) && datasets[k]->info().scene.empty()) {
+    const DatasetInfo& info = datasets[k]->info();
+    if ((shading || blend_shading) && info.scene.empty() && !info.sensor.lights_measured) {
       std::fprintf(stderr,
-                   "warning: %s: no scene rendered it (a recording): the shading's inverse "
-                   "(--normals shading, --blend-shading) reads its change from the no-contact "
-                   "image through its dataset.json's sensor model, whose lights describe a real "
-                   "sensor's only if measured (patchgraph fit-sensor on its ball presses, then "
-                   "recording --sensor-file); a network trained on its presses reads it too "
-                   "(docs/learned_normals.md \"Inverting the shading\")\n",
+                   "warning: %s: no scene rendered it (a recording), and its dataset.json's "
+                   "sensor model's lights were not measured: the shading's inverse (--normals "
+                   "shading, --blend-shading) reads its change from the no-contact image through "
+                   "them, which describe a real sensor's only if measured (patchgraph fit-sensor "
+                   "on its ball presses, then recording --sensor-file); a network trained on its "
+                   "presses reads it too (docs/learned_normals.md \"Inverting the shading\")\n",
                    datasets[k]->dir().c_str());
     }
     if (model) {

@@ -96,6 +96,10 @@ struct SensorModel {
   std::vector<PointLight> lights;
   ShadingModel shading;
   NoiseModel noise;
+  // The lights were measured on a real sensor (patchgraph fit-sensor on its ball presses sets it;
+  // a sensor file's "lights_measured": true), not a preset's design: the shading's inverse then
+  // describes a recording made with them.
+  bool lights_measured = false;
 };
 
 // Built-in presets: "digit" (120x160, the paper's simulation), "digit_240x320" (the real DIGIT

@@ -200,7 +200,9 @@ struct TrainOptions {
   // `gel_relative`). The discriminator starts afresh. "" = from random weights.
   std::string init_model;
   // The network options given explicitly ("--l1-weight", "--gan-weight", "--depth", "--width",
-  // "--hidden"), so that one the chosen network ignores is refused even at its default value.
+  // "--hidden"), so that one the chosen network ignores is refused even at its default value;
+  // and the loss weight and augmentation ("--contact-weight", "--shift", "--gain-jitter",
+  // "--offset-jitter", "--noise-augment"), whose fine-tuning values given are not warned of.
   std::vector<std::string> given;
 };
 
@@ -213,6 +215,10 @@ struct EpochReport {
   NormalMetrics val;
   double seconds = 0;
 };
+
+// The settings that make a training run of `options` what it is, by their train-normals option
+// names, as a JSON object (what a model's NormalModelInfo::settings_json records, with the data).
+std::string training_settings_json(const TrainOptions& options);
 
 // Trains and writes OUT (and OUT.ckpt every checkpoint_every epochs). Throws InputError for bad
 // data (naming the folder or file). `on_step(epoch, done, total)` reports batches within an
