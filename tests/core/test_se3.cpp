@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <stdexcept>
+#include <string>
 
 #include "pg/core/se3.h"
 
@@ -152,6 +154,30 @@ TEST(SE3, InterpolateEndsAndMidpoint) {
   const SE3 M = interpolate(A, B, 0.5);
   EXPECT_NEAR(rotation_distance(A, M), 0.5, 1e-12);
   EXPECT_TRUE(near_vec(M.translation(), Eigen::Vector3d(0.005, 0.01, -0.015), 1e-12));
+}
+
+// A rotation matrix is taken as it is; a reflection or a scaled matrix is refused (a reflection
+// had become another rotation without a word).
+TEST(SE3, ConstructorFromAMatrixTakesOnlyRotations) {
+  const Eigen::Matrix3d R =
+      Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  const SE3 T(R, Eigen::Vector3d(1, 2, 3));
+  EXPECT_LT((T.rotation_matrix() - R).cwiseAbs().maxCoeff(), 1e-12);
+  // Four decimals, as a matrix typed in from a printout: taken.
+  const Eigen::Matrix3d typed = (R * 1e4).array().round() / 1e4;
+  EXPECT_LT(rotation_distance(SE3(typed, Eigen::Vector3d::Zero()), T), 1e-3);
+  Eigen::Matrix3d mirrored = R;
+  mirrored.col(2) *= -1;
+  try {
+    const SE3 bad(mirrored, Eigen::Vector3d::Zero());
+    ADD_FAILURE() << "a reflection was taken: " << bad.rotation().coeffs().transpose();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("a reflection"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(SE3(2.0 * R, Eigen::Vector3d::Zero()), std::invalid_argument);
+  Eigen::Matrix3d nan = R;
+  nan(0, 0) = NAN;
+  EXPECT_FALSE(is_finite(SE3(nan, Eigen::Vector3d::Zero())));
 }
 
 TEST(SE3, ConstructorNormalisesQuaternion) {

@@ -377,6 +377,17 @@ TEST(DepthBadInput, WrongImageSizeIsAnInputError) {
     EXPECT_NE(std::string(e.what()).find("image holds 19200 values, not 57600"), std::string::npos)
         << e.what();
   }
+  // A sensor of an image a sensor file could not give (a 0 x 0 camera had been taken, and every
+  // frame read as no contact).
+  SensorModel empty = sensor;
+  empty.camera.width = empty.camera.height = 0;
+  try {
+    ContactCloudBuilder builder(empty, ContactCloudOptions());
+    ADD_FAILURE() << "a 0 x 0 sensor was taken";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("sensor digit: a 0x0 px image"), std::string::npos)
+        << e.what();
+  }
   // Options a config file could not give (a NaN threshold had read every press as no contact).
   ContactCloudOptions nan_guard;
   nan_guard.depth.min_normal_dot_ray = NAN;

@@ -139,10 +139,26 @@ void check_normal_image(const ImageF& image, const GelRays& rays, const char* wh
 
 }  // namespace
 
+namespace {
+
+// `sensor`, once its image is of a size a sensor file may give (a 0 x 0 camera set in C++ had
+// been taken, and every frame then read as no contact).
+const SensorModel& checked_size(const SensorModel& sensor) {
+  const int w = sensor.camera.width, h = sensor.camera.height;
+  if (w < kMinImageSide || h < kMinImageSide || w > kMaxImageSide || h > kMaxImageSide) {
+    throw InputError("sensor " + sensor.name + ": a " + std::to_string(w) + "x" +
+                     std::to_string(h) + " px image; each side must be in [" +
+                     std::to_string(kMinImageSide) + ", " + std::to_string(kMaxImageSide) + "]");
+  }
+  return sensor;
+}
+
+}  // namespace
+
 DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions& options,
                                    const ImageF& reference_normals)
     : options_(options),
-      rays_(make_gel_rays(sensor.camera, sensor.gel)),
+      rays_(make_gel_rays(checked_size(sensor).camera, sensor.gel)),
       solver_(PoissonDstOptions{options.dst_backend, options.measure_fft_plans, 32}) {
   options_.crop_margin_px = std::max(options_.crop_margin_px, 1);
   const double c = options_.min_normal_dot_ray;

@@ -7,6 +7,9 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
 
 #include "pg/core/numbers.h"
 
@@ -153,7 +156,22 @@ class SE3T {
   SE3T() : q_(Quat::Identity()), t_(Vec3<T>::Zero()) {}
   // The quaternion is normalised here, so callers may pass any non-zero quaternion.
   SE3T(const Quat& q, const Vec3<T>& t) : q_(q.normalized()), t_(t) {}
-  SE3T(const Mat3<T>& R, const Vec3<T>& t) : q_(Quat(R).normalized()), t_(t) {}
+  // R must be a rotation (to 1e-3, as a matrix of a few decimals is): a reflection (determinant
+  // -1, a left-handed frame's) or a scaled matrix throws std::invalid_argument, instead of
+  // becoming some other rotation. A non-finite R gives a non-finite pose (is_finite).
+  SE3T(const Mat3<T>& R, const Vec3<T>& t) : q_(Quat(R).normalized()), t_(t) {
+    if constexpr (std::is_floating_point_v<T>) {
+      if (!R.allFinite()) return;
+      const T off = (R.transpose() * R - Mat3<T>::Identity()).cwiseAbs().maxCoeff();
+      const T det = R.determinant();
+      if (off > T(1e-3) || det < T(0)) {
+        throw std::invalid_argument(
+            "SE3: the matrix is not a rotation (determinant " + std::to_string(double(det)) +
+            ", R^T R off the identity by " + std::to_string(double(off)) +
+            (det < T(0) ? "; a reflection: a left-handed frame's axes)" : ")"));
+      }
+    }
+  }
 
   static SE3T Identity() { return SE3T(); }
   static SE3T Translation(const Vec3<T>& t) { return SE3T(Quat::Identity(), t); }
