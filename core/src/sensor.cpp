@@ -332,6 +332,11 @@ nlohmann::json sensor_to_json(const SensorModel& s) {
   return j;
 }
 
+void check_sensor_model(const SensorModel& sensor, const std::string& where) {
+  // Through the reader's own checks, so that the ranges live in one place.
+  sensor_from_json(sensor_to_json(sensor), where);
+}
+
 SensorModel load_sensor_file(const std::string& path) {
   const nlohmann::json j = parse_json_file(path);
   check_json_file_kind(j, path, JsonFileKind::kSensor);

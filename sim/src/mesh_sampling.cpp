@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
+#include <string>
 
 namespace pg {
 
@@ -16,7 +18,17 @@ double triangle_area(const TriangleMesh& mesh, const Eigen::Vector3i& t) {
 
 }  // namespace
 
+void check_sample_spacing(double spacing_m, const char* what) {
+  // 0, below it or NaN had placed one point a triangle (surface_grid: only its corners) without
+  // a word, the infinite density cast to an integer.
+  if (!(spacing_m > 0) || !std::isfinite(spacing_m)) {
+    throw std::invalid_argument(std::string(what) + ": spacing " + std::to_string(spacing_m) +
+                                " m; it must be positive");
+  }
+}
+
 double surface_sample_count(const TriangleMesh& mesh, double spacing_m) {
+  check_sample_spacing(spacing_m, "surface_sample_count");
   const double density = 1.0 / (spacing_m * spacing_m);
   double count = 0;
   for (const auto& t : mesh.triangles) {
@@ -27,6 +39,7 @@ double surface_sample_count(const TriangleMesh& mesh, double spacing_m) {
 }
 
 SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed) {
+  check_sample_spacing(spacing_m, "sample_surface");
   SurfaceSamples out;
   std::mt19937_64 rng(seed);
   auto uniform = [&] { return float((double(rng() >> 11) + 0.5) * 0x1.0p-53); };

@@ -5,6 +5,7 @@
 #include <limits>
 #include <mutex>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -83,6 +84,22 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
     : mesh_(std::move(mesh)), impl_(std::make_unique<Impl>()) {
   if (mesh_.vertices.empty() || mesh_.triangles.empty()) {
     throw InputError("ObjectShape: empty mesh");
+  }
+  // What load_mesh checks of a file's mesh, for one built in C++: an index past the vertices had
+  // been read out of bounds (by the BVH too), a non-finite vertex bent the imprint.
+  for (std::size_t v = 0; v < mesh_.vertices.size(); ++v) {
+    if (!mesh_.vertices[v].allFinite()) {
+      throw InputError("ObjectShape: vertex " + std::to_string(v) + " is not finite");
+    }
+  }
+  const int n = int(std::min<std::size_t>(mesh_.vertices.size(), INT32_MAX));
+  for (std::size_t t = 0; t < mesh_.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = mesh_.triangles[t];
+    if (tri.minCoeff() < 0 || tri.maxCoeff() >= n) {
+      throw InputError("ObjectShape: triangle " + std::to_string(t) + " has vertex index " +
+                       std::to_string(tri.minCoeff() < 0 ? tri.minCoeff() : tri.maxCoeff()) +
+                       ", but the mesh has " + std::to_string(mesh_.vertices.size()) + " vertices");
+    }
   }
   bounds_ = mesh_bounds(mesh_);
   const Surfaces surfaces = find_surfaces(mesh_.triangles, triangles_by_edge(mesh_.triangles));

@@ -11,6 +11,7 @@
 #include "pg/core/json_fields.h"
 #include "pg/core/random.h"
 #include "pg/core/se3.h"
+#include "pg/sim/mesh_sampling.h"
 
 namespace pg {
 namespace {
@@ -25,6 +26,7 @@ int grid_divisions(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eig
 }  // namespace
 
 std::size_t surface_grid_size(const TriangleMesh& mesh, double spacing_m) {
+  check_sample_spacing(spacing_m, "surface_grid_size");
   std::size_t count = 0;
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const std::size_t n = std::size_t(
@@ -36,6 +38,7 @@ std::size_t surface_grid_size(const TriangleMesh& mesh, double spacing_m) {
 }
 
 std::vector<Eigen::Vector3d> surface_grid(const TriangleMesh& mesh, double spacing_m) {
+  check_sample_spacing(spacing_m, "surface_grid");
   std::vector<Eigen::Vector3d> points;
   for (const Eigen::Vector3i& t : mesh.triangles) {
     const Eigen::Vector3d a = mesh.vertices[t[0]].cast<double>();
@@ -90,6 +93,19 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
                                      const GelModel& gel, const RandomPressOptions& options,
                                      const std::function<void(int done)>& on_frame) {
   if (p_object.empty()) throw InputError("random presses: the object has no surface points");
+  // Options the command line could not give: no attempt at all had searched for ever, a NaN
+  // centre had passed every test and placed the press at x = NaN.
+  const bool finite = options.centre_m.allFinite() && options.target_half_m.allFinite() &&
+                      options.contact_half_m.allFinite() && std::isfinite(options.min_depth_m) &&
+                      std::isfinite(options.max_depth_m);
+  if (!finite || options.attempts < 1 || options.frames < 0 || !(options.min_depth_m > 0) ||
+      options.min_depth_m > options.max_depth_m || options.target_half_m.minCoeff() < 0 ||
+      options.contact_half_m.minCoeff() <= 0) {
+    throw InputError(
+        "random presses: options out of range (attempts at least 1, frames not negative, depths "
+        "finite with 0 < min_depth_m <= max_depth_m, the areas' half sizes finite, target_half_m "
+        "not negative and contact_half_m positive)");
+  }
   const double inf = std::numeric_limits<double>::infinity();
   Random rng(options.seed);
   std::vector<Waypoint> presses;

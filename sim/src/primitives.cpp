@@ -1,12 +1,22 @@
 #include "pg/sim/primitives.h"
 
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 #include "pg/core/numbers.h"
 
 namespace pg {
 
 TriangleMesh make_uv_sphere(float radius_m, int rings, int segments) {
+  // Fewer rings or segments make no closed surface (one ring's indices had pointed past the
+  // vertices); a radius that is not positive, none at all.
+  if (rings < 2 || segments < 3 || !(radius_m > 0) || !std::isfinite(radius_m)) {
+    throw std::invalid_argument("make_uv_sphere: radius " + std::to_string(radius_m) + ", " +
+                                std::to_string(rings) + " rings, " + std::to_string(segments) +
+                                " segments; a sphere needs a positive radius, 2 rings and 3 "
+                                "segments at least");
+  }
   TriangleMesh m;
   m.vertices.push_back({0, 0, radius_m});
   for (int r = 1; r < rings; ++r) {
@@ -35,6 +45,12 @@ TriangleMesh make_uv_sphere(float radius_m, int rings, int segments) {
 }
 
 TriangleMesh make_box(const Eigen::Vector3f& half) {
+  // A negative extent turns the box inside out (it had pressed nothing); zero flattens it.
+  if (!(half.minCoeff() > 0) || !half.allFinite()) {
+    throw std::invalid_argument("make_box: half extents must be positive, got (" +
+                                std::to_string(half.x()) + ", " + std::to_string(half.y()) + ", " +
+                                std::to_string(half.z()) + ")");
+  }
   TriangleMesh m;
   for (int k = 0; k < 8; ++k) {
     m.vertices.push_back({(k & 1) ? half.x() : -half.x(), (k & 2) ? half.y() : -half.y(),

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "pg/core/error.h"
+#include "pg/core/sensor.h"
 #include "render_state.h"
 
 namespace pg {
@@ -186,10 +187,32 @@ void SensorRenderer::State::prepare() {
   }
 }
 
+namespace {
+
+// The renderer's inputs set in C++, checked as a sensor file and a scene's objects are: a camera
+// left at fx = 0 had crashed the gel's set-up, a null object the first frame, and an object
+// numbered past the per-pixel record's 16 bits had corrupted the heap.
+SensorModel checked(SensorModel sensor,
+                    const std::vector<std::shared_ptr<const ObjectShape>>& objects) {
+  check_sensor_model(sensor, "SensorRenderer: sensor " + sensor.name);
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    if (!objects[i]) throw InputError("SensorRenderer: object " + std::to_string(i) + " is null");
+  }
+  constexpr std::size_t kMaxObjects = 32767;  // RenderState's int16_t object numbers
+  if (objects.size() > kMaxObjects) {
+    throw InputError("SensorRenderer: " + std::to_string(objects.size()) + " objects; at most " +
+                     std::to_string(kMaxObjects) + " are rendered together");
+  }
+  return sensor;
+}
+
+}  // namespace
+
 SensorRenderer::SensorRenderer(SensorModel sensor,
                                std::vector<std::shared_ptr<const ObjectShape>> objects,
                                RenderSettings settings)
-    : state_(std::make_unique<State>(std::move(sensor), std::move(objects), std::move(settings))) {
+    : state_(std::make_unique<State>(checked(std::move(sensor), objects), std::move(objects),
+                                     std::move(settings))) {
   state_->prepare();
 }
 
@@ -213,6 +236,14 @@ void SensorRenderer::render(const std::vector<SE3>& T_sensor_objects, std::uint6
   const State& s = *state_;
   if (T_sensor_objects.size() != s.objects.size()) {
     throw std::invalid_argument("SensorRenderer::render: one pose per object expected");
+  }
+  // A NaN pose had rendered as no contact, the object gone without a word; a zero quaternion (an
+  // unset pose) as the identity.
+  for (std::size_t i = 0; i < T_sensor_objects.size(); ++i) {
+    if (!is_finite(T_sensor_objects[i])) {
+      throw InputError("SensorRenderer::render: object " + std::to_string(i) +
+                       "'s pose is not finite (or its quaternion not of unit length)");
+    }
   }
   Workspace& ws = s.workspaces.local();
   out.stats = RenderStats{};

@@ -15,7 +15,9 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <stdexcept>
 
+#include "pg/core/dataset.h"
 #include "pg/core/error.h"
 #include "pg/core/file_io.h"
 #include "pg/core/image.h"
@@ -85,6 +87,26 @@ std::string size_text(std::uintmax_t bytes) {
 
 SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
     : scene_(std::move(scene)) {
+  // What a scene file and tacsim's options could not give, set in C++: an output of another name
+  // (a typo had rendered every image empty), a negative size or frame count (ignored), a tracked
+  // object past the list (read out of bounds when the dataset was described).
+  const std::vector<std::string>& known = dataset_output_names();
+  for (const std::string& name : overrides.outputs) {
+    if (std::find(known.begin(), known.end(), name) == known.end()) {
+      std::string list;
+      for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+      throw InputError("RenderOverrides: unknown output '" + name + "' (known: " + list + ")");
+    }
+  }
+  if (overrides.width < 0 || overrides.height < 0 || overrides.frames < 0) {
+    throw InputError("RenderOverrides: width " + std::to_string(overrides.width) + ", height " +
+                     std::to_string(overrides.height) + ", frames " +
+                     std::to_string(overrides.frames) + "; none may be negative (0: the scene's)");
+  }
+  if (scene_.tracked_object < 0 || std::size_t(scene_.tracked_object) >= scene_.objects.size()) {
+    throw InputError(scene_.path + ": tracked_object " + std::to_string(scene_.tracked_object) +
+                     " is not one of its " + std::to_string(scene_.objects.size()) + " objects");
+  }
   if (overrides.frames > scene_.frames) {
     throw InputError(scene_.path + ": has " + std::to_string(scene_.frames) +
                      " frames, fewer than the " + std::to_string(overrides.frames) + " asked for");
@@ -154,7 +176,13 @@ SceneRenderer::SceneRenderer(Scene scene, const RenderOverrides& overrides)
 }
 
 std::vector<SE3> SceneRenderer::object_poses_in_sensor(int sensor, int frame) const {
-  const SE3 T_sensor_world = scene_.sensors[sensor].T_world_sensor.at(frame).inverse();
+  // A frame past the scene's had rendered its first or last pose without a word.
+  if (frame < 0 || frame >= scene_.frames) {
+    throw std::out_of_range("SceneRenderer: frame " + std::to_string(frame) + " of a scene of " +
+                            std::to_string(scene_.frames) + " frames");
+  }
+  const SE3 T_sensor_world =
+      scene_.sensors.at(std::size_t(sensor)).T_world_sensor.at(frame).inverse();
   std::vector<SE3> poses;
   for (const auto& object : scene_.objects) {
     poses.push_back(T_sensor_world * object.T_world_object.at(frame));

@@ -30,6 +30,12 @@ Shader make_shader(const SensorModel& sensor);
 // to (ShadingFit), or its reference or normals.
 template <typename Image>
 void check_sensor_image(const char* what, const Image& image, int width, int height) {
+  if (image.same_shape(width, height, 3) && image.data.size() != image.shape_values()) {
+    // A camera buffer wrapped by hand at another size: it had been read past its end.
+    throw InputError(std::string(what) + " " + std::to_string(width) + "x" +
+                     std::to_string(height) + "x3 holds " + std::to_string(image.data.size()) +
+                     " values, not " + std::to_string(image.shape_values()));
+  }
   if (image.same_shape(width, height, 3)) return;
   throw InputError(std::string(what) + " " + std::to_string(image.width) + "x" +
                    std::to_string(image.height) + "x" + std::to_string(image.channels) +

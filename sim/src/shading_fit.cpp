@@ -160,6 +160,7 @@ struct ShadingFit::State {
 
 ShadingFit::ShadingFit(const SensorModel& start, bool blended, ShadingFitOptions options)
     : state_(std::make_unique<State>()) {
+  check_sensor_model(start, "ShadingFit: sensor " + start.name);
   State& s = *state_;
   s.start = start;
   s.options = options;

@@ -63,6 +63,7 @@ struct ShadingInversion::State {
 
 ShadingInversion::ShadingInversion(const SensorModel& sensor, bool blended)
     : state_(std::make_unique<State>()) {
+  check_sensor_model(sensor, "ShadingInversion: sensor " + sensor.name);
   State& s = *state_;
   const GelRays rays = make_gel_rays(sensor.camera, sensor.gel);
   s.width = rays.width;

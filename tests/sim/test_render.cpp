@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <random>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "pg/core/error.h"
@@ -14,8 +16,12 @@
 #include "pg/core/image.h"
 #include "pg/core/pixel_rect.h"
 #include "pg/sim/mesh.h"
+#include "pg/sim/mesh_sampling.h"
+#include "pg/sim/presses.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
+#include "pg/sim/scene_renderer.h"
+#include "pg/sim/shading_inversion.h"
 
 namespace pg {
 namespace {
@@ -911,6 +917,98 @@ TEST(RenderShadows, ADentShadowsTheUndeformedGelBesideItAwayFromEachLight) {
           << "frame " << k << " variant " << variant;
     }
   }
+}
+
+// The renderer's C++ API given what no scene or sensor file could hold (an audit's probes, each
+// of which had crashed, corrupted memory, looped for ever or rendered garbage without a word):
+// each is refused with an error that says what.
+TEST(RenderBadInput, InputsSetInCppAreRefusedAsTheFilesWouldBe) {
+  const auto message = [](const std::function<void()>& call) -> std::string {
+    try {
+      call();
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  const auto says = [&](const std::function<void()>& call, const std::string& what) {
+    const std::string m = message(call);
+    EXPECT_NE(m.find(what), std::string::npos) << "expected '" << what << "', got '" << m << "'";
+  };
+  const SensorModel digit = flat_digit("digit");
+  // A camera left unset (fx = 0 had written past the gel's bins), an empty image, no distance.
+  SensorModel unset = digit;
+  unset.camera = CameraModel{};
+  says([&] { SensorRenderer(unset, {sphere_shape()}, quiet_settings()); },
+       "SensorRenderer: sensor");
+  SensorModel narrow = digit;
+  narrow.camera.width = 0;
+  says([&] { SensorRenderer(narrow, {sphere_shape()}, quiet_settings()); }, "width");
+  SensorModel flat_indentation = digit;
+  flat_indentation.gel.max_indentation_m = 0;
+  EXPECT_THROW(SensorRenderer(flat_indentation, {sphere_shape()}, quiet_settings()), InputError);
+  says([&] { SensorRenderer(digit, {nullptr}, quiet_settings()); }, "object 0 is null");
+  // Meshes built in C++: an index past the vertices (read out of bounds), a NaN vertex.
+  TriangleMesh bad_index = make_box({0.004f, 0.004f, 0.004f});
+  bad_index.triangles[3][1] = 1000000;
+  says([&] { ObjectShape shape(bad_index); }, "triangle 3 has vertex index 1000000");
+  TriangleMesh nan_vertex = make_box({0.004f, 0.004f, 0.004f});
+  nan_vertex.vertices[5].x() = NAN;
+  says([&] { ObjectShape shape(nan_vertex); }, "vertex 5 is not finite");
+  EXPECT_THROW(make_uv_sphere(0.005f, 1, 8), std::invalid_argument);
+  EXPECT_THROW(make_box({-0.004f, 0.004f, 0.004f}), std::invalid_argument);
+  // A pose that is not one (NaN, or ROS's unset zero quaternion) had rendered as no contact or
+  // as the identity.
+  const SensorRenderer renderer(digit, {sphere_shape()}, quiet_settings());
+  says([&] { renderer.render({SE3::Translation({NAN, 0, 0})}, 0); }, "object 0's pose");
+  SE3 unset_pose = pressed_sphere();
+  unset_pose = SE3(Eigen::Quaterniond(0, 0, 0, 0), unset_pose.translation());
+  EXPECT_THROW(renderer.render({unset_pose}, 0), InputError);
+  EXPECT_TRUE(renderer.render({pressed_sphere()}, 0).stats.contact) << "a pose that is one";
+  // A frame buffer of another size than its shape says, read through the shading's inverse.
+  const ShadingInversion inversion(digit, false);
+  ImageU8 hollow(digit.camera.width, digit.camera.height, 3);
+  hollow.data.clear();
+  says([&] { inversion.normals(hollow, renderer.background_color_u8()); }, "holds 0 values");
+  // Samplers: a spacing that is not positive had placed a point a triangle.
+  const TriangleMesh box = make_box({0.004f, 0.004f, 0.004f});
+  for (const double spacing : {0.0, -1e-4, double(NAN)}) {
+    EXPECT_THROW(sample_surface(box, spacing), std::invalid_argument) << spacing;
+    EXPECT_THROW(surface_grid(box, spacing), std::invalid_argument) << spacing;
+  }
+  // Random presses that can never end (no attempt allowed) or go nowhere (a NaN centre).
+  RandomPressOptions endless;
+  endless.attempts = -1;
+  says([&] { random_presses(surface_grid(box, 5e-4), digit.gel, endless); }, "attempts at least 1");
+  RandomPressOptions nowhere;
+  nowhere.centre_m.x() = NAN;
+  EXPECT_THROW(random_presses(surface_grid(box, 5e-4), digit.gel, nowhere), InputError);
+  // A scene renderer: frames, sensors and objects it does not have, outputs of no known name, a
+  // tracked object past the list.
+  Scene scene;
+  scene.path = "scene set in C++";
+  scene.frames = 3;
+  SceneSensor sensor;
+  sensor.model = digit;
+  scene.sensors.push_back(sensor);
+  SceneObject object;
+  object.mesh_path = std::string(PG_SOURCE_DIR) + "/meshes/sphere_r6mm.glb";
+  scene.objects.push_back(object);
+  const SceneRenderer scene_renderer(scene);
+  EXPECT_EQ(scene_renderer.render_frame(2).size(), 1u);
+  EXPECT_THROW(scene_renderer.render_frame(3), std::out_of_range);
+  EXPECT_THROW(scene_renderer.render_frame(-1), std::out_of_range);
+  EXPECT_THROW(scene_renderer.sensor(3), std::out_of_range);
+  EXPECT_THROW(scene_renderer.object_shape(7), std::out_of_range);
+  RenderOverrides typo;
+  typo.outputs = {"colour"};
+  says([&] { SceneRenderer r(scene, typo); }, "unknown output 'colour' (known: color,");
+  RenderOverrides negative;
+  negative.width = -5;
+  says([&] { SceneRenderer r(scene, negative); }, "none may be negative");
+  Scene past = scene;
+  past.tracked_object = 5;
+  says([&] { SceneRenderer r(past); }, "tracked_object 5 is not one of its 1 objects");
 }
 
 }  // namespace

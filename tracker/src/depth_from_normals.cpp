@@ -6,6 +6,7 @@
 #include <string>
 
 #include "pg/core/error.h"
+#include "pg/core/sensor.h"
 
 namespace pg {
 
@@ -120,9 +121,7 @@ void map_grid_axis(int first, int count, int size, bool mirror_low, bool mirror_
 }
 
 void check_normal_image(const ImageF& image, const GelRays& rays, const char* what) {
-  const std::size_t values = std::size_t(std::max(image.width, 0)) *
-                             std::size_t(std::max(image.height, 0)) *
-                             std::size_t(std::max(image.channels, 0));
+  const std::size_t values = image.shape_values();
   if (image.same_shape(rays.width, rays.height, 3) && image.data.size() != values) {
     // A camera buffer wrapped by hand, its size not the shape's: it had been read past its end.
     throw InputError(std::string(what) + ": " + std::to_string(image.width) + " x " +
@@ -141,15 +140,10 @@ void check_normal_image(const ImageF& image, const GelRays& rays, const char* wh
 
 namespace {
 
-// `sensor`, once its image is of a size a sensor file may give (a 0 x 0 camera set in C++ had
-// been taken, and every frame then read as no contact).
-const SensorModel& checked_size(const SensorModel& sensor) {
-  const int w = sensor.camera.width, h = sensor.camera.height;
-  if (w < kMinImageSide || h < kMinImageSide || w > kMaxImageSide || h > kMaxImageSide) {
-    throw InputError("sensor " + sensor.name + ": a " + std::to_string(w) + "x" +
-                     std::to_string(h) + " px image; each side must be in [" +
-                     std::to_string(kMinImageSide) + ", " + std::to_string(kMaxImageSide) + "]");
-  }
+// `sensor`, once it is one a sensor file could give (a 0 x 0 camera set in C++ had been taken, and
+// every frame then read as no contact).
+const SensorModel& checked(const SensorModel& sensor) {
+  check_sensor_model(sensor, "DepthFromNormals: sensor " + sensor.name);
   return sensor;
 }
 
@@ -158,7 +152,7 @@ const SensorModel& checked_size(const SensorModel& sensor) {
 DepthFromNormals::DepthFromNormals(const SensorModel& sensor, const DepthOptions& options,
                                    const ImageF& reference_normals)
     : options_(options),
-      rays_(make_gel_rays(checked_size(sensor).camera, sensor.gel)),
+      rays_(make_gel_rays(checked(sensor).camera, sensor.gel)),
       solver_(PoissonDstOptions{options.dst_backend, options.measure_fft_plans, 32}) {
   options_.crop_margin_px = std::max(options_.crop_margin_px, 1);
   const double c = options_.min_normal_dot_ray;

@@ -3,6 +3,7 @@
 // File I/O: PNG (libpng) and EXR (OpenEXR) in pg_core itself, any other format (JPEG, TIFF, ...)
 // through OpenImageIO, loaded with the first such file; a file is read by its content and
 // written by its extension.
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -29,6 +30,12 @@ struct Image {
   T& at(int x, int y, int c = 0) { return data[index(x, y, c)]; }
   const T& at(int x, int y, int c = 0) const { return data[index(x, y, c)]; }
   bool same_shape(int w, int h, int c) const { return width == w && height == h && channels == c; }
+  // The values width x height x channels call for (0 for a negative side): what `data` holds,
+  // unless a buffer was wrapped by hand at another size.
+  std::size_t shape_values() const {
+    return std::size_t(std::max(width, 0)) * std::size_t(std::max(height, 0)) *
+           std::size_t(std::max(channels, 0));
+  }
 };
 
 using ImageF = Image<float>;

@@ -114,5 +114,10 @@ std::vector<std::string> sensor_preset_names();
 SensorModel sensor_from_json(const nlohmann::json& j, const std::string& where);
 nlohmann::json sensor_to_json(const SensorModel& sensor);
 SensorModel load_sensor_file(const std::string& path);
+// Throws InputError, naming `where` and the field, unless `sensor` is one a sensor file could
+// give (the ranges and geometry sensor_from_json checks): for a model set in C++, which the
+// renderer and the tracker's front end check as they are built (a camera left at fx = 0 had
+// crashed the renderer).
+void check_sensor_model(const SensorModel& sensor, const std::string& where);
 
 }  // namespace pg

@@ -12,6 +12,10 @@ struct SurfaceSamples {
   std::vector<Eigen::Vector3f> normals;  // unit, outward
 };
 
+// Throws std::invalid_argument, naming `what`, unless spacing_m is positive and finite: for the
+// samplers here and surface_grid (presses.h), which throw it.
+void check_sample_spacing(double spacing_m, const char* what);
+
 // About one point per spacing_m^2 of area (at least one per triangle), placed by a seeded
 // stratified scheme: deterministic for a mesh, spacing and seed.
 SurfaceSamples sample_surface(const TriangleMesh& mesh, double spacing_m, std::uint64_t seed = 1);

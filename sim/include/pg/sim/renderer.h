@@ -16,6 +16,8 @@ namespace pg {
 // thread; per frame only the object's pose changes. Immutable and thread-safe after creation.
 class ObjectShape {
  public:
+  // Throws InputError for an empty mesh, a non-finite vertex or a vertex index out of range
+  // (load_mesh's meshes have none).
   explicit ObjectShape(TriangleMesh mesh);
   ~ObjectShape();
   ObjectShape(const ObjectShape&) = delete;
@@ -89,13 +91,15 @@ struct RenderedFrame {
 // Renders one sensor. Thread-safe: render() may be called from several threads at once.
 class SensorRenderer {
  public:
-  // Throws InputError for a background image that is missing or unreadable (naming its path).
+  // Throws InputError for a background image that is missing or unreadable (naming its path), a
+  // sensor a sensor file could not give (check_sensor_model), a null object, or more than 32767.
   SensorRenderer(SensorModel sensor, std::vector<std::shared_ptr<const ObjectShape>> objects,
                  RenderSettings settings);
   ~SensorRenderer();
 
   // T_sensor_objects[i] is object i's pose in the sensor frame. `noise_seed` seeds this frame's
-  // noise (the same seed gives the same image).
+  // noise (the same seed gives the same image). A pose that is not finite (is_finite: a zero
+  // quaternion neither) throws InputError.
   RenderedFrame render(const std::vector<SE3>& T_sensor_objects, std::uint64_t noise_seed) const;
   // The same into `out`, reusing its buffers: no allocation once `out` has the images' sizes.
   // When `out` was last filled by this renderer, only the pixels that differ from the

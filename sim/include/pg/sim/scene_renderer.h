@@ -25,18 +25,22 @@ struct RenderOverrides {
 
 class SceneRenderer {
  public:
-  // Loads the meshes (InputError naming the mesh file) and builds one renderer per sensor.
+  // Loads the meshes (InputError naming the mesh file) and builds one renderer per sensor. Throws
+  // InputError for overrides no option could give (an unknown output, a negative size) and a
+  // tracked_object that is not one of the scene's objects.
   SceneRenderer(Scene scene, const RenderOverrides& overrides = {});
 
   const Scene& scene() const { return scene_; }
-  const SensorRenderer& sensor(int i) const { return *sensors_[i]; }
+  // Throws std::out_of_range for a sensor the scene does not have.
+  const SensorRenderer& sensor(int i) const { return *sensors_.at(std::size_t(i)); }
   int sensor_count() const { return int(sensors_.size()); }
-  // Object i's shape (its mesh at the scene's scale).
-  const ObjectShape& object_shape(int i) const { return *shapes_[std::size_t(i)]; }
+  // Object i's shape (its mesh at the scene's scale); std::out_of_range past the objects.
+  const ObjectShape& object_shape(int i) const { return *shapes_.at(std::size_t(i)); }
 
-  // Object poses in sensor i's frame at `frame`.
+  // Object poses in sensor i's frame at `frame`. Throws std::out_of_range for a sensor or frame
+  // (0 to scene().frames - 1) the scene does not have.
   std::vector<SE3> object_poses_in_sensor(int sensor, int frame) const;
-  // One rendered frame per sensor. Thread-safe.
+  // One rendered frame per sensor (std::out_of_range as above). Thread-safe.
   std::vector<RenderedFrame> render_frame(int frame) const;
   // The seed of sensor i's noise at `frame`, from the scene's seed.
   std::uint64_t noise_seed(int sensor, int frame) const;
