@@ -29,6 +29,7 @@ struct NormalBounds::State {
 };
 
 NormalBounds::NormalBounds(const SensorModel& sensor) : state_(std::make_unique<State>()) {
+  check_sensor_model(sensor, "NormalBounds: sensor " + sensor.name);  // fx = 0 had read +inf
   state_->rays = make_gel_rays(sensor.camera, sensor.gel);
   state_->gel = undeformed_gel_normals(state_->rays);
   state_->shader = make_shader(sensor);

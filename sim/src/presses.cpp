@@ -158,6 +158,8 @@ std::vector<Waypoint> random_presses(const std::vector<Eigen::Vector3d>& p_objec
 }
 
 GelArea visible_gel_area(const SensorModel& sensor) {
+  // fx = 0 had read the whole gel as seen.
+  check_sensor_model(sensor, "visible_gel_area: sensor " + sensor.name);
   const int w = sensor.camera.width, h = sensor.camera.height;
   const auto p = [&](int x, int y) {
     return undeformed_gel_point(sensor.camera, sensor.gel, x, y);

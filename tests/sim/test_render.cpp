@@ -17,6 +17,7 @@
 #include "pg/core/pixel_rect.h"
 #include "pg/sim/mesh.h"
 #include "pg/sim/mesh_sampling.h"
+#include "pg/sim/normal_bound.h"
 #include "pg/sim/presses.h"
 #include "pg/sim/primitives.h"
 #include "pg/sim/renderer.h"
@@ -941,6 +942,10 @@ TEST(RenderBadInput, InputsSetInCppAreRefusedAsTheFilesWouldBe) {
   unset.camera = CameraModel{};
   says([&] { SensorRenderer(unset, {sphere_shape()}, quiet_settings()); },
        "SensorRenderer: sensor");
+  // ... and wherever else a sensor model is taken (fx = 0 had read +inf bounds, the whole gel).
+  says([&] { ShadingInversion inversion(unset, false); }, "ShadingInversion: sensor");
+  says([&] { NormalBounds bounds(unset); }, "NormalBounds: sensor");
+  says([&] { visible_gel_area(unset); }, "visible_gel_area: sensor");
   SensorModel narrow = digit;
   narrow.camera.width = 0;
   says([&] { SensorRenderer(narrow, {sphere_shape()}, quiet_settings()); }, "width");

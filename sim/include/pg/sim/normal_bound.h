@@ -27,6 +27,7 @@ struct NormalBound {
 // number of noise levels and tilts (the rays are most of one bound's work).
 class NormalBounds {
  public:
+  // Throws InputError for a sensor a sensor file could not give (check_sensor_model).
   explicit NormalBounds(const SensorModel& sensor);
   ~NormalBounds();
 

@@ -75,6 +75,7 @@ struct GelArea {
   Eigen::Vector2d centre_m = Eigen::Vector2d::Zero();
   Eigen::Vector2d half_m = Eigen::Vector2d::Zero();
 };
+// Throws InputError for a sensor a sensor file could not give (check_sensor_model).
 GelArea visible_gel_area(const SensorModel& sensor);
 
 }  // namespace pg
