@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <limits>
 
 #include "pg/core/error.h"
 #include "pg/core/sensor.h"
@@ -198,7 +199,9 @@ SensorModel checked(SensorModel sensor,
   for (std::size_t i = 0; i < objects.size(); ++i) {
     if (!objects[i]) throw InputError("SensorRenderer: object " + std::to_string(i) + " is null");
   }
-  constexpr std::size_t kMaxObjects = 32767;  // RenderState's int16_t object numbers
+  // The workspace's per-pixel object numbers (Workspace::hit_object).
+  constexpr std::size_t kMaxObjects =
+      std::numeric_limits<decltype(Workspace::hit_object)::value_type>::max();
   if (objects.size() > kMaxObjects) {
     throw InputError("SensorRenderer: " + std::to_string(objects.size()) + " objects; at most " +
                      std::to_string(kMaxObjects) + " are rendered together");

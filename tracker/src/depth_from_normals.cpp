@@ -136,10 +136,6 @@ void check_normal_image(const ImageF& image, const GelRays& rays, const char* wh
   }
 }
 
-}  // namespace
-
-namespace {
-
 // `sensor`, once it is one a sensor file could give (a 0 x 0 camera set in C++ had been taken, and
 // every frame then read as no contact).
 const SensorModel& checked(const SensorModel& sensor) {
