@@ -30,6 +30,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing_support::CliRun;
+using testing_support::file_text;
 using testing_support::read_csv_table;
 using testing_support::split_csv_line;
 
@@ -1359,6 +1360,13 @@ TEST_F(PatchgraphCli, TrackWritesPosesErrorsSummaryAndPatch) {
   EXPECT_EQ(ungated["image_to_image_gate_rad"].get<double>(), 0.0);
   EXPECT_EQ(ungated["image_to_image_dropped"].get<int>(), 0);
   EXPECT_GT(fs::file_size(out("track") + "/patch.ply"), 1000u);
+  // track keeps only the frames its update reads; --compare-batch keeps them all for its
+  // re-solve, and the estimates written are the same.
+  ASSERT_EQ(patchgraph("track " + data() + " -q --compare-batch --out " + out("batch")).code, 0);
+  EXPECT_EQ(file_text(out("batch") + "/poses.csv"), file_text(out("track") + "/poses.csv"));
+  EXPECT_GE(parse_json_file(out("batch") + "/summary.json")["window_vs_batch_translation_rms_m"]
+                .get<double>(),
+            0.0);
 }
 
 // Several sensors' datasets of one sequence are tracked together: one summary naming them, every
