@@ -1,9 +1,11 @@
 #include <embree3/rtcore.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <mutex>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -78,6 +80,44 @@ RTCScene make_scene(RTCDevice device, const TriangleMesh& mesh,
   return scene;
 }
 
+// A closed surface whose triangles all run clockwise seen from outside (a negative signed volume)
+// tells its inside from its outside the wrong way round, and presses nothing: load_mesh turns a
+// file's outward, a mesh built in C++ is refused. A cavity faces inward by design; one whose box
+// lies within another closed surface's box is taken for one (a solid nested in another's box is
+// not checked).
+void check_closed_surfaces_face_outward(const TriangleMesh& mesh, const Surfaces& surfaces) {
+  const std::size_t count = surfaces.closed.size();
+  std::vector<double> volume(count, 0.0);
+  std::vector<Eigen::AlignedBox3d> box(count);
+  std::vector<std::size_t> first(count, mesh.triangles.size()), size(count, 0);
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const std::size_t s = std::size_t(surfaces.of_triangle[t]);
+    if (!surfaces.closed[s]) continue;
+    const Eigen::Vector3i& tri = mesh.triangles[t];
+    const Eigen::Vector3d a = mesh.vertices[std::size_t(tri[0])].cast<double>();
+    const Eigen::Vector3d b = mesh.vertices[std::size_t(tri[1])].cast<double>();
+    const Eigen::Vector3d c = mesh.vertices[std::size_t(tri[2])].cast<double>();
+    volume[s] += a.dot(b.cross(c)) / 6.0;
+    box[s].extend(a).extend(b).extend(c);
+    first[s] = std::min(first[s], t);
+    ++size[s];
+  }
+  for (std::size_t s = 0; s < count; ++s) {
+    if (!surfaces.closed[s] || !(volume[s] < 0.0)) continue;
+    bool cavity = false;
+    for (std::size_t o = 0; o < count && !cavity; ++o) {
+      cavity = o != s && surfaces.closed[o] && box[o].contains(box[s]);
+    }
+    if (cavity) continue;
+    std::ostringstream msg;
+    msg << "ObjectShape: the closed surface of " << size[s] << " triangle(s) from triangle "
+        << first[s] << " faces inward (signed volume " << volume[s]
+        << " m^3): a triangle's corners must run counter-clockwise seen from outside, or the "
+           "surface presses nothing (load_mesh turns a file's surfaces outward)";
+    throw InputError(msg.str());
+  }
+}
+
 }  // namespace
 
 ObjectShape::ObjectShape(TriangleMesh mesh)
@@ -111,6 +151,7 @@ ObjectShape::ObjectShape(TriangleMesh mesh)
                         [](std::uint8_t c) { return c != 0; });
   any_closed_ = std::any_of(impl_->closed_part.begin(), impl_->closed_part.end(),
                             [](std::uint8_t c) { return c != 0; });
+  check_closed_surfaces_face_outward(mesh_, surfaces);
   impl_->face_normals.reserve(mesh_.triangles.size());
   for (const auto& t : mesh_.triangles) {
     const auto& v0 = mesh_.vertices[t[0]];

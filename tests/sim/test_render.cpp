@@ -960,6 +960,18 @@ TEST(RenderBadInput, InputsSetInCppAreRefusedAsTheFilesWouldBe) {
   TriangleMesh nan_vertex = make_box({0.004f, 0.004f, 0.004f});
   nan_vertex.vertices[5].x() = NAN;
   says([&] { ObjectShape shape(nan_vertex); }, "vertex 5 is not finite");
+  // A closed mesh turned inside out (its corners clockwise seen from outside) had pressed
+  // nothing; a cavity, a closed surface facing inward inside another, is one by design.
+  TriangleMesh inside_out = make_box({0.004f, 0.004f, 0.004f});
+  for (Eigen::Vector3i& t : inside_out.triangles) std::swap(t[1], t[2]);
+  says([&] { ObjectShape shape(inside_out); }, "faces inward");
+  TriangleMesh hollow_box = make_box({0.008f, 0.008f, 0.008f});
+  const int outer_vertices = int(hollow_box.vertices.size());
+  for (const Eigen::Vector3f& v : inside_out.vertices) hollow_box.vertices.push_back(v);
+  for (const Eigen::Vector3i& t : inside_out.triangles) {
+    hollow_box.triangles.push_back(t + Eigen::Vector3i::Constant(outer_vertices));
+  }
+  EXPECT_NO_THROW(ObjectShape shape(hollow_box));
   EXPECT_THROW(make_uv_sphere(0.005f, 1, 8), std::invalid_argument);
   EXPECT_THROW(make_box({-0.004f, 0.004f, 0.004f}), std::invalid_argument);
   // A pose that is not one (NaN, or ROS's unset zero quaternion) had rendered as no contact or

@@ -16,8 +16,9 @@ namespace pg {
 // thread; per frame only the object's pose changes. Immutable and thread-safe after creation.
 class ObjectShape {
  public:
-  // Throws InputError for an empty mesh, a non-finite vertex or a vertex index out of range
-  // (load_mesh's meshes have none).
+  // Throws InputError for an empty mesh, a non-finite vertex, a vertex index out of range or a
+  // closed surface facing inward that is not a cavity (its box within another closed surface's)
+  // (load_mesh's meshes have none: it turns a file's surfaces outward).
   explicit ObjectShape(TriangleMesh mesh);
   ~ObjectShape();
   ObjectShape(const ObjectShape&) = delete;
